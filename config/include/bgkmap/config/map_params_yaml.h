@@ -1,0 +1,34 @@
+// YAML adapter for MapParams: the engine stays free of file formats; this is the only place that
+// knows the YAML spelling of the parameters (the key names are MapParamKeys()).
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap {
+
+// Reads engine keys from the top level of `root`, starting from `base` (defaults when omitted).
+// Keys listed in `other_sections` (e.g. "server", "storage") are left for their owners; any other
+// unknown key, a value of the wrong type and a value that fails MapParams::Validate() is an
+// error whose message is one line naming the key.
+Result<MapParams> MapParamsFromYaml(const YAML::Node& root,
+                                    const std::vector<std::string_view>& other_sections = {},
+                                    const MapParams& base = MapParams{});
+
+// Parses a YAML file (or fails with "<path>: <reason>").
+Result<YAML::Node> LoadYamlFile(const std::string& path);
+
+// Convenience: LoadYamlFile + MapParamsFromYaml.
+Result<MapParams> LoadMapParamsFile(const std::string& path,
+                                    const std::vector<std::string_view>& other_sections = {});
+
+// Every engine key with its value, in MapParamKeys() order.
+YAML::Node MapParamsToYaml(const MapParams& params);
+
+}  // namespace bgkmap

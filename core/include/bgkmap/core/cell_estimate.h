@@ -1,0 +1,47 @@
+// Derived layers: what a planner reads from a cell's statistics (paper Eqs. 2, 4, 6).
+#pragma once
+
+#include <cstdint>
+#include <string_view>
+
+#include "bgkmap/core/map_params.h"
+
+namespace bgkmap {
+
+enum class CellState : uint8_t { kUnknown = 0, kTraversable = 1, kNonTraversable = 2 };
+
+// The derived layers a query can ask for. The numeric values are stable (used in files).
+enum class Layer : uint8_t {
+  kElevation = 0,
+  kElevationVariance = 1,
+  kTraversability = 2,
+  kTraversabilityVariance = 3,
+  kState = 4,
+  kElevationWeight = 5,  // W, the kernel-weighted observation count behind the elevation
+};
+inline constexpr int kLayerCount = 6;
+std::string_view LayerName(Layer layer);
+Result<Layer> ParseLayer(std::string_view name);
+
+// NaN marks "unknown" in every float layer.
+struct CellEstimate {
+  float elevation;
+  float elevation_variance;
+  float traversability;  // 0 = flat and smooth ... 1 = non-traversable
+  float traversability_variance;
+  CellState state;
+  float elevation_weight;
+
+  float Get(Layer layer) const;
+};
+
+// Computes the derived layers of one cell from its statistics.
+//  elevation = (lambda mu0 + S) / (lambda + W), variance = sigma2 / (lambda + W), if W > 0.
+//  traversability (inferring methods): alpha = alpha0 + A, beta = beta0 + B,
+//    mean = alpha / (alpha + beta), variance = alpha beta / ((alpha + beta)^2 (alpha + beta + 1)).
+//  traversability (direct methods): mean = A / (A + B), the latest computed v; variance 0.
+//  state: unknown if not known; traversable if mean < trav_threshold and variance <
+//    variance_threshold; otherwise non-traversable (also when the mean is undefined).
+CellEstimate EstimateCell(const MapParams& p, double w, double s, float a, float b);
+
+}  // namespace bgkmap

@@ -1,0 +1,67 @@
+// A lidar scan and its preparation: filtering, transformation to the map frame and binning into
+// observed cells (semantics 1-3 of docs/semantics.md). Preparation reads no map state, so any
+// number of scans can be prepared in parallel.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap {
+
+struct Point3f {
+  float x, y, z;
+};
+
+// Rigid transform T_map_sensor: p_map = rotation * p_sensor + translation.
+struct Pose {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+
+  static Pose FromQuaternion(double qw, double qx, double qy, double qz, double tx, double ty,
+                             double tz);
+};
+
+// Tolerance on |R^T R - I| (max element) and on |det R - 1| for a pose to count as rigid.
+inline constexpr double kRotationTolerance = 1e-4;
+
+// OK iff every entry is finite, the rotation is orthonormal with det +1 (within tolerance) and
+// the translation lies inside the engine's coordinate range.
+Status ValidatePose(const Pose& pose, const MapParams& params);
+
+// What happened to a scan's points. kept + every dropped_* == input.
+struct ScanPointCounts {
+  uint64_t input = 0;
+  uint64_t kept = 0;
+  uint64_t dropped_nonfinite = 0;     // NaN or Inf coordinate
+  uint64_t dropped_range = 0;         // |p| outside [min_range, max_range]
+  uint64_t dropped_height = 0;        // q.z - t.z > max_height_above_sensor
+  uint64_t dropped_out_of_bounds = 0; // cell index beyond +-kMaxCellIndex
+};
+
+struct ObservedCell {
+  CellIndex cell;
+  double y;  // training elevation: max or mean q.z of the scan's points in the cell
+};
+
+// A scan ready to integrate: its training set and the tiles integration will touch.
+struct PreparedScan {
+  std::vector<ObservedCell> cells;  // sorted by (x, y): a canonical order, independent of tiling
+  ScanPointCounts counts;
+  std::vector<TileKey> write_tiles;  // sorted; tiles whose statistics the scan changes
+  std::vector<TileKey> read_tiles;   // sorted; tiles it reads but does not write
+  double sensor_z = 0.0;             // t.z, for diagnostics
+};
+
+// Filters, transforms and bins one scan. `frame_is_map` marks a cloud already in the map frame
+// with no sensor (an airborne LAS tile, a PCD map): the pose must be identity and no range or
+// height-above-sensor filter applies. Fails (and touches nothing) on an invalid pose.
+Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3f> points,
+                                 const Pose& T_map_sensor, bool frame_is_map = false);
+
+}  // namespace bgkmap

@@ -1,0 +1,77 @@
+// Integrates a prepared scan into tiles (semantics 4-7 of docs/semantics.md).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/scan.h"
+#include "bgkmap/core/sparse_kernel.h"
+#include "bgkmap/core/tile.h"
+
+namespace bgkmap {
+
+// Tile pointers for a rectangle of tile keys, resolved before integration so that integration
+// never touches the map's tile table (and can run concurrently with integrations of scans whose
+// tiles are disjoint). A null entry is a tile that does not exist (all cells unknown).
+class TileWindow {
+ public:
+  TileWindow() = default;
+  TileWindow(TileKey min, TileKey max);
+  Tile* at(TileKey k) const {
+    if (k.x < min_.x || k.x > max_.x || k.y < min_.y || k.y > max_.y) return nullptr;
+    return tiles_[static_cast<size_t>(k.y - min_.y) * width_ + (k.x - min_.x)];
+  }
+  void set(TileKey k, Tile* t) {
+    tiles_[static_cast<size_t>(k.y - min_.y) * width_ + (k.x - min_.x)] = t;
+  }
+
+ private:
+  TileKey min_{0, 0}, max_{-1, -1};
+  size_t width_ = 0;
+  std::vector<Tile*> tiles_;
+};
+
+// Wall-clock time of the paper's three stages for one scan, in seconds.
+struct StageTimes {
+  double elevation = 0;       // BGK elevation inference (or raw elevation update)
+  double features = 0;        // traversability computation (step, slope, roughness)
+  double traversability = 0;  // BGK traversability inference (or storing direct values)
+};
+
+struct ScanReport {
+  ScanPointCounts counts;
+  uint64_t observed_cells = 0;
+  uint64_t feature_cells = 0;  // cells where v was computed
+  std::vector<TileKey> changed_tiles;  // sorted
+  StageTimes times;
+};
+
+// Stateless apart from the precomputed stencils: one instance can serve many threads.
+class ScanIntegrator {
+ public:
+  explicit ScanIntegrator(const MapParams& params);
+
+  // Applies `scan` to the tiles of `window`, which must hold every tile of scan.write_tiles
+  // (created) and of scan.read_tiles (or null where absent). Stamps changed tiles with
+  // `version`.
+  ScanReport Integrate(const PreparedScan& scan, const TileWindow& window,
+                       uint64_t version) const;
+
+  const KernelStencil& kernel() const { return kernel_; }
+
+ private:
+  struct Impl;
+  MapParams params_;
+  GridGeometry geometry_;
+  KernelStencil kernel_;
+  std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
+};
+
+// Offsets (dx, dy) with dx^2 + dy^2 <= (radius/resolution)^2, with a relative tolerance of 1e-9
+// so cells exactly at the radius are never lost to rounding.
+std::vector<CellIndex> DiskOffsets(double radius, double resolution);
+
+}  // namespace bgkmap

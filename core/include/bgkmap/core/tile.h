@@ -1,0 +1,62 @@
+// A square block of cells holding the map's additive sufficient statistics.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+
+#include "bgkmap/core/grid.h"
+
+namespace bgkmap {
+
+// Per-cell statistics, stored as structure-of-arrays (24 bytes per cell):
+//   w: elevation weight   W = sum k          (double: its rounding would bias S/W)
+//   s: elevation moment   S = sum k*y        (double: y can be an absolute altitude)
+//   a: traversability     A = sum k*v        (float: enters only a probability)
+//   b: traversability     B = sum k*(1 - v)
+// For methods that keep a directly computed v instead of inferring it (baseline, bgk-trav),
+// a = v and b = 1 - v of the latest computation. Everything is additive: the statistics of two
+// maps of the same parameters merge by summation.
+class Tile {
+ public:
+  explicit Tile(int tile_size);
+  Tile(const Tile& other);
+  Tile& operator=(const Tile&) = delete;
+
+  int tile_size() const { return size_; }
+  int cell_count() const { return size_ * size_; }
+
+  std::span<double> w() { return {w_.get(), n()}; }
+  std::span<double> s() { return {s_.get(), n()}; }
+  std::span<float> a() { return {a_.get(), n()}; }
+  std::span<float> b() { return {b_.get(), n()}; }
+  std::span<const double> w() const { return {w_.get(), n()}; }
+  std::span<const double> s() const { return {s_.get(), n()}; }
+  std::span<const float> a() const { return {a_.get(), n()}; }
+  std::span<const float> b() const { return {b_.get(), n()}; }
+
+  // A cell is known once it has elevation weight or traversability pseudo-counts.
+  bool IsKnown(int local) const { return w_[local] > 0.0 || (a_[local] + b_[local]) > 0.0f; }
+  int CountKnown() const;
+  bool Empty() const { return CountKnown() == 0; }
+
+  // Adds another tile's statistics cell by cell (same size required).
+  void Add(const Tile& other);
+  void Clear();
+  bool operator==(const Tile& other) const;
+
+  // Map version of the last scan or edit that changed this tile (0 = never).
+  uint64_t version() const { return version_; }
+  void set_version(uint64_t v) { version_ = v; }
+
+  static constexpr size_t kBytesPerCell = 2 * sizeof(double) + 2 * sizeof(float);
+
+ private:
+  size_t n() const { return static_cast<size_t>(size_) * size_; }
+  int size_;
+  uint64_t version_ = 0;
+  std::unique_ptr<double[]> w_, s_;
+  std::unique_ptr<float[]> a_, b_;
+};
+
+}  // namespace bgkmap
