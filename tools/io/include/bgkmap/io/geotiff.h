@@ -1,0 +1,32 @@
+// GeoTIFF export of rasters (GDAL GTiff): one float32 band per layer, the band description
+// naming the layer (LayerName), NoData = NaN on every band, north-up geotransform
+// (x0, resolution, 0, y1, 0, -resolution), DEFLATE + floating-point predictor, tiled.
+// The cell box and stride are kept as BGKMAP_* metadata so ReadGeoTiff restores the Raster.
+//
+// Thread-safe: GDAL drivers are registered once; GDAL's own error output is silenced and its
+// last error message becomes the Status.
+#pragma once
+
+#include <string>
+
+#include "bgkmap/core/raster.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap::io {
+
+struct GeoTiffOptions {
+  // Coordinate reference system in any form GDAL's SetFromUserInput accepts ("EPSG:32633",
+  // WKT, PROJ). Empty writes none: the map frame is local unless the input was georeferenced.
+  std::string spatial_reference;
+};
+
+// Fails (InvalidArgument) if the raster is empty or its data does not match rows x cols x layers.
+Status WriteGeoTiff(const Raster& raster, const std::string& path,
+                    const GeoTiffOptions& options = {});
+
+// Reads a GeoTIFF written by WriteGeoTiff (or any north-up float GeoTIFF whose band
+// descriptions are layer names). Without BGKMAP_* metadata, stride is 1 and the box is derived
+// from the geotransform in units of the pixel size.
+Result<Raster> ReadGeoTiff(const std::string& path);
+
+}  // namespace bgkmap::io

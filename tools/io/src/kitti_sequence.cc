@@ -1,0 +1,178 @@
+#include "bgkmap/io/kitti_sequence.h"
+
+#include <fmt/format.h>
+
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <system_error>
+
+#include "binary_file.h"
+
+namespace bgkmap::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The record layout is the host's float layout; a big-endian host would need byte swaps.
+static_assert(std::endian::native == std::endian::little, "KITTI .bin I/O assumes little-endian");
+
+constexpr size_t kRecordBytes = 4 * sizeof(float);
+
+bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+
+// Scan number of "NNNNNN.bin" (digits only), or -1.
+long long ScanNumber(const fs::path& p) {
+  if (p.extension() != ".bin") return -1;
+  const std::string stem = p.stem().string();
+  if (stem.empty()) return -1;
+  long long n = 0;
+  auto [end, ec] = std::from_chars(stem.data(), stem.data() + stem.size(), n);
+  if (ec != std::errc() || end != stem.data() + stem.size() || n < 0) return -1;
+  return n;
+}
+
+}  // namespace
+
+std::string KittiScanFileName(size_t k) { return fmt::format("{:06d}.bin", k); }
+
+Result<Pose> ParseKittiPoseLine(std::string_view line) {
+  double v[12];
+  size_t count = 0;
+  const char* p = line.data();
+  const char* end = line.data() + line.size();
+  while (true) {
+    while (p < end && IsSpace(*p)) ++p;
+    if (p == end) break;
+    double x = 0;
+    auto [next, ec] = std::from_chars(p, end, x);
+    if (ec != std::errc() || (next < end && !IsSpace(*next))) {
+      const char* tok_end = p;
+      while (tok_end < end && !IsSpace(*tok_end)) ++tok_end;
+      return Status::DataLoss("not a number: '" + std::string(p, tok_end) + "'");
+    }
+    if (!std::isfinite(x)) return Status::DataLoss("non-finite number in pose");
+    if (count < 12) v[count] = x;
+    ++count;
+    p = next;
+  }
+  if (count != 12) return Status::DataLoss(fmt::format("expected 12 numbers, found {}", count));
+  Pose pose;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) pose.rotation(r, c) = v[4 * r + c];
+    pose.translation(r) = v[4 * r + 3];
+  }
+  return pose;
+}
+
+Result<KittiSequence> KittiSequence::Open(const std::string& directory) {
+  std::error_code ec;
+  if (!fs::is_directory(directory, ec)) {
+    return Status::IoError(directory + ": not a directory");
+  }
+  const fs::path scan_dir = fs::path(directory) / "velodyne";
+  if (!fs::is_directory(scan_dir, ec))
+    return Status::IoError(scan_dir.string() + ": not a directory");
+
+  std::map<long long, std::string> numbered;
+  for (const auto& entry : fs::directory_iterator(scan_dir, ec)) {
+    const long long n = ScanNumber(entry.path());
+    if (n >= 0 && entry.is_regular_file()) numbered[n] = entry.path().string();
+  }
+  if (ec) return Status::IoError(scan_dir.string() + ": cannot list (" + ec.message() + ")");
+
+  KittiSequence seq;
+  seq.directory_ = directory;
+  for (const auto& [n, path] : numbered) {
+    if (n != static_cast<long long>(seq.scan_paths_.size())) {
+      return Status::DataLoss(fmt::format("{}: scan {} is missing (found {} instead)",
+                                          scan_dir.string(),
+                                          KittiScanFileName(seq.scan_paths_.size()), path));
+    }
+    seq.scan_paths_.push_back(path);
+  }
+
+  const std::string poses_path = (fs::path(directory) / "poses.txt").string();
+  Result<std::string> text = internal::ReadWholeFile(poses_path);
+  if (!text.ok()) return text.status();
+  std::string_view rest = *text;
+  size_t line_no = 0;
+  while (!rest.empty()) {
+    const size_t nl = rest.find('\n');
+    const std::string_view line = rest.substr(0, nl);
+    rest = nl == std::string_view::npos ? std::string_view() : rest.substr(nl + 1);
+    ++line_no;
+    // Trailing blank lines are common; a blank line between poses would shift every index.
+    if (line.find_first_not_of(" \t\r") == std::string_view::npos) {
+      if (rest.find_first_not_of(" \t\r\n") == std::string_view::npos) break;
+      return Status::DataLoss(fmt::format("{}:{}: empty line", poses_path, line_no));
+    }
+    Result<Pose> pose = ParseKittiPoseLine(line);
+    if (!pose.ok()) {
+      return Status::DataLoss(
+          fmt::format("{}:{}: {}", poses_path, line_no, pose.status().message()));
+    }
+    seq.poses_.push_back(*pose);
+  }
+  if (seq.poses_.size() < seq.scan_paths_.size()) {
+    return Status::DataLoss(fmt::format("{}: {} poses for {} scans", poses_path, seq.poses_.size(),
+                                        seq.scan_paths_.size()));
+  }
+  seq.poses_.resize(seq.scan_paths_.size());
+  return seq;
+}
+
+Result<Scan> KittiSequence::Read(size_t k) const {
+  if (k >= size()) {
+    return Status::OutOfRange(
+        fmt::format("{}: scan {} requested, sequence has {}", directory_, k, size()));
+  }
+  const std::string& path = scan_paths_[k];
+  Result<std::string> bytes = internal::ReadWholeFile(path);
+  if (!bytes.ok()) return bytes.status();
+  if (bytes->size() % kRecordBytes != 0) {
+    return Status::DataLoss(
+        fmt::format("{}: size {} bytes is not a multiple of {} (x,y,z,i float32)", path,
+                    bytes->size(), kRecordBytes));
+  }
+  Scan scan;
+  scan.pose = poses_[k];
+  const size_t n = bytes->size() / kRecordBytes;
+  scan.points.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    std::memcpy(&scan.points[i], bytes->data() + i * kRecordBytes, sizeof(Point3f));
+  }
+  return scan;
+}
+
+Status WriteKittiScan(const std::string& path, std::span<const Point3f> points,
+                      std::span<const float> intensity) {
+  if (!intensity.empty() && intensity.size() != points.size()) {
+    return Status::InvalidArgument(
+        fmt::format("{}: {} intensities for {} points", path, intensity.size(), points.size()));
+  }
+  std::string bytes(points.size() * kRecordBytes, '\0');
+  for (size_t i = 0; i < points.size(); ++i) {
+    const float rec[4] = {points[i].x, points[i].y, points[i].z,
+                          intensity.empty() ? 0.0f : intensity[i]};
+    std::memcpy(bytes.data() + i * kRecordBytes, rec, kRecordBytes);
+  }
+  return internal::WriteWholeFile(path, bytes);
+}
+
+Status AppendPose(const std::string& poses_path, const Pose& pose) {
+  std::string line;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) {
+      const double v = c < 3 ? pose.rotation(r, c) : pose.translation(r);
+      line += fmt::format("{}{:.17g}", line.empty() ? "" : " ", v);
+    }
+  }
+  line += '\n';
+  return internal::WriteWholeFile(poses_path, line, /*append=*/true);
+}
+
+}  // namespace bgkmap::io
