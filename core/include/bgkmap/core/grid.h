@@ -29,8 +29,8 @@ struct TileKey {
 
 struct TileKeyHash {
   size_t operator()(const TileKey& k) const {
-    uint64_t v = (static_cast<uint64_t>(static_cast<uint32_t>(k.x)) << 32) |
-                 static_cast<uint32_t>(k.y);
+    uint64_t v =
+        (static_cast<uint64_t>(static_cast<uint32_t>(k.x)) << 32) | static_cast<uint32_t>(k.y);
     v ^= v >> 33;  // splitmix-style finaliser: neighbouring keys land far apart
     v *= 0xff51afd7ed558ccdULL;
     v ^= v >> 33;

@@ -34,26 +34,26 @@ bool InfersTraversability(Method m);
 bool InfersElevation(Method m);
 
 struct MapParams {
-  double resolution = 0.1;        // resolution: cell edge, metres.
-  double kernel_length = 0.3;     // kernel_length: sparse kernel support l, metres.
-  double lambda = 0.0;            // lambda: prior confidence in prior_mean (0 = none, as the paper).
-  double prior_mean = 0.0;        // prior_mean: mu0, metres.
-  double sigma2 = 0.01;           // sigma2: observation noise variance, m^2.
-  double alpha0 = 0.001;          // alpha0: Beta prior pseudo-count for "non-traversable".
-  double beta0 = 0.001;           // beta0: Beta prior pseudo-count for "traversable".
-  double robot_radius = 0.3;      // robot_radius: neighbourhood for step/slope/roughness, metres.
-  double step_crit = 0.15;        // step_crit: critical step height, metres.
-  double slope_crit_deg = 20.0;   // slope_crit_deg: critical slope, degrees.
-  double roughness_crit = 0.05;   // roughness_crit: critical roughness, metres.
+  double resolution = 0.1;       // resolution: cell edge, metres.
+  double kernel_length = 0.3;    // kernel_length: sparse kernel support l, metres.
+  double lambda = 0.0;           // lambda: prior confidence in prior_mean (0 = none, as the paper).
+  double prior_mean = 0.0;       // prior_mean: mu0, metres.
+  double sigma2 = 0.01;          // sigma2: observation noise variance, m^2.
+  double alpha0 = 0.001;         // alpha0: Beta prior pseudo-count for "non-traversable".
+  double beta0 = 0.001;          // beta0: Beta prior pseudo-count for "traversable".
+  double robot_radius = 0.3;     // robot_radius: neighbourhood for step/slope/roughness, metres.
+  double step_crit = 0.15;       // step_crit: critical step height, metres.
+  double slope_crit_deg = 20.0;  // slope_crit_deg: critical slope, degrees.
+  double roughness_crit = 0.05;  // roughness_crit: critical roughness, metres.
   std::array<double, 3> weights = {0.4, 0.4, 0.2};  // weights: [w_step, w_slope, w_rough], sum 1.
-  double trav_threshold = 0.5;      // trav_threshold: v_th of Eq. 6.
-  double variance_threshold = 0.05; // variance_threshold: sigma_th^2 of Eq. 6.
-  double min_range = 1.0;           // min_range: drop closer points (the robot's own body), metres.
-  double max_range = 100.0;         // max_range: drop farther points, metres.
-  double max_height_above_sensor = 0.5;  // max_height_above_sensor: drop overhangs, metres.
+  double trav_threshold = 0.5;                      // trav_threshold: v_th of Eq. 6.
+  double variance_threshold = 0.05;                 // variance_threshold: sigma_th^2 of Eq. 6.
+  double min_range = 1.0;    // min_range: drop closer points (the robot's own body), metres.
+  double max_range = 100.0;  // max_range: drop farther points, metres.
+  double max_height_above_sensor = 0.5;         // max_height_above_sensor: drop overhangs, metres.
   Observation observation = Observation::kMax;  // observation: max | mean.
-  int tile_size = 64;               // tile_size: cells per tile edge.
-  Method method = Method::kBgkPlus;  // method: bgk+ | bgk-trav | baseline | one-step.
+  int tile_size = 64;                           // tile_size: cells per tile edge.
+  Method method = Method::kBgkPlus;             // method: bgk+ | bgk-trav | baseline | one-step.
 
   // Checks every field; the message names the key, the value and the rule broken.
   Status Validate() const;

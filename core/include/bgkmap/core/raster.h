@@ -14,8 +14,8 @@ namespace bgkmap {
 // Rows run north to south (row 0 holds the largest y), columns west to east, as in a north-up
 // image. With stride s > 1 each raster pixel aggregates an s x s block of cells.
 struct Raster {
-  CellBox box;         // cells covered (at map resolution)
-  int stride = 1;      // map cells per raster pixel edge
+  CellBox box;     // cells covered (at map resolution)
+  int stride = 1;  // map cells per raster pixel edge
   int64_t cols = 0;
   int64_t rows = 0;
   double resolution = 0;  // of a raster pixel, metres (= map resolution * stride)

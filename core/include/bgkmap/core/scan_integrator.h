@@ -18,20 +18,25 @@ namespace bgkmap {
 // tiles are disjoint). A null entry is a tile that does not exist (all cells unknown).
 class TileWindow {
  public:
-  TileWindow() = default;
-  TileWindow(TileKey min, TileKey max);
+  // A window over `keys` (sorted, unique); every key starts as null. Dense storage over the
+  // keys' bounding rectangle when that is compact, a sorted list when the keys are scattered.
+  explicit TileWindow(const std::vector<TileKey>& keys = {});
+
   Tile* at(TileKey k) const {
     if (k.x < min_.x || k.x > max_.x || k.y < min_.y || k.y > max_.y) return nullptr;
-    return tiles_[static_cast<size_t>(k.y - min_.y) * width_ + (k.x - min_.x)];
+    if (!dense_.empty()) {
+      return dense_[static_cast<size_t>(k.y - min_.y) * width_ + (k.x - min_.x)];
+    }
+    return SparseAt(k);
   }
-  void set(TileKey k, Tile* t) {
-    tiles_[static_cast<size_t>(k.y - min_.y) * width_ + (k.x - min_.x)] = t;
-  }
+  void set(TileKey k, Tile* t);
 
  private:
+  Tile* SparseAt(TileKey k) const;
   TileKey min_{0, 0}, max_{-1, -1};
   size_t width_ = 0;
-  std::vector<Tile*> tiles_;
+  std::vector<Tile*> dense_;
+  std::vector<std::pair<TileKey, Tile*>> sparse_;
 };
 
 // Wall-clock time of the paper's three stages for one scan, in seconds.
@@ -44,7 +49,7 @@ struct StageTimes {
 struct ScanReport {
   ScanPointCounts counts;
   uint64_t observed_cells = 0;
-  uint64_t feature_cells = 0;  // cells where v was computed
+  uint64_t feature_cells = 0;          // cells where v was computed
   std::vector<TileKey> changed_tiles;  // sorted
   StageTimes times;
 };
@@ -57,8 +62,7 @@ class ScanIntegrator {
   // Applies `scan` to the tiles of `window`, which must hold every tile of scan.write_tiles
   // (created) and of scan.read_tiles (or null where absent). Stamps changed tiles with
   // `version`.
-  ScanReport Integrate(const PreparedScan& scan, const TileWindow& window,
-                       uint64_t version) const;
+  ScanReport Integrate(const PreparedScan& scan, const TileWindow& window, uint64_t version) const;
 
   const KernelStencil& kernel() const { return kernel_; }
 

@@ -13,9 +13,9 @@ struct PatchPoint {
 };
 
 struct TerrainFeatures {
-  double step;           // max - min elevation, metres
-  double slope_deg;      // acos(|n_z|) of the PCA plane normal, degrees
-  double roughness;      // sqrt of the smallest eigenvalue of the population covariance, metres
+  double step;       // max - min elevation, metres
+  double slope_deg;  // acos(|n_z|) of the PCA plane normal, degrees
+  double roughness;  // sqrt of the smallest eigenvalue of the population covariance, metres
 };
 
 // Requires at least 3 points.

@@ -1,0 +1,89 @@
+#include "bgkmap/core/cell_estimate.h"
+
+#include <cmath>
+#include <limits>
+
+namespace bgkmap {
+namespace {
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr Layer kAllLayers[] = {Layer::kElevation,      Layer::kElevationVariance,
+                                Layer::kTraversability, Layer::kTraversabilityVariance,
+                                Layer::kState,          Layer::kElevationWeight};
+}  // namespace
+
+std::string_view LayerName(Layer layer) {
+  switch (layer) {
+    case Layer::kElevation:
+      return "elevation";
+    case Layer::kElevationVariance:
+      return "elevation_variance";
+    case Layer::kTraversability:
+      return "traversability";
+    case Layer::kTraversabilityVariance:
+      return "traversability_variance";
+    case Layer::kState:
+      return "state";
+    case Layer::kElevationWeight:
+      return "elevation_weight";
+  }
+  return "?";
+}
+
+Result<Layer> ParseLayer(std::string_view name) {
+  for (Layer l : kAllLayers) {
+    if (name == LayerName(l)) return l;
+  }
+  return Status::InvalidArgument("layer '" + std::string(name) +
+                                 "': must be one of elevation, elevation_variance, traversability, "
+                                 "traversability_variance, state, elevation_weight");
+}
+
+float CellEstimate::Get(Layer layer) const {
+  switch (layer) {
+    case Layer::kElevation:
+      return elevation;
+    case Layer::kElevationVariance:
+      return elevation_variance;
+    case Layer::kTraversability:
+      return traversability;
+    case Layer::kTraversabilityVariance:
+      return traversability_variance;
+    case Layer::kState:
+      return static_cast<float>(state);
+    case Layer::kElevationWeight:
+      return elevation_weight;
+  }
+  return kNaN;
+}
+
+CellEstimate EstimateCell(const MapParams& p, double w, double s, float a, float b) {
+  CellEstimate e{kNaN, kNaN, kNaN, kNaN, CellState::kUnknown, static_cast<float>(w)};
+  const double ab = static_cast<double>(a) + static_cast<double>(b);
+  const bool known = w > 0.0 || ab > 0.0;
+  if (!known) {
+    e.elevation_weight = kNaN;
+    return e;
+  }
+  if (w > 0.0) {
+    const double lw = p.lambda + w;
+    e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
+    e.elevation_variance = static_cast<float>(p.sigma2 / lw);
+  }
+  if (InfersTraversability(p.method)) {
+    const double alpha = p.alpha0 + a;
+    const double beta = p.beta0 + b;
+    const double sum = alpha + beta;
+    e.traversability = static_cast<float>(alpha / sum);
+    e.traversability_variance = static_cast<float>(alpha * beta / (sum * sum * (sum + 1.0)));
+  } else if (ab > 0.0) {
+    e.traversability = static_cast<float>(a / ab);
+    e.traversability_variance = 0.0f;
+  }
+  // NaN comparisons are false: a known cell without a traversability value is non-traversable.
+  const bool traversable =
+      e.traversability < p.trav_threshold && e.traversability_variance < p.variance_threshold;
+  e.state = traversable ? CellState::kTraversable : CellState::kNonTraversable;
+  return e;
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,76 @@
+#include "footprint.h"
+
+#include <algorithm>
+#include <functional>
+
+#include "bgkmap/core/grid.h"
+
+namespace bgkmap::internal {
+namespace {
+
+// Appends the tiles containing at least one offset cell of `reach` around each observed cell.
+// `reach(dx, dy)` must be a disk-like predicate (true at 0, monotone in |offset|) contained in
+// the square of half-size `radius`, so testing the tile cell nearest to the centre suffices.
+void CollectTiles(const GridGeometry& geo, const std::vector<ObservedCell>& cells, int radius,
+                  const std::function<bool(int, int)>& reach, std::vector<TileKey>& out) {
+  for (const ObservedCell& oc : cells) {
+    const CellIndex c = oc.cell;
+    const TileKey lo = geo.TileOf({c.x - radius, c.y - radius});
+    const TileKey hi = geo.TileOf({c.x + radius, c.y + radius});
+    if (lo == hi) {
+      if (out.empty() || out.back() != lo) out.push_back(lo);
+      continue;
+    }
+    for (int ty = lo.y; ty <= hi.y; ++ty) {
+      for (int tx = lo.x; tx <= hi.x; ++tx) {
+        const CellBox box = geo.TileBox({tx, ty});
+        const int dx = std::clamp(c.x, box.min.x, box.max.x) - c.x;
+        const int dy = std::clamp(c.y, box.min.y, box.max.y) - c.y;
+        if (reach(dx, dy)) out.push_back({tx, ty});
+      }
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+}
+
+}  // namespace
+
+void ComputeFootprint(const MapParams& p, PreparedScan& scan) {
+  const GridGeometry geo(p.resolution, p.tile_size);
+  const int kernel_radius = static_cast<int>(std::ceil(p.kernel_length / p.resolution));
+  const int robot_radius = static_cast<int>(std::ceil(p.robot_radius / p.resolution));
+  const double nb_limit = NeighbourhoodLimit(p.robot_radius, p.resolution);
+
+  // Writes: the kernel support of every observed cell (the observed cell alone for baseline).
+  std::vector<TileKey> writes;
+  if (p.method == Method::kBaseline) {
+    CollectTiles(
+        geo, scan.cells, 0, [](int, int) { return true; }, writes);
+  } else {
+    CollectTiles(
+        geo, scan.cells, kernel_radius,
+        [&](int dx, int dy) { return InKernelSupport(dx, dy, p.resolution, p.kernel_length); },
+        writes);
+  }
+
+  // Reads: the robot-radius patch of every cell whose v is computed.
+  std::vector<TileKey> reads;
+  if (p.method == Method::kBgkTrav) {
+    const double reach = kernel_radius + robot_radius + 1.0;  // Minkowski sum, generously
+    CollectTiles(
+        geo, scan.cells, kernel_radius + robot_radius + 1,
+        [&](int dx, int dy) { return std::hypot(dx, dy) <= reach; }, reads);
+  } else {
+    CollectTiles(
+        geo, scan.cells, robot_radius,
+        [&](int dx, int dy) { return InNeighbourhood(dx, dy, nb_limit); }, reads);
+  }
+  std::vector<TileKey> read_only;
+  std::set_difference(reads.begin(), reads.end(), writes.begin(), writes.end(),
+                      std::back_inserter(read_only));
+  scan.write_tiles = std::move(writes);
+  scan.read_tiles = std::move(read_only);
+}
+
+}  // namespace bgkmap::internal

@@ -1,0 +1,109 @@
+#include "bgkmap/core/raster.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace bgkmap {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// Running aggregate of the cells behind one raster pixel.
+struct PixelAggregate {
+  double w = 0, s = 0;
+  float worst_trav = -1, worst_var = -1;
+  bool known = false;
+  bool undefined_trav = false;  // a known cell without a traversability value
+
+  void Add(const MapParams& p, double cw, double cs, float ca, float cb) {
+    const CellEstimate e = EstimateCell(p, cw, cs, ca, cb);
+    if (e.state == CellState::kUnknown) return;
+    known = true;
+    w += cw;
+    s += cs;
+    if (std::isnan(e.traversability)) {
+      undefined_trav = true;
+      return;
+    }
+    worst_trav = std::max(worst_trav, e.traversability);
+    worst_var = std::max(worst_var, e.traversability_variance);
+  }
+
+  CellEstimate Estimate(const MapParams& p) const {
+    CellEstimate e = EstimateCell(p, w, s, 0.0f, 0.0f);
+    if (!known) return e;
+    e.traversability = worst_trav >= 0 ? worst_trav : kNaN;
+    e.traversability_variance = worst_var >= 0 ? worst_var : kNaN;
+    const bool traversable = !undefined_trav && e.traversability < p.trav_threshold &&
+                             e.traversability_variance < p.variance_threshold;
+    e.state = traversable ? CellState::kTraversable : CellState::kNonTraversable;
+    e.elevation_weight = static_cast<float>(w);
+    return e;
+  }
+};
+
+}  // namespace
+
+const std::vector<float>* Raster::Find(Layer layer) const {
+  for (size_t i = 0; i < layers.size(); ++i) {
+    if (layers[i] == layer) return &data[i];
+  }
+  return nullptr;
+}
+
+Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vector<Layer>& layers,
+                     int stride) {
+  const MapParams& p = map.params();
+  const GridGeometry& geo = map.geometry();
+  stride = std::max(stride, 1);
+  Raster r;
+  r.box = box;
+  r.stride = stride;
+  r.layers = layers;
+  r.resolution = p.resolution * stride;
+  r.cols = (box.width() + stride - 1) / stride;
+  r.rows = (box.height() + stride - 1) / stride;
+  r.x0 = box.min.x * p.resolution;
+  r.y1 = (static_cast<double>(box.max.y) + 1.0) * p.resolution;
+  const size_t n = static_cast<size_t>(r.rows * r.cols);
+  for (Layer l : layers) r.data.emplace_back(n, l == Layer::kState ? 0.0f : kNaN);
+  if (box.empty()) return r;
+
+  auto write = [&](size_t pixel, const CellEstimate& e) {
+    for (size_t li = 0; li < layers.size(); ++li) r.data[li][pixel] = e.Get(layers[li]);
+  };
+  auto pixel_of = [&](int x, int y) {
+    return static_cast<size_t>((box.max.y - y) / stride) * r.cols + (x - box.min.x) / stride;
+  };
+
+  std::vector<PixelAggregate> agg(stride > 1 ? n : 0);
+  const TileKey lo = geo.TileOf(box.min), hi = geo.TileOf(box.max);
+  const int T = p.tile_size;
+  for (int ty = lo.y; ty <= hi.y; ++ty) {
+    for (int tx = lo.x; tx <= hi.x; ++tx) {
+      const Tile* tile = map.FindTile({tx, ty});
+      if (tile == nullptr) continue;
+      const CellBox part = geo.TileBox({tx, ty}).Intersect(box);
+      const CellIndex o = geo.TileOrigin({tx, ty});
+      for (int y = part.min.y; y <= part.max.y; ++y) {
+        for (int x = part.min.x; x <= part.max.x; ++x) {
+          const int i = (y - o.y) * T + (x - o.x);
+          if (!tile->IsKnown(i)) continue;
+          if (stride == 1) {
+            write(pixel_of(x, y),
+                  EstimateCell(p, tile->w()[i], tile->s()[i], tile->a()[i], tile->b()[i]));
+          } else {
+            agg[pixel_of(x, y)].Add(p, tile->w()[i], tile->s()[i], tile->a()[i], tile->b()[i]);
+          }
+        }
+      }
+    }
+  }
+  for (size_t i = 0; i < agg.size(); ++i) {
+    if (agg[i].known) write(i, agg[i].Estimate(p));
+  }
+  return r;
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,140 @@
+#include "bgkmap/core/scan.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "footprint.h"
+#include "radix_sort.h"
+
+namespace bgkmap {
+
+Pose Pose::FromQuaternion(double qw, double qx, double qy, double qz, double tx, double ty,
+                          double tz) {
+  Pose p;
+  p.rotation = Eigen::Quaterniond(qw, qx, qy, qz).toRotationMatrix();
+  p.translation = {tx, ty, tz};
+  return p;
+}
+
+Status ValidatePose(const Pose& pose, const MapParams& params) {
+  if (!pose.rotation.allFinite() || !pose.translation.allFinite()) {
+    return Status::InvalidArgument("pose: every entry must be finite");
+  }
+  const double ortho = (pose.rotation.transpose() * pose.rotation - Eigen::Matrix3d::Identity())
+                           .cwiseAbs()
+                           .maxCoeff();
+  const double det = pose.rotation.determinant();
+  if (ortho > kRotationTolerance || std::abs(det - 1.0) > kRotationTolerance) {
+    std::ostringstream os;
+    os << "pose: rotation is not orthonormal (max |R^T R - I| = " << ortho << ", det = " << det
+       << "; tolerance " << kRotationTolerance << ")";
+    return Status::InvalidArgument(os.str());
+  }
+  const double limit = kMaxCellIndex * params.resolution;
+  if (pose.translation.head<2>().cwiseAbs().maxCoeff() >= limit ||
+      std::abs(pose.translation.z()) >= limit) {
+    std::ostringstream os;
+    os << "pose: translation (" << pose.translation.transpose() << ") exceeds the map's "
+       << "coordinate range +-" << limit << " m";
+    return Status::OutOfRange(os.str());
+  }
+  return Status::Ok();
+}
+
+namespace {
+
+struct BinnedPoint {
+  int ix, iy;
+  double z;
+};
+
+// Reduces points sorted by cell into one observation per cell.
+std::vector<ObservedCell> ReduceCells(const std::vector<BinnedPoint>& pts,
+                                      const std::vector<uint32_t>& order, Observation mode) {
+  std::vector<ObservedCell> cells;
+  size_t i = 0;
+  while (i < order.size()) {
+    const BinnedPoint& first = pts[order[i]];
+    double best = first.z, sum = 0.0;
+    size_t j = i;
+    for (; j < order.size(); ++j) {
+      const BinnedPoint& p = pts[order[j]];
+      if (p.ix != first.ix || p.iy != first.iy) break;
+      best = std::max(best, p.z);
+      sum += p.z;
+    }
+    const double y = mode == Observation::kMax ? best : sum / static_cast<double>(j - i);
+    cells.push_back({{first.ix, first.iy}, y});
+    i = j;
+  }
+  return cells;
+}
+
+}  // namespace
+
+Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3f> points,
+                                 const Pose& T, bool frame_is_map) {
+  if (Status s = ValidatePose(T, params); !s.ok()) return s;
+  PreparedScan scan;
+  scan.sensor_z = T.translation.z();
+  ScanPointCounts& c = scan.counts;
+  c.input = points.size();
+
+  const double min_r2 = params.min_range * params.min_range;
+  const double max_r2 = params.max_range * params.max_range;
+  const double inv_res = 1.0 / params.resolution;
+  const double z_limit = T.translation.z() + params.max_height_above_sensor;
+  const Eigen::Matrix3d& R = T.rotation;
+  const Eigen::Vector3d& t = T.translation;
+
+  std::vector<BinnedPoint> binned;
+  binned.reserve(points.size());
+  CellBox bounds;
+  for (const Point3f& p : points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      ++c.dropped_nonfinite;
+      continue;
+    }
+    const Eigen::Vector3d ps(p.x, p.y, p.z);
+    if (!frame_is_map) {
+      const double r2 = ps.squaredNorm();
+      if (r2 < min_r2 || r2 > max_r2) {
+        ++c.dropped_range;
+        continue;
+      }
+    }
+    const Eigen::Vector3d q = R * ps + t;
+    if (!frame_is_map && q.z() > z_limit) {
+      ++c.dropped_height;
+      continue;
+    }
+    const double fx = std::floor(q.x() * inv_res);
+    const double fy = std::floor(q.y() * inv_res);
+    if (!(std::abs(fx) <= kMaxCellIndex && std::abs(fy) <= kMaxCellIndex &&
+          std::abs(q.z()) < kMaxCellIndex * params.resolution)) {
+      ++c.dropped_out_of_bounds;
+      continue;
+    }
+    const BinnedPoint b{static_cast<int>(fx), static_cast<int>(fy), q.z()};
+    bounds.Extend({b.ix, b.iy});
+    binned.push_back(b);
+  }
+  c.kept = binned.size();
+  if (binned.empty()) return scan;
+
+  // Sort points by (ix, iy): a canonical order that makes every later sum independent of how
+  // the map is cut into tiles.
+  std::vector<uint64_t> keys(binned.size());
+  for (size_t i = 0; i < binned.size(); ++i) {
+    keys[i] = (static_cast<uint64_t>(binned[i].ix - bounds.min.x) << 32) |
+              static_cast<uint64_t>(binned[i].iy - bounds.min.y);
+  }
+  const std::vector<uint32_t> order = internal::RadixSortOrder(keys);
+  scan.cells = ReduceCells(binned, order, params.observation);
+  internal::ComputeFootprint(params, scan);
+  return scan;
+}
+
+}  // namespace bgkmap

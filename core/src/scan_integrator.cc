@@ -1,0 +1,244 @@
+#include "bgkmap/core/scan_integrator.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "bgkmap/core/terrain_features.h"
+#include "footprint.h"
+
+namespace bgkmap {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+constexpr float kNoValue = std::numeric_limits<float>::quiet_NaN();
+
+}  // namespace
+
+TileWindow::TileWindow(const std::vector<TileKey>& keys) {
+  if (keys.empty()) return;
+  min_ = max_ = keys.front();
+  for (const TileKey& k : keys) {
+    min_ = {std::min(min_.x, k.x), std::min(min_.y, k.y)};
+    max_ = {std::max(max_.x, k.x), std::max(max_.y, k.y)};
+  }
+  width_ = static_cast<size_t>(int64_t{max_.x} - min_.x + 1);
+  const size_t area = width_ * static_cast<size_t>(int64_t{max_.y} - min_.y + 1);
+  if (area <= 4 * keys.size() + 4096) {
+    dense_.assign(area, nullptr);
+  } else {
+    for (const TileKey& k : keys) sparse_.emplace_back(k, nullptr);
+  }
+}
+
+void TileWindow::set(TileKey k, Tile* t) {
+  if (!dense_.empty()) {
+    dense_[static_cast<size_t>(k.y - min_.y) * width_ + (k.x - min_.x)] = t;
+    return;
+  }
+  auto it = std::lower_bound(sparse_.begin(), sparse_.end(), k,
+                             [](const auto& e, const TileKey& key) { return e.first < key; });
+  if (it != sparse_.end() && it->first == k) it->second = t;
+}
+
+Tile* TileWindow::SparseAt(TileKey k) const {
+  auto it = std::lower_bound(sparse_.begin(), sparse_.end(), k,
+                             [](const auto& e, const TileKey& key) { return e.first < key; });
+  return it != sparse_.end() && it->first == k ? it->second : nullptr;
+}
+
+std::vector<CellIndex> DiskOffsets(double radius, double resolution) {
+  const double limit = internal::NeighbourhoodLimit(radius, resolution);
+  const int r = static_cast<int>(std::ceil(radius / resolution));
+  std::vector<CellIndex> out;
+  for (int dy = -r; dy <= r; ++dy) {
+    for (int dx = -r; dx <= r; ++dx) {
+      if (internal::InNeighbourhood(dx, dy, limit)) out.push_back({dx, dy});
+    }
+  }
+  return out;
+}
+
+ScanIntegrator::ScanIntegrator(const MapParams& params)
+    : params_(params),
+      geometry_(params.resolution, params.tile_size),
+      kernel_(params.resolution, params.kernel_length),
+      neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)) {}
+
+// The per-scan work, with the scan's window and parameters at hand.
+struct ScanIntegrator::Impl {
+  const ScanIntegrator& self;
+  const TileWindow& window;
+  const int T;  // tile size
+
+  Tile* TileAt(CellIndex c) const { return window.at(self.geometry_.TileOf(c)); }
+
+  // Calls row(tile, start, k_double, k_float, len) for every contiguous run of the kernel
+  // stencil around `c` that lies in one tile. The same runs in the same order whatever the tile
+  // size, up to splitting: each cell sees the same sequence of additions, so sums are bitwise
+  // independent of the tiling.
+  template <typename RowFn>
+  void ForEachKernelRun(CellIndex c, RowFn&& row) const {
+    const KernelStencil& k = self.kernel_;
+    const int R = k.radius();
+    const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
+    if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
+      Tile* tile = TileAt(c);
+      for (int r = 0; r < k.row_count(); ++r) {
+        const int hw = k.half_width(r);
+        const int start = (ly + r - R) * T + lx - hw;
+        row(*tile, start, k.row_weights_double(r), k.row_weights(r), 2 * hw + 1);
+      }
+      return;
+    }
+    for (int r = 0; r < k.row_count(); ++r) {
+      const int hw = k.half_width(r);
+      const int gy = c.y + r - R;
+      const int row_y = FloorMod(gy, T);
+      int x = c.x - hw;
+      const int x_end = c.x + hw;
+      while (x <= x_end) {
+        const TileKey key{FloorDiv(x, T), FloorDiv(gy, T)};
+        const int seg_end = std::min(x_end, key.x * T + T - 1);
+        Tile* tile = window.at(key);
+        const int off = x - (c.x - hw);
+        row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
+            k.row_weights(r) + off, seg_end - x + 1);
+        x = seg_end + 1;
+      }
+    }
+  }
+
+  // Elevation mean of a known cell, NaN otherwise.
+  double Elevation(CellIndex c) const {
+    const Tile* tile = TileAt(c);
+    if (tile == nullptr) return std::numeric_limits<double>::quiet_NaN();
+    const int i = self.geometry_.LocalIndex(c);
+    const double w = tile->w()[i];
+    if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    const MapParams& p = self.params_;
+    return (p.lambda * p.prior_mean + tile->s()[i]) / (p.lambda + w);
+  }
+
+  // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
+  // with fewer than three known cells within the robot radius.
+  float ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const {
+    patch.clear();
+    const double res = self.params_.resolution;
+    for (const CellIndex& o : self.neighbourhood_) {
+      const double z = Elevation({c.x + o.x, c.y + o.y});
+      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+    }
+    if (patch.size() < 3) return kNoValue;
+    return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), self.params_));
+  }
+};
+
+ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow& window,
+                                     uint64_t version) const {
+  ScanReport report;
+  report.counts = scan.counts;
+  report.observed_cells = scan.cells.size();
+  const Impl impl{*this, window, params_.tile_size};
+  const Method method = params_.method;
+
+  // 1. Elevation (semantics 4; raw running mean for baseline and one-step).
+  const auto t0 = Clock::now();
+  if (InfersElevation(method)) {
+    for (const ObservedCell& oc : scan.cells) {
+      const double y = oc.y;
+      impl.ForEachKernelRun(oc.cell,
+                            [y](Tile& tile, int start, const double* k, const float*, int len) {
+                              double* __restrict w = tile.w().data() + start;
+                              double* __restrict s = tile.s().data() + start;
+                              for (int j = 0; j < len; ++j) {
+                                w[j] += k[j];
+                                s[j] += k[j] * y;
+                              }
+                            });
+    }
+  } else {
+    for (const ObservedCell& oc : scan.cells) {
+      Tile* tile = impl.TileAt(oc.cell);
+      const int i = geometry_.LocalIndex(oc.cell);
+      tile->w()[i] += 1.0;
+      tile->s()[i] += oc.y;
+    }
+  }
+
+  // 2. Traversability training values (semantics 6).
+  const auto t1 = Clock::now();
+  std::vector<PatchPoint> patch;
+  patch.reserve(neighbourhood_.size());
+  std::vector<std::pair<CellIndex, float>> values;  // cells where v was computed
+  if (method == Method::kBgkTrav) {
+    // Every known cell within l of an observed cell, each once, in canonical order.
+    std::unordered_map<const Tile*, std::vector<uint8_t>> marks;
+    for (const TileKey& key : scan.write_tiles) {
+      marks[window.at(key)].assign(static_cast<size_t>(params_.tile_size) * params_.tile_size, 0);
+    }
+    for (const ObservedCell& oc : scan.cells) {
+      impl.ForEachKernelRun(oc.cell,
+                            [&](Tile& tile, int start, const double*, const float*, int len) {
+                              std::fill_n(marks[&tile].begin() + start, len, uint8_t{1});
+                            });
+    }
+    for (const TileKey& key : scan.write_tiles) {
+      const Tile* tile = window.at(key);
+      const std::vector<uint8_t>& m = marks[tile];
+      const CellIndex origin = geometry_.TileOrigin(key);
+      for (int i = 0; i < tile->cell_count(); ++i) {
+        if (!m[i] || !(tile->w()[i] > 0.0)) continue;
+        const CellIndex c{origin.x + i % params_.tile_size, origin.y + i / params_.tile_size};
+        const float v = impl.ValueAt(c, patch);
+        if (!std::isnan(v)) values.emplace_back(c, v);
+      }
+    }
+  } else {
+    values.reserve(scan.cells.size());
+    for (const ObservedCell& oc : scan.cells) {
+      const float v = impl.ValueAt(oc.cell, patch);
+      if (!std::isnan(v)) values.emplace_back(oc.cell, v);
+    }
+  }
+  report.feature_cells = values.size();
+
+  // 3. Traversability: Beta pseudo-counts spread by the kernel (semantics 7), or the latest
+  // direct value for baseline and bgk-trav.
+  const auto t2 = Clock::now();
+  if (InfersTraversability(method)) {
+    for (const auto& [cell, v] : values) {
+      const float va = v, vb = 1.0f - v;
+      impl.ForEachKernelRun(
+          cell, [va, vb](Tile& tile, int start, const double*, const float* k, int len) {
+            float* __restrict a = tile.a().data() + start;
+            float* __restrict b = tile.b().data() + start;
+            for (int j = 0; j < len; ++j) {
+              a[j] += k[j] * va;
+              b[j] += k[j] * vb;
+            }
+          });
+    }
+  } else {
+    for (const auto& [cell, v] : values) {
+      Tile* tile = impl.TileAt(cell);
+      const int i = geometry_.LocalIndex(cell);
+      tile->a()[i] = v;
+      tile->b()[i] = 1.0f - v;
+    }
+  }
+  const auto t3 = Clock::now();
+
+  for (const TileKey& key : scan.write_tiles) window.at(key)->set_version(version);
+  report.changed_tiles = scan.write_tiles;
+  report.times = {Seconds(t0, t1), Seconds(t1, t2), Seconds(t2, t3)};
+  return report;
+}
+
+}  // namespace bgkmap

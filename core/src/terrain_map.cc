@@ -1,0 +1,128 @@
+#include "bgkmap/core/terrain_map.h"
+
+#include <algorithm>
+#include <iterator>
+
+namespace bgkmap {
+
+Result<std::unique_ptr<TerrainMap>> TerrainMap::Create(const MapParams& params) {
+  if (Status s = params.Validate(); !s.ok()) return s;
+  return std::unique_ptr<TerrainMap>(new TerrainMap(params));
+}
+
+TerrainMap::TerrainMap(const MapParams& params)
+    : params_(params), geometry_(params.resolution, params.tile_size), integrator_(params) {}
+
+Result<ScanReport> TerrainMap::IntegrateScan(std::span<const Point3f> points, const Pose& pose,
+                                             bool frame_is_map) {
+  Result<PreparedScan> scan = PrepareScan(params_, points, pose, frame_is_map);
+  if (!scan.ok()) return scan.status();
+  const TileWindow window = MakeWindow(*scan);
+  return Integrate(*scan, window, ++version_);
+}
+
+TileWindow TerrainMap::MakeWindow(const PreparedScan& scan) {
+  std::vector<TileKey> keys;
+  keys.reserve(scan.write_tiles.size() + scan.read_tiles.size());
+  std::merge(scan.write_tiles.begin(), scan.write_tiles.end(), scan.read_tiles.begin(),
+             scan.read_tiles.end(), std::back_inserter(keys));
+  TileWindow window(keys);
+  for (const TileKey& k : scan.write_tiles) window.set(k, &GetOrCreateTile(k));
+  for (const TileKey& k : scan.read_tiles) window.set(k, FindMutableTile(k));
+  return window;
+}
+
+ScanReport TerrainMap::Integrate(const PreparedScan& scan, const TileWindow& window,
+                                 uint64_t version) const {
+  return integrator_.Integrate(scan, window, version);
+}
+
+const Tile* TerrainMap::FindTile(TileKey key) const {
+  auto it = tiles_.find(key);
+  return it == tiles_.end() ? nullptr : it->second.get();
+}
+
+Tile* TerrainMap::FindMutableTile(TileKey key) {
+  auto it = tiles_.find(key);
+  return it == tiles_.end() ? nullptr : it->second.get();
+}
+
+Tile& TerrainMap::GetOrCreateTile(TileKey key) {
+  std::unique_ptr<Tile>& slot = tiles_[key];
+  if (!slot) slot = std::make_unique<Tile>(params_.tile_size);
+  return *slot;
+}
+
+void TerrainMap::EraseTile(TileKey key) { tiles_.erase(key); }
+
+void TerrainMap::ForEachTile(const std::function<void(TileKey, const Tile&)>& fn) const {
+  for (const auto& [key, tile] : tiles_) fn(key, *tile);
+}
+
+void TerrainMap::AddTile(TileKey key, const Tile& tile) {
+  Tile& dst = GetOrCreateTile(key);
+  dst.Add(tile);
+  dst.set_version(std::max(dst.version(), tile.version()));
+}
+
+CellEstimate TerrainMap::Estimate(CellIndex cell) const {
+  const Tile* tile = FindTile(geometry_.TileOf(cell));
+  if (tile == nullptr) return EstimateCell(params_, 0.0, 0.0, 0.0f, 0.0f);
+  const int i = geometry_.LocalIndex(cell);
+  return EstimateCell(params_, tile->w()[i], tile->s()[i], tile->a()[i], tile->b()[i]);
+}
+
+int64_t TerrainMap::CountKnownCells() const {
+  int64_t n = 0;
+  for (const auto& entry : tiles_) n += entry.second->CountKnown();
+  return n;
+}
+
+CellBox TerrainMap::KnownBounds() const {
+  CellBox box;
+  for (const auto& [key, tile] : tiles_) {
+    const CellIndex o = geometry_.TileOrigin(key);
+    const int T = params_.tile_size;
+    for (int i = 0; i < tile->cell_count(); ++i) {
+      if (tile->IsKnown(i)) box.Extend({o.x + i % T, o.y + i / T});
+    }
+  }
+  return box;
+}
+
+std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box) {
+  std::vector<TileKey> changed;
+  if (box.empty()) return changed;
+  const TileKey lo = geometry_.TileOf(box.min), hi = geometry_.TileOf(box.max);
+  const int T = params_.tile_size;
+  ++version_;
+  for (auto it = tiles_.begin(); it != tiles_.end();) {
+    const TileKey key = it->first;
+    if (key.x < lo.x || key.x > hi.x || key.y < lo.y || key.y > hi.y) {
+      ++it;
+      continue;
+    }
+    const CellBox part = geometry_.TileBox(key).Intersect(box);
+    const CellIndex o = geometry_.TileOrigin(key);
+    Tile& tile = *it->second;
+    for (int y = part.min.y; y <= part.max.y; ++y) {
+      for (int x = part.min.x; x <= part.max.x; ++x) {
+        const int i = (y - o.y) * T + (x - o.x);
+        tile.w()[i] = tile.s()[i] = 0.0;
+        tile.a()[i] = tile.b()[i] = 0.0f;
+      }
+    }
+    tile.set_version(version_);
+    changed.push_back(key);
+    it = tile.Empty() ? tiles_.erase(it) : std::next(it);
+  }
+  std::sort(changed.begin(), changed.end());
+  return changed;
+}
+
+size_t TerrainMap::TileMemoryBytes() const {
+  return tiles_.size() * (sizeof(Tile) + static_cast<size_t>(params_.tile_size) *
+                                             params_.tile_size * Tile::kBytesPerCell);
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,84 @@
+#include "bgkmap/core/cell_estimate.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace bgkmap {
+namespace {
+
+TEST(CellEstimateTest, UnknownCellIsNaNEverywhere) {
+  const CellEstimate e = EstimateCell(MapParams{}, 0.0, 0.0, 0.0f, 0.0f);
+  EXPECT_EQ(e.state, CellState::kUnknown);
+  EXPECT_TRUE(std::isnan(e.elevation));
+  EXPECT_TRUE(std::isnan(e.elevation_variance));
+  EXPECT_TRUE(std::isnan(e.traversability));
+  EXPECT_TRUE(std::isnan(e.traversability_variance));
+}
+
+TEST(CellEstimateTest, ElevationFollowsEquation2) {
+  MapParams p;
+  p.lambda = 0.5;
+  p.prior_mean = 1.0;
+  p.sigma2 = 0.04;
+  // Two observations: y = 2 with k = 1 and y = 4 with k = 0.5: W = 1.5, S = 4.
+  const CellEstimate e = EstimateCell(p, 1.5, 4.0, 0.0f, 0.0f);
+  EXPECT_FLOAT_EQ(e.elevation, (0.5 * 1.0 + 4.0) / (0.5 + 1.5));
+  EXPECT_FLOAT_EQ(e.elevation_variance, 0.04 / 2.0);
+  EXPECT_FLOAT_EQ(e.elevation_weight, 1.5f);
+}
+
+TEST(CellEstimateTest, TraversabilityIsTheBetaPosterior) {
+  MapParams p;
+  p.alpha0 = 0.5;
+  p.beta0 = 1.5;
+  // A = 1 (k v summed), B = 3.
+  const CellEstimate e = EstimateCell(p, 1.0, 0.0, 1.0f, 3.0f);
+  const double alpha = 1.5, beta = 4.5, sum = 6.0;
+  EXPECT_FLOAT_EQ(e.traversability, alpha / sum);
+  // The Beta variance, with the +1 the paper's printed Eq. 4 lacks.
+  EXPECT_FLOAT_EQ(e.traversability_variance, alpha * beta / (sum * sum * (sum + 1)));
+}
+
+TEST(CellEstimateTest, StateUsesBothThresholds) {
+  MapParams p;
+  p.trav_threshold = 0.5;
+  p.variance_threshold = 0.05;
+  // Well supported and flat: traversable.
+  EXPECT_EQ(EstimateCell(p, 10, 0, 1.0f, 19.0f).state, CellState::kTraversable);
+  // Well supported and rough: not.
+  EXPECT_EQ(EstimateCell(p, 10, 0, 15.0f, 5.0f).state, CellState::kNonTraversable);
+  // Flat but a single weak observation: variance too high, so not traversable.
+  const CellEstimate weak = EstimateCell(p, 0.2, 0, 0.02f, 0.18f);
+  EXPECT_LT(weak.traversability, 0.5f);
+  EXPECT_GT(weak.traversability_variance, 0.05f);
+  EXPECT_EQ(weak.state, CellState::kNonTraversable);
+  // Known elevation without traversability data: the prior decides (mean 0.5): not traversable.
+  EXPECT_EQ(EstimateCell(p, 1.0, 0, 0.0f, 0.0f).state, CellState::kNonTraversable);
+}
+
+TEST(CellEstimateTest, DirectMethodsReportTheStoredValue) {
+  MapParams p;
+  p.method = Method::kBaseline;
+  const CellEstimate e = EstimateCell(p, 1.0, 0.3, 0.25f, 0.75f);
+  EXPECT_FLOAT_EQ(e.traversability, 0.25f);
+  EXPECT_EQ(e.traversability_variance, 0.0f);
+  EXPECT_EQ(e.state, CellState::kTraversable);
+  // Observed but too few neighbours for a value: known, conservatively non-traversable.
+  const CellEstimate none = EstimateCell(p, 1.0, 0.3, 0.0f, 0.0f);
+  EXPECT_TRUE(std::isnan(none.traversability));
+  EXPECT_EQ(none.state, CellState::kNonTraversable);
+}
+
+TEST(CellEstimateTest, LayerNamesRoundTrip) {
+  for (int i = 0; i < kLayerCount; ++i) {
+    const Layer l = static_cast<Layer>(i);
+    Result<Layer> parsed = ParseLayer(LayerName(l));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, l);
+  }
+  EXPECT_FALSE(ParseLayer("height").ok());
+}
+
+}  // namespace
+}  // namespace bgkmap
