@@ -58,7 +58,7 @@ std::string ProgressBar::Line(double elapsed) const {
     const double frac = std::min(1.0, static_cast<double>(done_) / total_);
     if (tty_) {
       const int filled = static_cast<int>(frac * kBarWidth);
-      line += "[" + std::string(filled, '#') + std::string(kBarWidth - filled, ' ') + "] ";
+      line += fmt::format("[{:#<{}}{: <{}}] ", "", filled, "", kBarWidth - filled);
     }
     line += fmt::format("{:3.0f}% {}/{} {}", 100 * frac, done_, total_, unit_);
   } else {
