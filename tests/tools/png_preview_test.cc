@@ -95,6 +95,13 @@ TEST(PngPreviewTest, WritesAReadablePanelledImage) {
   const auto elev = centre(30, 25, false);
   EXPECT_NE(elev, (std::array<int, 3>{64, 64, 64}));
   EXPECT_GT(elev[0] + elev[1] + elev[2], 100);
+  // The legend labels are drawn in light text below the bars.
+  int text_pixels = 0;
+  for (int y = g.panel_height + 16; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x)
+      text_pixels += img.At(x, y) == std::array<int, 3>{235, 235, 235};
+  }
+  EXPECT_GT(text_pixels, 100);
   // The separator is a light column between the panels.
   EXPECT_EQ(img.At(g.panel_width + 1, 10), (std::array<int, 3>{220, 220, 220}));
 }

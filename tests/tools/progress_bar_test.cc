@@ -1,8 +1,12 @@
 #include "bgkmap/io/progress_bar.h"
 
 #include <gtest/gtest.h>
+#include <pty.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
@@ -76,6 +80,30 @@ TEST(ProgressBarTest, ConcurrentAddsAreCounted) {
   std::fclose(f);
   ASSERT_FALSE(lines.empty());
   EXPECT_NE(lines.back().find("4000/4000"), std::string::npos) << lines.back();
+}
+
+TEST(ProgressBarTest, TerminalRedrawsOneLineWithABar) {
+  int master = -1, slave = -1;
+  if (openpty(&master, &slave, nullptr, nullptr, nullptr) != 0)
+    GTEST_SKIP() << "no pseudo-terminal";
+  std::FILE* tty = fdopen(slave, "w");
+  ASSERT_NE(tty, nullptr);
+  {
+    ProgressBar bar("ingest", 4, "scans", tty);
+    bar.Add(2);
+    bar.Add(2);
+  }
+  std::fclose(tty);
+  std::string out;
+  char buf[4096];
+  for (ssize_t n; (n = read(master, buf, sizeof(buf))) > 0;) out.append(buf, n);
+  close(master);
+  EXPECT_EQ(out.rfind("\r", 0), 0u) << out;  // redraws start at the line's beginning
+  EXPECT_NE(out.find("ingest [###############               ]  50% 2/4 scans"), std::string::npos)
+      << out;
+  EXPECT_NE(out.find("[##############################] 100% 4/4 scans"), std::string::npos) << out;
+  EXPECT_NE(out.find("\x1b[K"), std::string::npos);
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;  // one line, ended by Finish
 }
 
 TEST(ProgressBarTest, FormatsDurations) {

@@ -10,6 +10,8 @@
 #include <numbers>
 #include <vector>
 
+#include "bitmap_font.h"
+
 namespace bgkmap::io {
 namespace {
 
@@ -18,7 +20,11 @@ using Rgb = std::array<uint8_t, 3>;
 constexpr int kMinImageWidth = 600;
 constexpr int kMaxPanelEdge = 2048;
 constexpr int kSeparator = 4;
-constexpr int kLegendGap = 4, kLegendBar = 12;
+constexpr int kLegendGap = 4, kLegendBar = 12, kTextMargin = 4;
+constexpr Rgb kTextColour = {235, 235, 235};
+
+// Labels are drawn twice as large once a panel is wide enough for the longest one.
+int TextScale(int panel_width) { return panel_width >= 450 ? 2 : 1; }
 constexpr Rgb kSeparatorColour = {220, 220, 220};
 constexpr Rgb kBackground = {24, 24, 24};
 constexpr Rgb kUnknownElevation = {64, 64, 64};
@@ -127,7 +133,8 @@ PreviewGeometry ComputePreviewGeometry(int64_t cols, int64_t rows) {
   g.panel_width = std::max(1, static_cast<int>(cols * s));
   g.panel_height = std::max(1, static_cast<int>(rows * s));
   g.image_width = 2 * g.panel_width + kSeparator;
-  g.image_height = g.panel_height + kLegendGap + kLegendBar;
+  g.image_height = g.panel_height + kLegendGap + kLegendBar + 2 * kTextMargin +
+                   internal::kGlyphHeight * TextScale(g.panel_width);
   return g;
 }
 
@@ -196,13 +203,38 @@ Status WritePreviewPng(const Raster& raster, const std::string& path) {
   }
 
   // Legend bars: each panel's ramp from its low end (left) to its high end (right).
-  for (int y = g.panel_height + kLegendGap; y < g.image_height; ++y) {
+  const int bar_top = g.panel_height + kLegendGap;
+  for (int y = bar_top; y < bar_top + kLegendBar; ++y) {
     for (int x = 0; x < g.panel_width; ++x) {
       const double t = g.panel_width > 1 ? static_cast<double>(x) / (g.panel_width - 1) : 0.0;
       put(x, y, Ramp(ElevationStops(), t));
       put(right + x, y, Ramp(TraversabilityStops(), t));
     }
   }
+
+  // Labels under the bars: the ramp's end values at its ends, the panel's name between them
+  // when it fits.
+  const int scale = TextScale(g.panel_width);
+  const int text_y = bar_top + kLegendBar + kTextMargin;
+  auto label = [&](int x0, const std::string& lo, const std::string& name, const std::string& hi) {
+    const int lo_w = internal::TextWidth(lo, scale), hi_w = internal::TextWidth(hi, scale);
+    const int name_w = internal::TextWidth(name, scale), gap = 3 * internal::kGlyphWidth * scale;
+    internal::DrawText(image, g.image_width, g.image_height, x0 + kTextMargin, text_y, lo, scale,
+                       kTextColour);
+    internal::DrawText(image, g.image_width, g.image_height,
+                       x0 + g.panel_width - hi_w - kTextMargin, text_y, hi, scale, kTextColour);
+    if (lo_w + name_w + hi_w + 2 * gap + 2 * kTextMargin <= g.panel_width) {
+      internal::DrawText(image, g.image_width, g.image_height, x0 + (g.panel_width - name_w) / 2,
+                         text_y, name, scale, kTextColour);
+    }
+  };
+  if (elevation) {
+    label(0, fmt::format("{:.1f} M", range.first), "ELEVATION",
+          fmt::format("{:.1f} M", range.second));
+  } else {
+    label(0, "", "NO ELEVATION", "");
+  }
+  label(right, "0", state ? "TRAVERSABILITY  RED TINT = BLOCKED" : "TRAVERSABILITY", "1");
 
   png_image png;
   std::memset(&png, 0, sizeof(png));

@@ -3,9 +3,10 @@
 //          shaded by a hillshade lit from the north-west; unknown cells dark grey.
 //   right: traversability, green (0) -> yellow (0.5) -> red (1); unknown black; where a state
 //          layer is present, non-traversable cells get a red tint.
-// Below each panel a legend bar shows its colour ramp (low/0 on the left). A thin light
-// separator divides the panels. Small rasters are upscaled (nearest) to at least ~600 px total
-// width, big ones downscaled to at most 2048 px per panel edge; north is up.
+// Below each panel a legend bar shows its colour ramp (low/0 on the left), labelled with the
+// ramp's end values and the panel's name. A thin light separator divides the panels. Small rasters
+// are upscaled (nearest) to at least ~600 px total width, big ones downscaled to at most 2048 px
+// per panel edge; north is up.
 #pragma once
 
 #include <string>
