@@ -6,8 +6,6 @@
 #include <bit>
 #include <charconv>
 #include <cstring>
-#include <optional>
-#include <sstream>
 #include <string_view>
 
 #include "binary_file.h"
@@ -35,10 +33,17 @@ struct Header {
   size_t data_start = 0;  // byte after the DATA line
 };
 
-std::vector<std::string> Split(std::string_view line) {
-  std::vector<std::string> out;
-  std::istringstream in{std::string(line)};
-  for (std::string tok; in >> tok;) out.push_back(tok);
+// Whitespace-separated tokens, viewing into `line` (no copies: ascii clouds can be large).
+std::vector<std::string_view> Split(std::string_view line) {
+  std::vector<std::string_view> out;
+  size_t pos = 0;
+  while (true) {
+    pos = line.find_first_not_of(" \t\r", pos);
+    if (pos == std::string_view::npos) break;
+    const size_t end = std::min(line.find_first_of(" \t\r", pos), line.size());
+    out.push_back(line.substr(pos, end - pos));
+    pos = end;
+  }
   return out;
 }
 
@@ -58,10 +63,10 @@ Result<Header> ParseHeader(std::string_view text) {
     if (nl == std::string_view::npos) nl = text.size();
     const std::string_view line = text.substr(pos, nl - pos);
     pos = std::min(nl + 1, text.size());
-    std::vector<std::string> tok = Split(line);
+    const std::vector<std::string_view> tok = Split(line);
     if (tok.empty() || tok[0][0] == '#') continue;
-    const std::string& key = tok[0];
-    std::vector<std::string> args(tok.begin() + 1, tok.end());
+    const std::string key(tok[0]);
+    const std::vector<std::string> args(tok.begin() + 1, tok.end());
     if (key == "VERSION" || key == "VIEWPOINT") {
       continue;
     } else if (key == "FIELDS") {
@@ -182,7 +187,7 @@ Result<PcdCloud> ReadPcd(const std::string& path) {
       const std::string_view line = rest.substr(0, nl);
       rest = nl == std::string_view::npos ? std::string_view() : rest.substr(nl + 1);
       ++line_no;
-      std::vector<std::string> tok = Split(line);
+      const std::vector<std::string_view> tok = Split(line);
       if (tok.empty()) continue;
       if (tok.size() != tokens) {
         return Status::DataLoss(fmt::format("{}: data line {} has {} values, expected {}", path,
@@ -190,8 +195,8 @@ Result<PcdCloud> ReadPcd(const std::string& path) {
       }
       double v[3];
       for (int a = 0; a < 3; ++a) {
-        const std::string& s = tok[xyz[a]->token_offset];
-        if (!ParseNumber(std::string_view(s), v[a])) {
+        const std::string_view s = tok[xyz[a]->token_offset];
+        if (!ParseNumber(s, v[a])) {
           return Status::DataLoss(
               fmt::format("{}: data line {}: '{}' is not a number", path, line_no, s));
         }
