@@ -1,0 +1,59 @@
+// bgkmapd as a library: the gRPC map server, startable in-process (tests, embedding) or from
+// main.cc. Serves bgkmap.v1.MapService, grpc.health.v1.Health and server reflection.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/server/server_config.h"
+
+namespace bgkmap {
+
+// The health-check service name of the map service.
+inline constexpr const char* kMapServiceName = "bgkmap.v1.MapService";
+
+struct RobotSummary {
+  std::string robot_id;
+  uint64_t last_sequence = 0;
+  uint64_t scans_applied = 0;
+  uint64_t scans_duplicate = 0;
+  uint64_t scans_rejected = 0;
+};
+
+struct ServerReport {
+  uint64_t map_version = 0;
+  uint64_t scans_applied = 0;
+  uint64_t tile_count = 0;
+  uint64_t known_cells = 0;
+  std::vector<RobotSummary> robots;  // sorted by id
+};
+
+class MapServer {
+ public:
+  // Creates the map and starts listening on config.listen_address (port 0: any free port).
+  static Result<std::unique_ptr<MapServer>> Start(const ServerConfig& config);
+  ~MapServer();  // Shutdown()
+
+  int port() const;
+
+  // Graceful stop: refuses new calls, lets every ingest stream ack the scans it has read (then
+  // ends it with UNAVAILABLE), ends watches, waits for admitted scans, stops the workers.
+  // Idempotent and thread-safe; returns when the server has stopped.
+  void Shutdown();
+
+  // Counts and per-robot progress (valid during and after Shutdown()).
+  ServerReport Report() const;
+  // A copy of the served map (for tests and offline export).
+  std::unique_ptr<TerrainMap> SnapshotMap() const;
+
+ private:
+  struct Impl;
+  explicit MapServer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bgkmap

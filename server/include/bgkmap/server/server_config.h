@@ -1,0 +1,65 @@
+// Configuration of bgkmapd: the engine parameters (top-level YAML keys, as for the offline tools)
+// plus a `server:` section. Command-line flags override the file; --print-config shows the result.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/status.h"
+
+namespace YAML {
+class Node;
+}
+
+namespace bgkmap {
+
+// Limits that protect the server; every violation is reported with the key name and its value.
+struct ServerLimits {
+  uint64_t max_points_per_scan = 2'000'000;    // max_points_per_scan
+  uint64_t max_region_cells = 4'000'000;       // max_region_cells: map cells per region query
+  uint64_t max_query_points = 100'000;         // max_query_points: points per point query
+  uint64_t max_path_poses = 10'000;            // max_path_poses: poses per path check
+  uint64_t max_footprint_cells = 100'000;      // max_footprint_cells: cells under one footprint
+  double max_coordinate = 1e6;                 // max_coordinate: |x|, |y|, |z| bound, metres
+  double quaternion_tolerance = 1e-3;          // quaternion_tolerance: allowed | |q| - 1 |
+  uint32_t max_inflight_scans_per_stream = 8;  // max_inflight_scans_per_stream: read-ahead
+  uint32_t max_inflight_unary_scans = 64;      // max_inflight_unary_scans: IngestScan calls
+  uint32_t max_ingest_streams = 256;           // max_ingest_streams
+  uint32_t max_robots = 4096;                  // max_robots: distinct robot ids
+  uint32_t max_watchers = 64;                  // max_watchers
+  uint64_t max_watch_tiles = 65'536;           // max_watch_tiles: tiles per watched region
+  uint32_t max_concurrent_queries = 64;        // max_concurrent_queries
+  uint64_t max_message_bytes = 64ull << 20;    // max_message_bytes: largest gRPC message
+  uint64_t region_chunk_bytes = 1ull << 20;    // region_chunk_bytes: target chunk size
+};
+
+struct ServerConfig {
+  MapParams map;
+  std::string listen_address = "127.0.0.1:50051";  // listen_address (host:port; port 0 = any)
+  int worker_threads = 0;  // worker_threads: scan preparation and integration (0 = all cores)
+  int query_threads = 0;   // query_threads: queries and watch updates (0 = all cores)
+  std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
+  double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
+  ServerLimits limits;
+};
+
+// The keys of the `server:` section, in documentation order.
+const std::vector<std::string>& ServerConfigKeys();
+
+// Reads a whole config document: engine keys at the top level, server keys under `server:`.
+// Starts from `base`; unknown keys and bad values fail with a message naming the key.
+Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root,
+                                          const ServerConfig& base = ServerConfig{});
+
+// The effective configuration as a YAML document (what --print-config prints).
+std::string ServerConfigToYaml(const ServerConfig& config);
+
+// Applies one "key=value" override: an engine key or "server.<key>".
+Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment);
+
+// Checks cross-field rules (the engine parameters and the limits).
+Status ValidateServerConfig(const ServerConfig& config);
+
+}  // namespace bgkmap

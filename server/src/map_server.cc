@@ -1,0 +1,131 @@
+#include "bgkmap/server/map_server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/server.h>
+#include <grpcpp/server_builder.h>
+#include <spdlog/spdlog.h>
+
+#include <boost/asio/thread_pool.hpp>
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include "map_service.h"
+#include "service_context.h"
+
+namespace bgkmap {
+namespace {
+
+size_t ThreadCount(int configured) {
+  if (configured > 0) return static_cast<size_t>(configured);
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+}  // namespace
+
+struct MapServer::Impl {
+  Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map)
+      : config(cfg),
+        ingest_pool(ThreadCount(cfg.worker_threads)),
+        query_pool(ThreadCount(cfg.query_threads)),
+        store(std::move(map)),
+        scheduler(store, ingest_pool, cfg.limits.max_robots,
+                  [this](const std::vector<TileKey>& changed) { hub.Publish(changed); }),
+        ctx(cfg, store, scheduler, hub, ingest_pool, query_pool),
+        service(ctx) {}
+
+  ServerConfig config;
+  boost::asio::thread_pool ingest_pool;
+  boost::asio::thread_pool query_pool;
+  MapStore store;
+  WatchHub hub;
+  ScanScheduler scheduler;
+  ServiceContext ctx;
+  MapService service;
+  std::unique_ptr<grpc::Server> server;
+  int port = 0;
+
+  std::mutex shutdown_mu;
+  bool stopped = false;
+};
+
+MapServer::MapServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+MapServer::~MapServer() { Shutdown(); }
+
+Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) {
+  if (Status s = ValidateServerConfig(config); !s.ok()) return s;
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
+  if (!map.ok()) return map.status();
+  auto impl = std::make_unique<Impl>(config, std::move(map).value());
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(config.listen_address, grpc::InsecureServerCredentials(), &impl->port);
+  builder.RegisterService(&impl->service);
+  const int max_bytes = static_cast<int>(config.limits.max_message_bytes);
+  builder.SetMaxReceiveMessageSize(max_bytes);
+  builder.SetMaxSendMessageSize(max_bytes);
+  impl->server = builder.BuildAndStart();
+  if (impl->server == nullptr || impl->port == 0) {
+    impl->server.reset();
+    return Status::FailedPrecondition("server.listen_address: cannot listen on '" +
+                                      config.listen_address + "'");
+  }
+  if (auto* health = impl->server->GetHealthCheckService()) {
+    health->SetServingStatus(kMapServiceName, true);
+    health->SetServingStatus("", true);
+  }
+  spdlog::info("event=listening address={} port={} worker_threads={} query_threads={}",
+               config.listen_address, impl->port, ThreadCount(config.worker_threads),
+               ThreadCount(config.query_threads));
+  return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
+}
+
+int MapServer::port() const { return impl_->port; }
+
+void MapServer::Shutdown() {
+  std::lock_guard lock(impl_->shutdown_mu);
+  if (impl_->stopped) return;
+  impl_->stopped = true;
+  const auto t0 = std::chrono::steady_clock::now();
+  spdlog::info("event=shutdown_begin open_ingest_streams={} watchers={}",
+               impl_->ctx.sessions.count(SessionRegistry::Kind::kIngest),
+               impl_->ctx.sessions.count(SessionRegistry::Kind::kWatch));
+  if (auto* health = impl_->server->GetHealthCheckService()) {
+    health->SetServingStatus(kMapServiceName, false);
+  }
+  // Ingest streams stop reading and ack what they have; watches end.
+  impl_->ctx.sessions.DrainAll();
+  // Refuse new calls and wait for the open ones (bounded by the grace period).
+  const auto grace = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
+  impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
+  impl_->scheduler.WaitIdle();
+  impl_->ingest_pool.join();
+  impl_->query_pool.join();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  spdlog::info("event=shutdown_done seconds={:.3f}", seconds);
+}
+
+ServerReport MapServer::Report() const {
+  ServerReport r;
+  r.map_version = impl_->scheduler.applied_version();
+  r.scans_applied = impl_->scheduler.scans_applied();
+  const MapSummary summary = impl_->store.Summarize();
+  r.tile_count = summary.tile_count;
+  r.known_cells = summary.known_cells;
+  for (const RobotProgress& p : impl_->scheduler.Robots()) {
+    r.robots.push_back(
+        {p.robot_id, p.last_sequence, p.scans_applied, p.scans_duplicate, p.scans_rejected});
+  }
+  return r;
+}
+
+std::unique_ptr<TerrainMap> MapServer::SnapshotMap() const { return impl_->store.Snapshot(); }
+
+}  // namespace bgkmap

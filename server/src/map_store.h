@@ -1,0 +1,61 @@
+// The served map and the locks around it. Writers are called by ScanScheduler, which never runs
+// two conflicting changes at once; readers may run at any time and see every scan either
+// completely or not at all (the tiles they read are held shared for the whole read).
+//
+// Lock order, everywhere: tile stripes (ascending) before the tile-table lock. The table lock is
+// exclusive only while tiles are created or erased, and readers take it shared in short bands,
+// so a large query never stalls ingestion for long.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <shared_mutex>
+#include <span>
+#include <vector>
+
+#include "bgkmap/core/raster.h"
+#include "bgkmap/core/terrain_map.h"
+#include "tile_lock_table.h"
+
+namespace bgkmap {
+
+struct MapSummary {
+  uint64_t tile_count = 0;
+  uint64_t known_cells = 0;
+  CellBox known_bounds;  // empty when nothing is known
+};
+
+struct TileContent {
+  Raster raster;         // the tile's cells at stride 1
+  uint64_t version = 0;  // of the tile's last change (0: the tile does not exist)
+};
+
+class MapStore {
+ public:
+  explicit MapStore(std::unique_ptr<TerrainMap> map);
+
+  const MapParams& params() const { return map_->params(); }
+  const GridGeometry& geometry() const { return map_->geometry(); }
+
+  // Writers (serialised per tile by the scheduler).
+  ScanReport ApplyScan(const PreparedScan& scan, uint64_t version);
+  std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version);
+  void SetMapVersion(uint64_t version);
+
+  // Readers.
+  Raster ReadRegion(const CellBox& box, const std::vector<Layer>& layers, int stride) const;
+  std::vector<CellEstimate> ReadCells(std::span<const CellIndex> cells) const;
+  TileContent ReadTile(TileKey key, const std::vector<Layer>& layers) const;
+  std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
+  MapSummary Summarize() const;
+
+  // For tests and shutdown reports: a consistent copy of every tile.
+  std::unique_ptr<TerrainMap> Snapshot() const;
+
+ private:
+  std::unique_ptr<TerrainMap> map_;
+  mutable std::shared_mutex table_mu_;
+  mutable TileLockTable tile_locks_;
+};
+
+}  // namespace bgkmap

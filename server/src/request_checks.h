@@ -1,0 +1,35 @@
+// Validation of incoming requests against the server limits. Every failure is a gRPC status
+// whose message names the field, the offending value and the limit (with its config key).
+#pragma once
+
+#include <grpcpp/support/status.h>
+
+#include <memory>
+#include <string>
+
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/scan.h"
+#include "bgkmap/server/server_config.h"
+#include "bgkmap/v1/ingest.pb.h"
+#include "bgkmap/v1/types.pb.h"
+
+namespace bgkmap {
+
+// Checks a scan (robot id, packed points, pose) and prepares it. Pure: reads no map state.
+grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
+                                const ServerLimits& limits, PreparedScan* out);
+
+// Cheap checks done before anything else (robot id), so even duplicates are well-formed.
+grpc::Status CheckRobotId(const std::string& robot_id);
+
+// The cells covered by a metric box (half-open), widened to multiples of `stride` aligned with
+// the global grid. With `limit_cells`, more than limits.max_region_cells cells (at map
+// resolution) is RESOURCE_EXHAUSTED.
+grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
+                         const GridGeometry& geometry, int stride, const ServerLimits& limits,
+                         bool limit_cells, CellBox* out);
+
+// A finite coordinate within limits.max_coordinate.
+grpc::Status CheckCoordinate(double value, const std::string& field, const ServerLimits& limits);
+
+}  // namespace bgkmap

@@ -1,0 +1,246 @@
+#include "bgkmap/server/server_config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <sstream>
+
+#include "bgkmap/config/map_params_yaml.h"
+
+namespace bgkmap {
+namespace {
+
+// One `server:` key: how to read it, how to write it.
+struct ServerKey {
+  std::string name;
+  std::function<Status(const YAML::Node&, ServerConfig&)> read;
+  std::function<YAML::Node(const ServerConfig&)> write;
+};
+
+template <typename T>
+Status ReadScalar(const YAML::Node& node, const std::string& key, T* out) {
+  try {
+    T value = node.as<T>();
+    if constexpr (std::is_floating_point_v<T>) {
+      if (!std::isfinite(value)) {
+        return Status::InvalidArgument("server." + key + ": must be finite");
+      }
+    }
+    *out = value;
+    return Status::Ok();
+  } catch (const YAML::Exception&) {
+    std::string shown = node.IsScalar() ? node.Scalar() : "(not a scalar)";
+    return Status::InvalidArgument("server." + key + ": '" + shown + "' is not a valid value");
+  }
+}
+
+// Unsigned keys go through int64 so that "-1" is an error instead of a huge number.
+template <typename T>
+Status ReadUnsigned(const YAML::Node& node, const std::string& key, T* out) {
+  int64_t v = 0;
+  if (Status s = ReadScalar(node, key, &v); !s.ok()) return s;
+  if (v < 0 || static_cast<uint64_t>(v) > std::numeric_limits<T>::max()) {
+    return Status::InvalidArgument("server." + key + ": " + std::to_string(v) + " is out of range");
+  }
+  *out = static_cast<T>(v);
+  return Status::Ok();
+}
+
+template <typename T, typename Member>
+ServerKey Key(std::string name, Member member) {
+  ServerKey k;
+  k.name = name;
+  k.read = [name, member](const YAML::Node& n, ServerConfig& c) {
+    if constexpr (std::is_unsigned_v<T>) {
+      return ReadUnsigned<T>(n, name, &member(c));
+    } else {
+      return ReadScalar<T>(n, name, &member(c));
+    }
+  };
+  k.write = [member](const ServerConfig& c) {
+    return YAML::Node(member(const_cast<ServerConfig&>(c)));
+  };
+  return k;
+}
+
+const std::vector<ServerKey>& Keys() {
+  static const std::vector<ServerKey> keys = {
+      Key<std::string>(
+          "listen_address", [](ServerConfig & c) -> auto& { return c.listen_address; }),
+      Key<int>(
+          "worker_threads", [](ServerConfig & c) -> auto& { return c.worker_threads; }),
+      Key<int>(
+          "query_threads", [](ServerConfig & c) -> auto& { return c.query_threads; }),
+      Key<std::string>(
+          "log_level", [](ServerConfig & c) -> auto& { return c.log_level; }),
+      Key<double>(
+          "shutdown_timeout_s", [](ServerConfig & c) -> auto& { return c.shutdown_timeout_s; }),
+      Key<uint64_t>(
+          "max_points_per_scan",
+          [](ServerConfig & c) -> auto& { return c.limits.max_points_per_scan; }),
+      Key<uint64_t>(
+          "max_region_cells", [](ServerConfig & c) -> auto& { return c.limits.max_region_cells; }),
+      Key<uint64_t>(
+          "max_query_points", [](ServerConfig & c) -> auto& { return c.limits.max_query_points; }),
+      Key<uint64_t>(
+          "max_path_poses", [](ServerConfig & c) -> auto& { return c.limits.max_path_poses; }),
+      Key<uint64_t>(
+          "max_footprint_cells",
+          [](ServerConfig & c) -> auto& { return c.limits.max_footprint_cells; }),
+      Key<double>(
+          "max_coordinate", [](ServerConfig & c) -> auto& { return c.limits.max_coordinate; }),
+      Key<double>(
+          "quaternion_tolerance",
+          [](ServerConfig & c) -> auto& { return c.limits.quaternion_tolerance; }),
+      Key<uint32_t>(
+          "max_inflight_scans_per_stream",
+          [](ServerConfig & c) -> auto& { return c.limits.max_inflight_scans_per_stream; }),
+      Key<uint32_t>(
+          "max_inflight_unary_scans",
+          [](ServerConfig & c) -> auto& { return c.limits.max_inflight_unary_scans; }),
+      Key<uint32_t>(
+          "max_ingest_streams",
+          [](ServerConfig & c) -> auto& { return c.limits.max_ingest_streams; }),
+      Key<uint32_t>(
+          "max_robots", [](ServerConfig & c) -> auto& { return c.limits.max_robots; }),
+      Key<uint32_t>(
+          "max_watchers", [](ServerConfig & c) -> auto& { return c.limits.max_watchers; }),
+      Key<uint64_t>(
+          "max_watch_tiles", [](ServerConfig & c) -> auto& { return c.limits.max_watch_tiles; }),
+      Key<uint32_t>(
+          "max_concurrent_queries",
+          [](ServerConfig & c) -> auto& { return c.limits.max_concurrent_queries; }),
+      Key<uint64_t>(
+          "max_message_bytes",
+          [](ServerConfig & c) -> auto& { return c.limits.max_message_bytes; }),
+      Key<uint64_t>(
+          "region_chunk_bytes",
+          [](ServerConfig & c) -> auto& { return c.limits.region_chunk_bytes; }),
+  };
+  return keys;
+}
+
+Status ReadServerSection(const YAML::Node& section, ServerConfig& config) {
+  if (!section.IsMap()) return Status::InvalidArgument("server: must be a mapping of keys");
+  for (const auto& entry : section) {
+    const std::string name = entry.first.as<std::string>();
+    const ServerKey* key = nullptr;
+    for (const ServerKey& k : Keys()) {
+      if (k.name == name) key = &k;
+    }
+    if (key == nullptr) {
+      return Status::InvalidArgument("server." + name + ": unknown key");
+    }
+    if (Status s = key->read(entry.second, config); !s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+const std::vector<std::string>& ServerConfigKeys() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const ServerKey& k : Keys()) n.push_back(k.name);
+    return n;
+  }();
+  return names;
+}
+
+Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerConfig& base) {
+  ServerConfig config = base;
+  if (!root || root.IsNull()) return config;
+  if (!root.IsMap()) return Status::InvalidArgument("config: the document must be a mapping");
+  Result<MapParams> params = MapParamsFromYaml(root, {"server"}, base.map);
+  if (!params.ok()) return params.status();
+  config.map = *params;
+  if (root["server"]) {
+    if (Status s = ReadServerSection(root["server"], config); !s.ok()) return s;
+  }
+  if (Status s = ValidateServerConfig(config); !s.ok()) return s;
+  return config;
+}
+
+std::string ServerConfigToYaml(const ServerConfig& config) {
+  YAML::Node root = MapParamsToYaml(config.map);
+  YAML::Node server(YAML::NodeType::Map);
+  for (const ServerKey& k : Keys()) server[k.name] = k.write(config);
+  root["server"] = server;
+  YAML::Emitter out;
+  out << root;
+  return std::string(out.c_str()) + "\n";
+}
+
+Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment) {
+  const size_t eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    return Status::InvalidArgument("--set " + assignment + ": expected KEY=VALUE");
+  }
+  const std::string key = assignment.substr(0, eq);
+  YAML::Node value;
+  try {
+    value = YAML::Load(assignment.substr(eq + 1));
+  } catch (const YAML::Exception& e) {
+    return Status::InvalidArgument("--set " + key + ": " + e.what());
+  }
+  YAML::Node root(YAML::NodeType::Map);
+  const std::string prefix = "server.";
+  if (key.rfind(prefix, 0) == 0) {
+    root["server"][key.substr(prefix.size())] = value;
+  } else {
+    root[key] = value;
+  }
+  Result<ServerConfig> updated = ServerConfigFromYaml(root, config);
+  if (!updated.ok()) return updated.status();
+  config = *updated;
+  return Status::Ok();
+}
+
+Status ValidateServerConfig(const ServerConfig& c) {
+  if (Status s = c.map.Validate(); !s.ok()) return s;
+  auto bad = [](const std::string& key, const std::string& why) {
+    return Status::InvalidArgument("server." + key + ": " + why);
+  };
+  if (c.listen_address.empty()) return bad("listen_address", "must not be empty");
+  static const std::vector<std::string> kLevels = {"trace", "debug",    "info", "warn",
+                                                   "error", "critical", "off"};
+  if (std::find(kLevels.begin(), kLevels.end(), c.log_level) == kLevels.end()) {
+    return bad("log_level", "'" + c.log_level + "' is not one of trace|debug|info|warn|error|off");
+  }
+  if (c.worker_threads < 0 || c.worker_threads > 1024) return bad("worker_threads", "0..1024");
+  if (c.query_threads < 0 || c.query_threads > 1024) return bad("query_threads", "0..1024");
+  if (c.shutdown_timeout_s < 0) return bad("shutdown_timeout_s", "must be >= 0");
+  const ServerLimits& l = c.limits;
+  if (l.max_points_per_scan == 0) return bad("max_points_per_scan", "must be > 0");
+  if (l.max_region_cells == 0) return bad("max_region_cells", "must be > 0");
+  if (!(l.max_coordinate > 0)) return bad("max_coordinate", "must be > 0");
+  if (l.max_coordinate > kMaxCellIndex * c.map.resolution / 2) {
+    std::ostringstream why;
+    why << "must be below half the engine's range (" << kMaxCellIndex * c.map.resolution / 2
+        << " m at resolution " << c.map.resolution << ")";
+    return bad("max_coordinate", why.str());
+  }
+  if (!(l.quaternion_tolerance > 0 && l.quaternion_tolerance < 0.5)) {
+    return bad("quaternion_tolerance", "must be in (0, 0.5)");
+  }
+  if (l.max_inflight_scans_per_stream == 0) {
+    return bad("max_inflight_scans_per_stream", "must be > 0");
+  }
+  if (l.max_message_bytes < (1u << 20)) return bad("max_message_bytes", "must be >= 1 MiB");
+  if (l.max_message_bytes > (1ull << 31) - 1) return bad("max_message_bytes", "must be < 2 GiB");
+  if (l.max_points_per_scan * 12 + 4096 > l.max_message_bytes) {
+    return bad("max_points_per_scan", std::to_string(l.max_points_per_scan) +
+                                          " points (12 bytes each) exceed "
+                                          "server.max_message_bytes = " +
+                                          std::to_string(l.max_message_bytes));
+  }
+  if (l.region_chunk_bytes < 4096 || l.region_chunk_bytes > l.max_message_bytes / 2) {
+    return bad("region_chunk_bytes", "must be in [4096, max_message_bytes / 2]");
+  }
+  return Status::Ok();
+}
+
+}  // namespace bgkmap

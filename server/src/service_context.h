@@ -1,0 +1,84 @@
+// What every RPC handler shares: the map, the scheduler, the watch hub, the worker pools, the
+// limits, and the registry of long-lived streams that a shutdown has to drain.
+#pragma once
+
+#include <atomic>
+#include <boost/asio/thread_pool.hpp>
+#include <cstdint>
+#include <mutex>
+#include <unordered_map>
+
+#include "bgkmap/server/server_config.h"
+#include "map_store.h"
+#include "scan_scheduler.h"
+#include "watch_hub.h"
+
+namespace bgkmap {
+
+// A long-lived stream that must wind down when the server stops.
+class DrainListener {
+ public:
+  // Stop taking new work, finish and answer what was taken, then end the call.
+  virtual void BeginDrain() = 0;
+
+ protected:
+  ~DrainListener() = default;
+};
+
+class SessionRegistry {
+ public:
+  enum class Kind { kIngest, kWatch };
+  enum class Admit { kOk, kDraining, kFull };
+
+  Admit Add(DrainListener* session, Kind kind, uint32_t limit);
+  void Remove(DrainListener* session);
+  // Marks the registry draining and calls BeginDrain() on every open session.
+  void DrainAll();
+  bool draining() const;
+  size_t count(Kind kind) const;
+
+ private:
+  mutable std::mutex mu_;
+  bool draining_ = false;
+  std::unordered_map<DrainListener*, Kind> sessions_;
+};
+
+// Bounds a counter of concurrent operations; released on destruction.
+class Permit {
+ public:
+  Permit(std::atomic<uint32_t>& counter, uint32_t limit);
+  Permit(Permit&& other) noexcept : counter_(other.counter_) { other.counter_ = nullptr; }
+  Permit(const Permit&) = delete;
+  Permit& operator=(const Permit&) = delete;
+  ~Permit();
+  explicit operator bool() const { return counter_ != nullptr; }
+
+ private:
+  std::atomic<uint32_t>* counter_;
+};
+
+struct ServiceContext {
+  ServiceContext(const ServerConfig& cfg, MapStore& map_store, ScanScheduler& scan_scheduler,
+                 WatchHub& watch_hub, boost::asio::thread_pool& ingest,
+                 boost::asio::thread_pool& query)
+      : config(cfg),
+        limits(cfg.limits),
+        store(map_store),
+        scheduler(scan_scheduler),
+        hub(watch_hub),
+        ingest_pool(ingest),
+        query_pool(query) {}
+
+  const ServerConfig config;
+  const ServerLimits limits;
+  MapStore& store;
+  ScanScheduler& scheduler;
+  WatchHub& hub;
+  boost::asio::thread_pool& ingest_pool;  // scan preparation and integration
+  boost::asio::thread_pool& query_pool;   // queries and watch updates
+  SessionRegistry sessions;
+  std::atomic<uint32_t> queries{0};      // concurrent queries
+  std::atomic<uint32_t> unary_scans{0};  // concurrent IngestScan calls
+};
+
+}  // namespace bgkmap
