@@ -1,0 +1,114 @@
+// Per-scan update cost, split into the paper's three stages (Table 1): BGK elevation
+// inference, traversability computation, BGK traversability inference.
+//
+//   build/bench/scan_update_benchmark --benchmark_counters_tabular=true
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/sim/ray_caster.h"
+#include "street_world.h"
+
+namespace bgkmap {
+namespace {
+
+struct Sequence {
+  std::vector<std::vector<Point3f>> scans;
+  std::vector<Pose> poses;
+};
+
+// Scans every metre along the street, like the paper's City run (1 m between scans).
+const Sequence& Drive(const sim::BeamModel& beams, double sensor_height) {
+  static std::map<std::string, Sequence> cache;
+  Sequence& seq = cache[beams.name];
+  if (!seq.scans.empty()) return seq;
+  const bench::StreetWorld world;
+  for (int i = 0; i < 24; ++i) {
+    Pose pose;
+    pose.translation = {1.0 * i, 0.0, world.SurfaceHeight(1.0 * i, 0.0) + sensor_height};
+    sim::RayCastOptions opt;
+    opt.seed = 1 + i;
+    seq.scans.push_back(sim::SimulateScan(world, beams, pose, opt));
+    seq.poses.push_back(pose);
+  }
+  return seq;
+}
+
+void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double kernel_length,
+                   Method method, int tile_size = 64) {
+  const Sequence& seq = Drive(beams, 0.8);
+  MapParams p;
+  p.resolution = 0.1;
+  p.kernel_length = kernel_length;
+  p.robot_radius = 0.3;
+  p.method = method;
+  p.tile_size = tile_size;
+  std::unique_ptr<TerrainMap> map;
+  size_t next = 0;
+  StageTimes sum;
+  double points = 0, observed = 0, bytes_per_known = 0;
+  for (auto _ : state) {
+    if (next % seq.scans.size() == 0) {  // restart the drive on a fresh map, untimed
+      state.PauseTiming();
+      if (map) {  // memory after one complete 24 m drive
+        bytes_per_known = static_cast<double>(map->TileMemoryBytes()) /
+                          static_cast<double>(map->CountKnownCells());
+      }
+      map = std::move(TerrainMap::Create(p)).value();
+      state.ResumeTiming();
+    }
+    const size_t k = next++ % seq.scans.size();
+    Result<ScanReport> r = map->IntegrateScan(seq.scans[k], seq.poses[k]);
+    benchmark::DoNotOptimize(r);
+    sum.elevation += r->times.elevation;
+    sum.features += r->times.features;
+    sum.traversability += r->times.traversability;
+    points += static_cast<double>(r->counts.input);
+    observed += static_cast<double>(r->observed_cells);
+  }
+  const double n = static_cast<double>(state.iterations());
+  state.counters["points"] = points / n;
+  state.counters["observed_cells"] = observed / n;
+  state.counters["elev_ms"] = 1e3 * sum.elevation / n;
+  state.counters["feat_ms"] = 1e3 * sum.features / n;
+  state.counters["trav_ms"] = 1e3 * sum.traversability / n;
+  state.counters["bytes_per_known_cell"] = bytes_per_known;
+  state.SetItemsProcessed(static_cast<int64_t>(points));
+}
+
+void BM_Vlp16(benchmark::State& s, Method m) { RunScanUpdate(s, sim::Vlp16(), 0.3, m); }
+void BM_Hdl32e(benchmark::State& s, Method m) { RunScanUpdate(s, sim::Hdl32e(), 1.0, m); }
+
+BENCHMARK_CAPTURE(BM_Vlp16, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32e, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vlp16, baseline, Method::kBaseline)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vlp16, one_step, Method::kOneStep)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vlp16, bgk_trav, Method::kBgkTrav)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32e, bgk_trav, Method::kBgkTrav)->Unit(benchmark::kMillisecond);
+
+// Memory per known cell against tile size: small tiles waste less on sparse far returns.
+void BM_Vlp16TileSize(benchmark::State& s) {
+  RunScanUpdate(s, sim::Vlp16(), 0.3, Method::kBgkPlus, static_cast<int>(s.range(0)));
+}
+BENCHMARK(BM_Vlp16TileSize)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond);
+
+void BM_PrepareVlp16(benchmark::State& state) {
+  const Sequence& seq = Drive(sim::Vlp16(), 0.8);
+  const MapParams p;
+  size_t k = 0;
+  for (auto _ : state) {
+    auto r = PrepareScan(p, seq.scans[k % seq.scans.size()], seq.poses[k % seq.scans.size()]);
+    benchmark::DoNotOptimize(r);
+    ++k;
+  }
+}
+BENCHMARK(BM_PrepareVlp16)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace bgkmap
+
+BENCHMARK_MAIN();

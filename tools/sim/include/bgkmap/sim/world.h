@@ -1,0 +1,16 @@
+// A world a simulated lidar can see: a 2.5D surface (terrain, kerbs, buildings as tall columns)
+// plus optional overhanging volumes (tree canopies, bridges) that are not part of the ground.
+#pragma once
+
+namespace bgkmap::sim {
+
+class World {
+ public:
+  virtual ~World() = default;
+  // Height of the top of the solid surface at (x, y), metres. NaN where there is nothing.
+  virtual double SurfaceHeight(double x, double y) const = 0;
+  // True if (x, y, z) lies inside an overhanging volume above the surface.
+  virtual bool InOverhang(double /*x*/, double /*y*/, double /*z*/) const { return false; }
+};
+
+}  // namespace bgkmap::sim
