@@ -1,0 +1,11 @@
+// The `bgkmap` subcommands. Each Register* adds one subcommand to the app; the subcommand's
+// callback sets `exit_code` (0 on success; on failure it has printed one line to stderr).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace bgkmap::cli {
+
+void RegisterBuildCommand(CLI::App& app, int& exit_code);
+
+}  // namespace bgkmap::cli

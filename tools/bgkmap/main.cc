@@ -1,0 +1,18 @@
+// `bgkmap`: the command-line tool. One binary, one subcommand per job.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+
+#include "commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"bgkmap: BGK terrain traversability maps for ground robots"};
+  app.require_subcommand(1);
+  int exit_code = 0;
+  bgkmap::cli::RegisterBuildCommand(app, exit_code);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  return exit_code;
+}

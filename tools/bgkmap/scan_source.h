@@ -1,0 +1,37 @@
+// Where the CLI's scans come from: a KITTI-like directory (a sequence of posed scans) or a single
+// georeferenced cloud (LAS, PCD), which is one scan already in the map frame.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/scan.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap::cli {
+
+struct SourceScan {
+  std::vector<Point3f> points;  // sensor frame, or map frame minus pose.translation
+  Pose pose;
+  bool frame_is_map = false;  // a single cloud: no sensor, no range/height filtering
+};
+
+struct SourceOptions {
+  std::vector<uint8_t> las_classes;  // keep only these LAS classes (empty = all)
+};
+
+class ScanSource {
+ public:
+  virtual ~ScanSource() = default;
+  virtual size_t size() const = 0;
+  virtual Result<SourceScan> Read(size_t k) const = 0;
+  virtual std::string Describe() const = 0;
+};
+
+// Picks the reader from the path: a directory is KITTI-like, *.las and *.pcd are single clouds.
+Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
+                                                   const SourceOptions& options = {});
+
+}  // namespace bgkmap::cli
