@@ -133,6 +133,8 @@ bool MapParams::StatisticsCompatibleWith(const MapParams& o, std::string* why) c
   if (differ("resolution", resolution, o.resolution) ||
       differ("tile_size", tile_size, o.tile_size) ||
       differ("kernel_length", kernel_length, o.kernel_length) ||
+      // The elevation a scan's v is computed from depends on the prior too.
+      differ("lambda", lambda, o.lambda) || differ("prior_mean", prior_mean, o.prior_mean) ||
       differ("robot_radius", robot_radius, o.robot_radius) ||
       differ("step_crit", step_crit, o.step_crit) ||
       differ("slope_crit_deg", slope_crit_deg, o.slope_crit_deg) ||

@@ -132,3 +132,16 @@ TEST(MapParamsTest, MissingFileIsAnError) {
 
 }  // namespace
 }  // namespace bgkmap
+
+namespace bgkmap {
+namespace {
+
+TEST(MapParamsTest, ShippedDefaultConfigEqualsTheBuiltInDefaults) {
+  Result<MapParams> p = LoadMapParamsFile(std::string(BGKMAP_SOURCE_DIR) + "/config/default.yaml");
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  const YAML::Node shipped = MapParamsToYaml(*p), builtin = MapParamsToYaml(MapParams{});
+  EXPECT_EQ(YAML::Dump(shipped), YAML::Dump(builtin));
+}
+
+}  // namespace
+}  // namespace bgkmap

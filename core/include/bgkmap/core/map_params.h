@@ -58,8 +58,8 @@ struct MapParams {
   // Checks every field; the message names the key, the value and the rule broken.
   Status Validate() const;
 
-  // Parameters that change the meaning of stored statistics (all but the thresholds that only
-  // affect derived layers). Two maps can be merged or reopened only if these are equal.
+  // Parameters that shape the stored statistics (all but sigma2, alpha0, beta0 and the two
+  // thresholds, which only enter derived layers). Maps merge or reopen only if these are equal.
   bool StatisticsCompatibleWith(const MapParams& other, std::string* why) const;
 };
 
