@@ -1,0 +1,231 @@
+// bgkmap::Client: the C++ client of bgkmapd (bgkmap.v1.MapService). Synchronous calls that hide
+// the protocol: scans go in as points and poses, regions come back as bgkmap::Raster.
+//
+//   bgkmap::Client client("127.0.0.1:50051");
+//   auto stream = client.OpenIngest();
+//   stream->Send(scan);                      // blocks while the server's read-ahead is full
+//   bgkmap::ScanAck ack; stream->ReadAck(&ack);
+//   auto raster = client.QueryRegion({{-50, -50, 50, 50}, {bgkmap::Layer::kElevation}});
+//
+// A Client is thread-safe: any number of threads may call it at once.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bgkmap/client/rpc_status.h"
+#include "bgkmap/core/cell_estimate.h"
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/raster.h"
+#include "bgkmap/core/scan.h"
+
+namespace bgkmap {
+
+struct ClientOptions {
+  // Deadline of each unary call and region query (0 = none).
+  std::chrono::milliseconds timeout{60'000};
+  // Largest message accepted from the server.
+  int max_message_bytes = 64 << 20;
+};
+
+// A rectangle in the map frame, metres; regions cover the cells meeting [min, max).
+struct MetricBox {
+  double min_x = 0, min_y = 0, max_x = 0, max_y = 0;
+};
+
+// Sensor pose in the map frame: translation and unit quaternion.
+struct ScanPose {
+  double tx = 0, ty = 0, tz = 0;
+  double qw = 1, qx = 0, qy = 0, qz = 0;
+  static ScanPose FromPose(const Pose& pose);  // rotation matrix -> quaternion
+};
+
+// One scan to send; `points` (sensor frame) must stay valid during the call.
+struct ScanData {
+  std::string robot_id;
+  uint64_t sequence = 0;
+  int64_t stamp_ns = 0;  // since the Unix epoch; informational
+  ScanPose pose;
+  std::span<const Point3f> points;
+};
+
+enum class AckStatus { kApplied, kDuplicate, kRejected };
+
+struct ScanAck {
+  std::string robot_id;
+  uint64_t sequence = 0;
+  AckStatus status = AckStatus::kRejected;
+  RpcStatus error;  // why a scan was rejected (ok otherwise)
+  std::vector<TileKey> changed_tiles;
+  uint64_t map_version = 0;
+  ScanPointCounts counts;
+};
+
+// A robot's scan stream. Send() and ReadAck() may run on two different threads.
+class IngestStream {
+ public:
+  virtual ~IngestStream() = default;
+  // Sends one scan; blocks under flow control. False once the stream is broken (see Finish()).
+  virtual bool Send(const ScanData& scan) = 0;
+  // The next ack, in send order. False when the server ended the stream.
+  virtual bool ReadAck(ScanAck* ack) = 0;
+  // No more scans; acks keep coming until every sent scan is answered.
+  virtual void CloseSend() = 0;
+  // Closes the sending side, reads every remaining ack into `remaining` (if given) and returns
+  // how the stream ended (UNAVAILABLE when the server shut down: unacked scans were not applied).
+  virtual RpcStatus Finish(std::vector<ScanAck>* remaining = nullptr) = 0;
+  // Aborts the stream.
+  virtual void Cancel() = 0;
+};
+
+struct RegionQuery {
+  MetricBox box;
+  std::vector<Layer> layers;  // empty: every layer
+  int stride = 1;             // map cells per pixel edge
+};
+
+struct PointValues {
+  std::vector<Layer> layers;
+  std::vector<float> values;  // point-major: values[i * layers.size() + j]
+  uint64_t map_version = 0;
+  float at(size_t point, size_t layer) const { return values[point * layers.size() + layer]; }
+};
+
+struct Pose2 {
+  double x = 0, y = 0, yaw = 0;
+};
+
+struct PathQuery {
+  std::vector<Pose2> poses;
+  double radius = 0;                                  // disk footprint, used when polygon is empty
+  std::vector<std::array<double, 2>> polygon;         // robot-frame footprint vertices
+  std::optional<double> max_traversability;           // default: the map's trav_threshold
+  std::optional<double> max_traversability_variance;  // default: the map's variance_threshold
+  std::optional<double> max_unknown_fraction;         // default: 0
+};
+
+struct PoseCheck {
+  float worst_traversability = 0;
+  float worst_traversability_variance = 0;
+  float unknown_fraction = 0;
+  uint32_t cell_count = 0;
+  bool safe = false;
+};
+
+struct PathCheck {
+  std::vector<PoseCheck> poses;
+  bool safe = false;
+  int first_unsafe_index = -1;
+  uint64_t map_version = 0;
+};
+
+struct WatchQuery {
+  MetricBox box;
+  std::vector<Layer> layers;  // empty: every layer
+  bool initial_snapshot = false;
+};
+
+struct TileUpdate {
+  TileKey key;
+  uint64_t tile_version = 0;
+  uint64_t map_version = 0;
+  Raster raster;  // the tile's cells, rows north to south
+};
+
+// A running Watch; updates arrive on a background thread.
+class WatchSubscription {
+ public:
+  virtual ~WatchSubscription() = default;  // cancels and waits
+  virtual void Cancel() = 0;
+  // Blocks until the stream ends; CANCELLED after Cancel(), UNAVAILABLE on server shutdown.
+  virtual RpcStatus Wait() = 0;
+};
+
+struct RobotInfo {
+  std::string robot_id;
+  uint64_t last_sequence = 0;
+  int64_t last_stamp_ns = 0;
+  uint64_t scans_applied = 0;
+  uint64_t scans_duplicate = 0;
+  uint64_t scans_rejected = 0;
+  uint64_t points_kept = 0;
+};
+
+struct ServerLimitsInfo {
+  uint64_t max_points_per_scan = 0;
+  uint64_t max_region_cells = 0;
+  uint64_t max_query_points = 0;
+  uint64_t max_path_poses = 0;
+  double max_coordinate = 0;
+  uint64_t max_message_bytes = 0;
+  uint32_t max_inflight_scans_per_stream = 0;
+};
+
+struct MapInfo {
+  MapParams params;
+  std::string params_yaml;
+  uint64_t tile_count = 0;
+  uint64_t known_cells = 0;
+  CellBox known_cells_box;  // empty when nothing is known
+  MetricBox known_bounds;
+  uint64_t map_version = 0;
+  uint64_t scans_applied = 0;
+  std::vector<RobotInfo> robots;  // sorted by id
+  ServerLimitsInfo limits;
+  std::string server_version;
+  const RobotInfo* FindRobot(const std::string& id) const;
+};
+
+struct ClearResult {
+  std::vector<TileKey> changed_tiles;
+  uint64_t map_version = 0;
+};
+
+class Client {
+ public:
+  // `target`: "host:port" (any gRPC target string). Connects lazily.
+  explicit Client(const std::string& target, ClientOptions options = {});
+  ~Client();
+  Client(const Client&) = delete;
+  Client& operator=(const Client&) = delete;
+
+  // True once the server is reachable (waits at most `timeout`).
+  bool WaitForConnected(std::chrono::milliseconds timeout);
+
+  // One scan (unary IngestScan); a rejected scan is an error status.
+  RpcResult<ScanAck> Insert(const ScanData& scan);
+  // A long-lived scan stream.
+  std::unique_ptr<IngestStream> OpenIngest();
+  // Sends `scans` on one stream with acks read concurrently; `on_ack` sees each ack in order.
+  RpcResult<std::vector<ScanAck>> IngestAll(std::span<const ScanData> scans,
+                                            const std::function<void(const ScanAck&)>& on_ack = {});
+
+  // A region raster, assembled from the streamed chunks.
+  RpcResult<Raster> QueryRegion(const RegionQuery& query, uint64_t* map_version = nullptr);
+  RpcResult<PointValues> QueryPoints(std::span<const std::array<double, 2>> points,
+                                     const std::vector<Layer>& layers = {});
+  RpcResult<PathCheck> CheckPath(const PathQuery& query);
+  // Streams updates of changed tiles to `on_update` (on a background thread) until cancelled.
+  std::unique_ptr<WatchSubscription> Watch(const WatchQuery& query,
+                                           std::function<void(const TileUpdate&)> on_update);
+  RpcResult<MapInfo> Info();
+  RpcResult<ClearResult> ClearRegion(const MetricBox& box);
+
+  // The last sequence number the server admitted for `robot_id` (nullopt: none yet), to resume
+  // a stream after a restart.
+  RpcResult<std::optional<uint64_t>> LastSequence(const std::string& robot_id);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bgkmap

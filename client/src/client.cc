@@ -1,0 +1,356 @@
+#include "bgkmap/client/client.h"
+
+#include <grpcpp/channel.h>
+#include <grpcpp/client_context.h>
+#include <grpcpp/create_channel.h>
+#include <grpcpp/security/credentials.h>
+
+#include <cmath>
+#include <mutex>
+#include <thread>
+
+#include "bgkmap/v1/map_service.grpc.pb.h"
+#include "proto_codec.h"
+
+namespace bgkmap {
+
+using client_codec::FromGrpc;
+using client_codec::FromProto;
+using client_codec::ToProto;
+
+namespace {
+
+RpcStatus Malformed(const std::string& what) {
+  return RpcStatus(RpcCode::kDataLoss, "malformed server response: " + what);
+}
+
+class GrpcIngestStream final : public IngestStream {
+ public:
+  explicit GrpcIngestStream(v1::MapService::Stub& stub) { stream_ = stub.Ingest(&context_); }
+  ~GrpcIngestStream() override {
+    if (!finished_) {
+      context_.TryCancel();
+      grpc::Status ignored = stream_->Finish();
+    }
+  }
+
+  bool Send(const ScanData& scan) override {
+    v1::Scan message;
+    ToProto(scan, &message);
+    std::lock_guard lock(write_mu_);
+    if (send_closed_) return false;
+    return stream_->Write(message);
+  }
+
+  bool ReadAck(ScanAck* ack) override {
+    v1::ScanAck message;
+    if (!stream_->Read(&message)) return false;
+    *ack = FromProto(message);
+    return true;
+  }
+
+  void CloseSend() override {
+    std::lock_guard lock(write_mu_);
+    if (send_closed_) return;
+    send_closed_ = true;
+    stream_->WritesDone();
+  }
+
+  RpcStatus Finish(std::vector<ScanAck>* remaining) override {
+    CloseSend();
+    ScanAck ack;
+    while (ReadAck(&ack)) {
+      if (remaining != nullptr) remaining->push_back(std::move(ack));
+    }
+    finished_ = true;
+    return FromGrpc(stream_->Finish());
+  }
+
+  void Cancel() override { context_.TryCancel(); }
+
+ private:
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::Scan, v1::ScanAck>> stream_;
+  std::mutex write_mu_;
+  bool send_closed_ = false;
+  bool finished_ = false;
+};
+
+class GrpcWatch final : public WatchSubscription {
+ public:
+  GrpcWatch(v1::MapService::Stub& stub, const WatchQuery& query,
+            std::function<void(const TileUpdate&)> on_update)
+      : on_update_(std::move(on_update)) {
+    v1::WatchRequest request;
+    ToProto(query.box, request.mutable_box());
+    for (Layer l : query.layers) request.add_layers(ToProto(l));
+    request.set_initial_snapshot(query.initial_snapshot);
+    reader_ = stub.Watch(&context_, request);
+    thread_ = std::thread([this] { Loop(); });
+  }
+  ~GrpcWatch() override {
+    Cancel();
+    Wait();
+  }
+
+  void Cancel() override { context_.TryCancel(); }
+
+  RpcStatus Wait() override {
+    std::lock_guard lock(join_mu_);
+    if (thread_.joinable()) thread_.join();
+    return status_;
+  }
+
+ private:
+  void Loop() {
+    v1::TileUpdate message;
+    while (reader_->Read(&message)) {
+      TileUpdate update;
+      update.key = {message.key().x(), message.key().y()};
+      update.tile_version = message.tile_version();
+      update.map_version = message.map_version();
+      Raster& r = update.raster;
+      r.box = FromProto(message.cells());
+      r.stride = 1;
+      r.cols = r.box.width();
+      r.rows = r.box.height();
+      for (const v1::LayerValues& lv : message.layers()) {
+        r.layers.push_back(FromProto(lv.layer()));
+        r.data.emplace_back();
+        client_codec::UnpackFloats(lv.values(), &r.data.back());
+      }
+      on_update_(update);
+    }
+    status_ = FromGrpc(reader_->Finish());
+  }
+
+  grpc::ClientContext context_;
+  std::unique_ptr<grpc::ClientReader<v1::TileUpdate>> reader_;
+  std::function<void(const TileUpdate&)> on_update_;
+  RpcStatus status_;
+  std::mutex join_mu_;
+  std::thread thread_;
+};
+
+}  // namespace
+
+struct Client::Impl {
+  ClientOptions options;
+  std::shared_ptr<grpc::Channel> channel;
+  std::unique_ptr<v1::MapService::Stub> stub;
+
+  void SetDeadline(grpc::ClientContext* context) const {
+    if (options.timeout.count() > 0) {
+      context->set_deadline(std::chrono::system_clock::now() + options.timeout);
+    }
+  }
+};
+
+Client::Client(const std::string& target, ClientOptions options) : impl_(new Impl) {
+  impl_->options = options;
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(options.max_message_bytes);
+  args.SetMaxSendMessageSize(options.max_message_bytes);
+  impl_->channel = grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  impl_->stub = v1::MapService::NewStub(impl_->channel);
+}
+
+Client::~Client() = default;
+
+bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
+  return impl_->channel->WaitForConnected(std::chrono::system_clock::now() + timeout);
+}
+
+RpcResult<ScanAck> Client::Insert(const ScanData& scan) {
+  v1::Scan request;
+  ToProto(scan, &request);
+  v1::ScanAck response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->IngestScan(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  return FromProto(response);
+}
+
+std::unique_ptr<IngestStream> Client::OpenIngest() {
+  return std::make_unique<GrpcIngestStream>(*impl_->stub);
+}
+
+RpcResult<std::vector<ScanAck>> Client::IngestAll(
+    std::span<const ScanData> scans, const std::function<void(const ScanAck&)>& on_ack) {
+  std::unique_ptr<IngestStream> stream = OpenIngest();
+  std::vector<ScanAck> acks;
+  std::thread reader([&] {
+    ScanAck ack;
+    while (acks.size() < scans.size() && stream->ReadAck(&ack)) {
+      if (on_ack) on_ack(ack);
+      acks.push_back(std::move(ack));
+    }
+  });
+  for (const ScanData& scan : scans) {
+    if (!stream->Send(scan)) break;
+  }
+  stream->CloseSend();
+  reader.join();
+  RpcStatus status = stream->Finish(&acks);
+  if (!status.ok()) return status;
+  return acks;
+}
+
+RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_version) {
+  v1::RegionRequest request;
+  ToProto(query.box, request.mutable_box());
+  for (Layer l : query.layers) request.add_layers(ToProto(l));
+  request.set_stride(static_cast<uint32_t>(std::max(query.stride, 1)));
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  std::unique_ptr<grpc::ClientReader<v1::RegionChunk>> reader =
+      impl_->stub->QueryRegion(&context, request);
+  Raster raster;
+  bool have_header = false;
+  int64_t next_row = 0;
+  v1::RegionChunk chunk;
+  std::vector<float> values;
+  RpcStatus problem;
+  while (reader->Read(&chunk)) {
+    if (!problem.ok()) continue;  // drain the stream before Finish()
+    if (chunk.has_header()) {
+      const v1::RasterHeader& h = chunk.header();
+      raster.box = FromProto(h.cells());
+      raster.stride = static_cast<int>(h.stride());
+      raster.cols = h.cols();
+      raster.rows = h.rows();
+      raster.resolution = h.resolution();
+      raster.x0 = h.x0();
+      raster.y1 = h.y1();
+      for (int l : h.layers()) raster.layers.push_back(FromProto(static_cast<v1::Layer>(l)));
+      raster.data.assign(raster.layers.size(),
+                         std::vector<float>(static_cast<size_t>(raster.rows * raster.cols)));
+      if (map_version != nullptr) *map_version = h.map_version();
+      have_header = true;
+    }
+    if (!have_header || chunk.row_start() != next_row ||
+        chunk.layers_size() != static_cast<int>(raster.layers.size()) ||
+        next_row + chunk.row_count() > raster.rows) {
+      problem = Malformed("region chunk out of order");
+      context.TryCancel();
+      continue;
+    }
+    for (int i = 0; i < chunk.layers_size(); ++i) {
+      const std::string& bytes = chunk.layers(i).values();
+      const size_t expect = static_cast<size_t>(chunk.row_count() * raster.cols) * sizeof(float);
+      if (bytes.size() != expect) {
+        problem = Malformed("region chunk of the wrong size");
+        context.TryCancel();
+        break;
+      }
+      std::memcpy(raster.data[i].data() + next_row * raster.cols, bytes.data(), bytes.size());
+    }
+    next_row += chunk.row_count();
+  }
+  grpc::Status status = reader->Finish();
+  if (!problem.ok()) return problem;
+  if (!status.ok()) return FromGrpc(status);
+  if (!have_header || next_row != raster.rows) return Malformed("region stream incomplete");
+  return raster;
+}
+
+RpcResult<PointValues> Client::QueryPoints(std::span<const std::array<double, 2>> points,
+                                           const std::vector<Layer>& layers) {
+  v1::PointsRequest request;
+  for (const auto& p : points) {
+    v1::Point2* q = request.add_points();
+    q->set_x(p[0]);
+    q->set_y(p[1]);
+  }
+  for (Layer l : layers) request.add_layers(ToProto(l));
+  v1::PointsResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->QueryPoints(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  PointValues out;
+  for (int l : response.layers()) out.layers.push_back(FromProto(static_cast<v1::Layer>(l)));
+  out.values.assign(response.values().begin(), response.values().end());
+  out.map_version = response.map_version();
+  if (out.values.size() != points.size() * out.layers.size()) {
+    return Malformed("point values do not match the request");
+  }
+  return out;
+}
+
+RpcResult<PathCheck> Client::CheckPath(const PathQuery& query) {
+  v1::PathCheckRequest request;
+  for (const Pose2& p : query.poses) {
+    v1::Pose2* q = request.add_poses();
+    q->set_x(p.x);
+    q->set_y(p.y);
+    q->set_yaw(p.yaw);
+  }
+  if (query.polygon.empty()) {
+    request.set_radius(query.radius);
+  } else {
+    for (const auto& v : query.polygon) {
+      v1::Point2* q = request.mutable_polygon()->add_vertices();
+      q->set_x(v[0]);
+      q->set_y(v[1]);
+    }
+  }
+  if (query.max_traversability) request.set_max_traversability(*query.max_traversability);
+  if (query.max_traversability_variance) {
+    request.set_max_traversability_variance(*query.max_traversability_variance);
+  }
+  if (query.max_unknown_fraction) request.set_max_unknown_fraction(*query.max_unknown_fraction);
+  v1::PathCheckResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->CheckPath(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  PathCheck out;
+  for (const v1::PoseCheck& pc : response.poses()) {
+    out.poses.push_back({pc.worst_traversability(), pc.worst_traversability_variance(),
+                         pc.unknown_fraction(), pc.cell_count(), pc.safe()});
+  }
+  out.safe = response.safe();
+  out.first_unsafe_index = response.first_unsafe_index();
+  out.map_version = response.map_version();
+  return out;
+}
+
+std::unique_ptr<WatchSubscription> Client::Watch(const WatchQuery& query,
+                                                 std::function<void(const TileUpdate&)> on_update) {
+  return std::make_unique<GrpcWatch>(*impl_->stub, query, std::move(on_update));
+}
+
+RpcResult<MapInfo> Client::Info() {
+  v1::InfoResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->Info(&context, v1::InfoRequest(), &response);
+  if (!status.ok()) return FromGrpc(status);
+  return FromProto(response);
+}
+
+RpcResult<ClearResult> Client::ClearRegion(const MetricBox& box) {
+  v1::ClearRegionRequest request;
+  ToProto(box, request.mutable_box());
+  v1::ClearRegionResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->ClearRegion(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  ClearResult out;
+  for (const v1::TileKey& k : response.changed_tiles()) out.changed_tiles.push_back({k.x(), k.y()});
+  out.map_version = response.map_version();
+  return out;
+}
+
+RpcResult<std::optional<uint64_t>> Client::LastSequence(const std::string& robot_id) {
+  RpcResult<MapInfo> info = Info();
+  if (!info.ok()) return info.status();
+  const RobotInfo* robot = info->FindRobot(robot_id);
+  if (robot == nullptr) return std::optional<uint64_t>();
+  return std::optional<uint64_t>(robot->last_sequence);
+}
+
+}  // namespace bgkmap
