@@ -69,7 +69,8 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
     : params_(params),
       geometry_(params.resolution, params.tile_size),
       kernel_(params.resolution, params.kernel_length),
-      neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)) {}
+      neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
+      neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {}
 
 // The per-scan work, with the scan's window and parameters at hand.
 struct ScanIntegrator::Impl {
@@ -130,13 +131,30 @@ struct ScanIntegrator::Impl {
   // with fewer than three known cells within the robot radius.
   float ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const {
     patch.clear();
-    const double res = self.params_.resolution;
-    for (const CellIndex& o : self.neighbourhood_) {
-      const double z = Elevation({c.x + o.x, c.y + o.y});
-      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+    const MapParams& p = self.params_;
+    const double res = p.resolution;
+    const int R = self.neighbourhood_radius_;
+    const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
+    if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
+      const Tile* tile = TileAt(c);
+      const double* w = tile->w().data();
+      const double* s = tile->s().data();
+      const int centre = ly * T + lx;
+      for (const CellIndex& o : self.neighbourhood_) {
+        const int i = centre + o.y * T + o.x;
+        if (w[i] > 0.0) {
+          patch.push_back(
+              {o.x * res, o.y * res, (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i])});
+        }
+      }
+    } else {
+      for (const CellIndex& o : self.neighbourhood_) {
+        const double z = Elevation({c.x + o.x, c.y + o.y});
+        if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+      }
     }
     if (patch.size() < 3) return kNoValue;
-    return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), self.params_));
+    return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), p));
   }
 };
 

@@ -5,6 +5,7 @@
 #include <string_view>
 
 #include "bgkmap/core/map_params.h"
+#include "bgkmap/core/status.h"
 
 namespace bgkmap {
 

@@ -72,6 +72,7 @@ class ScanIntegrator {
   GridGeometry geometry_;
   KernelStencil kernel_;
   std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
+  int neighbourhood_radius_;              // largest |offset| in neighbourhood_
 };
 
 // Offsets (dx, dy) with dx^2 + dy^2 <= (radius/resolution)^2, with a relative tolerance of 1e-9
