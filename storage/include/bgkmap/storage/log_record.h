@@ -1,0 +1,49 @@
+// One entry of the scan log: a change applied to the map, recorded with everything needed to
+// apply it again bit for bit (the prepared scan's training set, not its raw points).
+//
+// Layout (format 1), little-endian:
+//   u8 format, u8 type, varint version, length-prefixed robot_id, varint sequence,
+//   zigzag stamp_ns, then
+//   scan:  varint counts (input, kept, nonfinite, range, height, out_of_bounds), f64 sensor_z,
+//          write_tiles and read_tiles (varint count, zigzag deltas of x and y),
+//          cells (varint count, zigzag deltas of x and y), their y as f64 bits (XOR-delta)
+//   clear: zigzag min.x, min.y, max.x, max.y
+//   fixed32 crc32c of every byte before it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/scan.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap::storage {
+
+inline constexpr uint8_t kLogRecordFormat = 1;
+
+struct LogRecord {
+  enum class Type : uint8_t { kScan = 1, kClear = 2 };
+
+  Type type = Type::kScan;
+  uint64_t version = 0;   // map version the change was applied as; replay follows it
+  std::string robot_id;   // kScan: the sending robot
+  uint64_t sequence = 0;  // kScan: the robot's sequence number
+  int64_t stamp_ns = 0;   // kScan: the sender's stamp, informational
+  std::shared_ptr<const PreparedScan> scan;  // kScan: required
+  CellBox clear_box;                         // kClear: the cleared cells
+
+  static LogRecord Scan(uint64_t version, std::string robot_id, uint64_t sequence,
+                        std::shared_ptr<const PreparedScan> scan, int64_t stamp_ns = 0);
+  static LogRecord Clear(uint64_t version, const CellBox& box);
+};
+
+std::string EncodeLogRecord(const LogRecord& record);
+
+// DataLoss if the checksum fails or the bytes are malformed; FailedPrecondition for a newer
+// format.
+Result<LogRecord> DecodeLogRecord(std::string_view encoded);
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,53 @@
+// What a store knows about its map besides the tiles: the store format, every map parameter,
+// the checkpoint and map versions, and each robot's last logged sequence number.
+//
+// Parameters are stored as text key/value pairs under their YAML names (MapParamKeys()), with
+// doubles written in shortest round-trip form, so a store reopens with bit-identical parameters
+// and stays readable with generic RocksDB tools.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap::storage {
+
+// Version of the store layout (column families, keys, tile and log formats). A store written by
+// a newer format is refused rather than misread.
+inline constexpr uint32_t kStoreFormat = 1;
+
+struct MapMetadata {
+  uint32_t format = kStoreFormat;
+  MapParams params;
+  // The stored tiles are exactly the map after every change with version <= this one.
+  uint64_t checkpoint_version = 0;
+  // Highest version checkpointed or logged: the next change gets map_version + 1.
+  uint64_t map_version = 0;
+  // Last sequence number logged per robot id: scans at or below it are duplicates.
+  std::map<std::string, uint64_t> robot_sequences;
+};
+
+// Every parameter as (YAML key, text value), in MapParamKeys() order.
+std::vector<std::pair<std::string, std::string>> ParamsToKeyValues(const MapParams& params);
+
+// Inverse of ParamsToKeyValues. DataLoss naming the key if one is missing or unparsable;
+// the result is validated (MapParams::Validate) as well.
+Result<MapParams> ParamsFromKeyValues(const std::map<std::string, std::string, std::less<>>& kv);
+
+// OK if a map stored with `stored` may be reopened (or merged into) with `requested`: every
+// parameter that shapes the statistics is equal. Otherwise FailedPrecondition with a message
+// naming the differing key and both values. Parameters of derived layers only (sigma2, alpha0,
+// beta0, thresholds) may differ.
+Status CheckParamsCompatible(const MapParams& stored, const MapParams& requested);
+
+// Whole-metadata encoding (used by map archives): the key/value pairs, length-prefixed.
+std::string EncodeMetadata(const MapMetadata& metadata);
+Result<MapMetadata> DecodeMetadata(std::string_view bytes);
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,51 @@
+// The on-disk encoding of one tile's statistics: exact (bitwise) and compact.
+//
+// Layout (format 1), little-endian:
+//   u8      format            kTileFormat
+//   u8      layout flags      kTileShuffled | kTileXorDelta
+//   varint  tile_size         cells per edge
+//   varint  version           map version of the tile's last change
+//   varint  n                 cells with any non-zero bit in W, S, A or B ("present" cells)
+//   bytes   presence bitmap   ceil(tile_size^2 / 8) bytes, row-major, bit i%8 of byte i/8;
+//                             omitted when n == 0 or n == tile_size^2
+//   W[n] S[n] (8 bytes each)  A[n] B[n] (4 bytes each), present cells only, in cell order,
+//                             each array optionally XOR-delta coded and byte-shuffled
+//   fixed32 crc32c            of every byte before it
+// Cells that are bitwise +0 in all four arrays are skipped: a missing cell decodes to +0. Every
+// other bit pattern (-0, NaN payloads, denormals) round-trips unchanged.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/tile.h"
+
+namespace bgkmap::storage {
+
+inline constexpr uint8_t kTileFormat = 1;
+inline constexpr uint8_t kTileShuffled = 1;  // arrays stored as byte planes
+inline constexpr uint8_t kTileXorDelta = 2;  // each value XOR the previous present value
+
+struct TileEncodeOptions {
+  // Byte planes let the block compressor find the shared high bytes of neighbouring values.
+  bool shuffle = true;
+  // XOR with the previous value zeroes the sign, exponent and leading mantissa bits that
+  // neighbouring cells share, before shuffling.
+  bool xor_delta = true;
+};
+
+// Encodes `tile` (statistics and version). Never fails.
+std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options = {});
+
+// Decodes an encoding made by EncodeTile. Returns DataLoss if the checksum fails, the bytes are
+// malformed or truncated, or the tile is not `tile_size` cells wide (a tile from another map);
+// FailedPrecondition for a format newer than this build reads.
+Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size);
+
+// True if every cell of `tile` is bitwise +0: such a tile is stored as no tile at all.
+bool IsZeroTile(const Tile& tile);
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,182 @@
+#include "bgkmap/storage/log_record.h"
+
+#include <bit>
+#include <cstring>
+#include <vector>
+
+#include "bgkmap/storage/crc32c.h"
+#include "byte_coding.h"
+
+namespace bgkmap::storage {
+namespace {
+
+void PutTileKeys(ByteWriter& w, const std::vector<TileKey>& keys) {
+  w.PutVarint(keys.size());
+  TileKey prev{0, 0};
+  for (const TileKey& k : keys) {
+    w.PutSignedVarint(int64_t{k.x} - prev.x);
+    w.PutSignedVarint(int64_t{k.y} - prev.y);
+    prev = k;
+  }
+}
+
+// Reads one delta-coded int32 coordinate; false if it leaves the int32 range.
+bool GetDelta(ByteReader& r, int* coordinate) {
+  int64_t delta;
+  if (!r.GetSignedVarint(&delta)) return false;
+  const int64_t v = int64_t{*coordinate} + delta;
+  if (v < INT32_MIN || v > INT32_MAX) return false;
+  *coordinate = static_cast<int>(v);
+  return true;
+}
+
+bool GetTileKeys(ByteReader& r, std::vector<TileKey>* keys) {
+  uint64_t n;
+  if (!r.GetVarint(&n) || n > r.remaining() / 2) return false;
+  keys->resize(n);
+  TileKey prev{0, 0};
+  for (TileKey& k : *keys) {
+    if (!GetDelta(r, &prev.x) || !GetDelta(r, &prev.y)) return false;
+    k = prev;
+  }
+  return true;
+}
+
+void PutScan(ByteWriter& w, const PreparedScan& scan) {
+  const ScanPointCounts& c = scan.counts;
+  for (uint64_t v : {c.input, c.kept, c.dropped_nonfinite, c.dropped_range, c.dropped_height,
+                     c.dropped_out_of_bounds}) {
+    w.PutVarint(v);
+  }
+  w.PutDouble(scan.sensor_z);
+  PutTileKeys(w, scan.write_tiles);
+  PutTileKeys(w, scan.read_tiles);
+  w.PutVarint(scan.cells.size());
+  CellIndex prev{0, 0};
+  for (const ObservedCell& cell : scan.cells) {
+    w.PutSignedVarint(int64_t{cell.cell.x} - prev.x);
+    w.PutSignedVarint(int64_t{cell.cell.y} - prev.y);
+    prev = cell.cell;
+  }
+  uint64_t previous = 0;
+  for (const ObservedCell& cell : scan.cells) {
+    const uint64_t bits = std::bit_cast<uint64_t>(cell.y);
+    w.PutFixed64(bits ^ previous);
+    previous = bits;
+  }
+}
+
+bool GetScan(ByteReader& r, PreparedScan* scan) {
+  ScanPointCounts& c = scan->counts;
+  for (uint64_t* v : {&c.input, &c.kept, &c.dropped_nonfinite, &c.dropped_range, &c.dropped_height,
+                      &c.dropped_out_of_bounds}) {
+    if (!r.GetVarint(v)) return false;
+  }
+  if (!r.GetDouble(&scan->sensor_z) || !GetTileKeys(r, &scan->write_tiles) ||
+      !GetTileKeys(r, &scan->read_tiles)) {
+    return false;
+  }
+  uint64_t n;
+  if (!r.GetVarint(&n) || n > r.remaining() / 10) return false;  // >= 2 + 8 bytes per cell
+  scan->cells.resize(n);
+  CellIndex prev{0, 0};
+  for (ObservedCell& cell : scan->cells) {
+    if (!GetDelta(r, &prev.x) || !GetDelta(r, &prev.y)) return false;
+    cell.cell = prev;
+  }
+  uint64_t previous = 0;
+  for (ObservedCell& cell : scan->cells) {
+    uint64_t bits;
+    if (!r.GetFixed64(&bits)) return false;
+    previous ^= bits;
+    cell.y = std::bit_cast<double>(previous);
+  }
+  return true;
+}
+
+}  // namespace
+
+LogRecord LogRecord::Scan(uint64_t version, std::string robot_id, uint64_t sequence,
+                          std::shared_ptr<const PreparedScan> scan, int64_t stamp_ns) {
+  LogRecord r;
+  r.type = Type::kScan;
+  r.version = version;
+  r.robot_id = std::move(robot_id);
+  r.sequence = sequence;
+  r.stamp_ns = stamp_ns;
+  r.scan = std::move(scan);
+  return r;
+}
+
+LogRecord LogRecord::Clear(uint64_t version, const CellBox& box) {
+  LogRecord r;
+  r.type = Type::kClear;
+  r.version = version;
+  r.clear_box = box;
+  return r;
+}
+
+std::string EncodeLogRecord(const LogRecord& record) {
+  std::string out;
+  if (record.type == LogRecord::Type::kScan && record.scan) {
+    out.reserve(64 + record.scan->cells.size() * 11);
+  }
+  ByteWriter w(&out);
+  w.PutU8(kLogRecordFormat);
+  w.PutU8(static_cast<uint8_t>(record.type));
+  w.PutVarint(record.version);
+  w.PutLengthPrefixed(record.robot_id);
+  w.PutVarint(record.sequence);
+  w.PutSignedVarint(record.stamp_ns);
+  if (record.type == LogRecord::Type::kScan) {
+    PutScan(w, record.scan ? *record.scan : PreparedScan{});
+  } else {
+    const CellBox& b = record.clear_box;
+    for (int v : {b.min.x, b.min.y, b.max.x, b.max.y}) w.PutSignedVarint(v);
+  }
+  w.PutFixed32(Crc32c(out));
+  return out;
+}
+
+Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
+  const Status malformed = Status::DataLoss("log record is malformed");
+  if (encoded.size() < 4) return malformed;
+  const std::string_view body = encoded.substr(0, encoded.size() - 4);
+  uint32_t stored_crc;
+  std::memcpy(&stored_crc, encoded.data() + body.size(), 4);
+  if (Crc32c(body) != stored_crc) return Status::DataLoss("log record checksum mismatch");
+  ByteReader r(body);
+  uint8_t format, type;
+  if (!r.GetU8(&format) || !r.GetU8(&type)) return malformed;
+  if (format > kLogRecordFormat) {
+    return Status::FailedPrecondition("log record format " + std::to_string(format) +
+                                      " is newer than this build reads");
+  }
+  LogRecord record;
+  std::string_view robot;
+  if (format != kLogRecordFormat || !r.GetVarint(&record.version) || !r.GetLengthPrefixed(&robot) ||
+      !r.GetVarint(&record.sequence) || !r.GetSignedVarint(&record.stamp_ns)) {
+    return malformed;
+  }
+  record.robot_id = std::string(robot);
+  if (type == static_cast<uint8_t>(LogRecord::Type::kScan)) {
+    auto scan = std::make_shared<PreparedScan>();
+    if (!GetScan(r, scan.get())) return malformed;
+    record.type = LogRecord::Type::kScan;
+    record.scan = std::move(scan);
+  } else if (type == static_cast<uint8_t>(LogRecord::Type::kClear)) {
+    record.type = LogRecord::Type::kClear;
+    CellBox& b = record.clear_box;
+    for (int* v : {&b.min.x, &b.min.y, &b.max.x, &b.max.y}) {
+      int64_t x;
+      if (!r.GetSignedVarint(&x) || x < INT32_MIN || x > INT32_MAX) return malformed;
+      *v = static_cast<int>(x);
+    }
+  } else {
+    return malformed;
+  }
+  if (r.remaining() != 0) return malformed;
+  return record;
+}
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,159 @@
+#include "bgkmap/storage/tile_codec.h"
+
+#include <bit>
+#include <cstring>
+#include <vector>
+
+#include "bgkmap/storage/crc32c.h"
+#include "byte_coding.h"
+
+namespace bgkmap::storage {
+namespace {
+
+bool CellIsZero(const Tile& t, int i) {
+  return std::bit_cast<uint64_t>(t.w()[i]) == 0 && std::bit_cast<uint64_t>(t.s()[i]) == 0 &&
+         std::bit_cast<uint32_t>(t.a()[i]) == 0 && std::bit_cast<uint32_t>(t.b()[i]) == 0;
+}
+
+// Gathers the present cells of one array as raw bits, optionally XOR-delta coded.
+template <typename Bits, typename Value>
+std::vector<Bits> Gather(std::span<const Value> values, const std::vector<int>& cells,
+                         bool xor_delta) {
+  std::vector<Bits> out(cells.size());
+  Bits previous = 0;
+  for (size_t k = 0; k < cells.size(); ++k) {
+    const Bits bits = std::bit_cast<Bits>(values[cells[k]]);
+    out[k] = xor_delta ? bits ^ previous : bits;
+    previous = bits;
+  }
+  return out;
+}
+
+template <typename Bits, typename Value>
+void PutArray(ByteWriter& w, std::span<const Value> values, const std::vector<int>& cells,
+              uint8_t flags) {
+  const std::vector<Bits> bits = Gather<Bits>(values, cells, (flags & kTileXorDelta) != 0);
+  if (flags & kTileShuffled) {
+    w.PutShuffled(bits.data(), bits.size(), sizeof(Bits));
+  } else {
+    w.PutBytes({reinterpret_cast<const char*>(bits.data()), bits.size() * sizeof(Bits)});
+  }
+}
+
+template <typename Bits, typename Value>
+bool GetArray(ByteReader& r, std::span<Value> values, const std::vector<int>& cells,
+              uint8_t flags) {
+  std::vector<Bits> bits(cells.size());
+  if (flags & kTileShuffled) {
+    if (!r.GetShuffled(bits.data(), bits.size(), sizeof(Bits))) return false;
+  } else {
+    std::string_view raw;
+    if (!r.GetBytes(bits.size() * sizeof(Bits), &raw)) return false;
+    std::memcpy(bits.data(), raw.data(), raw.size());
+  }
+  Bits previous = 0;
+  for (size_t k = 0; k < cells.size(); ++k) {
+    const Bits value = (flags & kTileXorDelta) ? bits[k] ^ previous : bits[k];
+    values[cells[k]] = std::bit_cast<Value>(value);
+    previous = value;
+  }
+  return true;
+}
+
+Status Malformed(std::string_view what) {
+  return Status::DataLoss("tile encoding is malformed: " + std::string(what));
+}
+
+}  // namespace
+
+bool IsZeroTile(const Tile& tile) {
+  for (int i = 0; i < tile.cell_count(); ++i) {
+    if (!CellIsZero(tile, i)) return false;
+  }
+  return true;
+}
+
+std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
+  const int cell_count = tile.cell_count();
+  std::vector<int> present;
+  for (int i = 0; i < cell_count; ++i) {
+    if (!CellIsZero(tile, i)) present.push_back(i);
+  }
+  const uint8_t flags = static_cast<uint8_t>((options.shuffle ? kTileShuffled : 0) |
+                                             (options.xor_delta ? kTileXorDelta : 0));
+  std::string out;
+  out.reserve(16 + cell_count / 8 + present.size() * Tile::kBytesPerCell);
+  ByteWriter w(&out);
+  w.PutU8(kTileFormat);
+  w.PutU8(flags);
+  w.PutVarint(static_cast<uint64_t>(tile.tile_size()));
+  w.PutVarint(tile.version());
+  w.PutVarint(present.size());
+  if (!present.empty() && static_cast<int>(present.size()) < cell_count) {
+    std::string bitmap((cell_count + 7) / 8, '\0');
+    for (int i : present) bitmap[i / 8] = static_cast<char>(bitmap[i / 8] | (1 << (i % 8)));
+    w.PutBytes(bitmap);
+  }
+  PutArray<uint64_t>(w, tile.w(), present, flags);
+  PutArray<uint64_t>(w, tile.s(), present, flags);
+  PutArray<uint32_t>(w, tile.a(), present, flags);
+  PutArray<uint32_t>(w, tile.b(), present, flags);
+  w.PutFixed32(Crc32c(out));
+  return out;
+}
+
+Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size) {
+  if (encoded.size() < 4) return Malformed("shorter than its checksum");
+  const std::string_view body = encoded.substr(0, encoded.size() - 4);
+  uint32_t stored_crc;
+  std::memcpy(&stored_crc, encoded.data() + body.size(), 4);
+  if (Crc32c(body) != stored_crc) {
+    return Status::DataLoss("tile checksum mismatch (" + std::to_string(encoded.size()) +
+                            " bytes)");
+  }
+  ByteReader r(body);
+  uint8_t format, flags;
+  uint64_t size, version, n;
+  if (!r.GetU8(&format) || !r.GetU8(&flags)) return Malformed("truncated header");
+  if (format > kTileFormat) {
+    return Status::FailedPrecondition("tile format " + std::to_string(format) +
+                                      " is newer than this build reads (" +
+                                      std::to_string(kTileFormat) + ")");
+  }
+  if (format != kTileFormat || (flags & ~(kTileShuffled | kTileXorDelta)) != 0) {
+    return Malformed("unknown format or flags");
+  }
+  if (!r.GetVarint(&size) || !r.GetVarint(&version) || !r.GetVarint(&n)) {
+    return Malformed("truncated header");
+  }
+  if (size != static_cast<uint64_t>(tile_size)) {
+    return Status::DataLoss("tile is " + std::to_string(size) + " cells wide, the map's are " +
+                            std::to_string(tile_size));
+  }
+  auto tile = std::make_unique<Tile>(tile_size);
+  tile->set_version(version);
+  const int cell_count = tile->cell_count();
+  if (n > static_cast<uint64_t>(cell_count)) return Malformed("more present cells than cells");
+  std::vector<int> present;
+  present.reserve(n);
+  if (n == static_cast<uint64_t>(cell_count)) {
+    for (int i = 0; i < cell_count; ++i) present.push_back(i);
+  } else if (n > 0) {
+    std::string_view bitmap;
+    if (!r.GetBytes((cell_count + 7) / 8, &bitmap)) return Malformed("truncated bitmap");
+    for (int i = 0; i < cell_count; ++i) {
+      if (bitmap[i / 8] & (1 << (i % 8))) present.push_back(i);
+    }
+    if (present.size() != n) return Malformed("bitmap disagrees with the cell count");
+  }
+  if (!GetArray<uint64_t>(r, tile->w(), present, flags) ||
+      !GetArray<uint64_t>(r, tile->s(), present, flags) ||
+      !GetArray<uint32_t>(r, tile->a(), present, flags) ||
+      !GetArray<uint32_t>(r, tile->b(), present, flags)) {
+    return Malformed("truncated cell values");
+  }
+  if (r.remaining() != 0) return Malformed("trailing bytes");
+  return tile;
+}
+
+}  // namespace bgkmap::storage

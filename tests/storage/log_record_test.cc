@@ -1,0 +1,86 @@
+#include "bgkmap/storage/log_record.h"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <random>
+
+namespace bgkmap::storage {
+namespace {
+
+std::shared_ptr<PreparedScan> RandomScan(unsigned seed, int cells) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> coord(-100000, 100000);
+  std::normal_distribution<double> z(-1.7, 0.4);
+  auto scan = std::make_shared<PreparedScan>();
+  for (int i = 0; i < cells; ++i) scan->cells.push_back({{coord(rng), coord(rng)}, z(rng)});
+  std::sort(scan->cells.begin(), scan->cells.end(),
+            [](const ObservedCell& a, const ObservedCell& b) { return a.cell < b.cell; });
+  scan->counts = {1000, 900, 1, 2, 3, 94};
+  scan->write_tiles = {{-3, 4}, {-3, 5}, {2, -1}};
+  scan->read_tiles = {{-4, 4}, {INT32_MIN / 64, INT32_MAX / 64}};
+  scan->sensor_z = 1.9;
+  return scan;
+}
+
+void ExpectSameScan(const PreparedScan& a, const PreparedScan& b) {
+  ASSERT_EQ(a.cells.size(), b.cells.size());
+  for (size_t i = 0; i < a.cells.size(); ++i) {
+    EXPECT_EQ(a.cells[i].cell, b.cells[i].cell);
+    EXPECT_EQ(std::bit_cast<uint64_t>(a.cells[i].y), std::bit_cast<uint64_t>(b.cells[i].y));
+  }
+  EXPECT_EQ(a.write_tiles, b.write_tiles);
+  EXPECT_EQ(a.read_tiles, b.read_tiles);
+  EXPECT_EQ(a.counts.input, b.counts.input);
+  EXPECT_EQ(a.counts.dropped_out_of_bounds, b.counts.dropped_out_of_bounds);
+  EXPECT_EQ(std::bit_cast<uint64_t>(a.sensor_z), std::bit_cast<uint64_t>(b.sensor_z));
+}
+
+TEST(LogRecordTest, ScanRoundTripsExactly) {
+  for (unsigned seed = 0; seed < 5; ++seed) {
+    const auto scan = RandomScan(seed, 500 * static_cast<int>(seed));
+    const LogRecord in = LogRecord::Scan(1234567 + seed, "robot-" + std::to_string(seed), 99 + seed,
+                                         scan, -5'000'000'000LL);
+    Result<LogRecord> out = DecodeLogRecord(EncodeLogRecord(in));
+    ASSERT_TRUE(out.ok()) << out.status().ToString();
+    EXPECT_EQ(out->type, LogRecord::Type::kScan);
+    EXPECT_EQ(out->version, in.version);
+    EXPECT_EQ(out->robot_id, in.robot_id);
+    EXPECT_EQ(out->sequence, in.sequence);
+    EXPECT_EQ(out->stamp_ns, in.stamp_ns);
+    ExpectSameScan(*in.scan, *out->scan);
+  }
+}
+
+TEST(LogRecordTest, ClearRoundTrips) {
+  const CellBox box{{-5, INT32_MIN}, {INT32_MAX, 7}};
+  Result<LogRecord> out = DecodeLogRecord(EncodeLogRecord(LogRecord::Clear(42, box)));
+  ASSERT_TRUE(out.ok());
+  EXPECT_EQ(out->type, LogRecord::Type::kClear);
+  EXPECT_EQ(out->version, 42u);
+  EXPECT_EQ(out->clear_box, box);
+}
+
+TEST(LogRecordTest, DenseScanCostsTenBytesPerCell) {
+  auto scan = std::make_shared<PreparedScan>();
+  for (int x = 0; x < 100; ++x) {
+    for (int y = 0; y < 100; ++y) scan->cells.push_back({{x, y}, -1.5 + 0.001 * x});
+  }
+  const std::string bytes = EncodeLogRecord(LogRecord::Scan(1, "r", 1, scan));
+  EXPECT_LE(bytes.size(), 200u + 10u * scan->cells.size());  // + row jumps
+}
+
+TEST(LogRecordTest, EveryFlippedByteIsDataLoss) {
+  const std::string good = EncodeLogRecord(LogRecord::Scan(9, "r1", 3, RandomScan(7, 20)));
+  for (size_t i = 0; i < good.size(); ++i) {
+    std::string bad = good;
+    bad[i] = static_cast<char>(bad[i] ^ 0x01);
+    const auto decoded = DecodeLogRecord(bad);
+    ASSERT_FALSE(decoded.ok()) << "flip at byte " << i;
+    EXPECT_EQ(decoded.status().code(), Status::Code::kDataLoss);
+  }
+  EXPECT_FALSE(DecodeLogRecord(good.substr(0, good.size() - 1)).ok());
+}
+
+}  // namespace
+}  // namespace bgkmap::storage
