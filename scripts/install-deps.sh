@@ -13,6 +13,7 @@ PACKAGES=(
   libboost-dev
   librocksdb-dev
   liboctomap-dev
+  gnuplot-nox
 )
 
 missing=()

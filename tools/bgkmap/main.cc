@@ -9,6 +9,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   bgkmap::cli::RegisterBuildCommand(app, exit_code);
+  bgkmap::cli::RegisterSimulateCommand(app, exit_code);
+  bgkmap::cli::RegisterEvalCommand(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -32,7 +32,10 @@ std::vector<Point3f> SimulateScan(const World& world, const BeamModel& beams, co
       // March until the ray enters solid matter, then bisect the crossing to 1 mm.
       double prev = 0.0, t = opt.step_min;
       bool hit = false;
+      const double top = world.MaxHeight();
       while (t <= beams.max_range) {
+        // A rising ray above every surface has left the world (saves marching to max range).
+        if (dir.z() >= 0.0 && origin.z() + t * dir.z() > top) break;
         if (Solid(world, origin + t * dir)) {
           hit = true;
           break;

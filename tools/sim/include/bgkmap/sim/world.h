@@ -2,6 +2,8 @@
 // plus optional overhanging volumes (tree canopies, bridges) that are not part of the ground.
 #pragma once
 
+#include <limits>
+
 namespace bgkmap::sim {
 
 class World {
@@ -11,6 +13,8 @@ class World {
   virtual double SurfaceHeight(double x, double y) const = 0;
   // True if (x, y, z) lies inside an overhanging volume above the surface.
   virtual bool InOverhang(double /*x*/, double /*y*/, double /*z*/) const { return false; }
+  // An upper bound of every surface and overhang: a ray climbing above it can never hit.
+  virtual double MaxHeight() const { return std::numeric_limits<double>::infinity(); }
 };
 
 }  // namespace bgkmap::sim

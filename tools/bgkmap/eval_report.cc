@@ -1,0 +1,188 @@
+#include "eval_report.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace bgkmap::cli {
+namespace {
+
+std::string Num(double v, const char* fmt = "%.6g") {
+  if (!std::isfinite(v)) return "null";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, fmt, v);
+  return buf;
+}
+
+std::string Cell(double v, const char* fmt) { return std::isfinite(v) ? Num(v, fmt) : "n/a"; }
+
+void ScoreJson(std::ostringstream& o, const eval::MapScore& s, const std::string& indent) {
+  o << "{\n"
+    << indent << "  \"truth_cells\": " << s.truth_cells << ",\n"
+    << indent << "  \"known_cells\": " << s.known_cells << ",\n"
+    << indent << "  \"coverage\": " << Num(s.coverage) << ",\n"
+    << indent << "  \"mse_all_m2\": " << Num(s.mse_all) << ",\n"
+    << indent << "  \"mse_ground_m2\": " << Num(s.mse_ground) << ",\n"
+    << indent << "  \"auc\": " << Num(s.roc.auc) << ",\n"
+    << indent << "  \"roc_positives\": " << s.roc.positives << ",\n"
+    << indent << "  \"roc_negatives\": " << s.roc.negatives << ",\n"
+    << indent << "  \"state_accuracy\": " << Num(s.state_accuracy) << "\n"
+    << indent << "}";
+}
+
+std::string Quote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+}  // namespace
+
+std::string ToJson(const EvalReport& r) {
+  std::ostringstream o;
+  o << "{\n  \"dataset\": " << Quote(r.name) << ",\n  \"sequence\": " << Quote(r.sequence)
+    << ",\n  \"rate_hz\": " << Num(r.rate_hz) << ",\n  \"resolution\": " << Num(r.params.resolution)
+    << ",\n  \"kernel_length\": " << Num(r.params.kernel_length) << ",\n  \"methods\": [";
+  for (size_t i = 0; i < r.methods.size(); ++i) {
+    const MethodResult& m = r.methods[i];
+    o << (i ? "," : "") << "\n    {\n      \"method\": " << Quote(std::string(MethodName(m.method)))
+      << ",\n      \"scans\": " << m.scans << ",\n      \"skipped\": " << m.skipped
+      << ",\n      \"mean_prepare_s\": " << Num(m.prepare_s)
+      << ",\n      \"mean_elevation_s\": " << Num(m.elevation_s)
+      << ",\n      \"mean_features_s\": " << Num(m.features_s)
+      << ",\n      \"mean_traversability_s\": " << Num(m.traversability_s)
+      << ",\n      \"max_scan_s\": " << Num(m.max_scan_s) << ",\n      \"realtime\": ";
+    ScoreJson(o, m.realtime, "      ");
+    o << ",\n      \"offline\": ";
+    ScoreJson(o, m.offline, "      ");
+    o << "\n    }";
+  }
+  o << "\n  ]\n}\n";
+  return o.str();
+}
+
+std::string ToMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  o << "| Dataset | Method | Coverage (%) | Skipped scans | Elevation (s) | Trav. calculation (s) "
+       "| "
+       "Trav. inference (s) | MSE all (m^2) | MSE ground (m^2) | AUC | Offline coverage (%) | "
+       "Offline AUC |\n"
+    << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    const bool infers_elev = InfersElevation(m.method),
+               infers_trav = InfersTraversability(m.method);
+    o << "| " << r.name << " | " << MethodName(m.method) << " | "
+      << Cell(100 * m.realtime.coverage, "%.1f") << " | " << m.skipped << "/" << m.scans << " | "
+      << Cell(m.prepare_s + m.elevation_s, "%.4f") << (infers_elev ? "" : " (raw)") << " | "
+      << Cell(m.features_s, "%.4f") << " | "
+      << (infers_trav ? Cell(m.traversability_s, "%.4f") : std::string("N/A")) << " | "
+      << Cell(m.realtime.mse_all, "%.4f") << " | " << Cell(m.realtime.mse_ground, "%.2e") << " | "
+      << Cell(m.realtime.roc.auc, "%.4f") << " | " << Cell(100 * m.offline.coverage, "%.1f")
+      << " | " << Cell(m.offline.roc.auc, "%.4f") << " |\n";
+  }
+  return o.str();
+}
+
+Status WriteFigures(const EvalReport& r, const Raster& truth, const std::string& dir,
+                    std::string* note) {
+  namespace fs = std::filesystem;
+  auto path = [&](const std::string& f) { return (fs::path(dir) / f).string(); };
+  auto write_bin = [&](const std::string& f, const std::vector<float>& v) {
+    std::ofstream out(path(f), std::ios::binary);
+    out.write(reinterpret_cast<const char*>(v.data()),
+              static_cast<std::streamsize>(v.size() * sizeof(float)));
+    return static_cast<bool>(out);
+  };
+
+  // ROC curves, one gnuplot data block per method.
+  {
+    std::ofstream roc(path("roc.dat"));
+    for (const MethodResult& m : r.methods) {
+      roc << "# " << MethodName(m.method) << "\n";
+      for (const eval::RocPoint& p : eval::Thin(m.realtime.roc.curve, 400)) {
+        roc << p.fpr << " " << p.tpr << "\n";
+      }
+      roc << "\n\n";
+    }
+    if (!roc) return Status::IoError(path("roc.dat") + ": cannot write");
+  }
+  std::ofstream gp(path("figures.gp"));
+  gp << "set terminal png size 640,560\nset output '" << path("roc.png") << "'\n"
+     << "set title '" << r.name << ": ROC of traversability (positive = non-traversable)'\n"
+     << "set xlabel 'false positive rate'\nset ylabel 'true positive rate'\n"
+     << "set key bottom right\nset xrange [0:1]\nset yrange [0:1]\nset size square\nplot ";
+  for (size_t i = 0; i < r.methods.size(); ++i) {
+    const MethodResult& m = r.methods[i];
+    gp << (i ? ", " : "") << "'" << path("roc.dat") << "' index " << i << " with lines lw 2 title '"
+       << MethodName(m.method) << " (AUC " << Cell(m.realtime.roc.auc, "%.4f") << ")'";
+  }
+  gp << ", x with lines dt 2 lc rgb 'gray' notitle\n";
+
+  // Maps: ground truth, then each method's state, then the bgk+ traversability variance.
+  auto state_image = [](const std::vector<float>& s) {
+    std::vector<float> out(s.size());
+    for (size_t i = 0; i < s.size(); ++i) out[i] = std::isnan(s[i]) ? 0.0f : s[i];  // 0 unknown
+    return out;
+  };
+  std::vector<std::pair<std::string, std::string>> panels;  // file, title
+  if (!write_bin("maps_truth.bin", state_image(*truth.Find(Layer::kState)))) {
+    return Status::IoError(path("maps_truth.bin") + ": cannot write");
+  }
+  panels.emplace_back("maps_truth.bin", "ground truth");
+  const Raster* variance = nullptr;
+  for (const MethodResult& m : r.methods) {
+    const std::string f = "maps_" + std::string(MethodName(m.method)) + ".bin";
+    if (!write_bin(f, state_image(*m.maps.Find(Layer::kState)))) {
+      return Status::IoError(path(f) + ": cannot write");
+    }
+    panels.emplace_back(f, std::string(MethodName(m.method)));
+    if (m.method == Method::kBgkPlus) variance = &m.maps;
+  }
+  const double w = truth.cols * truth.resolution, h = truth.rows * truth.resolution;
+  const int npanels = static_cast<int>(panels.size()) + (variance ? 1 : 0);
+  const int panel_px = 260;
+  const int panel_h = static_cast<int>(std::min(900.0, panel_px * h / w + 80));
+  gp << "reset\nset terminal png size " << npanels * panel_px << "," << panel_h << "\n"
+     << "set output '" << path("maps.png") << "'\n"
+     << "set multiplot layout 1," << npanels << " title '" << r.name
+     << ": gray traversable, red non-traversable, black unknown'\n"
+     << "unset xtics\nunset ytics\nunset colorbox\nset size ratio -1\n"
+     << "set object 1 rectangle from graph 0,0 to graph 1,1 behind fc rgb 'black' fs solid\n";
+  const std::string array =
+      "binary array=(" + std::to_string(truth.cols) + "," + std::to_string(truth.rows) +
+      ") format='%float32' flipy dx=" + Num(truth.resolution) + " dy=" + Num(truth.resolution);
+  gp << "set palette defined (0 'black', 1 'gray70', 2 'red')\nset cbrange [0:2]\n";
+  gp << "set xrange [0:" << w << "]\nset yrange [0:" << h << "]\n";
+  for (const auto& [file, title] : panels) {
+    gp << "set title '" << title << "'\nplot '" << path(file) << "' " << array
+       << " with image notitle\n";
+  }
+  if (variance) {
+    if (!write_bin("maps_variance.bin", *variance->Find(Layer::kTraversabilityVariance))) {
+      return Status::IoError(path("maps_variance.bin") + ": cannot write");
+    }
+    gp << "set title 'bgk+ variance'\nset palette defined (0 'white', 1 'magenta')\n"
+       << "set cbrange [0:0.25]\nplot '" << path("maps_variance.bin") << "' " << array
+       << " with image notitle\n";
+  }
+  gp << "unset multiplot\n";
+  gp.close();
+  if (!gp) return Status::IoError(path("figures.gp") + ": cannot write");
+
+  if (std::system("command -v gnuplot > /dev/null 2>&1") != 0) {
+    *note = "gnuplot not installed: wrote " + path("figures.gp") + " but no PNGs";
+    return Status::Ok();
+  }
+  const std::string cmd = "gnuplot '" + path("figures.gp") + "'";
+  if (std::system(cmd.c_str()) != 0)
+    return Status::IoError("gnuplot failed on " + path("figures.gp"));
+  return Status::Ok();
+}
+
+}  // namespace bgkmap::cli

@@ -1,0 +1,45 @@
+// What `bgkmap eval` measured for one method, and the files it writes from that: JSON, a
+// Markdown table in the layout of the paper's Table 1, and gnuplot figures (ROC curves as in
+// Fig. 5, maps side by side as in Fig. 3).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/raster.h"
+#include "bgkmap/eval/map_score.h"
+
+namespace bgkmap::cli {
+
+struct MethodResult {
+  Method method = Method::kBgkPlus;
+  size_t scans = 0;
+  size_t skipped = 0;  // at the scan rate, by the two-process gate
+  // Mean seconds per scan over all scans (offline pass): the paper's three stages, plus the
+  // preparation (filtering, transform, binning) that the paper counts as registration.
+  double prepare_s = 0, elevation_s = 0, features_s = 0, traversability_s = 0;
+  double max_scan_s = 0;
+  eval::MapScore realtime;  // map built from the admitted scans only
+  eval::MapScore offline;   // map built from every scan
+  Raster maps;              // realtime map over the truth box: kState, kTraversabilityVariance
+};
+
+struct EvalReport {
+  std::string name;  // dataset name, e.g. "City"
+  std::string sequence;
+  double rate_hz = 10;
+  MapParams params;
+  std::vector<MethodResult> methods;
+};
+
+std::string ToJson(const EvalReport& r);
+std::string ToMarkdown(const EvalReport& r);
+
+// Writes <dir>/roc.dat, maps_*.bin and the gnuplot scripts, then runs gnuplot (if installed) to
+// make <dir>/roc.png and <dir>/maps.png. Returns an error only if a file cannot be written or
+// gnuplot fails; a missing gnuplot is reported in `note`.
+Status WriteFigures(const EvalReport& r, const Raster& truth, const std::string& dir,
+                    std::string* note);
+
+}  // namespace bgkmap::cli

@@ -1,0 +1,93 @@
+#include "bgkmap/sim/dem_world.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+namespace bgkmap::sim {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Distance from (x, y) to the segment (x0, y0)-(x1, y1).
+double SegmentDistance(double x, double y, const Ditch& d) {
+  const double vx = d.x1 - d.x0, vy = d.y1 - d.y0;
+  const double len2 = vx * vx + vy * vy;
+  double t = len2 > 0 ? ((x - d.x0) * vx + (y - d.y0) * vy) / len2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  const double px = d.x0 + t * vx - x, py = d.y0 + t * vy - y;
+  return std::sqrt(px * px + py * py);
+}
+
+}  // namespace
+
+DemWorld::DemWorld(HeightGrid grid, const ObstacleOptions& o) : grid_(std::move(grid)) {
+  std::mt19937 rng(o.seed);
+  std::uniform_real_distribution<double> ux(o.xmin, o.xmax), uy(o.ymin, o.ymax), u01(0.0, 1.0);
+  for (int i = 0; i < o.rocks; ++i) {
+    rocks_.push_back({ux(rng), uy(rng), 0.3 + 0.9 * u01(rng), 0.25 + 0.75 * u01(rng)});
+  }
+  for (int i = 0; i < o.ditches; ++i) {
+    const double x = ux(rng), y = uy(rng), len = 15.0 + 25.0 * u01(rng);
+    const double a = 2.0 * 3.141592653589793 * u01(rng);
+    ditches_.push_back({x, y, x + len * std::cos(a), y + len * std::sin(a), 0.8 + 0.8 * u01(rng),
+                        0.3 + 0.4 * u01(rng)});
+  }
+  max_height_ = -std::numeric_limits<double>::infinity();
+  for (float v : grid_.values) {
+    if (!std::isnan(v)) max_height_ = std::max(max_height_, static_cast<double>(v));
+  }
+  max_height_ += 2.0;  // rocks are at most 1 m tall
+  bx0_ = o.xmin - kBucket;
+  by0_ = o.ymin - kBucket;
+  bcols_ = static_cast<int64_t>((o.xmax - o.xmin) / kBucket) + 3;
+  brows_ = static_cast<int64_t>((o.ymax - o.ymin) / kBucket) + 3;
+  buckets_.resize(static_cast<size_t>(bcols_ * brows_));
+  for (int i = 0; i < static_cast<int>(rocks_.size()); ++i) {
+    const Rock& r = rocks_[i];
+    const int64_t c0 = static_cast<int64_t>((r.x - r.radius - bx0_) / kBucket);
+    const int64_t c1 = static_cast<int64_t>((r.x + r.radius - bx0_) / kBucket);
+    const int64_t r0 = static_cast<int64_t>((r.y - r.radius - by0_) / kBucket);
+    const int64_t r1 = static_cast<int64_t>((r.y + r.radius - by0_) / kBucket);
+    for (int64_t br = std::max<int64_t>(r0, 0); br <= std::min(r1, brows_ - 1); ++br) {
+      for (int64_t bc = std::max<int64_t>(c0, 0); bc <= std::min(c1, bcols_ - 1); ++bc) {
+        buckets_[static_cast<size_t>(br * bcols_ + bc)].push_back(i);
+      }
+    }
+  }
+}
+
+double DemWorld::TerrainHeight(double x, double y) const {
+  // Bilinear between cell centres.
+  const double fc = (x - grid_.x0) / grid_.cellsize - 0.5;
+  const double fr = (grid_.y0 + grid_.rows * grid_.cellsize - y) / grid_.cellsize - 0.5;
+  const double c0 = std::floor(fc), r0 = std::floor(fr);
+  if (!(c0 >= 0 && r0 >= 0 && c0 + 1 < grid_.cols && r0 + 1 < grid_.rows)) return kNaN;
+  const size_t i = static_cast<size_t>(r0) * grid_.cols + static_cast<size_t>(c0);
+  const double a = grid_.values[i], b = grid_.values[i + 1];
+  const double c = grid_.values[i + grid_.cols], d = grid_.values[i + grid_.cols + 1];
+  const double tx = fc - c0, ty = fr - r0;
+  return (a * (1 - tx) + b * tx) * (1 - ty) + (c * (1 - tx) + d * tx) * ty;  // NaN propagates
+}
+
+double DemWorld::SurfaceHeight(double x, double y) const {
+  double z = TerrainHeight(x, y);
+  if (std::isnan(z)) return z;
+  for (const Ditch& d : ditches_) {
+    const double u = SegmentDistance(x, y, d) / (0.5 * d.width);
+    if (u < 1.0) z -= d.depth * (1.0 - u * u);
+  }
+  const int64_t bc = static_cast<int64_t>(std::floor((x - bx0_) / kBucket));
+  const int64_t br = static_cast<int64_t>(std::floor((y - by0_) / kBucket));
+  if (bc < 0 || br < 0 || bc >= bcols_ || br >= brows_) return z;
+  double bump = 0.0;
+  for (int i : buckets_[static_cast<size_t>(br * bcols_ + bc)]) {
+    const Rock& r = rocks_[i];
+    const double u2 = ((x - r.x) * (x - r.x) + (y - r.y) * (y - r.y)) / (r.radius * r.radius);
+    if (u2 < 1.0) bump = std::max(bump, r.height * std::sqrt(1.0 - u2));
+  }
+  return z + bump;
+}
+
+}  // namespace bgkmap::sim
