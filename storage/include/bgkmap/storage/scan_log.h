@@ -1,0 +1,112 @@
+// The scan log: the durability mechanism of the map. Every applied change (a scan's training
+// set, or a region clear) is appended as one LogRecord keyed by its map version, in the same
+// atomic write as the robot's sequence number and the map version. A checkpoint (TileStore::
+// Checkpoint) later writes the tiles and deletes the records it covers; recovery replays the
+// records after the last checkpoint in version order (recovery.h).
+//
+// Owned by a TileStore; obtain it with TileStore::log(). Thread-safe.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <thread>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/storage/log_record.h"
+#include "bgkmap/storage/store_options.h"
+
+namespace rocksdb {
+class WriteBatch;
+}
+
+namespace bgkmap::storage {
+
+struct StoreDb;
+
+struct LogStats {
+  uint64_t records = 0;
+  uint64_t bytes = 0;          // encoded record bytes
+  uint64_t first_version = 0;  // 0 when empty
+  uint64_t last_version = 0;
+};
+
+class ScanLog {
+ public:
+  ~ScanLog();  // stops the periodic sync after a last one
+
+  ScanLog(const ScanLog&) = delete;
+  ScanLog& operator=(const ScanLog&) = delete;
+
+  // Appends `record` and, for a scan, max-merges the robot's last sequence number; the map
+  // version is max-merged too. Returns once the record is durable as the store's Durability
+  // says; only then may the change be acknowledged. Concurrent appends share fsyncs.
+  //   InvalidArgument: version 0, a version at or below the last checkpoint, or a scan
+  //                    record without a scan.
+  //   IoError:         the write failed (disk full, I/O error). Nothing is acknowledged: the
+  //                    caller must refuse the change. Earlier appends are unaffected.
+  // Versions must be unique; appending an existing version replaces its record.
+  Status Append(const LogRecord& record);
+
+  // Calls `visit(version, record)` for each record with version > `after`, in version order.
+  // A record that fails its checksum or does not decode is passed as a DataLoss status naming
+  // its version (and counted in corrupt_records()); visiting goes on. Stops at the first non-OK
+  // status `visit` returns and returns it. An unreadable stretch of the log (a corrupt RocksDB
+  // block) ends the walk with DataLoss.
+  using Visitor = std::function<Status(uint64_t version, Result<LogRecord> record)>;
+  Status ForEach(uint64_t after, const Visitor& visit) const;
+
+  // Counts the records after `after` (reads them).
+  Result<LogStats> Stats(uint64_t after = 0) const;
+
+  // Highest version appended or found in the store at open (0: none).
+  uint64_t last_version() const;
+  // Last sequence number logged for `robot_id`; nullopt if the robot never logged a scan.
+  std::optional<uint64_t> LastSequence(std::string_view robot_id) const;
+  std::map<std::string, uint64_t> RobotSequences() const;
+
+  // Makes every appended record durable now (fsync of the write-ahead log).
+  Status Sync();
+
+  Durability durability() const { return durability_; }
+  uint64_t records_appended() const { return appended_.load(); }
+  uint64_t bytes_appended() const { return appended_bytes_.load(); }
+  uint64_t corrupt_records() const { return corrupt_.load(); }
+  uint64_t append_errors() const { return append_errors_.load(); }
+
+ private:
+  friend class TileStore;
+  ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
+          std::map<std::string, uint64_t> robots, uint64_t checkpoint_version);
+
+  // Adds to `batch` the deletion of every record with version <= `through`.
+  void AddTruncation(rocksdb::WriteBatch* batch, uint64_t through);
+  void OnCheckpoint(uint64_t version) { checkpoint_version_.store(version); }
+  void SyncLoop();
+
+  StoreDb* db_;
+  const Durability durability_;
+  const uint32_t periodic_sync_ms_;
+
+  std::atomic<uint64_t> checkpoint_version_;
+  std::atomic<uint64_t> appended_{0}, appended_bytes_{0};
+  mutable std::atomic<uint64_t> corrupt_{0};
+  std::atomic<uint64_t> append_errors_{0};
+
+  mutable std::mutex mu_;  // guards last_version_, robots_
+  uint64_t last_version_;
+  std::map<std::string, uint64_t, std::less<>> robots_;
+
+  std::mutex sync_mu_;  // guards stop_
+  std::condition_variable sync_cv_;
+  bool stop_ = false;
+  std::thread syncer_;
+};
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,38 @@
+// How a TileStore is opened: durability of the scan log, compression, caches.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/storage/tile_codec.h"
+
+namespace bgkmap::storage {
+
+// When an appended log record counts as durable (docs/storage.md, "Durability").
+enum class Durability {
+  // Append returns after the record is fsync'ed. Concurrent appenders share one fsync
+  // (RocksDB's write group), so throughput grows with the number of writers.
+  kSync,
+  // Append returns once the record is in the operating system's page cache: it survives a
+  // kill -9 of the process at once, and a power loss or kernel crash once the background
+  // sync has run, i.e. within periodic_sync_ms.
+  kPeriodic,
+};
+
+std::string_view DurabilityName(Durability d);         // "sync" | "periodic"
+Result<Durability> ParseDurability(std::string_view);  // the YAML value, e.g. "sync"
+
+enum class TileCompression { kNone, kLz4, kZstd };
+
+struct StoreOptions {
+  Durability durability = Durability::kSync;
+  uint32_t periodic_sync_ms = 100;  // kPeriodic: the power-loss window
+  bool create_if_missing = true;    // Open() of an empty directory creates the store
+  size_t block_cache_bytes = size_t{64} << 20;
+  TileCompression tile_compression = TileCompression::kZstd;
+  TileEncodeOptions tile_encoding;
+};
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,165 @@
+// A map's persistent store: tiles as of the last checkpoint, the scan log after it, and the map
+// metadata, in one RocksDB database in one directory.
+//
+// The store's state is "the map at checkpoint_version()" (the tiles) plus "every change after
+// it" (the log). The served map is rebuilt from both by RecoverMap() (recovery.h), which loads
+// only the tiles the log touches; every other tile is current in the store and is loaded on
+// demand with LoadTile(). Nothing reads all tiles at open.
+//
+// Thread-safe: every method may be called concurrently.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/map_params.h"
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/tile.h"
+#include "bgkmap/storage/map_metadata.h"
+#include "bgkmap/storage/scan_log.h"
+#include "bgkmap/storage/store_options.h"
+
+namespace bgkmap::storage {
+
+struct StoreDb;
+
+// One tile of a checkpoint. A null or all-zero tile deletes the key (a cleared tile).
+struct TileUpdate {
+  TileKey key;
+  const Tile* tile = nullptr;  // borrowed for the duration of the call
+};
+
+// What the tile index knows of a stored tile without reading it.
+struct StoredTileInfo {
+  TileKey key;
+  uint64_t version = 0;        // of the tile's last change
+  uint32_t known_cells = 0;    // Tile::CountKnown()
+  uint32_t encoded_bytes = 0;  // before RocksDB's block compression
+};
+
+struct StoreCounters {
+  uint64_t tiles_loaded = 0;
+  uint64_t tiles_written = 0;
+  uint64_t tiles_deleted = 0;
+  uint64_t checkpoints = 0;
+  uint64_t corrupt_tiles = 0;        // distinct tiles found corrupt since open
+  uint64_t corrupt_log_records = 0;  // log records found corrupt since open
+  uint64_t log_records_appended = 0;
+  uint64_t log_bytes_appended = 0;
+  uint64_t write_errors = 0;  // failed appends and checkpoints
+};
+
+struct DiskUsage {
+  uint64_t tile_bytes = 0;   // SST files of the tiles column family
+  uint64_t log_bytes = 0;    // SST files of the log column family
+  uint64_t total_bytes = 0;  // every file in the store's directory (WAL included)
+};
+
+class TileStore {
+ public:
+  // Opens the store in `dir`, creating it (with `params`) if the directory holds none and
+  // options.create_if_missing. Reopening checks the stored parameters against `params`:
+  // FailedPrecondition naming the first differing key if the statistics are incompatible
+  // (CheckParamsCompatible); otherwise the stored derived-layer parameters are updated to
+  // `params`. FailedPrecondition as well for a store of a newer format or a directory in use
+  // by another process; IoError/DataLoss if the database cannot be opened.
+  static Result<std::unique_ptr<TileStore>> Open(const std::string& dir,
+                                                 const StoreOptions& options,
+                                                 const MapParams& params);
+  // Opens an existing store with the parameters it holds (FailedPrecondition if there is none).
+  static Result<std::unique_ptr<TileStore>> OpenExisting(const std::string& dir,
+                                                         const StoreOptions& options);
+
+  // Stops the periodic sync, syncs the log and closes the database.
+  ~TileStore();
+  TileStore(const TileStore&) = delete;
+  TileStore& operator=(const TileStore&) = delete;
+
+  const std::string& directory() const { return dir_; }
+  const MapParams& params() const { return params_; }
+  const StoreOptions& options() const { return options_; }
+
+  // ---- Versions and robots
+  // The stored tiles are the map after every change up to this version.
+  uint64_t checkpoint_version() const { return checkpoint_version_.load(); }
+  // Highest version checkpointed or logged: a server continues with map_version() + 1.
+  uint64_t map_version() const;
+  std::optional<uint64_t> LastSequence(std::string_view robot_id) const {
+    return log_->LastSequence(robot_id);
+  }
+  // Everything above, with the parameters, as one value (also what archives carry).
+  MapMetadata Metadata() const;
+
+  // ---- Tiles
+  // The tile at `key` as of the last checkpoint; a null pointer if the store has no such tile.
+  // DataLoss naming the key if the stored tile fails its checksum (the key is then listed by
+  // CorruptTiles() and counted; other tiles are unaffected); IoError on a read failure.
+  Result<std::unique_ptr<Tile>> LoadTile(TileKey key) const;
+
+  // Atomically (one write, fsync'ed) stores `tiles`, records `version` as the checkpoint
+  // version and deletes every log record at or below it.
+  // Contract: the caller passes a consistent snapshot, i.e. the result of applying exactly the
+  // changes with version <= `version` (and none above) to the map as of the previous
+  // checkpoint, for every tile changed since that checkpoint. A server quiesces the changes
+  // above `version` (or copies the tiles at a barrier) before calling. Tiles not passed keep
+  // their stored state. InvalidArgument if `version` is below checkpoint_version(); IoError if
+  // the write fails (the previous checkpoint and the log stay intact).
+  Status Checkpoint(uint64_t version, std::span<const TileUpdate> tiles);
+
+  // Every stored tile (from the index, no tile is read), in (x, y) order; or those with
+  // min <= key <= max coordinate-wise.
+  Result<std::vector<StoredTileInfo>> ListTiles() const;
+  Result<std::vector<StoredTileInfo>> ListTiles(TileKey min, TileKey max) const;
+
+  // Tiles found corrupt since open and not rewritten since, sorted. Queries of these tiles
+  // must not be answered from what the map holds for them.
+  std::vector<TileKey> CorruptTiles() const;
+
+  // ---- Log, maintenance, health
+  ScanLog& log() { return *log_; }
+  const ScanLog& log() const { return *log_; }
+
+  // Writes memory tables to SST files (tests, measurement, before archiving a directory).
+  Status Flush();
+  // Flush() and a full compaction: the on-disk size settles to its steady value.
+  Status Compact();
+  // After a write failed (disk full), retries the database's recovery once the cause is gone.
+  // OK if writes are accepted again.
+  Status Resume();
+
+  StoreCounters counters() const;
+  DiskUsage Usage() const;
+
+ private:
+  TileStore(std::string dir, const StoreOptions& options, const MapParams& params,
+            std::unique_ptr<StoreDb> db);
+  static Result<std::unique_ptr<TileStore>> OpenImpl(const std::string& dir,
+                                                     const StoreOptions& options,
+                                                     const MapParams* params);
+  void MarkCorrupt(TileKey key) const;
+
+  std::string dir_;
+  StoreOptions options_;
+  MapParams params_;
+  std::unique_ptr<StoreDb> db_;
+  std::unique_ptr<ScanLog> log_;
+
+  std::atomic<uint64_t> checkpoint_version_{0};
+  std::mutex checkpoint_mu_;  // one checkpoint at a time
+  mutable std::atomic<uint64_t> tiles_loaded_{0};
+  std::atomic<uint64_t> tiles_written_{0}, tiles_deleted_{0}, checkpoints_{0};
+  std::atomic<uint64_t> checkpoint_errors_{0};
+  mutable std::mutex corrupt_mu_;
+  mutable std::set<TileKey> corrupt_;  // until rewritten by a checkpoint
+  mutable std::atomic<uint64_t> corrupt_found_{0};
+};
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,110 @@
+#include "bgkmap/storage/recovery.h"
+
+#include <algorithm>
+#include <chrono>
+#include <unordered_set>
+
+namespace bgkmap::storage {
+namespace {
+
+// Loads the stored tiles a replayed record needs, each at most once per recovery.
+class TileLoader {
+ public:
+  TileLoader(const TileStore& store, TerrainMap& map, RecoveryReport& report)
+      : store_(store), map_(map), report_(report) {}
+
+  void Ensure(TileKey key) {
+    if (map_.FindTile(key) != nullptr || !tried_.insert(key).second) return;
+    Result<bool> loaded = LoadTileInto(store_, key, map_);
+    if (!loaded.ok()) {
+      report_.corrupt_tiles.push_back(key);
+    } else if (*loaded) {
+      ++report_.tiles_loaded;
+    }
+  }
+
+  Status EnsureBox(const CellBox& box) {
+    const TileKey lo = map_.geometry().TileOf(box.min), hi = map_.geometry().TileOf(box.max);
+    Result<std::vector<StoredTileInfo>> stored = store_.ListTiles(lo, hi);
+    if (!stored.ok()) return stored.status();
+    for (const StoredTileInfo& info : *stored) Ensure(info.key);
+    return Status::Ok();
+  }
+
+ private:
+  const TileStore& store_;
+  TerrainMap& map_;
+  RecoveryReport& report_;
+  std::unordered_set<TileKey, TileKeyHash> tried_;
+};
+
+}  // namespace
+
+void InstallTile(TerrainMap& map, TileKey key, const Tile& tile) {
+  Tile& dst = map.GetOrCreateTile(key);
+  std::copy(tile.w().begin(), tile.w().end(), dst.w().begin());
+  std::copy(tile.s().begin(), tile.s().end(), dst.s().begin());
+  std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
+  std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
+  dst.set_version(tile.version());
+}
+
+Result<bool> LoadTileInto(const TileStore& store, TileKey key, TerrainMap& map) {
+  Result<std::unique_ptr<Tile>> tile = store.LoadTile(key);
+  if (!tile.ok()) return tile.status();
+  if (!*tile) return false;
+  InstallTile(map, key, **tile);
+  return true;
+}
+
+Status LoadAllTiles(const TileStore& store, TerrainMap& map, std::vector<TileKey>* corrupt) {
+  Result<std::vector<StoredTileInfo>> stored = store.ListTiles();
+  if (!stored.ok()) return stored.status();
+  for (const StoredTileInfo& info : *stored) {
+    if (map.FindTile(info.key) != nullptr) continue;
+    Result<bool> loaded = LoadTileInto(store, info.key, map);
+    if (!loaded.ok()) {
+      if (loaded.status().code() != Status::Code::kDataLoss) return loaded.status();
+      if (corrupt) corrupt->push_back(info.key);
+    }
+  }
+  return Status::Ok();
+}
+
+Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
+  const auto start = std::chrono::steady_clock::now();
+  RecoveryReport report;
+  report.checkpoint_version = store.checkpoint_version();
+  map.set_version(report.checkpoint_version);
+  TileLoader loader(store, map, report);
+
+  const Status walked = store.log().ForEach(
+      report.checkpoint_version, [&](uint64_t version, Result<LogRecord> record) -> Status {
+        if (!record.ok()) {
+          report.corrupt_records.push_back(version);
+          return Status::Ok();
+        }
+        if (record->type == LogRecord::Type::kScan) {
+          const PreparedScan& scan = *record->scan;
+          for (const TileKey& k : scan.write_tiles) loader.Ensure(k);
+          for (const TileKey& k : scan.read_tiles) loader.Ensure(k);
+          const TileWindow window = map.MakeWindow(scan);
+          map.Integrate(scan, window, version);
+          map.set_version(version);
+          ++report.scans_replayed;
+        } else {
+          if (Status s = loader.EnsureBox(record->clear_box); !s.ok()) return s;
+          map.set_version(version - 1);  // ClearBox stamps the next version
+          map.ClearBox(record->clear_box);
+          ++report.clears_replayed;
+        }
+        return Status::Ok();
+      });
+  if (!walked.ok()) return walked;
+  map.set_version(std::max(map.version(), store.map_version()));
+  report.map_version = map.version();
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,156 @@
+#include "bgkmap/storage/scan_log.h"
+
+#include <rocksdb/write_batch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <memory>
+
+#include "store_db.h"
+#include "store_keys.h"
+
+namespace bgkmap::storage {
+
+ScanLog::ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
+                 std::map<std::string, uint64_t> robots, uint64_t checkpoint_version)
+    : db_(db),
+      durability_(options.durability),
+      periodic_sync_ms_(std::max<uint32_t>(1, options.periodic_sync_ms)),
+      checkpoint_version_(checkpoint_version),
+      last_version_(map_version),
+      robots_(robots.begin(), robots.end()) {
+  if (durability_ == Durability::kPeriodic) syncer_ = std::thread([this] { SyncLoop(); });
+}
+
+ScanLog::~ScanLog() {
+  if (syncer_.joinable()) {
+    {
+      std::lock_guard<std::mutex> lock(sync_mu_);
+      stop_ = true;
+    }
+    sync_cv_.notify_all();
+    syncer_.join();
+  }
+  Sync();  // a clean shutdown leaves nothing in the window
+}
+
+void ScanLog::SyncLoop() {
+  std::unique_lock<std::mutex> lock(sync_mu_);
+  while (!stop_) {
+    sync_cv_.wait_for(lock, std::chrono::milliseconds(periodic_sync_ms_));
+    if (stop_) break;
+    lock.unlock();
+    Sync();  // a failure shows up again in the next Append's own write
+    lock.lock();
+  }
+}
+
+Status ScanLog::Sync() { return FromRocks(db_->db->FlushWAL(/*sync=*/true), "syncing the log"); }
+
+Status ScanLog::Append(const LogRecord& record) {
+  if (record.version == 0) return Status::InvalidArgument("log record version must be > 0");
+  if (record.version <= checkpoint_version_.load()) {
+    return Status::InvalidArgument("log record version " + std::to_string(record.version) +
+                                   " is at or below the last checkpoint (" +
+                                   std::to_string(checkpoint_version_.load()) + ")");
+  }
+  if (record.type == LogRecord::Type::kScan && !record.scan) {
+    return Status::InvalidArgument("scan log record without a scan");
+  }
+  const std::string value = EncodeLogRecord(record);
+  rocksdb::WriteBatch batch;
+  rocksdb::Status s = batch.Put(db_->log, VersionKeyBytes(record.version), value);
+  if (s.ok()) s = batch.Merge(db_->meta, kMapVersionKey, U64Bytes(record.version));
+  if (s.ok() && record.type == LogRecord::Type::kScan) {
+    s = batch.Merge(db_->meta, std::string(kRobotPrefix) + record.robot_id,
+                    U64Bytes(record.sequence));
+  }
+  rocksdb::WriteOptions write;
+  write.sync = durability_ == Durability::kSync;
+  if (s.ok()) s = db_->db->Write(write, &batch);
+  if (!s.ok()) {
+    append_errors_.fetch_add(1);
+    return FromRocks(s, "appending log record " + std::to_string(record.version));
+  }
+  appended_.fetch_add(1);
+  appended_bytes_.fetch_add(value.size());
+  std::lock_guard<std::mutex> lock(mu_);
+  last_version_ = std::max(last_version_, record.version);
+  if (record.type == LogRecord::Type::kScan) {
+    auto [it, inserted] = robots_.try_emplace(record.robot_id, record.sequence);
+    if (!inserted) it->second = std::max(it->second, record.sequence);
+  }
+  return Status::Ok();
+}
+
+Status ScanLog::ForEach(uint64_t after, const Visitor& visit) const {
+  rocksdb::ReadOptions read;
+  read.verify_checksums = true;
+  read.fill_cache = false;  // a replay reads each record once
+  std::unique_ptr<rocksdb::Iterator> it(db_->db->NewIterator(read, db_->log));
+  if (after == UINT64_MAX) return Status::Ok();
+  for (it->Seek(VersionKeyBytes(after + 1)); it->Valid(); it->Next()) {
+    uint64_t version = 0;
+    if (!ParseVersionKeyBytes(it->key().ToStringView(), &version)) {
+      corrupt_.fetch_add(1);
+      continue;  // not a key this format writes; nothing to replay
+    }
+    Result<LogRecord> record = DecodeLogRecord(it->value().ToStringView());
+    if (record.ok() && record->version != version) {
+      record = Status::DataLoss("log record stored under version " + std::to_string(version) +
+                                " says it is version " + std::to_string(record->version));
+    }
+    if (!record.ok()) {
+      corrupt_.fetch_add(1);
+      record = Status::DataLoss("log record " + std::to_string(version) + ": " +
+                                record.status().message());
+    }
+    if (Status s = visit(version, std::move(record)); !s.ok()) return s;
+  }
+  if (!it->status().ok()) {
+    corrupt_.fetch_add(1);
+    return FromRocks(it->status(), "reading the log after version " + std::to_string(after));
+  }
+  return Status::Ok();
+}
+
+Result<LogStats> ScanLog::Stats(uint64_t after) const {
+  LogStats stats;
+  rocksdb::ReadOptions read;
+  read.fill_cache = false;
+  std::unique_ptr<rocksdb::Iterator> it(db_->db->NewIterator(read, db_->log));
+  for (it->Seek(VersionKeyBytes(after + 1)); it->Valid(); it->Next()) {
+    uint64_t version = 0;
+    if (!ParseVersionKeyBytes(it->key().ToStringView(), &version)) continue;
+    if (stats.records == 0) stats.first_version = version;
+    stats.last_version = version;
+    ++stats.records;
+    stats.bytes += it->value().size();
+  }
+  if (!it->status().ok()) return FromRocks(it->status(), "reading the log");
+  return stats;
+}
+
+uint64_t ScanLog::last_version() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return last_version_;
+}
+
+std::optional<uint64_t> ScanLog::LastSequence(std::string_view robot_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = robots_.find(robot_id);
+  if (it == robots_.end()) return std::nullopt;
+  return it->second;
+}
+
+std::map<std::string, uint64_t> ScanLog::RobotSequences() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return {robots_.begin(), robots_.end()};
+}
+
+void ScanLog::AddTruncation(rocksdb::WriteBatch* batch, uint64_t through) {
+  batch->DeleteRange(db_->log, VersionKeyBytes(0),
+                     through == UINT64_MAX ? std::string(9, '\xff') : VersionKeyBytes(through + 1));
+}
+
+}  // namespace bgkmap::storage

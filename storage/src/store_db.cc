@@ -1,0 +1,99 @@
+#include "store_db.h"
+
+#include <rocksdb/cache.h>
+#include <rocksdb/filter_policy.h>
+#include <rocksdb/table.h>
+
+#include "max_merge_operator.h"
+#include "store_keys.h"
+
+namespace bgkmap::storage {
+namespace {
+
+rocksdb::CompressionType ToRocks(TileCompression c) {
+  switch (c) {
+    case TileCompression::kNone:
+      return rocksdb::kNoCompression;
+    case TileCompression::kLz4:
+      return rocksdb::kLZ4Compression;
+    case TileCompression::kZstd:
+      return rocksdb::kZSTD;
+  }
+  return rocksdb::kNoCompression;
+}
+
+rocksdb::ColumnFamilyOptions TileFamilyOptions(const StoreOptions& options,
+                                               const std::shared_ptr<rocksdb::Cache>& cache) {
+  rocksdb::ColumnFamilyOptions cf;
+  cf.compression = ToRocks(options.tile_compression);
+  cf.bottommost_compression = cf.compression;
+  rocksdb::BlockBasedTableOptions table;
+  table.block_cache = cache;
+  // A tile (tens of KB) fills a block on its own; larger blocks would only make a corrupt
+  // block take more tiles down with it.
+  table.block_size = 16 << 10;
+  // Loading a tile that does not exist is common (new ground): let the filter answer it.
+  table.filter_policy.reset(rocksdb::NewBloomFilterPolicy(10));
+  cf.table_factory.reset(rocksdb::NewBlockBasedTableFactory(table));
+  return cf;
+}
+
+}  // namespace
+
+StoreDb::~StoreDb() {
+  if (db) {
+    for (rocksdb::ColumnFamilyHandle* h : handles) db->DestroyColumnFamilyHandle(h);
+    db->Close();
+  }
+}
+
+Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
+                                               const StoreOptions& options) {
+  rocksdb::DBOptions db_options;
+  db_options.create_if_missing = options.create_if_missing;
+  db_options.create_missing_column_families = options.create_if_missing;
+  // A torn last record (the crash came mid-write) is dropped; it was never acknowledged.
+  db_options.wal_recovery_mode = rocksdb::WALRecoveryMode::kPointInTimeRecovery;
+  db_options.paranoid_checks = true;
+  db_options.max_background_jobs = 2;
+
+  auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);
+  rocksdb::ColumnFamilyOptions meta;
+  meta.merge_operator = std::make_shared<MaxMergeOperator>();
+  rocksdb::ColumnFamilyOptions log;
+  // Log records live only until the next checkpoint; compressing them is wasted work.
+  log.compression = rocksdb::kNoCompression;
+  const std::vector<rocksdb::ColumnFamilyDescriptor> families = {
+      {rocksdb::kDefaultColumnFamilyName, rocksdb::ColumnFamilyOptions()},
+      {kMetaFamily, meta},
+      {kTilesFamily, TileFamilyOptions(options, cache)},
+      {kTileIndexFamily, rocksdb::ColumnFamilyOptions()},
+      {kLogFamily, log},
+  };
+
+  auto store = std::make_unique<StoreDb>();
+  rocksdb::DB* db = nullptr;
+  const rocksdb::Status s = rocksdb::DB::Open(db_options, dir, families, &store->handles, &db);
+  if (!s.ok()) {
+    if (s.IsInvalidArgument() && !options.create_if_missing) {
+      return Status::FailedPrecondition("no map store in " + dir + ": " + s.ToString());
+    }
+    return FromRocks(s, "opening the map store in " + dir);
+  }
+  store->db.reset(db);
+  store->meta = store->handles[1];
+  store->tiles = store->handles[2];
+  store->tile_index = store->handles[3];
+  store->log = store->handles[4];
+  return store;
+}
+
+Status FromRocks(const rocksdb::Status& s, std::string_view context) {
+  if (s.ok()) return Status::Ok();
+  std::string message = std::string(context) + ": " + s.ToString();
+  if (s.IsCorruption()) return Status::DataLoss(std::move(message));
+  if (s.IsNoSpace()) return Status::IoError(std::move(message) + " (disk full)");
+  return Status::IoError(std::move(message));
+}
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,36 @@
+// The open RocksDB database behind a TileStore: the handle, its column families, and the
+// conversion of RocksDB statuses into bgkmap ones. Internal to storage/.
+#pragma once
+
+#include <rocksdb/db.h>
+
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/storage/store_options.h"
+
+namespace bgkmap::storage {
+
+struct StoreDb {
+  ~StoreDb();  // releases the family handles, then closes the database
+
+  std::unique_ptr<rocksdb::DB> db;
+  std::vector<rocksdb::ColumnFamilyHandle*> handles;
+  rocksdb::ColumnFamilyHandle* meta = nullptr;
+  rocksdb::ColumnFamilyHandle* tiles = nullptr;
+  rocksdb::ColumnFamilyHandle* tile_index = nullptr;
+  rocksdb::ColumnFamilyHandle* log = nullptr;
+
+  // Opens (creating if allowed) the database in `dir` with every column family.
+  static Result<std::unique_ptr<StoreDb>> Open(const std::string& dir, const StoreOptions& options);
+};
+
+// Corruption -> DataLoss; I/O errors (disk full included) -> IoError; anything else ->
+// IoError too, since the caller cannot fix it by changing its request. `context` says what was
+// being done ("reading tile (3, 4)").
+Status FromRocks(const rocksdb::Status& s, std::string_view context);
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,337 @@
+#include "bgkmap/storage/tile_store.h"
+
+#include <rocksdb/write_batch.h>
+
+#include <algorithm>
+#include <charconv>
+#include <filesystem>
+#include <map>
+
+#include "bgkmap/storage/tile_codec.h"
+#include "byte_coding.h"
+#include "store_db.h"
+#include "store_keys.h"
+
+namespace bgkmap::storage {
+namespace {
+
+std::string EncodeTileInfo(uint64_t version, uint32_t known, uint32_t bytes) {
+  std::string out;
+  ByteWriter w(&out);
+  w.PutVarint(version);
+  w.PutVarint(known);
+  w.PutVarint(bytes);
+  return out;
+}
+
+bool DecodeTileInfo(std::string_view key, std::string_view value, StoredTileInfo* info) {
+  ByteReader r(value);
+  uint64_t version, known, bytes;
+  if (!ParseTileKeyBytes(key, &info->key) || !r.GetVarint(&version) || !r.GetVarint(&known) ||
+      !r.GetVarint(&bytes)) {
+    return false;
+  }
+  info->version = version;
+  info->known_cells = static_cast<uint32_t>(known);
+  info->encoded_bytes = static_cast<uint32_t>(bytes);
+  return true;
+}
+
+// The whole meta family (a few dozen keys), merges resolved.
+Result<std::map<std::string, std::string, std::less<>>> ReadMeta(StoreDb& db) {
+  std::map<std::string, std::string, std::less<>> meta;
+  std::unique_ptr<rocksdb::Iterator> it(db.db->NewIterator(rocksdb::ReadOptions(), db.meta));
+  for (it->SeekToFirst(); it->Valid(); it->Next())
+    meta.emplace(it->key().ToString(), it->value().ToString());
+  if (!it->status().ok()) return FromRocks(it->status(), "reading the map metadata");
+  return meta;
+}
+
+Status PutParams(rocksdb::WriteBatch& batch, StoreDb& db, const MapParams& params) {
+  for (const auto& [key, value] : ParamsToKeyValues(params)) {
+    rocksdb::Status s = batch.Put(db.meta, std::string(kParamPrefix) + key, value);
+    if (!s.ok()) return FromRocks(s, "writing the map parameters");
+  }
+  return Status::Ok();
+}
+
+Result<uint64_t> MetaU64(const std::map<std::string, std::string, std::less<>>& meta,
+                         std::string_view key) {
+  auto it = meta.find(key);
+  if (it == meta.end()) return uint64_t{0};
+  uint64_t v;
+  if (!ParseU64Bytes(it->second, &v)) {
+    return Status::DataLoss("map metadata " + std::string(key) + " is malformed");
+  }
+  return v;
+}
+
+}  // namespace
+
+TileStore::TileStore(std::string dir, const StoreOptions& options, const MapParams& params,
+                     std::unique_ptr<StoreDb> db)
+    : dir_(std::move(dir)), options_(options), params_(params), db_(std::move(db)) {}
+
+TileStore::~TileStore() {
+  log_.reset();  // stops the syncer and syncs before the database closes
+  db_.reset();
+}
+
+Result<std::unique_ptr<TileStore>> TileStore::Open(const std::string& dir,
+                                                   const StoreOptions& options,
+                                                   const MapParams& params) {
+  if (Status s = params.Validate(); !s.ok()) return s;
+  return OpenImpl(dir, options, &params);
+}
+
+Result<std::unique_ptr<TileStore>> TileStore::OpenExisting(const std::string& dir,
+                                                           const StoreOptions& options) {
+  StoreOptions existing = options;
+  existing.create_if_missing = false;
+  return OpenImpl(dir, existing, nullptr);
+}
+
+Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
+                                                       const StoreOptions& options,
+                                                       const MapParams* params) {
+  Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir, options);
+  if (!db.ok()) return db.status();
+  StoreDb& sdb = **db;
+  Result<std::map<std::string, std::string, std::less<>>> meta = ReadMeta(sdb);
+  if (!meta.ok()) return meta.status();
+
+  MapParams effective;
+  rocksdb::WriteBatch batch;
+  auto format = meta->find(kFormatKey);
+  if (format == meta->end()) {
+    if (params == nullptr) return Status::FailedPrecondition("no map store in " + dir);
+    effective = *params;
+    batch.Put(sdb.meta, kFormatKey, std::to_string(kStoreFormat));
+    batch.Put(sdb.meta, kCheckpointVersionKey, U64Bytes(0));
+    if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
+  } else {
+    uint32_t stored_format = 0;
+    const std::string& text = format->second;
+    if (std::from_chars(text.data(), text.data() + text.size(), stored_format).ec != std::errc()) {
+      return Status::DataLoss("store format marker is malformed: " + text);
+    }
+    if (stored_format > kStoreFormat) {
+      return Status::FailedPrecondition("the store in " + dir + " has format " + text +
+                                        ", newer than this build reads (" +
+                                        std::to_string(kStoreFormat) + ")");
+    }
+    std::map<std::string, std::string, std::less<>> kv;
+    for (const auto& [key, value] : *meta) {
+      if (key.starts_with(kParamPrefix)) kv.emplace(key.substr(kParamPrefix.size()), value);
+    }
+    Result<MapParams> stored = ParamsFromKeyValues(kv);
+    if (!stored.ok()) return stored.status();
+    effective = *stored;
+    if (params != nullptr) {
+      if (Status s = CheckParamsCompatible(*stored, *params); !s.ok()) {
+        return Status::FailedPrecondition(dir + ": " + s.message());
+      }
+      effective = *params;
+      if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
+    }
+  }
+  if (batch.Count() > 0) {
+    rocksdb::WriteOptions write;
+    write.sync = true;
+    if (Status s = FromRocks(sdb.db->Write(write, &batch), "writing the map metadata"); !s.ok()) {
+      return s;
+    }
+  }
+
+  Result<uint64_t> checkpoint = MetaU64(*meta, kCheckpointVersionKey);
+  Result<uint64_t> map_version = MetaU64(*meta, kMapVersionKey);
+  if (!checkpoint.ok()) return checkpoint.status();
+  if (!map_version.ok()) return map_version.status();
+  std::map<std::string, uint64_t> robots;
+  for (const auto& [key, value] : *meta) {
+    if (!key.starts_with(kRobotPrefix)) continue;
+    uint64_t sequence;
+    if (!ParseU64Bytes(value, &sequence)) {
+      return Status::DataLoss("map metadata " + key + " is malformed");
+    }
+    robots.emplace(key.substr(kRobotPrefix.size()), sequence);
+  }
+
+  std::unique_ptr<TileStore> store(new TileStore(dir, options, effective, std::move(*db)));
+  store->checkpoint_version_.store(*checkpoint);
+  store->log_.reset(new ScanLog(store->db_.get(), options, std::max(*map_version, *checkpoint),
+                                std::move(robots), *checkpoint));
+  return store;
+}
+
+uint64_t TileStore::map_version() const {
+  return std::max(checkpoint_version_.load(), log_->last_version());
+}
+
+MapMetadata TileStore::Metadata() const {
+  MapMetadata m;
+  m.params = params_;
+  m.checkpoint_version = checkpoint_version();
+  m.map_version = map_version();
+  m.robot_sequences = log_->RobotSequences();
+  return m;
+}
+
+void TileStore::MarkCorrupt(TileKey key) const {
+  std::lock_guard<std::mutex> lock(corrupt_mu_);
+  if (corrupt_.insert(key).second) corrupt_found_.fetch_add(1);
+}
+
+Result<std::unique_ptr<Tile>> TileStore::LoadTile(TileKey key) const {
+  rocksdb::PinnableSlice value;
+  rocksdb::ReadOptions read;
+  read.verify_checksums = true;
+  const rocksdb::Status s = db_->db->Get(read, db_->tiles, TileKeyBytes(key), &value);
+  if (s.IsNotFound()) return std::unique_ptr<Tile>();
+  if (!s.ok()) {
+    if (s.IsCorruption()) MarkCorrupt(key);
+    return FromRocks(s, "reading tile " + TileKeyName(key));
+  }
+  Result<std::unique_ptr<Tile>> tile = DecodeTile(value.ToStringView(), params_.tile_size);
+  if (!tile.ok()) {
+    if (tile.status().code() == Status::Code::kDataLoss) MarkCorrupt(key);
+    return Status(
+        tile.status().code() == Status::Code::kDataLoss
+            ? Status::DataLoss("tile " + TileKeyName(key) + ": " + tile.status().message())
+            : tile.status());
+  }
+  tiles_loaded_.fetch_add(1);
+  return tile;
+}
+
+Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles) {
+  std::lock_guard<std::mutex> lock(checkpoint_mu_);
+  if (version < checkpoint_version_.load()) {
+    return Status::InvalidArgument("checkpoint version " + std::to_string(version) +
+                                   " is below the last checkpoint (" +
+                                   std::to_string(checkpoint_version_.load()) + ")");
+  }
+  rocksdb::WriteBatch batch;
+  uint64_t written = 0, deleted = 0;
+  for (const TileUpdate& update : tiles) {
+    const std::string key = TileKeyBytes(update.key);
+    if (update.tile == nullptr || IsZeroTile(*update.tile)) {
+      batch.Delete(db_->tiles, key);
+      batch.Delete(db_->tile_index, key);
+      ++deleted;
+      continue;
+    }
+    if (update.tile->tile_size() != params_.tile_size) {
+      return Status::InvalidArgument(
+          "tile " + TileKeyName(update.key) + " is " + std::to_string(update.tile->tile_size()) +
+          " cells wide, the map's are " + std::to_string(params_.tile_size));
+    }
+    const std::string value = EncodeTile(*update.tile, options_.tile_encoding);
+    batch.Put(db_->tiles, key, value);
+    batch.Put(
+        db_->tile_index, key,
+        EncodeTileInfo(update.tile->version(), static_cast<uint32_t>(update.tile->CountKnown()),
+                       static_cast<uint32_t>(value.size())));
+    ++written;
+  }
+  batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));
+  batch.Merge(db_->meta, kMapVersionKey, U64Bytes(version));
+  log_->AddTruncation(&batch, version);
+  rocksdb::WriteOptions write;
+  write.sync = true;  // rare and large: always durable before it counts
+  if (Status s =
+          FromRocks(db_->db->Write(write, &batch), "writing checkpoint " + std::to_string(version));
+      !s.ok()) {
+    checkpoint_errors_.fetch_add(1);
+    return s;
+  }
+  checkpoint_version_.store(version);
+  log_->OnCheckpoint(version);
+  tiles_written_.fetch_add(written);
+  tiles_deleted_.fetch_add(deleted);
+  checkpoints_.fetch_add(1);
+  {
+    // A rewritten tile is whole again.
+    std::lock_guard<std::mutex> corrupt_lock(corrupt_mu_);
+    for (const TileUpdate& update : tiles) corrupt_.erase(update.key);
+  }
+  return Status::Ok();
+}
+
+Result<std::vector<StoredTileInfo>> TileStore::ListTiles() const {
+  return ListTiles({INT32_MIN, INT32_MIN}, {INT32_MAX, INT32_MAX});
+}
+
+Result<std::vector<StoredTileInfo>> TileStore::ListTiles(TileKey min, TileKey max) const {
+  std::vector<StoredTileInfo> out;
+  if (min.x > max.x || min.y > max.y) return out;
+  std::unique_ptr<rocksdb::Iterator> it(
+      db_->db->NewIterator(rocksdb::ReadOptions(), db_->tile_index));
+  const std::string end = TileKeyBytes(max);
+  for (it->Seek(TileKeyBytes(min)); it->Valid() && it->key().ToStringView() <= end; it->Next()) {
+    StoredTileInfo info;
+    if (!DecodeTileInfo(it->key().ToStringView(), it->value().ToStringView(), &info)) {
+      return Status::DataLoss("tile index entry is malformed");
+    }
+    if (info.key.y < min.y || info.key.y > max.y) continue;
+    out.push_back(info);
+  }
+  if (!it->status().ok()) return FromRocks(it->status(), "listing tiles");
+  return out;
+}
+
+std::vector<TileKey> TileStore::CorruptTiles() const {
+  std::lock_guard<std::mutex> lock(corrupt_mu_);
+  return {corrupt_.begin(), corrupt_.end()};
+}
+
+Status TileStore::Flush() {
+  rocksdb::FlushOptions flush;
+  flush.wait = true;
+  std::vector<rocksdb::ColumnFamilyHandle*> families = {db_->meta, db_->tiles, db_->tile_index,
+                                                        db_->log};
+  return FromRocks(db_->db->Flush(flush, families), "flushing the store");
+}
+
+Status TileStore::Compact() {
+  if (Status s = Flush(); !s.ok()) return s;
+  rocksdb::CompactRangeOptions compact;
+  compact.bottommost_level_compaction = rocksdb::BottommostLevelCompaction::kForce;
+  for (rocksdb::ColumnFamilyHandle* family : db_->handles) {
+    if (Status s = FromRocks(db_->db->CompactRange(compact, family, nullptr, nullptr),
+                             "compacting the store");
+        !s.ok()) {
+      return s;
+    }
+  }
+  return Status::Ok();
+}
+
+Status TileStore::Resume() { return FromRocks(db_->db->Resume(), "resuming the store"); }
+
+StoreCounters TileStore::counters() const {
+  StoreCounters c;
+  c.tiles_loaded = tiles_loaded_.load();
+  c.tiles_written = tiles_written_.load();
+  c.tiles_deleted = tiles_deleted_.load();
+  c.checkpoints = checkpoints_.load();
+  c.corrupt_tiles = corrupt_found_.load();
+  c.corrupt_log_records = log_->corrupt_records();
+  c.log_records_appended = log_->records_appended();
+  c.log_bytes_appended = log_->bytes_appended();
+  c.write_errors = log_->append_errors() + checkpoint_errors_.load();
+  return c;
+}
+
+DiskUsage TileStore::Usage() const {
+  DiskUsage usage;
+  db_->db->GetIntProperty(db_->tiles, "rocksdb.total-sst-files-size", &usage.tile_bytes);
+  db_->db->GetIntProperty(db_->log, "rocksdb.total-sst-files-size", &usage.log_bytes);
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
+    if (entry.is_regular_file(ec)) usage.total_bytes += entry.file_size(ec);
+  }
+  return usage;
+}
+
+}  // namespace bgkmap::storage

@@ -1,0 +1,132 @@
+// Shared by the storage tests and the crash writer: temporary directories, deterministic scans,
+// "what the server does" (apply + log) and bitwise map comparison.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <stdlib.h>
+
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/scan.h"
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/storage/tile_store.h"
+
+namespace bgkmap::storage::testing {
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "bgkmap-store-XXXXXX").string();
+    path_ = mkdtemp(tmpl.data());
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+  std::string Sub(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+// Small, fast maps: 0.2 m cells in 16-cell tiles, so a few scans span dozens of tiles.
+inline MapParams SmallParams() {
+  MapParams p;
+  p.resolution = 0.2;
+  p.kernel_length = 0.6;
+  p.robot_radius = 0.6;
+  p.tile_size = 16;
+  return p;
+}
+
+inline double Terrain(double x, double y) {
+  return 0.3 * std::sin(0.4 * x) + 0.2 * std::cos(0.3 * y) + (x > 6.0 ? 0.25 : 0.0);
+}
+
+// Scan `index` of robot `robot`: `points` points within 6 m of a pose along the robot's own
+// lane. Overlapping lanes make scans depend on each other, as real ones do.
+inline std::shared_ptr<const PreparedScan> MakeScan(const MapParams& params, int robot, int index,
+                                                    int points = 1500) {
+  std::mt19937 rng(1000u * robot + index);
+  std::uniform_real_distribution<double> u(-6.0, 6.0);
+  const Eigen::Vector3d origin(0.5 * index, 2.0 * robot, 1.5);
+  std::vector<Point3f> pts;
+  while (static_cast<int>(pts.size()) < points) {
+    const double dx = u(rng), dy = u(rng);
+    if (dx * dx + dy * dy > 36.0 || dx * dx + dy * dy < 1.5) continue;
+    pts.push_back({static_cast<float>(dx), static_cast<float>(dy),
+                   static_cast<float>(Terrain(origin.x() + dx, origin.y() + dy) - origin.z())});
+  }
+  Pose pose;
+  pose.translation = origin;
+  Result<PreparedScan> scan = PrepareScan(params, pts, pose);
+  return std::make_shared<const PreparedScan>(std::move(scan).value());
+}
+
+// Integrates `scan` as map version `version`, as the server does; returns the changed tiles.
+inline std::vector<TileKey> Apply(TerrainMap& map, const PreparedScan& scan, uint64_t version) {
+  const TileWindow window = map.MakeWindow(scan);
+  ScanReport report = map.Integrate(scan, window, version);
+  map.set_version(version);
+  return report.changed_tiles;
+}
+
+// Tracks the tiles changed since the last checkpoint and writes them in one.
+class Checkpointer {
+ public:
+  void MarkDirty(const std::vector<TileKey>& keys) { dirty_.insert(keys.begin(), keys.end()); }
+  Status Checkpoint(TileStore& store, const TerrainMap& map) {
+    std::vector<TileUpdate> updates;
+    for (const TileKey& k : dirty_) updates.push_back({k, map.FindTile(k)});
+    Status s = store.Checkpoint(map.version(), updates);
+    if (s.ok()) dirty_.clear();
+    return s;
+  }
+
+ private:
+  std::set<TileKey> dirty_;
+};
+
+// Bitwise equality of statistics and tile versions; a missing tile equals an all-zero one.
+inline ::testing::AssertionResult MapsIdentical(const TerrainMap& a, const TerrainMap& b) {
+  std::set<TileKey> keys;
+  a.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
+  b.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
+  const Tile zero(a.params().tile_size);
+  int differing = 0;
+  std::string first;
+  for (const TileKey& k : keys) {
+    const Tile* ta = a.FindTile(k);
+    const Tile* tb = b.FindTile(k);
+    const Tile& x = ta ? *ta : zero;
+    const Tile& y = tb ? *tb : zero;
+    const bool same_version = !ta || !tb || ta->version() == tb->version();
+    if (!(x == y) || !same_version) {
+      if (differing++ == 0) {
+        first = "(" + std::to_string(k.x) + ", " + std::to_string(k.y) + ")";
+      }
+    }
+  }
+  if (a.version() != b.version()) {
+    return ::testing::AssertionFailure()
+           << "map versions differ: " << a.version() << " vs " << b.version();
+  }
+  if (differing > 0) {
+    return ::testing::AssertionFailure()
+           << differing << " of " << keys.size() << " tiles differ, first " << first;
+  }
+  return ::testing::AssertionSuccess() << keys.size() << " tiles identical";
+}
+
+inline std::unique_ptr<TerrainMap> NewMap(const MapParams& params) {
+  return std::move(TerrainMap::Create(params)).value();
+}
+
+}  // namespace bgkmap::storage::testing
