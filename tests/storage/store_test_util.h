@@ -110,7 +110,7 @@ inline ::testing::AssertionResult MapsIdentical(const TerrainMap& a, const Terra
     const bool same_version = !ta || !tb || ta->version() == tb->version();
     if (!(x == y) || !same_version) {
       if (differing++ == 0) {
-        first = "(" + std::to_string(k.x) + ", " + std::to_string(k.y) + ")";
+        first = std::to_string(k.x) + ", " + std::to_string(k.y);
       }
     }
   }
