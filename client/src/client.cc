@@ -1,5 +1,6 @@
 #include "bgkmap/client/client.h"
 
+#include <grpc/grpc.h>
 #include <grpcpp/channel.h>
 #include <grpcpp/client_context.h>
 #include <grpcpp/create_channel.h>
@@ -19,6 +20,13 @@ using client_codec::FromProto;
 using client_codec::ToProto;
 
 namespace {
+
+// gRPC tears its library down when its last user goes away, which can block for seconds (an
+// executor thread finishing a 10 s poll). A process-lifetime reference avoids that stall.
+void KeepGrpcInitialized() {
+  static std::once_flag once;
+  std::call_once(once, [] { grpc_init(); });
+}
 
 RpcStatus Malformed(const std::string& what) {
   return RpcStatus(RpcCode::kDataLoss, "malformed server response: " + what);
@@ -114,6 +122,9 @@ class GrpcWatch final : public WatchSubscription {
       r.stride = 1;
       r.cols = r.box.width();
       r.rows = r.box.height();
+      r.resolution = message.resolution();
+      r.x0 = r.box.min.x * r.resolution;
+      r.y1 = (static_cast<double>(r.box.max.y) + 1.0) * r.resolution;
       for (const v1::LayerValues& lv : message.layers()) {
         r.layers.push_back(FromProto(lv.layer()));
         r.data.emplace_back();
@@ -147,6 +158,7 @@ struct Client::Impl {
 };
 
 Client::Client(const std::string& target, ClientOptions options) : impl_(new Impl) {
+  KeepGrpcInitialized();
   impl_->options = options;
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(options.max_message_bytes);

@@ -1,5 +1,6 @@
 #include "bgkmap/server/map_server.h"
 
+#include <grpc/grpc.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/security/server_credentials.h>
@@ -12,11 +13,28 @@
 #include <mutex>
 #include <thread>
 
+#include "bgkmap/v1/map_service.pb.h"
 #include "map_service.h"
 #include "service_context.h"
 
 namespace bgkmap {
 namespace {
+
+// gRPC tears its library down when the last user goes away, and that teardown can block for
+// seconds (an executor thread finishing a 10 s poll). A process-lifetime reference avoids it;
+// the process exit releases everything anyway.
+void KeepGrpcInitialized() {
+  static std::once_flag once;
+  std::call_once(once, [] { grpc_init(); });
+}
+
+// Server reflection answers from protobuf's generated pool, which holds only the .proto files
+// linked in. map_service.pb.cc defines no messages, so nothing would pull it out of the static
+// library: name its descriptor table to keep it.
+void KeepServiceDescriptorLinked() {
+  static const void* volatile keep = &::descriptor_table_bgkmap_2fv1_2fmap_5fservice_2eproto;
+  (void)keep;
+}
 
 size_t ThreadCount(int configured) {
   if (configured > 0) return static_cast<size_t>(configured);
@@ -57,6 +75,8 @@ MapServer::~MapServer() { Shutdown(); }
 
 Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) {
   if (Status s = ValidateServerConfig(config); !s.ok()) return s;
+  KeepGrpcInitialized();
+  KeepServiceDescriptorLinked();
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
   if (!map.ok()) return map.status();
   auto impl = std::make_unique<Impl>(config, std::move(map).value());

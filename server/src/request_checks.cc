@@ -116,13 +116,13 @@ grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
     return Invalid(field + ": min (" + Num(box.min_x()) + ", " + Num(box.min_y()) +
                    ") must be below max (" + Num(box.max_x()) + ", " + Num(box.max_y()) + ")");
   }
-  // Half-open: a max edge exactly on a cell border does not add the next cell. The epsilon keeps
-  // 200 / 0.1 = 2000.0000000000002 from adding one.
+  // Half-open: a max edge exactly on a cell border does not add the next cell. Edges within a
+  // micro-cell of a border snap to it, so 200 / 0.1 = 2000.0000000000002 and -10 / 0.1 =
+  // -100.00000000000001 do not add a cell either.
   const double res = g.resolution();
-  const auto lo = [&](double x) { return static_cast<int64_t>(std::floor(x / res)); };
-  const auto hi = [&](double x) {
-    return std::max(lo(x), static_cast<int64_t>(std::ceil(x / res - 1e-9)) - 1);
-  };
+  constexpr double kSnap = 1e-6;
+  const auto lo = [&](double x) { return static_cast<int64_t>(std::floor(x / res + kSnap)); };
+  const auto hi = [&](double x) { return static_cast<int64_t>(std::ceil(x / res - kSnap)) - 1; };
   int64_t x0 = lo(box.min_x()), y0 = lo(box.min_y());
   int64_t x1 = std::max(x0, hi(box.max_x())), y1 = std::max(y0, hi(box.max_y()));
   // Align pixel blocks with the global grid.

@@ -11,7 +11,6 @@ uint64_t WatchHub::Subscribe(TileKey min, TileKey max, Wake wake,
   s.max = max;
   s.wake = std::move(wake);
   s.pending.insert(initial.begin(), initial.end());
-  if (!s.pending.empty()) s.wake();
   return id;
 }
 

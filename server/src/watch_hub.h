@@ -23,7 +23,8 @@ class WatchHub {
   using Wake = std::function<void()>;
 
   // Watches tiles in [min, max]. `wake` is called (with the hub's lock held: it must only
-  // schedule work) whenever keys become pending. `initial` keys start pending.
+  // schedule work) whenever published keys become pending. `initial` keys start pending without
+  // a wake: the subscriber starts its first cycle itself once it knows its id.
   uint64_t Subscribe(TileKey min, TileKey max, Wake wake, const std::vector<TileKey>& initial);
   // After this returns, `wake` of `id` is never called again.
   void Unsubscribe(uint64_t id);

@@ -1,6 +1,7 @@
 // Watch: streams changed tiles of a region. Coalescing lives in WatchHub; this reactor sends one
 // tile at a time, reading its content only when the previous message has been written, so the
 // backlog of a slow watcher is a set of tile keys and never a queue of messages.
+#include <atomic>
 #include <boost/asio/post.hpp>
 #include <mutex>
 
@@ -34,6 +35,8 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     if (request.initial_snapshot()) initial = ctx_.store.ListTiles(min_, max_);
     id_ = ctx_.hub.Subscribe(
         min_, max_, [this] { Wake(); }, initial);
+    // A wake that ran before id_ was known found nothing to take: start a cycle now.
+    Wake();
   }
 
   void OnWriteDone(bool ok) override {
@@ -126,6 +129,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     ToProto(key, update_.mutable_key());
     ToProto(content.raster.box, update_.mutable_cells());
     update_.set_tile_version(content.version);
+    update_.set_resolution(content.raster.resolution);
     update_.set_map_version(std::max(version, content.version));
     AppendRows(content.raster, 0, content.raster.rows, update_.mutable_layers());
     StartWrite(&update_);
@@ -152,7 +156,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
   bool registered_ = false;
   std::vector<Layer> layers_;
   TileKey min_, max_;
-  uint64_t id_ = 0;
+  std::atomic<uint64_t> id_{0};  // read by pool threads woken during Subscribe()
   v1::TileUpdate update_;
 
   std::mutex mu_;

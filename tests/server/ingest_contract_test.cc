@@ -1,0 +1,140 @@
+// Ingest contract: duplicates are acked and not applied, a reconnecting robot continues, the
+// unary form behaves like the stream, and shutdown answers every scan read.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <thread>
+
+#include "test_support.h"
+
+namespace bgkmap::testing {
+namespace {
+
+std::vector<ScanData> DataOf(const std::vector<OwnedScan>& scans, size_t begin, size_t end) {
+  std::vector<ScanData> out;
+  for (size_t i = begin; i < end; ++i) out.push_back(scans[i].Data());
+  return out;
+}
+
+TEST(IngestContractTest, DuplicatesAreNotDoubleCountedAndReconnectContinues) {
+  const std::vector<OwnedScan> scans = SubScans("rover", 3);  // 9 scans
+  ServerFixture fixture;
+  // First connection: scans 1..5.
+  RpcResult<std::vector<ScanAck>> first = fixture.client().IngestAll(DataOf(scans, 0, 5));
+  ASSERT_TRUE(first.ok()) << first.status().ToString();
+  for (const ScanAck& a : *first) EXPECT_EQ(a.status, AckStatus::kApplied);
+
+  // The robot reconnects with a new client, resumes from what the server reports, and also
+  // re-sends 3..5 whose acks it "lost".
+  Client reconnected(fixture.target());
+  RpcResult<std::optional<uint64_t>> last = reconnected.LastSequence("rover");
+  ASSERT_TRUE(last.ok());
+  ASSERT_TRUE(last->has_value());
+  EXPECT_EQ(**last, 5u);
+  RpcResult<std::vector<ScanAck>> second = reconnected.IngestAll(DataOf(scans, 2, 9));
+  ASSERT_TRUE(second.ok()) << second.status().ToString();
+  ASSERT_EQ(second->size(), 7u);
+  for (size_t i = 0; i < 7; ++i) {
+    EXPECT_EQ((*second)[i].sequence, i + 3);
+    EXPECT_EQ((*second)[i].status, i < 3 ? AckStatus::kDuplicate : AckStatus::kApplied);
+    EXPECT_TRUE((*second)[i].error.ok());
+  }
+  // The unary form treats a retry the same way.
+  RpcResult<ScanAck> retry = reconnected.Insert(scans[8].Data());
+  ASSERT_TRUE(retry.ok()) << retry.status().ToString();
+  EXPECT_EQ(retry->status, AckStatus::kDuplicate);
+  EXPECT_EQ(retry->map_version, 9u);
+
+  std::vector<const OwnedScan*> once;
+  for (const OwnedScan& s : scans) once.push_back(&s);
+  EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *OfflineMap(once)));
+  RpcResult<MapInfo> info = fixture.client().Info();
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->map_version, 9u);
+  EXPECT_EQ(info->scans_applied, 9u);
+  const RobotInfo* rover = info->FindRobot("rover");
+  ASSERT_NE(rover, nullptr);
+  EXPECT_EQ(rover->last_sequence, 9u);
+  EXPECT_EQ(rover->scans_applied, 9u);
+  EXPECT_EQ(rover->scans_duplicate, 4u);
+}
+
+TEST(IngestContractTest, UnaryInsertAppliesAndReportsCounts) {
+  const std::vector<OwnedScan> scans = SubScans("unary", 8, 2);
+  ServerFixture fixture;
+  RpcResult<ScanAck> ack = fixture.client().Insert(scans[0].Data());
+  ASSERT_TRUE(ack.ok()) << ack.status().ToString();
+  EXPECT_EQ(ack->status, AckStatus::kApplied);
+  EXPECT_EQ(ack->map_version, 1u);
+  EXPECT_EQ(ack->counts.input, scans[0].points.size());
+  const ScanPointCounts& c = ack->counts;
+  EXPECT_EQ(
+      c.kept + c.dropped_nonfinite + c.dropped_range + c.dropped_height + c.dropped_out_of_bounds,
+      c.input);
+}
+
+TEST(IngestContractTest, ShutdownAcksEveryScanReadAndTheMapHoldsExactlyTheAckedOnes) {
+  const std::vector<OwnedScan> a = SubScans("a", 8);
+  std::vector<OwnedScan> b = SubScans("b", 8);
+  for (OwnedScan& s : b) s.pose.ty += 200;  // partly disjoint tiles
+  ServerFixture fixture;
+  std::unique_ptr<Client> second = fixture.NewClient();
+  struct Run {
+    std::vector<ScanAck> acks;
+    RpcStatus end;
+  };
+  auto robot = [](Client& client, const std::vector<OwnedScan>& scans, Run* run) {
+    std::unique_ptr<IngestStream> stream = client.OpenIngest();
+    std::thread reader([&] {
+      ScanAck ack;
+      while (stream->ReadAck(&ack)) run->acks.push_back(ack);
+    });
+    for (const OwnedScan& s : scans) {
+      if (!stream->Send(s.Data())) break;
+    }
+    stream->CloseSend();
+    reader.join();
+    run->end = stream->Finish();
+  };
+  Run ra, rb;
+  std::thread ta([&] { robot(fixture.client(), a, &ra); });
+  std::thread tb([&] { robot(*second, b, &rb); });
+  // Stop while both stream.
+  for (int i = 0; i < 400; ++i) {
+    if (fixture.server().Report().scans_applied >= 4) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  fixture.server().Shutdown();
+  ta.join();
+  tb.join();
+
+  std::map<uint64_t, const OwnedScan*> by_version;
+  size_t applied = 0;
+  const std::vector<OwnedScan>& b_const = b;
+  for (auto [run, scans] : {std::pair{&ra, &a}, std::pair{&rb, &b_const}}) {
+    // Acks are in order and contiguous from the first scan; UNAVAILABLE ends the stream.
+    for (size_t i = 0; i < run->acks.size(); ++i) {
+      const ScanAck& ack = run->acks[i];
+      EXPECT_EQ(ack.sequence, i + 1);
+      if (ack.status == AckStatus::kApplied) {
+        ++applied;
+        by_version[ack.map_version] = &(*scans)[i];
+      } else {
+        EXPECT_EQ(ack.error.code(), RpcCode::kUnavailable) << ack.error.ToString();
+      }
+    }
+    if (run->acks.size() < scans->size()) {
+      EXPECT_EQ(run->end.code(), RpcCode::kUnavailable) << run->end.ToString();
+    }
+  }
+  EXPECT_GT(applied, 0u);
+  const ServerReport report = fixture.server().Report();
+  EXPECT_EQ(report.scans_applied, applied);
+  EXPECT_EQ(report.map_version, applied);
+  std::vector<const OwnedScan*> order;
+  for (const auto& [v, s] : by_version) order.push_back(s);
+  EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *OfflineMap(order)));
+}
+
+}  // namespace
+}  // namespace bgkmap::testing

@@ -1,0 +1,188 @@
+// A served map equals the offline map of the same scans.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "test_support.h"
+
+namespace bgkmap::testing {
+namespace {
+
+class ServedMapTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    fixture_ = new ServerFixture();
+    std::vector<ScanData> scans;
+    for (const OwnedScan& s : StreetScans()) scans.push_back(s.Data());
+    ASSERT_EQ(scans.size(), 3u);
+    RpcResult<std::vector<ScanAck>> acks = fixture_->client().IngestAll(scans);
+    ASSERT_TRUE(acks.ok()) << acks.status().ToString();
+    acks_ = *acks;
+    std::vector<const OwnedScan*> order;
+    for (const OwnedScan& s : StreetScans()) order.push_back(&s);
+    offline_ = OfflineMap(order).release();
+  }
+  static void TearDownTestSuite() {
+    delete fixture_;
+    delete offline_;
+  }
+  static ServerFixture* fixture_;
+  static TerrainMap* offline_;
+  static std::vector<ScanAck> acks_;
+};
+
+ServerFixture* ServedMapTest::fixture_ = nullptr;
+TerrainMap* ServedMapTest::offline_ = nullptr;
+std::vector<ScanAck> ServedMapTest::acks_;
+
+TEST_F(ServedMapTest, EveryScanAppliedInOrderWithItsCounts) {
+  ASSERT_EQ(acks_.size(), 3u);
+  for (size_t i = 0; i < acks_.size(); ++i) {
+    EXPECT_EQ(acks_[i].status, AckStatus::kApplied) << acks_[i].error.ToString();
+    EXPECT_EQ(acks_[i].sequence, i + 1);
+    EXPECT_EQ(acks_[i].map_version, i + 1);
+    EXPECT_EQ(acks_[i].counts.input, StreetScans()[i].points.size());
+    EXPECT_GT(acks_[i].counts.kept, acks_[i].counts.input / 2);
+    EXPECT_FALSE(acks_[i].changed_tiles.empty());
+    EXPECT_TRUE(std::is_sorted(acks_[i].changed_tiles.begin(), acks_[i].changed_tiles.end()));
+  }
+}
+
+TEST_F(ServedMapTest, SnapshotIsBitwiseTheOfflineMap) {
+  EXPECT_TRUE(MapsEqual(*fixture_->server().SnapshotMap(), *offline_));
+}
+
+TEST_F(ServedMapTest, RegionQueryEqualsOfflineRaster) {
+  const MetricBox box = KnownBox(*offline_);
+  uint64_t version = 0;
+  RpcResult<Raster> served = fixture_->client().QueryRegion({box, {}, 1}, &version);
+  ASSERT_TRUE(served.ok()) << served.status().ToString();
+  EXPECT_EQ(version, 3u);
+  const Raster offline = OfflineRegion(*offline_, box, 1);
+  EXPECT_TRUE(RastersMatch(*served, offline, 1e-5));
+  // Several chunks were needed (the default chunk is 1 MiB).
+  EXPECT_GT(served->rows * served->cols * 6 * 4, 1 << 20);
+}
+
+TEST_F(ServedMapTest, CoarseRegionEqualsOfflineStrideAggregation) {
+  MetricBox box = KnownBox(*offline_);
+  box.min_x += 0.37;  // not aligned: the server widens to the global stride grid
+  for (int stride : {3, 8}) {
+    RpcResult<Raster> served = fixture_->client().QueryRegion({box, {}, stride});
+    ASSERT_TRUE(served.ok()) << served.status().ToString();
+    EXPECT_EQ(served->box.min.x % stride, 0);
+    EXPECT_EQ((served->box.max.y + 1) % stride, 0);
+    EXPECT_NEAR(served->resolution, 0.1 * stride, 1e-12);
+    EXPECT_TRUE(RastersMatch(*served, OfflineRegion(*offline_, box, stride), 1e-5));
+  }
+}
+
+TEST_F(ServedMapTest, LayerSubsetInRequestedOrder) {
+  const MetricBox box{-10, -10, 10, 10};
+  RpcResult<Raster> served =
+      fixture_->client().QueryRegion({box, {Layer::kTraversability, Layer::kElevation}, 1});
+  ASSERT_TRUE(served.ok()) << served.status().ToString();
+  ASSERT_EQ(served->layers.size(), 2u);
+  EXPECT_EQ(served->layers[0], Layer::kTraversability);
+  const Raster all = OfflineRegion(*offline_, box, 1);
+  EXPECT_EQ(served->cols, 200);
+  EXPECT_EQ(served->rows, 200);
+  const std::vector<float>& want = *all.Find(Layer::kTraversability);
+  ASSERT_EQ(served->data[0].size(), want.size());
+  EXPECT_EQ(0, std::memcmp(served->data[0].data(), want.data(), want.size() * sizeof(float)));
+}
+
+TEST_F(ServedMapTest, PointQueryEqualsOfflineEstimates) {
+  std::vector<std::array<double, 2>> points;
+  for (double x = -30; x <= 30; x += 0.73) {
+    for (double y = -30; y <= 30; y += 1.91) points.push_back({x, y});
+  }
+  RpcResult<PointValues> served = fixture_->client().QueryPoints(points);
+  ASSERT_TRUE(served.ok()) << served.status().ToString();
+  ASSERT_EQ(served->layers.size(), static_cast<size_t>(kLayerCount));
+  size_t known = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const CellEstimate e = offline_->EstimateAt(points[i][0], points[i][1]);
+    for (size_t j = 0; j < served->layers.size(); ++j) {
+      const float want = e.Get(served->layers[j]);
+      const float got = served->at(i, j);
+      if (std::isnan(want)) {
+        EXPECT_TRUE(std::isnan(got));
+      } else {
+        EXPECT_FLOAT_EQ(got, want);
+      }
+    }
+    known += !std::isnan(e.elevation);
+  }
+  EXPECT_GT(known, points.size() / 4);
+}
+
+TEST_F(ServedMapTest, InfoDescribesTheMap) {
+  RpcResult<MapInfo> info = fixture_->client().Info();
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  EXPECT_EQ(info->map_version, 3u);
+  EXPECT_EQ(info->scans_applied, 3u);
+  EXPECT_EQ(info->known_cells, static_cast<uint64_t>(offline_->CountKnownCells()));
+  EXPECT_EQ(info->tile_count, offline_->tile_count());
+  EXPECT_EQ(info->known_cells_box, offline_->KnownBounds());
+  EXPECT_EQ(info->params.resolution, 0.1);
+  EXPECT_EQ(info->params.tile_size, 64);
+  EXPECT_EQ(info->params.method, Method::kBgkPlus);
+  EXPECT_NE(info->params_yaml.find("kernel_length"), std::string::npos);
+  ASSERT_EQ(info->robots.size(), 1u);
+  EXPECT_EQ(info->robots[0].robot_id, "street");
+  EXPECT_EQ(info->robots[0].last_sequence, 3u);
+  EXPECT_EQ(info->robots[0].scans_applied, 3u);
+  EXPECT_EQ(info->limits.max_region_cells, 4'000'000u);
+}
+
+TEST_F(ServedMapTest, PathCheckFindsTheWorstCellUnderTheFootprint) {
+  PathQuery q;
+  for (double x = -5; x <= 5; x += 0.5) q.poses.push_back({x, 0.0, 0.0});
+  q.radius = 0.5;
+  q.max_unknown_fraction = 1.0;
+  RpcResult<PathCheck> check = fixture_->client().CheckPath(q);
+  ASSERT_TRUE(check.ok()) << check.status().ToString();
+  ASSERT_EQ(check->poses.size(), q.poses.size());
+  const double r = 0.1;
+  for (size_t i = 0; i < q.poses.size(); ++i) {
+    // Recompute from the offline map.
+    float worst = std::nanf("");
+    int cells = 0, unknown = 0;
+    for (int iy = -10; iy <= 10; ++iy) {
+      for (int ix = -10; ix <= 10; ++ix) {
+        const CellIndex c = offline_->geometry().CellAt(q.poses[i].x, q.poses[i].y);
+        const CellIndex cell{c.x + ix, c.y + iy};
+        const double cx = (cell.x + 0.5) * r - q.poses[i].x, cy = (cell.y + 0.5) * r;
+        if (cx * cx + cy * cy > 0.25) continue;
+        ++cells;
+        const CellEstimate e = offline_->Estimate(cell);
+        if (std::isnan(e.traversability)) {
+          ++unknown;
+        } else if (std::isnan(worst) || e.traversability > worst) {
+          worst = e.traversability;
+        }
+      }
+    }
+    EXPECT_EQ(check->poses[i].cell_count, static_cast<uint32_t>(cells));
+    EXPECT_NEAR(check->poses[i].unknown_fraction, static_cast<float>(unknown) / cells, 1e-6);
+    if (std::isnan(worst)) {
+      EXPECT_TRUE(std::isnan(check->poses[i].worst_traversability));
+    } else {
+      EXPECT_FLOAT_EQ(check->poses[i].worst_traversability, worst);
+    }
+  }
+  // A polygon footprint and default thresholds answer too; a far-away path is unknown: unsafe.
+  PathQuery far;
+  far.poses = {{5000, 5000, 0.3}};
+  far.polygon = {{-0.4, -0.3}, {0.4, -0.3}, {0.4, 0.3}, {-0.4, 0.3}};
+  RpcResult<PathCheck> unknown = fixture_->client().CheckPath(far);
+  ASSERT_TRUE(unknown.ok()) << unknown.status().ToString();
+  EXPECT_FALSE(unknown->safe);
+  EXPECT_EQ(unknown->first_unsafe_index, 0);
+  EXPECT_FLOAT_EQ(unknown->poses[0].unknown_fraction, 1.0f);
+  EXPECT_GT(unknown->poses[0].cell_count, 30u);
+}
+
+}  // namespace
+}  // namespace bgkmap::testing

@@ -1,0 +1,73 @@
+// bgkmapd configuration: YAML with engine keys and a server section, overrides, printing.
+#include "bgkmap/server/server_config.h"
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+namespace bgkmap {
+namespace {
+
+TEST(ServerConfigTest, ReadsEngineKeysAndServerSection) {
+  const YAML::Node doc = YAML::Load(R"(
+resolution: 0.2
+tile_size: 32
+server:
+  listen_address: 127.0.0.1:6000
+  worker_threads: 3
+  max_points_per_scan: 5000
+  max_region_cells: 123456
+)");
+  Result<ServerConfig> c = ServerConfigFromYaml(doc);
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->map.resolution, 0.2);
+  EXPECT_EQ(c->map.tile_size, 32);
+  EXPECT_EQ(c->listen_address, "127.0.0.1:6000");
+  EXPECT_EQ(c->worker_threads, 3);
+  EXPECT_EQ(c->limits.max_points_per_scan, 5000u);
+  EXPECT_EQ(c->limits.max_region_cells, 123456u);
+}
+
+TEST(ServerConfigTest, ErrorsNameTheKey) {
+  auto error = [](const char* text) {
+    Result<ServerConfig> c = ServerConfigFromYaml(YAML::Load(text));
+    return c.ok() ? std::string("ok") : c.status().message();
+  };
+  EXPECT_NE(error("server: {bogus: 1}").find("server.bogus"), std::string::npos);
+  EXPECT_NE(error("server: {max_robots: -3}").find("server.max_robots"), std::string::npos);
+  EXPECT_NE(error("server: {max_coordinate: abc}").find("server.max_coordinate"),
+            std::string::npos);
+  EXPECT_NE(error("server: {log_level: loud}").find("server.log_level"), std::string::npos);
+  EXPECT_NE(error("resolution: -1").find("resolution"), std::string::npos);
+  EXPECT_NE(error("server: {max_points_per_scan: 100000000}").find("max_message_bytes"),
+            std::string::npos);
+}
+
+TEST(ServerConfigTest, OverridesApplyToEitherSection) {
+  ServerConfig c;
+  ASSERT_TRUE(ApplyConfigOverride(c, "server.max_watchers=7").ok());
+  ASSERT_TRUE(ApplyConfigOverride(c, "kernel_length=0.5").ok());
+  EXPECT_EQ(c.limits.max_watchers, 7u);
+  EXPECT_EQ(c.map.kernel_length, 0.5);
+  EXPECT_FALSE(ApplyConfigOverride(c, "server.max_watchers").ok());
+  EXPECT_FALSE(ApplyConfigOverride(c, "nonsense=1").ok());
+  EXPECT_EQ(c.limits.max_watchers, 7u);  // a failed override changes nothing
+}
+
+TEST(ServerConfigTest, PrintedConfigReadsBackIdentically) {
+  ServerConfig c;
+  c.map.resolution = 0.25;
+  c.limits.max_query_points = 42;
+  c.listen_address = "127.0.0.1:7";
+  const std::string text = ServerConfigToYaml(c);
+  for (const std::string& key : ServerConfigKeys()) {
+    EXPECT_NE(text.find(key + ":"), std::string::npos) << key;
+  }
+  Result<ServerConfig> back = ServerConfigFromYaml(YAML::Load(text));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(ServerConfigToYaml(*back), text);
+  EXPECT_EQ(back->limits.max_query_points, 42u);
+  EXPECT_EQ(back->map.resolution, 0.25);
+}
+
+}  // namespace
+}  // namespace bgkmap
