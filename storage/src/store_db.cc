@@ -27,6 +27,9 @@ rocksdb::ColumnFamilyOptions TileFamilyOptions(const StoreOptions& options,
   rocksdb::ColumnFamilyOptions cf;
   cf.compression = ToRocks(options.tile_compression);
   cf.bottommost_compression = cf.compression;
+  cf.compression_opts.level = options.zstd_level;
+  cf.bottommost_compression_opts = cf.compression_opts;
+  cf.bottommost_compression_opts.enabled = true;
   rocksdb::BlockBasedTableOptions table;
   table.block_cache = cache;
   // A tile (tens of KB) fills a block on its own; larger blocks would only make a corrupt
