@@ -1,0 +1,79 @@
+// `bgkmap info`: the served map's parameters, size, bounds, version and robots, as JSON.
+#include <yaml-cpp/yaml.h>
+
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "bgkmap/config/map_params_yaml.h"
+#include "client_options.h"
+#include "commands.h"
+
+namespace bgkmap::cli {
+namespace {
+
+// YAML scalars and sequences to JSON, keeping numbers numeric.
+nlohmann::json ToJson(const YAML::Node& n) {
+  if (n.IsSequence()) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const auto& e : n) a.push_back(ToJson(e));
+    return a;
+  }
+  if (n.IsMap()) {
+    nlohmann::json o = nlohmann::json::object();
+    for (const auto& e : n) o[e.first.as<std::string>()] = ToJson(e.second);
+    return o;
+  }
+  try {
+    return n.as<double>();
+  } catch (const YAML::Exception&) {
+    return n.as<std::string>();
+  }
+}
+
+int RunInfo(const std::string& server) {
+  Client client(server);
+  RpcResult<MapInfo> r = client.Info();
+  if (!r.ok()) return Fail("info", r.status().ToString());
+  nlohmann::json robots = nlohmann::json::array();
+  for (const RobotInfo& ri : r->robots) {
+    robots.push_back({{"robot_id", ri.robot_id},
+                      {"last_sequence", ri.last_sequence},
+                      {"scans_applied", ri.scans_applied},
+                      {"scans_duplicate", ri.scans_duplicate},
+                      {"scans_rejected", ri.scans_rejected},
+                      {"points_kept", ri.points_kept}});
+  }
+  nlohmann::json out = {
+      {"server_version", r->server_version},
+      {"map_version", r->map_version},
+      {"scans_applied", r->scans_applied},
+      {"tile_count", r->tile_count},
+      {"known_cells", r->known_cells},
+      {"known_bounds", r->known_cells == 0 ? nlohmann::json(nullptr)
+                                           : nlohmann::json{{"min_x", r->known_bounds.min_x},
+                                                            {"min_y", r->known_bounds.min_y},
+                                                            {"max_x", r->known_bounds.max_x},
+                                                            {"max_y", r->known_bounds.max_y}}},
+      {"params", ToJson(MapParamsToYaml(r->params))},
+      {"robots", robots},
+      {"limits",
+       {{"max_points_per_scan", r->limits.max_points_per_scan},
+        {"max_region_cells", r->limits.max_region_cells},
+        {"max_query_points", r->limits.max_query_points},
+        {"max_path_poses", r->limits.max_path_poses},
+        {"max_coordinate", r->limits.max_coordinate},
+        {"max_message_bytes", r->limits.max_message_bytes}}}};
+  std::printf("%s\n", out.dump(2).c_str());
+  return 0;
+}
+
+}  // namespace
+
+void RegisterInfoCommand(CLI::App& app, int& exit_code) {
+  auto server = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("info", "Describe the served map (JSON)");
+  AddServerOption(cmd, *server);
+  cmd->callback([server, &exit_code] { exit_code = RunInfo(*server); });
+}
+
+}  // namespace bgkmap::cli

@@ -1,0 +1,136 @@
+// `bgkmap insert`: streams a scan sequence to bgkmapd as one robot, resuming where the server's
+// record of that robot ends (sequence number k+1 is scan k).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "bgkmap/io/progress_bar.h"
+#include "client_options.h"
+#include "commands.h"
+#include "scan_source.h"
+
+namespace bgkmap::cli {
+namespace {
+
+struct InsertOptions {
+  std::string server, input, robot = "robot";
+  double rate_hz = 0;  // 0: as fast as flow control allows
+  bool restart = false;
+};
+
+int RunInsert(const InsertOptions& o) {
+  if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Fail("insert", "--rate must be >= 0");
+  Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input);
+  if (!source.ok()) return Fail("insert", source.status().message());
+  Client client(o.server);
+  if (!client.WaitForConnected(std::chrono::seconds(10))) {
+    return Fail("insert", "cannot reach bgkmapd at " + o.server);
+  }
+  // Resume: the server remembers the last sequence number it admitted for this robot.
+  uint64_t first = 0;
+  if (!o.restart) {
+    RpcResult<std::optional<uint64_t>> last = client.LastSequence(o.robot);
+    if (!last.ok()) return Fail("insert", last.status().ToString());
+    if (*last) first = std::min<uint64_t>(**last, (*source)->size());
+  }
+  if (first > 0) {
+    std::fprintf(stderr, "bgkmap insert: robot %s resumes after sequence %llu\n", o.robot.c_str(),
+                 static_cast<unsigned long long>(first));
+  }
+
+  std::unique_ptr<IngestStream> stream = client.OpenIngest();
+  uint64_t applied = 0, duplicate = 0, rejected = 0, kept = 0, dropped = 0;
+  std::string first_rejection;
+  io::ProgressBar progress("inserting", (*source)->size() - first, "scans");
+  // Acks arrive in send order on their own thread, so sending never waits for a round trip.
+  std::thread acks([&] {
+    ScanAck ack;
+    while (stream->ReadAck(&ack)) {
+      switch (ack.status) {
+        case AckStatus::kApplied:
+          ++applied;
+          break;
+        case AckStatus::kDuplicate:
+          ++duplicate;
+          break;
+        case AckStatus::kRejected:
+          if (rejected++ == 0) {
+            first_rejection =
+                "sequence " + std::to_string(ack.sequence) + ": " + ack.error.ToString();
+          }
+          break;
+      }
+      kept += ack.counts.kept;
+      dropped += ack.counts.input - ack.counts.kept;
+      progress.Add();
+    }
+  });
+  const auto start = std::chrono::steady_clock::now();
+  const auto period = o.rate_hz > 0 ? std::chrono::duration<double>(1.0 / o.rate_hz)
+                                    : std::chrono::duration<double>(0);
+  std::string read_error;
+  for (size_t k = first; k < (*source)->size(); ++k) {
+    Result<SourceScan> scan = (*source)->Read(k);
+    if (!scan.ok()) {
+      read_error = scan.status().message();
+      break;
+    }
+    if (scan->frame_is_map) {
+      read_error = o.input +
+                   ": a single map-frame cloud cannot be streamed as a sensor scan; "
+                   "use `bgkmap build` for LAS/PCD clouds";
+      break;
+    }
+    if (o.rate_hz > 0) {
+      std::this_thread::sleep_until(start + std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                                period * static_cast<double>(k - first)));
+    }
+    ScanData data;
+    data.robot_id = o.robot;
+    data.sequence = k + 1;
+    data.stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                        std::chrono::system_clock::now().time_since_epoch())
+                        .count();
+    data.pose = ScanPose::FromPose(scan->pose);
+    data.points = scan->points;
+    if (!stream->Send(data)) break;
+  }
+  // One reader at a time: the ack thread drains the stream, then Finish() reports how it ended.
+  stream->CloseSend();
+  acks.join();
+  const RpcStatus end = stream->Finish();
+  progress.Finish();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!read_error.empty()) return Fail("insert", read_error);
+  if (!end.ok()) return Fail("insert", "stream ended: " + end.ToString());
+  std::printf(
+      "bgkmap insert: robot %s, %llu applied, %llu duplicate, %llu rejected, %llu points kept, "
+      "%llu dropped, %.2f s (%.1f scans/s)\n",
+      o.robot.c_str(), static_cast<unsigned long long>(applied),
+      static_cast<unsigned long long>(duplicate), static_cast<unsigned long long>(rejected),
+      static_cast<unsigned long long>(kept), static_cast<unsigned long long>(dropped), seconds,
+      seconds > 0 ? static_cast<double>(applied + duplicate) / seconds : 0.0);
+  if (rejected > 0) return Fail("insert", first_rejection);
+  return 0;
+}
+
+}  // namespace
+
+void RegisterInsertCommand(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<InsertOptions>();
+  CLI::App* cmd = app.add_subcommand("insert", "Stream a KITTI-like scan sequence to bgkmapd");
+  AddServerOption(cmd, o->server);
+  cmd->add_option("input", o->input, "KITTI-like directory")->required();
+  cmd->add_option("--robot", o->robot, "Robot id (sequence numbers are per robot)")
+      ->capture_default_str();
+  cmd->add_option("--rate", o->rate_hz,
+                  "Pace the scans at this rate in Hz (0: as fast as possible)");
+  cmd->add_flag("--restart", o->restart,
+                "Send from the first scan even if the server has seen this robot (they are "
+                "acknowledged as duplicates)");
+  cmd->callback([o, &exit_code] { exit_code = RunInsert(*o); });
+}
+
+}  // namespace bgkmap::cli

@@ -1,0 +1,65 @@
+// `bgkmap query`: a region of the served map to a GeoTIFF (the band contract of `bgkmap build`).
+#include <cstdio>
+
+#include "bgkmap/io/geotiff.h"
+#include "bgkmap/io/png_preview.h"
+#include "client_options.h"
+#include "commands.h"
+
+namespace bgkmap::cli {
+namespace {
+
+struct QueryOptions {
+  std::string server, out, png;
+  std::vector<double> bbox;
+  std::vector<std::string> layers;
+  int stride = 1;
+};
+
+int RunQuery(const QueryOptions& o) {
+  Client client(o.server);
+  MetricBox box;
+  if (o.bbox.empty()) {  // default: everything the map knows
+    RpcResult<MapInfo> info = client.Info();
+    if (!info.ok()) return Fail("query", info.status().ToString());
+    if (info->known_cells == 0) return Fail("query", "the map is empty");
+    box = info->known_bounds;
+  } else {
+    Result<MetricBox> b = ParseBox(o.bbox, "--bbox");
+    if (!b.ok()) return Fail("query", b.status().message());
+    box = *b;
+  }
+  Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
+  if (!layers.ok()) return Fail("query", layers.status().message());
+  if (o.stride < 1) return Fail("query", "--stride must be >= 1");
+  uint64_t version = 0;
+  RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride}, &version);
+  if (!r.ok()) return Fail("query", r.status().ToString());
+  if (Status s = io::WriteGeoTiff(*r, o.out); !s.ok()) return Fail("query", s.message());
+  if (!o.png.empty()) {
+    if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
+  }
+  std::printf("bgkmap query: %lld x %lld pixels at %.3f m, map version %llu -> %s\n",
+              static_cast<long long>(r->cols), static_cast<long long>(r->rows), r->resolution,
+              static_cast<unsigned long long>(version), o.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+void RegisterQueryCommand(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<QueryOptions>();
+  CLI::App* cmd = app.add_subcommand("query", "Fetch a region of the served map as a GeoTIFF");
+  AddServerOption(cmd, o->server);
+  cmd->add_option("--bbox", o->bbox, "xmin,ymin,xmax,ymax in metres (default: the known bounds)")
+      ->delimiter(',')
+      ->expected(4);
+  cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
+  cmd->add_option("--png", o->png, "Also write a PNG preview");
+  cmd->add_option("--layers", o->layers, "Layers (default: the five bands of bgkmap build)")
+      ->delimiter(',');
+  cmd->add_option("--stride", o->stride, "Map cells per output pixel edge")->capture_default_str();
+  cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });
+}
+
+}  // namespace bgkmap::cli
