@@ -9,5 +9,6 @@ namespace bgkmap::cli {
 void RegisterBuildCommand(CLI::App& app, int& exit_code);
 void RegisterSimulateCommand(CLI::App& app, int& exit_code);
 void RegisterEvalCommand(CLI::App& app, int& exit_code);
+void RegisterRegressCommand(CLI::App& app, int& exit_code);
 
 }  // namespace bgkmap::cli

@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   bgkmap::cli::RegisterBuildCommand(app, exit_code);
   bgkmap::cli::RegisterSimulateCommand(app, exit_code);
   bgkmap::cli::RegisterEvalCommand(app, exit_code);
+  bgkmap::cli::RegisterRegressCommand(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
