@@ -45,7 +45,27 @@ void ScanLog::SyncLoop() {
   }
 }
 
-Status ScanLog::Sync() { return FromRocks(db_->db->FlushWAL(/*sync=*/true), "syncing the log"); }
+Status ScanLog::Sync() {
+  if (Status failed = write_failure(); !failed.ok()) return failed;
+  Status s = FromRocks(db_->db->FlushWAL(/*sync=*/true), "syncing the log");
+  if (!s.ok()) LatchFailure(s);
+  return s;
+}
+
+Status ScanLog::write_failure() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return failure_;
+}
+
+void ScanLog::LatchFailure(const Status& s) {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (failure_.ok()) failure_ = s;
+}
+
+void ScanLog::ClearFailure() {
+  std::lock_guard<std::mutex> lock(mu_);
+  failure_ = Status::Ok();
+}
 
 Status ScanLog::Append(const LogRecord& record) {
   if (record.version == 0) return Status::InvalidArgument("log record version must be > 0");
@@ -56,6 +76,11 @@ Status ScanLog::Append(const LogRecord& record) {
   }
   if (record.type == LogRecord::Type::kScan && !record.scan) {
     return Status::InvalidArgument("scan log record without a scan");
+  }
+  if (Status failed = write_failure(); !failed.ok()) {
+    append_errors_.fetch_add(1);
+    return Status::IoError("the store refuses writes since an earlier failure (" +
+                           failed.message() + "); TileStore::Resume() once it is fixed");
   }
   const std::string value = EncodeLogRecord(record);
   rocksdb::WriteBatch batch;
@@ -70,7 +95,9 @@ Status ScanLog::Append(const LogRecord& record) {
   if (s.ok()) s = db_->db->Write(write, &batch);
   if (!s.ok()) {
     append_errors_.fetch_add(1);
-    return FromRocks(s, "appending log record " + std::to_string(record.version));
+    Status failed = FromRocks(s, "appending log record " + std::to_string(record.version));
+    LatchFailure(failed);
+    return failed;
   }
   appended_.fetch_add(1);
   appended_bytes_.fetch_add(value.size());

@@ -143,6 +143,14 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
     }
   }
 
+  std::unique_ptr<TileStore> store(new TileStore(dir, options, effective, nullptr));
+  if (Status s = store->Attach(std::move(*db)); !s.ok()) return s;
+  return store;
+}
+
+Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
+  Result<std::map<std::string, std::string, std::less<>>> meta = ReadMeta(*db);
+  if (!meta.ok()) return meta.status();
   Result<uint64_t> checkpoint = MetaU64(*meta, kCheckpointVersionKey);
   Result<uint64_t> map_version = MetaU64(*meta, kMapVersionKey);
   if (!checkpoint.ok()) return checkpoint.status();
@@ -156,12 +164,11 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
     }
     robots.emplace(key.substr(kRobotPrefix.size()), sequence);
   }
-
-  std::unique_ptr<TileStore> store(new TileStore(dir, options, effective, std::move(*db)));
-  store->checkpoint_version_.store(*checkpoint);
-  store->log_.reset(new ScanLog(store->db_.get(), options, std::max(*map_version, *checkpoint),
-                                std::move(robots), *checkpoint));
-  return store;
+  db_ = std::move(db);
+  checkpoint_version_.store(*checkpoint);
+  log_.reset(new ScanLog(db_.get(), options_, std::max(*map_version, *checkpoint),
+                         std::move(robots), *checkpoint));
+  return Status::Ok();
 }
 
 uint64_t TileStore::map_version() const {
@@ -307,7 +314,20 @@ Status TileStore::Compact() {
   return Status::Ok();
 }
 
-Status TileStore::Resume() { return FromRocks(db_->db->Resume(), "resuming the store"); }
+Status TileStore::Resume() {
+  if (log_->write_failure().ok()) return Status::Ok();
+  if (db_->db->Resume().ok()) {
+    log_->ClearFailure();
+    return Status::Ok();
+  }
+  // RocksDB cannot resume in place after a failed log write: reopen the database, which
+  // replays its log up to the last complete record. Every acknowledged record is in it.
+  log_.reset();
+  db_.reset();
+  Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir_, options_);
+  if (!db.ok()) return db.status();
+  return Attach(std::move(*db));
+}
 
 StoreCounters TileStore::counters() const {
   StoreCounters c;

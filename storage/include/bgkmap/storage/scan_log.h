@@ -71,8 +71,13 @@ class ScanLog {
   std::optional<uint64_t> LastSequence(std::string_view robot_id) const;
   std::map<std::string, uint64_t> RobotSequences() const;
 
-  // Makes every appended record durable now (fsync of the write-ahead log).
+  // Makes every appended record durable now (fsync of the write-ahead log). After a failed
+  // write, returns that failure without touching the log file again (RocksDB must not sync a
+  // log writer that has failed) until TileStore::Resume() succeeds.
   Status Sync();
+
+  // The first write failure since open or the last successful resume; OK if none.
+  Status write_failure() const;
 
   Durability durability() const { return durability_; }
   uint64_t records_appended() const { return appended_.load(); }
@@ -88,6 +93,8 @@ class ScanLog {
   // Adds to `batch` the deletion of every record with version <= `through`.
   void AddTruncation(rocksdb::WriteBatch* batch, uint64_t through);
   void OnCheckpoint(uint64_t version) { checkpoint_version_.store(version); }
+  void LatchFailure(const Status& s);
+  void ClearFailure();
   void SyncLoop();
 
   StoreDb* db_;
@@ -99,7 +106,8 @@ class ScanLog {
   mutable std::atomic<uint64_t> corrupt_{0};
   std::atomic<uint64_t> append_errors_{0};
 
-  mutable std::mutex mu_;  // guards last_version_, robots_
+  mutable std::mutex mu_;  // guards last_version_, robots_, failure_
+  Status failure_;
   uint64_t last_version_;
   std::map<std::string, uint64_t, std::less<>> robots_;
 

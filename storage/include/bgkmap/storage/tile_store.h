@@ -6,7 +6,7 @@
 // only the tiles the log touches; every other tile is current in the store and is loaded on
 // demand with LoadTile(). Nothing reads all tiles at open.
 //
-// Thread-safe: every method may be called concurrently.
+// Thread-safe: every method but Resume() may be called concurrently.
 #pragma once
 
 #include <atomic>
@@ -131,8 +131,11 @@ class TileStore {
   Status Flush();
   // Flush() and a full compaction: the on-disk size settles to its steady value.
   Status Compact();
-  // After a write failed (disk full), retries the database's recovery once the cause is gone.
-  // OK if writes are accepted again.
+  // After a write failed (disk full, I/O error) every later write is refused with IoError, so
+  // nothing half-written is ever acknowledged. Once the cause is gone (the disk has room),
+  // Resume() brings the store back: RocksDB's own resume, or else a close and reopen of the
+  // database in place. OK if writes are accepted again (OK at once if nothing failed).
+  // Not thread-safe: call it with no other call on this store in flight.
   Status Resume();
 
   StoreCounters counters() const;
@@ -144,6 +147,8 @@ class TileStore {
   static Result<std::unique_ptr<TileStore>> OpenImpl(const std::string& dir,
                                                      const StoreOptions& options,
                                                      const MapParams* params);
+  // Takes over an opened database: reads the versions and robots, starts the log.
+  Status Attach(std::unique_ptr<StoreDb> db);
   void MarkCorrupt(TileKey key) const;
 
   std::string dir_;
