@@ -1,0 +1,79 @@
+// A map in one portable file: metadata plus every tile, for export, archival and merging.
+//
+// Layout: "BGKMAPA1", fixed32 metadata length, metadata (EncodeMetadata), then per tile
+// 'T', fixed32 x, fixed32 y, fixed32 length, tile encoding (its own CRC-32C); then 'E',
+// fixed64 tile count, fixed32 CRC-32C of every byte before it. Little-endian throughout.
+#pragma once
+
+#include <cstdint>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/storage/map_metadata.h"
+#include "bgkmap/storage/tile_codec.h"
+
+namespace bgkmap::storage {
+
+class MapArchiveWriter {
+ public:
+  // Starts `path` (written as path + ".partial" and renamed by Finish, so a reader never sees
+  // half an archive). IoError if the file cannot be created.
+  static Result<std::unique_ptr<MapArchiveWriter>> Create(const std::string& path,
+                                                          const MapMetadata& metadata);
+  ~MapArchiveWriter();  // without Finish(): removes the partial file
+
+  Status Add(TileKey key, const Tile& tile);
+  // Writes the trailer, syncs and renames into place.
+  Status Finish();
+
+ private:
+  MapArchiveWriter(std::string path, std::ofstream out);
+  Status Write(const std::string& bytes);
+
+  std::string path_;
+  std::ofstream out_;
+  uint32_t crc_ = 0;
+  uint64_t tiles_ = 0;
+  bool finished_ = false;
+};
+
+class MapArchiveReader {
+ public:
+  // Reads the header and metadata. DataLoss if the file is not an archive or is damaged.
+  static Result<std::unique_ptr<MapArchiveReader>> Open(const std::string& path);
+
+  const MapMetadata& metadata() const { return metadata_; }
+
+  // The next tile: true and the tile, or false at the verified end. DataLoss naming the tile or
+  // the offset if anything fails its checksum or the file is truncated.
+  Result<bool> Next(TileKey* key, std::unique_ptr<Tile>* tile);
+
+ private:
+  MapArchiveReader() = default;
+  bool Read(size_t n, std::string* bytes);
+
+  std::ifstream in_;
+  MapMetadata metadata_;
+  uint32_t crc_ = 0;
+  uint64_t tiles_ = 0;
+  bool done_ = false;
+};
+
+// Writes every tile of `map` (with `metadata`; its params should be the map's).
+Status ExportMap(const TerrainMap& map, const MapMetadata& metadata, const std::string& path);
+
+struct ImportReport {
+  uint64_t tiles = 0;
+  MapMetadata metadata;  // of the archive
+};
+
+// Adds the archive's statistics into `map` (TerrainMap::AddTile): importing into an empty map
+// reproduces it, importing into a non-empty one merges (sums). FailedPrecondition naming the
+// key if the archive's parameters are incompatible with the map's; nothing is added unless the
+// whole archive verifies. The map version becomes max(map, archive) + 1 for a non-empty target.
+Result<ImportReport> ImportMap(const std::string& path, TerrainMap& map);
+
+}  // namespace bgkmap::storage
