@@ -10,5 +10,12 @@ void RegisterBuildCommand(CLI::App& app, int& exit_code);
 void RegisterSimulateCommand(CLI::App& app, int& exit_code);
 void RegisterEvalCommand(CLI::App& app, int& exit_code);
 void RegisterRegressCommand(CLI::App& app, int& exit_code);
+void RegisterInsertCommand(CLI::App& app, int& exit_code);
+void RegisterQueryCommand(CLI::App& app, int& exit_code);
+void RegisterPointsCommand(CLI::App& app, int& exit_code);
+void RegisterCheckPathCommand(CLI::App& app, int& exit_code);
+void RegisterWatchCommand(CLI::App& app, int& exit_code);
+void RegisterInfoCommand(CLI::App& app, int& exit_code);
+void RegisterClearCommand(CLI::App& app, int& exit_code);
 
 }  // namespace bgkmap::cli

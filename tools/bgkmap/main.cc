@@ -12,6 +12,13 @@ int main(int argc, char** argv) {
   bgkmap::cli::RegisterSimulateCommand(app, exit_code);
   bgkmap::cli::RegisterEvalCommand(app, exit_code);
   bgkmap::cli::RegisterRegressCommand(app, exit_code);
+  bgkmap::cli::RegisterInsertCommand(app, exit_code);
+  bgkmap::cli::RegisterQueryCommand(app, exit_code);
+  bgkmap::cli::RegisterPointsCommand(app, exit_code);
+  bgkmap::cli::RegisterCheckPathCommand(app, exit_code);
+  bgkmap::cli::RegisterWatchCommand(app, exit_code);
+  bgkmap::cli::RegisterInfoCommand(app, exit_code);
+  bgkmap::cli::RegisterClearCommand(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -42,6 +42,7 @@ int RunWatch(const WatchOptions& o) {
                                  {"known_cells", known},
                                  {"traversable_cells", traversable}};
     std::lock_guard<std::mutex> lock(mu);
+    if (o.count > 0 && seen >= o.count) return;  // updates racing the cancel are not printed
     std::printf("%s\n", line.dump().c_str());
     std::fflush(stdout);
     ++seen;

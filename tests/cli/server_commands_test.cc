@@ -1,0 +1,134 @@
+// The `bgkmap` client subcommands against a real bgkmapd on a loopback port, on the real Ouster
+// street scans: what a user types, what they get back.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "bgkmap/io/geotiff.h"
+#include "bgkmapd_process.h"
+
+namespace bgkmap {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kStreet = std::string(BGKMAP_SHARED_DATA) + "/ouster_os1_128_street";
+
+struct CliRun {
+  int exit_code;
+  std::string out;  // stdout only
+};
+
+CliRun Cli(const std::string& args) {
+  const std::string cmd = std::string(BGKMAP_CLI) + " " + args + " 2>/dev/null";
+  CliRun run{-1, ""};
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof buf, pipe)) run.out.append(buf, n);
+  const int status = pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+class ServerCommandsTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("bgkmap_cli_server_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    server_ = new testing::BgkmapdProcess(std::vector<std::string>{});
+    ASSERT_TRUE(server_->started());
+  }
+  static void TearDownTestSuite() {
+    server_->Signal(SIGTERM);
+    EXPECT_EQ(server_->Wait(), 0);
+    delete server_;
+    fs::remove_all(dir_);
+  }
+  static std::string S() { return " --server " + server_->target(); }
+  static std::string Path(const std::string& n) { return (dir_ / n).string(); }
+  static inline fs::path dir_;
+  static inline testing::BgkmapdProcess* server_ = nullptr;
+};
+
+TEST_F(ServerCommandsTest, ServedMapEqualsTheOfflineBuildAndResumesBySequence) {
+  CliRun run = Cli("insert " + kStreet + " --robot r1" + S());
+  ASSERT_EQ(run.exit_code, 0);
+  EXPECT_NE(run.out.find("3 applied"), std::string::npos) << run.out;
+  // Again: the server already has sequences 1..3 of r1, so nothing is sent.
+  run = Cli("insert " + kStreet + " --robot r1" + S());
+  ASSERT_EQ(run.exit_code, 0);
+  EXPECT_NE(run.out.find("0 applied, 0 duplicate"), std::string::npos) << run.out;
+  // Forced resend: acknowledged as duplicates, not applied twice.
+  run = Cli("insert " + kStreet + " --robot r1 --restart" + S());
+  ASSERT_EQ(run.exit_code, 0);
+  EXPECT_NE(run.out.find("0 applied, 3 duplicate"), std::string::npos) << run.out;
+
+  ASSERT_EQ(Cli("query --out " + Path("served.tif") + S()).exit_code, 0);
+  ASSERT_EQ(Cli("build " + kStreet + " --out " + Path("offline.tif")).exit_code, 0);
+  Result<Raster> served = io::ReadGeoTiff(Path("served.tif"));
+  Result<Raster> offline = io::ReadGeoTiff(Path("offline.tif"));
+  ASSERT_TRUE(served.ok() && offline.ok());
+  ASSERT_EQ(served->box, offline->box);
+  ASSERT_EQ(served->layers, offline->layers);
+  for (size_t l = 0; l < served->layers.size(); ++l) {
+    for (size_t i = 0; i < served->data[l].size(); ++i) {
+      const float a = served->data[l][i], b = offline->data[l][i];
+      ASSERT_EQ(std::isnan(a), std::isnan(b)) << "layer " << l << " pixel " << i;
+      if (!std::isnan(a)) {
+        ASSERT_NEAR(a, b, 1e-5) << "layer " << l << " pixel " << i;
+      }
+    }
+  }
+
+  const nlohmann::json info = nlohmann::json::parse(Cli("info" + S()).out);
+  EXPECT_EQ(info["robots"][0]["robot_id"], "r1");
+  EXPECT_EQ(info["robots"][0]["last_sequence"], 3);
+  EXPECT_EQ(info["params"]["method"], "bgk+");
+  EXPECT_GT(info["known_cells"].get<int64_t>(), 100000);
+}
+
+TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
+  ASSERT_EQ(Cli("insert " + kStreet + " --robot r2" + S()).exit_code, 0);
+  nlohmann::json pts = nlohmann::json::parse(Cli("points 10,0 0,500" + S()).out);
+  EXPECT_EQ(pts["points"][0]["state"], 1.0);             // the road ahead of the car
+  EXPECT_TRUE(pts["points"][1]["elevation"].is_null());  // far outside: unknown
+  EXPECT_EQ(pts["points"][1]["state"], 0.0);
+
+  // A path into unknown space is unsafe (exit 2), with the first unsafe pose named.
+  CliRun run = Cli("check-path --poses 10,0,0,0,500,0 --radius 0.3" + S());
+  EXPECT_EQ(run.exit_code, 2) << run.out;
+  const nlohmann::json path = nlohmann::json::parse(run.out);
+  EXPECT_EQ(path["safe"], false);
+  EXPECT_EQ(path["poses"][1]["unknown_fraction"], 1.0);
+
+  run = Cli("watch --bbox -5,-5,5,5 --snapshot --count 2" + S());
+  ASSERT_EQ(run.exit_code, 0);
+  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 2) << run.out;
+
+  EXPECT_EQ(Cli("clear --bbox 9,-1,11,1" + S()).exit_code, 1);  // needs --yes
+  ASSERT_EQ(Cli("clear --bbox 9,-1,11,1 --yes" + S()).exit_code, 0);
+  pts = nlohmann::json::parse(Cli("points 10,0" + S()).out);
+  EXPECT_EQ(pts["points"][0]["state"], 0.0);
+}
+
+TEST_F(ServerCommandsTest, ErrorsAreOneLineAndNonZero) {
+  for (const std::string& args :
+       {std::string("info --server 127.0.0.1:1"), "query --bbox 1,1,0,0 --out x.tif" + S(),
+        "points 1" + S(), "check-path --poses 0,0,0" + S(),
+        "query --bbox -1e6,-1e6,1e6,1e6 --out " + Path("huge.tif") + S()}) {
+    const std::string cmd = std::string(BGKMAP_CLI) + " " + args + " 2>&1 >/dev/null";
+    FILE* pipe = popen(cmd.c_str(), "r");
+    std::string err;
+    char buf[4096];
+    while (size_t n = fread(buf, 1, sizeof buf, pipe)) err.append(buf, n);
+    const int status = pclose(pipe);
+    EXPECT_NE(WEXITSTATUS(status), 0) << args;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << args << "\n" << err;
+  }
+}
+
+}  // namespace
+}  // namespace bgkmap
