@@ -114,6 +114,9 @@ const std::vector<ServerKey>& Keys() {
           "max_concurrent_queries",
           [](ServerConfig & c) -> auto& { return c.limits.max_concurrent_queries; }),
       Key<uint64_t>(
+          "max_region_bytes_in_flight",
+          [](ServerConfig & c) -> auto& { return c.limits.max_region_bytes_in_flight; }),
+      Key<uint64_t>(
           "max_message_bytes",
           [](ServerConfig & c) -> auto& { return c.limits.max_message_bytes; }),
       Key<uint64_t>(
@@ -216,6 +219,7 @@ Status ValidateServerConfig(const ServerConfig& c) {
   const ServerLimits& l = c.limits;
   if (l.max_points_per_scan == 0) return bad("max_points_per_scan", "must be > 0");
   if (l.max_region_cells == 0) return bad("max_region_cells", "must be > 0");
+  if (l.max_region_bytes_in_flight == 0) return bad("max_region_bytes_in_flight", "must be > 0");
   if (!(l.max_coordinate > 0)) return bad("max_coordinate", "must be > 0");
   if (l.max_coordinate > kMaxCellIndex * c.map.resolution / 2) {
     std::ostringstream why;

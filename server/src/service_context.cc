@@ -37,6 +37,14 @@ size_t SessionRegistry::count(Kind kind) const {
   return n;
 }
 
+bool ByteBudget::TryAcquire(uint64_t bytes) {
+  uint64_t used = used_.load();
+  do {
+    if (used + bytes > limit_) return false;
+  } while (!used_.compare_exchange_weak(used, used + bytes));
+  return true;
+}
+
 Permit::Permit(std::atomic<uint32_t>& counter, uint32_t limit) : counter_(&counter) {
   if (counter.fetch_add(1) >= limit) {
     counter.fetch_sub(1);

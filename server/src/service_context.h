@@ -57,6 +57,19 @@ class Permit {
   std::atomic<uint32_t>* counter_;
 };
 
+// A budget of bytes shared by concurrent operations (region rasters held in memory).
+class ByteBudget {
+ public:
+  explicit ByteBudget(uint64_t limit) : limit_(limit) {}
+  bool TryAcquire(uint64_t bytes);
+  void Release(uint64_t bytes) { used_.fetch_sub(bytes); }
+  uint64_t limit() const { return limit_; }
+
+ private:
+  const uint64_t limit_;
+  std::atomic<uint64_t> used_{0};
+};
+
 struct ServiceContext {
   ServiceContext(const ServerConfig& cfg, MapStore& map_store, ScanScheduler& scan_scheduler,
                  WatchHub& watch_hub, boost::asio::thread_pool& ingest,
@@ -79,6 +92,7 @@ struct ServiceContext {
   SessionRegistry sessions;
   std::atomic<uint32_t> queries{0};      // concurrent queries
   std::atomic<uint32_t> unary_scans{0};  // concurrent IngestScan calls
+  ByteBudget region_bytes{limits.max_region_bytes_in_flight};
 };
 
 }  // namespace bgkmap

@@ -236,5 +236,23 @@ TEST_F(BadInputTest, ZzNonFinitePointsAreDroppedAndCounted) {
   EXPECT_TRUE(MapsEqual(*fixture_->server().SnapshotMap(), *OfflineMap(order)));
 }
 
+TEST(RegionBudgetTest, RastersHeldInMemoryAreBounded) {
+  ServerConfig config = TestConfig();
+  config.limits.max_region_bytes_in_flight = 1 << 20;
+  ServerFixture fixture(config);
+  // 100 x 100 cells x 6 layers x 4 bytes = 240 kB: fits.
+  EXPECT_TRUE(fixture.client().QueryRegion({{0, 0, 10, 10}, {}, 1}).ok());
+  // 300 x 300 cells: 2.16 MB do not.
+  RpcResult<Raster> big = fixture.client().QueryRegion({{0, 0, 30, 30}, {}, 1});
+  ASSERT_FALSE(big.ok());
+  EXPECT_EQ(big.status().code(), RpcCode::kResourceExhausted);
+  EXPECT_NE(big.status().message().find("server.max_region_bytes_in_flight = 1048576"),
+            std::string::npos)
+      << big.status().ToString();
+  // Fewer layers or a coarser stride fit again.
+  EXPECT_TRUE(fixture.client().QueryRegion({{0, 0, 30, 30}, {Layer::kElevation}, 1}).ok());
+  EXPECT_TRUE(fixture.client().QueryRegion({{0, 0, 30, 30}, {}, 3}).ok());
+}
+
 }  // namespace
 }  // namespace bgkmap::testing

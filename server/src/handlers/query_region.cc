@@ -27,6 +27,19 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
       Finish(s);
       return;
     }
+    // The raster is held in memory until streamed: bound the total over concurrent queries.
+    const uint64_t pixels = static_cast<uint64_t>(box_.width() / stride_) *
+                            static_cast<uint64_t>(box_.height() / stride_);
+    reserved_bytes_ = pixels * layers_.size() * sizeof(float);
+    if (!ctx_.region_bytes.TryAcquire(reserved_bytes_)) {
+      reserved_bytes_ = 0;
+      Finish({grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "region: " + std::to_string(pixels * layers_.size() * sizeof(float)) +
+                  " bytes do not fit in server.max_region_bytes_in_flight = " +
+                  std::to_string(ctx_.region_bytes.limit()) +
+                  " with the regions being served now; retry later"});
+      return;
+    }
     boost::asio::post(ctx_.query_pool, [this] {
       version_ = ctx_.scheduler.applied_version();
       raster_ = ctx_.store.ReadRegion(box_, layers_, stride_);
@@ -46,7 +59,10 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     WriteNext();
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    ctx_.region_bytes.Release(reserved_bytes_);
+    delete this;
+  }
 
  private:
   grpc::Status Parse(const v1::RegionRequest& request) {
@@ -109,6 +125,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
   int64_t rows_per_chunk_ = 1;
   int64_t next_row_ = 0;
   bool sent_header_ = false;
+  uint64_t reserved_bytes_ = 0;
   v1::RegionChunk chunk_;
 };
 

@@ -31,8 +31,9 @@ struct ServerLimits {
   uint32_t max_watchers = 64;                  // max_watchers
   uint64_t max_watch_tiles = 65'536;           // max_watch_tiles: tiles per watched region
   uint32_t max_concurrent_queries = 64;        // max_concurrent_queries
-  uint64_t max_message_bytes = 64ull << 20;    // max_message_bytes: largest gRPC message
-  uint64_t region_chunk_bytes = 1ull << 20;    // region_chunk_bytes: target chunk size
+  uint64_t max_region_bytes_in_flight = 1ull << 30;  // max_region_bytes_in_flight: rasters held
+  uint64_t max_message_bytes = 64ull << 20;          // max_message_bytes: largest gRPC message
+  uint64_t region_chunk_bytes = 1ull << 20;          // region_chunk_bytes: target chunk size
 };
 
 struct ServerConfig {
