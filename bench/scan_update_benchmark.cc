@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/sim/ray_caster.h"
 #include "street_world.h"
@@ -95,6 +96,22 @@ void BM_Vlp16TileSize(benchmark::State& s) {
   RunScanUpdate(s, sim::Vlp16(), 0.3, Method::kBgkPlus, static_cast<int>(s.range(0)));
 }
 BENCHMARK(BM_Vlp16TileSize)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMillisecond);
+
+// Region extraction (the server's share of a region query): 50 x 50 m at 0.1 m, all layers, over
+// the map of one VLP-16 drive.
+void BM_ExtractRaster50m(benchmark::State& state) {
+  const Sequence& seq = Drive(sim::Vlp16(), 0.8);
+  auto map = std::move(TerrainMap::Create(MapParams{})).value();
+  for (size_t k = 0; k < seq.scans.size(); ++k)
+    (void)map->IntegrateScan(seq.scans[k], seq.poses[k]);
+  const CellBox box = map->geometry().BoxCovering(-13, -25, 37, 25);
+  const std::vector<Layer> all = {Layer::kElevation,      Layer::kElevationVariance,
+                                  Layer::kTraversability, Layer::kTraversabilityVariance,
+                                  Layer::kState,          Layer::kElevationWeight};
+  for (auto _ : state) benchmark::DoNotOptimize(ExtractRaster(*map, box, all));
+  state.counters["cells"] = static_cast<double>(box.cell_count());
+}
+BENCHMARK(BM_ExtractRaster50m)->Unit(benchmark::kMillisecond);
 
 void BM_PrepareVlp16(benchmark::State& state) {
   const Sequence& seq = Drive(sim::Vlp16(), 0.8);

@@ -1,0 +1,192 @@
+// End-to-end load on a running bgkmapd over loopback (issue 3's benchmarks):
+//  1. ingest throughput with 1, 4 and 16 robots streaming VLP-16-like scans as fast as they can;
+//  2. region query latency (50 x 50 m and 200 x 200 m, all layers) while 4 robots stream;
+//  3. point query latency (1,000 points) while 4 robots stream.
+//
+//   bgkmapd --listen 127.0.0.1:50571 & server_load --server 127.0.0.1:50571
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "bgkmap/client/client.h"
+#include "bgkmap/sim/ray_caster.h"
+#include "street_world.h"
+
+namespace bgkmap {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The street repeats every 60 m along x, so a scan simulated at x is also valid at x + 60 m.
+constexpr double kPeriod = 60.0;
+constexpr int kScansPerDrive = 24;
+
+struct Drive {
+  std::vector<std::vector<Point3f>> scans;
+  std::vector<Pose> poses;
+};
+
+Drive SimulateDrive() {
+  Drive d;
+  const bench::StreetWorld world;
+  for (int i = 0; i < kScansPerDrive; ++i) {
+    Pose pose;
+    pose.translation = {1.0 * i, 0.0, world.SurfaceHeight(1.0 * i, 0.0) + 0.8};
+    sim::RayCastOptions opt;
+    opt.seed = 1 + i;
+    d.scans.push_back(sim::SimulateScan(world, sim::Vlp16(), pose, opt));
+    d.poses.push_back(pose);
+  }
+  return d;
+}
+
+// Robot r drives its own stretch of street, 600 m from the others' (disjoint tiles).
+ScanData MakeScan(const Drive& d, const std::string& robot, int r, uint64_t k) {
+  const size_t i = k % kScansPerDrive;
+  Pose pose = d.poses[i];
+  pose.translation.x() += 600.0 * r + kPeriod * static_cast<double>(k / kScansPerDrive);
+  ScanData s;
+  s.robot_id = robot;
+  s.sequence = k + 1;
+  s.pose = ScanPose::FromPose(pose);
+  s.points = d.scans[i];
+  return s;
+}
+
+struct IngestResult {
+  uint64_t scans = 0, points = 0, rejected = 0;
+  double seconds = 0;
+};
+
+// `robots` threads each stream `per_robot` scans (or until `stop`), one stream each.
+// `rate_hz` > 0 paces each robot like a real sensor; 0 sends as fast as flow control allows.
+IngestResult Ingest(Client& client, const Drive& d, const std::string& tag, int robots,
+                    uint64_t per_robot, const std::atomic<bool>* stop = nullptr,
+                    double rate_hz = 0) {
+  std::atomic<uint64_t> scans{0}, points{0}, rejected{0};
+  const auto start = Clock::now();
+  std::vector<std::thread> threads;
+  for (int r = 0; r < robots; ++r) {
+    threads.emplace_back([&, r] {
+      const std::string robot = tag + "-" + std::to_string(r);
+      std::unique_ptr<IngestStream> stream = client.OpenIngest();
+      std::thread reader([&] {
+        ScanAck ack;
+        while (stream->ReadAck(&ack)) {
+          if (ack.status == AckStatus::kApplied) {
+            ++scans;
+            points += ack.counts.input;
+          } else {
+            ++rejected;
+          }
+        }
+      });
+      const auto t0 = Clock::now();
+      for (uint64_t k = 0; k < per_robot && !(stop && stop->load()); ++k) {
+        if (rate_hz > 0) {
+          std::this_thread::sleep_until(
+              t0 + std::chrono::microseconds(static_cast<int64_t>(1e6 * k / rate_hz)));
+        }
+        if (!stream->Send(MakeScan(d, robot, r, k))) break;
+      }
+      stream->CloseSend();
+      reader.join();
+      stream->Finish();
+    });
+  }
+  for (auto& t : threads) t.join();
+  return {scans, points, rejected, std::chrono::duration<double>(Clock::now() - start).count()};
+}
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
+}
+
+}  // namespace
+}  // namespace bgkmap
+
+int main(int argc, char** argv) {
+  using namespace bgkmap;
+  CLI::App app{"End-to-end bgkmapd load: ingest throughput and query latency"};
+  std::string server = "127.0.0.1:50571";
+  uint64_t scans_per_robot = 48;
+  int queries = 60;
+  app.add_option("--server", server, "bgkmapd address")->capture_default_str();
+  app.add_option("--scans-per-robot", scans_per_robot, "Scans each robot sends per run")
+      ->capture_default_str();
+  app.add_option("--queries", queries, "Queries per latency measurement")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  Client client(server);
+  if (!client.WaitForConnected(std::chrono::seconds(10))) {
+    std::fprintf(stderr, "server_load: cannot reach %s\n", server.c_str());
+    return 1;
+  }
+  std::fprintf(stderr, "server_load: simulating %d VLP-16 scans...\n", kScansPerDrive);
+  const Drive drive = SimulateDrive();
+  const std::string run =
+      std::to_string(std::chrono::system_clock::now().time_since_epoch().count());
+
+  std::printf("| robots | scans | scans/s | points/s | rejected |\n|---|---|---|---|---|\n");
+  for (int robots : {1, 4, 16}) {
+    const IngestResult r = Ingest(client, drive, "ingest" + std::to_string(robots) + "-" + run,
+                                  robots, scans_per_robot);
+    std::printf("| %d | %llu | %.0f | %.2fM | %llu |\n", robots,
+                static_cast<unsigned long long>(r.scans), static_cast<double>(r.scans) / r.seconds,
+                static_cast<double>(r.points) / r.seconds / 1e6,
+                static_cast<unsigned long long>(r.rejected));
+    std::fflush(stdout);
+  }
+
+  auto time_it = [](auto&& fn) {
+    const auto t0 = Clock::now();
+    const bool ok = fn();
+    return ok ? std::chrono::duration<double, std::milli>(Clock::now() - t0).count() : -1.0;
+  };
+  // Latency while 4 robots stream: at 10 Hz each (real sensors), then as fast as they can.
+  for (double rate : {10.0, 0.0}) {
+    std::atomic<bool> stop{false};
+    const std::string tag = "load" + std::to_string(static_cast<int>(rate)) + "-" + run;
+    std::thread load([&] { Ingest(client, drive, tag, 4, 1'000'000, &stop, rate); });
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    const std::string during = rate > 0 ? "4 robots at 10 Hz" : "4 robots at full speed";
+    std::printf(
+        "\n| query (while %s stream) | n | p50 ms | p99 ms | max ms |\n"
+        "|---|---|---|---|---|\n",
+        during.c_str());
+    for (double side : {50.0, 200.0}) {
+      std::vector<double> ms;
+      for (int q = 0; q < queries; ++q) {
+        // Centred on robot 0's stretch, where the map is dense.
+        RegionQuery rq{{12.0 - side / 2, -side / 2, 12.0 + side / 2, side / 2}, {}, 1};
+        const double t = time_it([&] { return client.QueryRegion(rq).ok(); });
+        if (t >= 0) ms.push_back(t);
+      }
+      std::printf("| region %.0f x %.0f m, 0.1 m, all layers | %zu | %.2f | %.2f | %.2f |\n", side,
+                  side, ms.size(), Percentile(ms, 0.5), Percentile(ms, 0.99), Percentile(ms, 1.0));
+      std::fflush(stdout);
+    }
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> ux(-20, 60), uy(-15, 15);
+    std::vector<std::array<double, 2>> pts(1000);
+    std::vector<double> ms;
+    for (int q = 0; q < queries * 3; ++q) {
+      for (auto& p : pts) p = {ux(rng), uy(rng)};
+      const double t = time_it([&] { return client.QueryPoints(pts).ok(); });
+      if (t >= 0) ms.push_back(t);
+    }
+    std::printf("| 1,000 points, all layers | %zu | %.2f | %.2f | %.2f |\n", ms.size(),
+                Percentile(ms, 0.5), Percentile(ms, 0.99), Percentile(ms, 1.0));
+    std::fflush(stdout);
+    stop = true;
+    load.join();
+  }
+  return 0;
+}
