@@ -20,6 +20,12 @@ double SegmentDistance(double x, double y, const Ditch& d) {
   return std::sqrt(px * px + py * py);
 }
 
+// floor(v) as an index, clamped to [-1, limit] so far-away coordinates cannot overflow.
+int64_t FloorIndex(double v, int64_t limit) {
+  if (!(v > -1.0)) return -1;
+  return std::min(static_cast<int64_t>(std::floor(v)), limit);
+}
+
 }  // namespace
 
 DemWorld::DemWorld(HeightGrid grid, const ObstacleOptions& o) : grid_(std::move(grid)) {
@@ -39,6 +45,7 @@ DemWorld::DemWorld(HeightGrid grid, const ObstacleOptions& o) : grid_(std::move(
     if (!std::isnan(v)) max_height_ = std::max(max_height_, static_cast<double>(v));
   }
   max_height_ += 2.0;  // rocks are at most 1 m tall
+  BuildBound();
   bx0_ = o.xmin - kBucket;
   by0_ = o.ymin - kBucket;
   bcols_ = static_cast<int64_t>((o.xmax - o.xmin) / kBucket) + 3;
@@ -56,6 +63,49 @@ DemWorld::DemWorld(HeightGrid grid, const ObstacleOptions& o) : grid_(std::move(
       }
     }
   }
+}
+
+void DemWorld::BuildBound() {
+  const int64_t sc = grid_.cols - 1, sr = grid_.rows - 1;  // interpolation squares
+  if (sc <= 0 || sr <= 0) return;
+  const double cs = grid_.cellsize, ytop = grid_.y0 + grid_.rows * cs;
+  std::vector<float> rock(static_cast<size_t>(sc * sr), 0.0f);
+  for (const Rock& r : rocks_) {
+    const int64_t c0 = std::max<int64_t>(FloorIndex((r.x - r.radius - grid_.x0) / cs - 0.5, sc), 0);
+    const int64_t c1 = std::min(FloorIndex((r.x + r.radius - grid_.x0) / cs - 0.5, sc), sc - 1);
+    const int64_t r0 = std::max<int64_t>(FloorIndex((ytop - r.y - r.radius) / cs - 0.5, sr), 0);
+    const int64_t r1 = std::min(FloorIndex((ytop - r.y + r.radius) / cs - 0.5, sr), sr - 1);
+    for (int64_t j = r0; j <= r1; ++j) {
+      for (int64_t i = c0; i <= c1; ++i) {
+        float& m = rock[static_cast<size_t>(j * sc + i)];
+        m = std::max(m, static_cast<float>(r.height));
+      }
+    }
+  }
+  std::vector<float> bound(rock.size());
+  for (int64_t j = 0; j < sr; ++j) {
+    for (int64_t i = 0; i < sc; ++i) {
+      const size_t k = static_cast<size_t>(j * grid_.cols + i);
+      const float a = grid_.values[k], b = grid_.values[k + 1];
+      const float c = grid_.values[k + grid_.cols], d = grid_.values[k + grid_.cols + 1];
+      const size_t s = static_cast<size_t>(j * sc + i);
+      if (std::isnan(a) || std::isnan(b) || std::isnan(c) || std::isnan(d)) {
+        bound[s] = -std::numeric_limits<float>::infinity();  // SurfaceHeight is NaN here
+      } else {
+        // 1 mm above the exact bound absorbs the rounding of the bilinear weights.
+        bound[s] = std::max({a, b, c, d}) + rock[s] + 1e-3f;
+      }
+    }
+  }
+  bound_ = MaxMipmap(sc, sr, std::move(bound));
+}
+
+double DemWorld::MaxHeightIn(double x0, double y0, double x1, double y1) const {
+  const double cs = grid_.cellsize, ytop = grid_.y0 + grid_.rows * cs;
+  const int64_t sc = bound_.cols(), sr = bound_.rows();
+  return bound_.Max(
+      FloorIndex((x0 - grid_.x0) / cs - 0.5, sc), FloorIndex((ytop - y1) / cs - 0.5, sr),
+      FloorIndex((x1 - grid_.x0) / cs - 0.5, sc), FloorIndex((ytop - y0) / cs - 0.5, sr));
 }
 
 double DemWorld::TerrainHeight(double x, double y) const {

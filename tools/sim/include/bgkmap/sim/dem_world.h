@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "bgkmap/sim/max_mipmap.h"
 #include "bgkmap/sim/world.h"
 
 namespace bgkmap::sim {
@@ -41,6 +42,7 @@ class DemWorld : public World {
 
   double SurfaceHeight(double x, double y) const override;
   double MaxHeight() const override { return max_height_; }
+  double MaxHeightIn(double x0, double y0, double x1, double y1) const override;
 
   // The DEM alone (no rocks or ditches), NaN outside the data.
   double TerrainHeight(double x, double y) const;
@@ -48,10 +50,15 @@ class DemWorld : public World {
   const std::vector<Ditch>& ditches() const { return ditches_; }
 
  private:
+  void BuildBound();
+
   HeightGrid grid_;
   std::vector<Rock> rocks_;
   std::vector<Ditch> ditches_;
   double max_height_ = 0;
+  // Per interpolation square (between 4 cell centres): the highest corner plus the tallest rock
+  // touching it; ditches only lower the surface. -inf where a corner has no data.
+  MaxMipmap bound_;
   // Rocks bucketed on a coarse grid so a height query looks at a few rocks only.
   static constexpr double kBucket = 4.0;
   double bx0_ = 0, by0_ = 0;

@@ -16,6 +16,12 @@ struct RayCastOptions {
   unsigned seed = 1;          // range-noise generator seed (deterministic scans)
 };
 
+// Range along the unit direction `dir` of the first solid point (surface or overhang), bisected to
+// 1 mm; NaN if there is none within max_range. Marches with the options' growing step wherever
+// the world's height bound (World::MaxHeightIn) does not prove a span of the ray empty.
+double CastRay(const World& world, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+               double max_range, const RayCastOptions& options = {});
+
 std::vector<Point3f> SimulateScan(const World& world, const BeamModel& beams,
                                   const Pose& T_world_sensor, const RayCastOptions& options = {});
 

@@ -15,6 +15,12 @@ class World {
   virtual bool InOverhang(double /*x*/, double /*y*/, double /*z*/) const { return false; }
   // An upper bound of every surface and overhang: a ray climbing above it can never hit.
   virtual double MaxHeight() const { return std::numeric_limits<double>::infinity(); }
+  // An upper bound of every surface and overhang over the rectangle [x0, x1] x [y0, y1]; -inf
+  // where there is nothing. The ray caster skips the spans of a ray that stay above it, so a
+  // world with a tight bound (DemWorld: a maximum mipmap) is cast much faster.
+  virtual double MaxHeightIn(double /*x0*/, double /*y0*/, double /*x1*/, double /*y1*/) const {
+    return MaxHeight();
+  }
 };
 
 }  // namespace bgkmap::sim
