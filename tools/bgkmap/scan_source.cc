@@ -7,6 +7,7 @@
 #include "bgkmap/io/las_reader.h"
 #include "bgkmap/io/pcd_reader.h"
 #include "bgkmap/io/point_cloud.h"
+#include "scan_graph_reader.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -53,6 +54,25 @@ class CloudSource : public ScanSource {
   SourceScan scan_;
 };
 
+// An OctoMap scan graph: every node is a posed scan in its sensor frame.
+class GraphSource : public ScanSource {
+ public:
+  GraphSource(std::string path, std::vector<GraphScan> scans)
+      : path_(std::move(path)), scans_(std::move(scans)) {}
+  size_t size() const override { return scans_.size(); }
+  Result<SourceScan> Read(size_t k) const override {
+    if (k >= scans_.size()) return Status::InvalidArgument("scan index out of range");
+    return SourceScan{scans_[k].points, scans_[k].pose, false};
+  }
+  std::string Describe() const override {
+    return "OctoMap scan graph " + path_ + " (" + std::to_string(scans_.size()) + " scans)";
+  }
+
+ private:
+  std::string path_;
+  std::vector<GraphScan> scans_;
+};
+
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -83,8 +103,13 @@ Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
     if (!cloud.ok()) return cloud.status();
     return std::unique_ptr<ScanSource>(new CloudSource(path, cloud->points));
   }
-  return Status::InvalidArgument(path +
-                                 ": unknown input (expected a KITTI-like directory, .las or .pcd)");
+  if (ext == ".graph") {
+    Result<std::vector<GraphScan>> scans = ReadScanGraph(path);
+    if (!scans.ok()) return scans.status();
+    return std::unique_ptr<ScanSource>(new GraphSource(path, std::move(scans).value()));
+  }
+  return Status::InvalidArgument(
+      path + ": unknown input (expected a KITTI-like directory, .las, .pcd or .graph)");
 }
 
 }  // namespace bgkmap::cli

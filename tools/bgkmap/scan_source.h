@@ -1,5 +1,5 @@
-// Where the CLI's scans come from: a KITTI-like directory (a sequence of posed scans) or a single
-// georeferenced cloud (LAS, PCD), which is one scan already in the map frame.
+// Where the CLI's scans come from: a KITTI-like directory or an OctoMap scan graph (sequences of
+// posed scans), or a single georeferenced cloud (LAS, PCD), which is one scan in the map frame.
 #pragma once
 
 #include <cstdint>
@@ -30,7 +30,8 @@ class ScanSource {
   virtual std::string Describe() const = 0;
 };
 
-// Picks the reader from the path: a directory is KITTI-like, *.las and *.pcd are single clouds.
+// Picks the reader from the path: a directory is KITTI-like, *.graph an OctoMap scan graph (one
+// scan per node), *.las and *.pcd are single clouds.
 Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
                                                    const SourceOptions& options = {});
 
