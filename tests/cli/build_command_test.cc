@@ -10,6 +10,7 @@
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/kitti_sequence.h"
+#include "cli_runner.h"
 
 namespace bgkmap {
 namespace {
@@ -18,21 +19,8 @@ namespace fs = std::filesystem;
 
 const std::string kStreet = std::string(BGKMAP_SHARED_DATA) + "/ouster_os1_128_street";
 
-struct CliRun {
-  int exit_code;
-  std::string output;  // stdout and stderr
-};
-
-CliRun RunCli(const std::string& args) {
-  const std::string cmd = std::string(BGKMAP_CLI) + " " + args + " 2>&1";
-  CliRun run{-1, ""};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof buf, pipe)) run.output.append(buf, n);
-  const int status = pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
-}
+using testing::CliRun;
+using testing::RunCli;
 
 class BuildCommandTest : public ::testing::Test {
  protected:

@@ -10,6 +10,7 @@
 
 #include "bgkmap/io/geotiff.h"
 #include "bgkmapd_process.h"
+#include "cli_runner.h"
 
 namespace bgkmap {
 namespace {
@@ -17,21 +18,8 @@ namespace {
 namespace fs = std::filesystem;
 const std::string kStreet = std::string(BGKMAP_SHARED_DATA) + "/ouster_os1_128_street";
 
-struct CliRun {
-  int exit_code;
-  std::string out;  // stdout only
-};
-
-CliRun Cli(const std::string& args) {
-  const std::string cmd = std::string(BGKMAP_CLI) + " " + args + " 2>/dev/null";
-  CliRun run{-1, ""};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof buf, pipe)) run.out.append(buf, n);
-  const int status = pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
-}
+// stdout only: the machine-readable answer.
+testing::CliRun Cli(const std::string& args) { return testing::RunCli(args, "2>/dev/null"); }
 
 class ServerCommandsTest : public ::testing::Test {
  protected:
@@ -54,17 +42,17 @@ class ServerCommandsTest : public ::testing::Test {
 };
 
 TEST_F(ServerCommandsTest, ServedMapEqualsTheOfflineBuildAndResumesBySequence) {
-  CliRun run = Cli("insert " + kStreet + " --robot r1" + S());
+  testing::CliRun run = Cli("insert " + kStreet + " --robot r1" + S());
   ASSERT_EQ(run.exit_code, 0);
-  EXPECT_NE(run.out.find("3 applied"), std::string::npos) << run.out;
+  EXPECT_NE(run.output.find("3 applied"), std::string::npos) << run.output;
   // Again: the server already has sequences 1..3 of r1, so nothing is sent.
   run = Cli("insert " + kStreet + " --robot r1" + S());
   ASSERT_EQ(run.exit_code, 0);
-  EXPECT_NE(run.out.find("0 applied, 0 duplicate"), std::string::npos) << run.out;
+  EXPECT_NE(run.output.find("0 applied, 0 duplicate"), std::string::npos) << run.output;
   // Forced resend: acknowledged as duplicates, not applied twice.
   run = Cli("insert " + kStreet + " --robot r1 --restart" + S());
   ASSERT_EQ(run.exit_code, 0);
-  EXPECT_NE(run.out.find("0 applied, 3 duplicate"), std::string::npos) << run.out;
+  EXPECT_NE(run.output.find("0 applied, 3 duplicate"), std::string::npos) << run.output;
 
   ASSERT_EQ(Cli("query --out " + Path("served.tif") + S()).exit_code, 0);
   ASSERT_EQ(Cli("build " + kStreet + " --out " + Path("offline.tif")).exit_code, 0);
@@ -83,7 +71,7 @@ TEST_F(ServerCommandsTest, ServedMapEqualsTheOfflineBuildAndResumesBySequence) {
     }
   }
 
-  const nlohmann::json info = nlohmann::json::parse(Cli("info" + S()).out);
+  const nlohmann::json info = nlohmann::json::parse(Cli("info" + S()).output);
   EXPECT_EQ(info["robots"][0]["robot_id"], "r1");
   EXPECT_EQ(info["robots"][0]["last_sequence"], 3);
   EXPECT_EQ(info["params"]["method"], "bgk+");
@@ -92,25 +80,25 @@ TEST_F(ServerCommandsTest, ServedMapEqualsTheOfflineBuildAndResumesBySequence) {
 
 TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
   ASSERT_EQ(Cli("insert " + kStreet + " --robot r2" + S()).exit_code, 0);
-  nlohmann::json pts = nlohmann::json::parse(Cli("points 10,0 0,500" + S()).out);
+  nlohmann::json pts = nlohmann::json::parse(Cli("points 10,0 0,500" + S()).output);
   EXPECT_EQ(pts["points"][0]["state"], 1.0);             // the road ahead of the car
   EXPECT_TRUE(pts["points"][1]["elevation"].is_null());  // far outside: unknown
   EXPECT_EQ(pts["points"][1]["state"], 0.0);
 
   // A path into unknown space is unsafe (exit 2), with the first unsafe pose named.
-  CliRun run = Cli("check-path --poses 10,0,0,0,500,0 --radius 0.3" + S());
-  EXPECT_EQ(run.exit_code, 2) << run.out;
-  const nlohmann::json path = nlohmann::json::parse(run.out);
+  testing::CliRun run = Cli("check-path --poses 10,0,0,0,500,0 --radius 0.3" + S());
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  const nlohmann::json path = nlohmann::json::parse(run.output);
   EXPECT_EQ(path["safe"], false);
   EXPECT_EQ(path["poses"][1]["unknown_fraction"], 1.0);
 
   run = Cli("watch --bbox -5,-5,5,5 --snapshot --count 2" + S());
   ASSERT_EQ(run.exit_code, 0);
-  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 2) << run.out;
+  EXPECT_EQ(std::count(run.output.begin(), run.output.end(), '\n'), 2) << run.output;
 
   EXPECT_EQ(Cli("clear --bbox 9,-1,11,1" + S()).exit_code, 1);  // needs --yes
   ASSERT_EQ(Cli("clear --bbox 9,-1,11,1 --yes" + S()).exit_code, 0);
-  pts = nlohmann::json::parse(Cli("points 10,0" + S()).out);
+  pts = nlohmann::json::parse(Cli("points 10,0" + S()).output);
   EXPECT_EQ(pts["points"][0]["state"], 0.0);
 }
 
@@ -119,13 +107,9 @@ TEST_F(ServerCommandsTest, ErrorsAreOneLineAndNonZero) {
        {std::string("info --server 127.0.0.1:1"), "query --bbox 1,1,0,0 --out x.tif" + S(),
         "points 1" + S(), "check-path --poses 0,0,0" + S(),
         "query --bbox -1e6,-1e6,1e6,1e6 --out " + Path("huge.tif") + S()}) {
-    const std::string cmd = std::string(BGKMAP_CLI) + " " + args + " 2>&1 >/dev/null";
-    FILE* pipe = popen(cmd.c_str(), "r");
-    std::string err;
-    char buf[4096];
-    while (size_t n = fread(buf, 1, sizeof buf, pipe)) err.append(buf, n);
-    const int status = pclose(pipe);
-    EXPECT_NE(WEXITSTATUS(status), 0) << args;
+    const testing::CliRun run = testing::RunCli(args, "2>&1 >/dev/null");
+    const std::string& err = run.output;
+    EXPECT_NE(run.exit_code, 0) << args;
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << args << "\n" << err;
   }
 }
