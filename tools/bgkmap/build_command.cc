@@ -7,6 +7,7 @@
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/io/geotiff.h"
+#include "bgkmap/io/octomap_export.h"
 #include "bgkmap/io/png_preview.h"
 #include "bgkmap/io/progress_bar.h"
 #include "commands.h"
@@ -20,6 +21,7 @@ struct BuildOptions {
   std::string config;
   std::string out;
   std::string png;
+  std::string ot;
   std::string method;
   std::vector<double> bbox;
   std::vector<int> las_classes;
@@ -104,6 +106,12 @@ int RunBuild(const BuildOptions& o) {
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(raster, o.png); !s.ok()) return Fail(s.message());
   }
+  if (!o.ot.empty()) {
+    Result<io::OctreeExportResult> ot = io::WriteColorOcTree(raster, o.ot);
+    if (!ot.ok()) return Fail(ot.status().message());
+    std::printf("bgkmap build: %zu columns -> %s (octree origin %.3f, %.3f in the map frame)\n",
+                ot->columns, o.ot.c_str(), ot->origin.x(), ot->origin.y());
+  }
 
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -135,6 +143,7 @@ void RegisterBuildCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--config", o->config, "YAML map parameters (docs/configuration.md)");
   cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
   cmd->add_option("--png", o->png, "Also write a PNG preview (hillshade + traversability)");
+  cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
   cmd->add_option("--method", o->method,
                   "bgk+ | bgk-trav | baseline | one-step (overrides config)");
   cmd->add_option("--bbox", o->bbox, "xmin,ymin,xmax,ymax in metres (default: the known cells)")

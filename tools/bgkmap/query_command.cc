@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "bgkmap/io/geotiff.h"
+#include "bgkmap/io/octomap_export.h"
 #include "bgkmap/io/png_preview.h"
 #include "client_options.h"
 #include "commands.h"
@@ -10,7 +11,7 @@ namespace bgkmap::cli {
 namespace {
 
 struct QueryOptions {
-  std::string server, out, png;
+  std::string server, out, png, ot;
   std::vector<double> bbox;
   std::vector<std::string> layers;
   int stride = 1;
@@ -39,6 +40,12 @@ int RunQuery(const QueryOptions& o) {
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
   }
+  if (!o.ot.empty()) {
+    Result<io::OctreeExportResult> ot = io::WriteColorOcTree(*r, o.ot);
+    if (!ot.ok()) return Fail("query", ot.status().message());
+    std::printf("bgkmap query: %zu columns -> %s (octree origin %.3f, %.3f in the map frame)\n",
+                ot->columns, o.ot.c_str(), ot->origin.x(), ot->origin.y());
+  }
   std::printf("bgkmap query: %lld x %lld pixels at %.3f m, map version %llu -> %s\n",
               static_cast<long long>(r->cols), static_cast<long long>(r->rows), r->resolution,
               static_cast<unsigned long long>(version), o.out.c_str());
@@ -56,6 +63,7 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
       ->expected(4);
   cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
   cmd->add_option("--png", o->png, "Also write a PNG preview");
+  cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
   cmd->add_option("--layers", o->layers, "Layers (default: the five bands of bgkmap build)")
       ->delimiter(',');
   cmd->add_option("--stride", o->stride, "Map cells per output pixel edge")->capture_default_str();
