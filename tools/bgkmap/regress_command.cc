@@ -1,5 +1,6 @@
-// `bgkmap regress`: the paper's Fig. 1 protocol on a real cloud. Ground points are split at
-// random into a training and a test half; BGK elevation regression (kernel length and
+// `bgkmap regress`: the paper's Fig. 1 protocol on a cloud (a LAS with class filtering, or every
+// point of any scan source in the map frame). Points are split at random into a training and a
+// test half; BGK elevation regression (kernel length and
 // resolution picked by cross-validation on the training half only) and GDAL's gdal_grid
 // (invdist, invdistnn, linear) grid the training half on the same cells; each is scored by the
 // RMSE at the test points (value of the cell containing the point) and its wall time.
@@ -16,9 +17,9 @@
 
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
-#include "bgkmap/io/las_reader.h"
 #include "commands.h"
 #include "gdal_grid_runner.h"
+#include "scan_source.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -32,6 +33,10 @@ struct RegressOptions {
   std::vector<int> classes = {2};
   uint64_t seed = 1;
   int folds = 5;
+  // The cross-validation grid (a kernel length below the resolution is skipped).
+  std::vector<double> resolutions = {0.5, 1.0, 2.0};
+  std::vector<double> kernel_lengths = {1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0};
+  std::vector<std::string> peers = {"invdist", "invdistnn", "linear"};
 };
 
 int Fail(const std::string& msg) {
@@ -66,6 +71,24 @@ std::unique_ptr<TerrainMap> Fit(const MapParams& params, const std::vector<P3>& 
   return std::move(map).value();
 }
 
+// Every point of the source in the map frame (LAS: of the chosen classes).
+Result<std::vector<P3>> ReadMapFramePoints(const std::string& path, const SourceOptions& so) {
+  Result<std::unique_ptr<ScanSource>> source = OpenScanSource(path, so);
+  if (!source.ok()) return source.status();
+  std::vector<P3> pts;
+  for (size_t k = 0; k < (*source)->size(); ++k) {
+    Result<SourceScan> scan = (*source)->Read(k);
+    if (!scan.ok()) return scan.status();
+    const Pose& T = scan->pose;
+    for (const Point3f& p : scan->points) {
+      // A single cloud has an identity rotation and its origin in the translation.
+      const Eigen::Vector3d q = T.rotation * Eigen::Vector3d(p.x, p.y, p.z) + T.translation;
+      if (q.allFinite()) pts.push_back({q.x(), q.y(), q.z()});
+    }
+  }
+  return pts;
+}
+
 struct Score {
   double rmse = std::numeric_limits<double>::quiet_NaN();
   double coverage = 0;  // fraction of points with a prediction
@@ -97,10 +120,11 @@ struct Candidate {
 
 // The selection rule: k-fold cross-validation on the training half over a fixed grid; the
 // lowest CV RMSE among candidates that predict at least 99% of held-out points wins.
-Candidate SelectByCrossValidation(const std::vector<P3>& train, int folds,
+Candidate SelectByCrossValidation(const std::vector<P3>& train, const RegressOptions& o,
                                   std::vector<Candidate>* all) {
-  for (double res : {0.5, 1.0, 2.0}) {
-    for (double l : {1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0}) {
+  const int folds = o.folds;
+  for (double res : o.resolutions) {
+    for (double l : o.kernel_lengths) {
       if (l < res) continue;
       double se = 0;
       size_t n = 0, total = 0;
@@ -128,7 +152,7 @@ Candidate SelectByCrossValidation(const std::vector<P3>& train, int folds,
   for (const Candidate& c : *all) {
     if (c.cv.coverage >= 0.99 && (!best || c.cv.rmse < best->cv.rmse)) best = &c;
   }
-  if (!best) {
+  if (!best) {  // nothing predicts 99%: the candidate that predicts most
     for (const Candidate& c : *all) {
       if (!best || c.cv.coverage > best->cv.coverage) best = &c;
     }
@@ -145,25 +169,37 @@ struct Row {
 int RunRegress(const RegressOptions& o) {
   namespace fs = std::filesystem;
   if (o.folds < 2) return Fail("--folds must be at least 2");
-  io::LasReadOptions lo;
+  if (o.resolutions.empty() || o.kernel_lengths.empty())
+    return Fail("--resolutions and --kernel-lengths need at least one value");
+  for (double v : o.resolutions) {
+    if (!(v > 0)) return Fail("--resolutions: every value must be > 0");
+  }
+  for (const std::string& peer : o.peers) {
+    if (peer != "invdist" && peer != "invdistnn" && peer != "linear" && peer != "none")
+      return Fail("--peers: unknown gdal_grid method '" + peer + "' (invdist, invdistnn, linear)");
+  }
+  SourceOptions so;
   for (int c : o.classes) {
     if (c < 0 || c > 255) return Fail("--classes: a LAS class is 0..255");
-    lo.classes.push_back(static_cast<uint8_t>(c));
+    so.las_classes.push_back(static_cast<uint8_t>(c));
   }
-  Result<io::LasCloud> cloud = io::ReadLas(o.input, lo);
-  if (!cloud.ok()) return Fail(cloud.status().message());
-  if (cloud->points.size() < 100) return Fail(o.input + ": fewer than 100 points of the classes");
+  Result<std::vector<P3>> read = ReadMapFramePoints(o.input, so);
+  if (!read.ok()) return Fail(read.status().message());
+  std::vector<P3>& all = *read;
+  if (all.size() < 100) return Fail(o.input + ": fewer than 100 points (of the classes)");
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec) return Fail(o.out + ": cannot create: " + ec.message());
 
   // Local frame: floats keep millimetres; the same coordinates go to gdal_grid.
   double ox = 1e300, oy = 1e300;
-  for (const auto& p : cloud->points) ox = std::min(ox, p.x), oy = std::min(oy, p.y);
+  for (const P3& p : all) ox = std::min(ox, p[0]), oy = std::min(oy, p[1]);
   ox = std::floor(ox);
   oy = std::floor(oy);
   std::vector<P3> pts;
-  for (const auto& p : cloud->points) pts.push_back({p.x - ox, p.y - oy, p.z});
+  pts.reserve(all.size());
+  for (const P3& p : all) pts.push_back({p[0] - ox, p[1] - oy, p[2]});
+  all = {};
   std::mt19937_64 rng(o.seed);
   std::shuffle(pts.begin(), pts.end(), rng);
   const std::vector<P3> train(pts.begin(), pts.begin() + pts.size() / 2);
@@ -171,7 +207,7 @@ int RunRegress(const RegressOptions& o) {
 
   std::vector<Candidate> candidates;
   const auto tcv = Clock::now();
-  const Candidate chosen = SelectByCrossValidation(train, o.folds, &candidates);
+  const Candidate chosen = SelectByCrossValidation(train, o, &candidates);
   const double cv_seconds = Seconds(tcv);
 
   // Grid: the cells covering every point's x, y (the extent, not the test values).
@@ -199,8 +235,12 @@ int RunRegress(const RegressOptions& o) {
   if (Status s = WritePointsCsv(csv, train); !s.ok()) return Fail(s.message());
   std::snprintf(buf, sizeof buf, "invdistnn:power=2.0:radius=%g:max_points=12",
                 chosen.kernel_length);
-  const std::vector<std::pair<std::string, std::string>> peers = {
-      {"gdal invdist", "invdist:power=2.0"}, {"gdal invdistnn", buf}, {"gdal linear", "linear"}};
+  std::vector<std::pair<std::string, std::string>> peers;
+  for (const std::string& peer : o.peers) {
+    if (peer == "invdist") peers.push_back({"gdal invdist", "invdist:power=2.0"});
+    if (peer == "invdistnn") peers.push_back({"gdal invdistnn", buf});
+    if (peer == "linear") peers.push_back({"gdal linear", "linear"});
+  }
   std::vector<SampledGrid> grids;
   for (const auto& [name, algo] : peers) {
     const std::string tif = (fs::path(o.out) / (algo.substr(0, algo.find(':')) + ".tif")).string();
@@ -242,6 +282,9 @@ int RunRegress(const RegressOptions& o) {
   }
   std::ostringstream js;
   js << "{\n  \"input\": \"" << o.input << "\",\n  \"points\": " << pts.size()
+     << ",\n  \"chosen\": {\"resolution\": " << chosen.resolution
+     << ", \"kernel_length\": " << chosen.kernel_length << ", \"cv_rmse\": " << chosen.cv.rmse
+     << "}"
      << ",\n  \"train\": " << train.size() << ",\n  \"test\": " << test.size()
      << ",\n  \"seed\": " << o.seed << ",\n  \"folds\": " << o.folds
      << ",\n  \"cv_seconds\": " << cv_seconds << ",\n  \"cv\": [";
@@ -276,12 +319,22 @@ void RegisterRegressCommand(CLI::App& app, int& exit_code) {
   CLI::App* cmd = app.add_subcommand(
       "regress",
       "Fig. 1 protocol: BGK elevation regression vs gdal_grid on a 50/50 split of a LAS");
-  cmd->add_option("input", o->input, "LAS file")->required();
+  cmd->add_option("input", o->input,
+                  "LAS file, or any scan source (directory, .graph, .pcd): all points in the map "
+                  "frame")
+      ->required();
   cmd->add_option("--out", o->out, "Output directory")->required();
   cmd->add_option("--classes", o->classes, "LAS classes to use (default 2, ground)")
       ->delimiter(',');
   cmd->add_option("--seed", o->seed, "Seed of the random split (default 1)");
   cmd->add_option("--folds", o->folds, "Cross-validation folds on the training half (default 5)");
+  cmd->add_option("--resolutions", o->resolutions, "Cross-validated resolutions, m (0.5,1,2)")
+      ->delimiter(',');
+  cmd->add_option("--kernel-lengths", o->kernel_lengths,
+                  "Cross-validated kernel lengths, m (1,2,3,4,6,8,12)")
+      ->delimiter(',');
+  cmd->add_option("--peers", o->peers, "gdal_grid methods: invdist,invdistnn,linear or none")
+      ->delimiter(',');
   cmd->callback([o, &exit_code] { exit_code = RunRegress(*o); });
 }
 

@@ -1,0 +1,108 @@
+// `bgkmap regress` end to end on a small synthetic cloud: the cross-validated parameters depend on
+// the training half only (changing every test point leaves them and the training set unchanged),
+// and on a smooth surface the test RMSE is finite and small.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <tuple>
+#include <vector>
+
+namespace {
+
+namespace fs = std::filesystem;
+using Xyz = std::tuple<double, double, double>;
+
+double Surface(double x, double y) { return 2.0 * std::sin(x / 15.0) + std::cos(y / 20.0); }
+
+// 1,500 points on 60 x 60 m, coordinates in centimetres so the training CSV prints them exactly.
+std::vector<Xyz> Cloud() {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> cm(0, 6000);
+  std::vector<Xyz> pts;
+  for (int i = 0; i < 1500; ++i) {
+    const double x = cm(rng) / 100.0, y = cm(rng) / 100.0;
+    pts.emplace_back(x, y, std::round(Surface(x, y) * 1e4) / 1e4);
+  }
+  return pts;
+}
+
+void WritePcd(const fs::path& path, const std::vector<Xyz>& pts) {
+  std::ofstream out(path);
+  out << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH "
+      << pts.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << pts.size()
+      << "\nDATA ascii\n";
+  for (const auto& [x, y, z] : pts) out << x << ' ' << y << ' ' << z << '\n';
+}
+
+// The (x, y) of every training point, from the CSV the command hands to gdal_grid.
+std::set<std::pair<long, long>> TrainingCells(const fs::path& csv) {
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);  // header
+  std::set<std::pair<long, long>> xy;
+  double x, y, z;
+  char c1, c2;
+  while (in >> x >> c1 >> y >> c2 >> z) xy.insert({std::lround(x * 100), std::lround(y * 100)});
+  return xy;
+}
+
+nlohmann::json Regress(const fs::path& cloud, const fs::path& out) {
+  const std::string cmd = std::string(BGKMAP_CLI) + " regress " + cloud.string() + " --out " +
+                          out.string() +
+                          " --seed 3 --folds 3 --resolutions 1,2 --kernel-lengths 2,4,8"
+                          " --peers linear > " +
+                          (out.string() + ".log") + " 2>&1";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream in(out / "regress.json");
+  return nlohmann::json::parse(in);
+}
+
+TEST(RegressCommandTest, ParametersComeFromTheTrainingHalfAndTheSmoothSurfaceIsFit) {
+  const fs::path dir = fs::temp_directory_path() / ("bgkmap_regress_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::vector<Xyz> pts = Cloud();
+  WritePcd(dir / "a.pcd", pts);
+  const nlohmann::json a = Regress(dir / "a.pcd", dir / "a");
+  ASSERT_EQ(a["train"].get<int>() + a["test"].get<int>(), 1500);
+
+  // The same cloud with every test point 50 m off: the split (by seed and count) is the same.
+  const auto train = TrainingCells(dir / "a" / "train.csv");
+  ASSERT_EQ(train.size(), a["train"].get<size_t>());
+  std::vector<Xyz> moved = pts;
+  int changed = 0;
+  for (auto& [x, y, z] : moved) {
+    if (!train.contains({std::lround(x * 100), std::lround(y * 100)})) z += 50.0, ++changed;
+  }
+  ASSERT_EQ(changed, a["test"].get<int>());
+  WritePcd(dir / "b.pcd", moved);
+  const nlohmann::json b = Regress(dir / "b.pcd", dir / "b");
+
+  EXPECT_EQ(a["chosen"], b["chosen"]);
+  EXPECT_EQ(a["cv"], b["cv"]);  // every candidate's CV score, not only the winner
+  EXPECT_EQ(TrainingCells(dir / "b" / "train.csv"), train);
+  EXPECT_GT(b["results"][0]["rmse"].get<double>(), 40.0);  // the test half did change
+
+  const double l = a["chosen"]["kernel_length"], res = a["chosen"]["resolution"];
+  EXPECT_TRUE(l == 2 || l == 4 || l == 8) << l;
+  EXPECT_TRUE(res == 1 || res == 2) << res;
+  ASSERT_EQ(a["results"].size(), 2u);  // bgk and gdal linear
+  EXPECT_EQ(a["results"][0]["method"], "bgk");
+  const double rmse = a["results"][0]["rmse"];
+  EXPECT_TRUE(std::isfinite(rmse));
+  EXPECT_LT(rmse, 0.15);
+  EXPECT_GT(a["results"][0]["coverage"].get<double>(), 0.99);
+  fs::remove_all(dir);
+}
+
+}  // namespace
