@@ -28,6 +28,35 @@ int64_t FloorIndex(double v, int64_t limit) {
 
 }  // namespace
 
+int64_t FillNoData(HeightGrid& g) {
+  int64_t filled = 0;
+  std::vector<float> next = g.values;
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (int64_t r = 0; r < g.rows; ++r) {
+      for (int64_t c = 0; c < g.cols; ++c) {
+        if (!std::isnan(g.values[static_cast<size_t>(r * g.cols + c)])) continue;
+        double sum = 0;
+        int n = 0;
+        for (int64_t dr = -1; dr <= 1; ++dr) {
+          for (int64_t dc = -1; dc <= 1; ++dc) {
+            const int64_t rr = r + dr, cc = c + dc;
+            if (rr < 0 || cc < 0 || rr >= g.rows || cc >= g.cols) continue;
+            const float v = g.values[static_cast<size_t>(rr * g.cols + cc)];
+            if (!std::isnan(v)) sum += v, ++n;
+          }
+        }
+        if (n == 0) continue;
+        next[static_cast<size_t>(r * g.cols + c)] = static_cast<float>(sum / n);
+        ++filled;
+        changed = true;
+      }
+    }
+    g.values = next;
+  }
+  return filled;
+}
+
 DemWorld::DemWorld(HeightGrid grid, const ObstacleOptions& o) : grid_(std::move(grid)) {
   std::mt19937 rng(o.seed);
   std::uniform_real_distribution<double> ux(o.xmin, o.xmax), uy(o.ymin, o.ymax), u01(0.0, 1.0);

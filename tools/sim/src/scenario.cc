@@ -56,6 +56,7 @@ Scenario MakeAerialScenario(HeightGrid dem, int n, double spacing, double truth_
   obstacles.xmax = cx + half;
   obstacles.ymin = cy - half;
   obstacles.ymax = cy + half;
+  FillNoData(dem);  // water and unmeasured patches become closed terrain
   auto world = std::make_shared<DemWorld>(std::move(dem), obstacles);
 
   // Fixed altitude: the highest terrain of the area plus the clearance.

@@ -21,6 +21,12 @@ struct HeightGrid {
   std::vector<float> values;
 };
 
+// Fills every NaN cell from its valid neighbours, ring by ring inwards (each new value the mean of
+// the valid 8-neighbours of the previous ring), so the surface is closed. A NODATA hole left open
+// is a pit without walls: rays fall in and return from its sides below the terrain. Returns the
+// number of cells filled; a grid without any valid cell is left as is.
+int64_t FillNoData(HeightGrid& grid);
+
 struct Rock {
   double x, y, radius, height;
 };

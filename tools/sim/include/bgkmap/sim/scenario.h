@@ -28,7 +28,8 @@ struct Scenario {
 Scenario MakeCityScenario(double length = 210.0, double mapping_spacing = 1.0,
                           double truth_spacing = 0.1);
 
-// Aerial (Sec. 3.1.2): the DEM with rocks and ditches, an HDL-32E at a fixed altitude
+// Aerial (Sec. 3.1.2): the DEM (NODATA filled, FillNoData) with rocks and ditches, an HDL-32E at a
+// fixed altitude
 // (`clearance` above the highest terrain of the area) over n x n positions `spacing` apart
 // (paper: 13 x 13, 10 m), centred on the DEM; ground-truth positions every `truth_spacing`.
 // The evaluated area is the square the positions span.
