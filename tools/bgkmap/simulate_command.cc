@@ -33,6 +33,7 @@ struct SimulateOptions {
   double length = 210.0;     // city only
   int grid = 13;             // aerial only
   int threads = 2;
+  bool truth = true;  // false: the mapping scans only (e.g. a cloud for bgkmap regress)
 };
 
 int Fail(const std::string& msg) {
@@ -115,6 +116,7 @@ int RunSimulate(const SimulateOptions& o) {
     if (Status s = io::AppendPose(poses_path, pose); !s.ok()) return Fail(s.message());
   }
 
+  if (!o.truth) scenario.truth_poses.clear();
   // Ground-truth visibility from the dense scan set, one mask per worker.
   const CellBox box =
       GridGeometry(params.resolution, params.tile_size)
@@ -135,9 +137,11 @@ int RunSimulate(const SimulateOptions& o) {
   }
   if (!error.empty()) return Fail(error);
   for (int t = 1; t < o.threads; ++t) masks[0].Merge(masks[t]);
-  const Raster truth = sim::MakeGroundTruth(*scenario.world, params, masks[0]);
-  const std::string truth_path = (fs::path(o.out) / "ground_truth.tif").string();
-  if (Status s = io::WriteGeoTiff(truth, truth_path); !s.ok()) return Fail(s.message());
+  if (o.truth) {
+    const Raster truth = sim::MakeGroundTruth(*scenario.world, params, masks[0]);
+    const std::string truth_path = (fs::path(o.out) / "ground_truth.tif").string();
+    if (Status s = io::WriteGeoTiff(truth, truth_path); !s.ok()) return Fail(s.message());
+  }
 
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -151,11 +155,11 @@ int RunSimulate(const SimulateOptions& o) {
      << std::fixed << origin_x << ", " << origin_y << "],\n  \"seconds\": " << seconds << "\n}\n";
   if (!js) return Fail("cannot write scenario.json in " + o.out);
   std::printf(
-      "bgkmap simulate: %s, %zu %s scans, ground truth from %zu scans sees %lld of %lld cells, "
+      "bgkmap simulate: %s, %zu %s scans, ground truth from %zu scans sees %lld of %lld cells%s, "
       "%.1f s -> %s\n",
       scenario.name.c_str(), n, scenario.beams.name.c_str(), scenario.truth_poses.size(),
-      static_cast<long long>(masks[0].count()), static_cast<long long>(box.cell_count()), seconds,
-      o.out.c_str());
+      static_cast<long long>(masks[0].count()), static_cast<long long>(box.cell_count()),
+      o.truth ? "" : " (--no-truth: not written)", seconds, o.out.c_str());
   return 0;
 }
 
@@ -175,6 +179,7 @@ void RegisterSimulateCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--length", o->length, "city: metres of road (default 210)");
   cmd->add_option("--grid", o->grid, "aerial: n for n x n scan positions 10 m apart (default 13)");
   cmd->add_option("--threads", o->threads, "Worker threads for ray casting (default 2)");
+  cmd->add_flag("!--no-truth", o->truth, "Only the mapping scans, no ground truth");
   cmd->callback([o, &exit_code] { exit_code = RunSimulate(*o); });
 }
 
