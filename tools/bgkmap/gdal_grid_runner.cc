@@ -47,8 +47,10 @@ Result<SampledGrid> RunGdalGrid(const std::string& csv, const std::string& algor
   char extent[256];
   std::snprintf(extent, sizeof extent, "-txe %.6f %.6f -tye %.6f %.6f -outsize %d %d", e.x0, e.x1,
                 e.y0, e.y1, e.cols, e.rows);
-  const std::string cmd = "gdal_grid -q -ot Float32 -of GTiff -a " + algorithm + " " + extent +
-                          " -l " + layer + " '" + csv + ".vrt' '" + out_tif + "' > /dev/null 2>&1";
+  constexpr float kEmpty = -3.0e38f;  // below any elevation
+  const std::string cmd = "gdal_grid -q -ot Float32 -of GTiff -a " + algorithm + ":nodata=-3e38 " +
+                          extent + " -l " + layer + " '" + csv + ".vrt' '" + out_tif +
+                          "' > /dev/null 2>&1";
   const auto t0 = std::chrono::steady_clock::now();
   const int rc = std::system(cmd.c_str());
   const double seconds =
@@ -71,10 +73,9 @@ Result<SampledGrid> RunGdalGrid(const std::string& csv, const std::string& algor
                                   g.rows, GDT_Float32, 0, 0);
   GDALClose(ds);
   if (err != CE_None) return Status::IoError(out_tif + ": cannot read the gdal_grid raster");
-  if (has_nodata) {
-    for (float& v : g.values) {
-      if (v == static_cast<float>(nodata)) v = std::numeric_limits<float>::quiet_NaN();
-    }
+  for (float& v : g.values) {
+    if (v == kEmpty || (has_nodata && v == static_cast<float>(nodata)))
+      v = std::numeric_limits<float>::quiet_NaN();
   }
   return g;
 }

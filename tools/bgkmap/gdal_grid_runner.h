@@ -28,7 +28,9 @@ struct SampledGrid {
 // Writes `csv` (header x,y,z) and a VRT beside it so gdal_grid can read the points.
 Status WritePointsCsv(const std::string& csv, const std::vector<std::array<double, 3>>& points);
 
-// `algorithm` is gdal_grid's -a value, e.g. "invdist:power=2.0". Runs gdal_grid from PATH.
+// `algorithm` is gdal_grid's -a value, e.g. "invdist:power=2.0". Runs gdal_grid from PATH. Cells
+// gdal_grid leaves empty (no point within an invdistnn radius) are NaN: gdal_grid writes its
+// `nodata` option there (default 0, and no NoData tag), so a sentinel is passed and mapped back.
 Result<SampledGrid> RunGdalGrid(const std::string& csv, const std::string& algorithm,
                                 const GridExtent& extent, const std::string& out_tif);
 
