@@ -14,7 +14,9 @@ constexpr int64_t kCellsPerBand = 1 << 18;
 MapStore::MapStore(std::unique_ptr<TerrainMap> map) : map_(std::move(map)) {}
 
 ScanReport MapStore::ApplyScan(const PreparedScan& scan, uint64_t version) {
-  TileLockTable::Guard tiles = tile_locks_.Lock(scan.write_tiles, scan.read_tiles);
+  std::shared_lock gate(gate_);
+  // Read tiles need no lock: the scheduler runs no writer of them now, and readers only read.
+  TileLockTable::Guard tiles = tile_locks_.Lock(scan.write_tiles, {});
   TileWindow window;
   {
     std::unique_lock table(table_mu_);
@@ -25,7 +27,10 @@ ScanReport MapStore::ApplyScan(const PreparedScan& scan, uint64_t version) {
 }
 
 std::vector<TileKey> MapStore::ClearBox(const CellBox& box, uint64_t version) {
-  TileLockTable::Guard tiles = tile_locks_.LockAll(/*exclusive=*/true);
+  std::unique_lock gate(gate_);  // no scan runs, so no tile appears meanwhile
+  const GridGeometry& g = geometry();
+  const std::vector<TileKey> existing = ListTiles(g.TileOf(box.min), g.TileOf(box.max));
+  TileLockTable::Guard tiles = tile_locks_.Lock(existing, {});
   std::unique_lock table(table_mu_);
   std::vector<TileKey> changed = map_->ClearBox(box);
   for (TileKey k : changed) {
@@ -109,7 +114,7 @@ std::vector<TileKey> MapStore::ListTiles(TileKey min, TileKey max) const {
 }
 
 MapSummary MapStore::Summarize() const {
-  TileLockTable::Guard tiles = tile_locks_.LockAll(/*exclusive=*/false);
+  std::unique_lock gate(gate_);  // counts of whole scans only
   std::shared_lock table(table_mu_);
   MapSummary s;
   s.tile_count = map_->tile_count();
@@ -119,7 +124,7 @@ MapSummary MapStore::Summarize() const {
 }
 
 std::unique_ptr<TerrainMap> MapStore::Snapshot() const {
-  TileLockTable::Guard tiles = tile_locks_.LockAll(/*exclusive=*/false);
+  std::unique_lock gate(gate_);
   std::shared_lock table(table_mu_);
   Result<std::unique_ptr<TerrainMap>> copy = TerrainMap::Create(map_->params());
   std::unique_ptr<TerrainMap> out = std::move(copy).value();

@@ -1,10 +1,13 @@
 // The served map and the locks around it. Writers are called by ScanScheduler, which never runs
-// two conflicting changes at once; readers may run at any time and see every scan either
-// completely or not at all (the tiles they read are held shared for the whole read).
+// two conflicting changes at once; readers may run at any time and see every change either
+// completely or not at all.
 //
-// Lock order, everywhere: tile stripes (ascending) before the tile-table lock. The table lock is
-// exclusive only while tiles are created or erased, and readers take it shared in short bands,
-// so a large query never stalls ingestion for long.
+// Locks, always taken in this order:
+//   1. gate_ (changes shared; map-wide reads and clears exclusive, with priority over new scans),
+//   2. tile locks (TileLockTable, ascending keys): a scan holds its write tiles exclusive, a
+//      reader holds the tiles it reads shared,
+//   3. table_mu_ (the tile hash table): exclusive only while tiles are created or erased; readers
+//      take it shared in short bands, so a large query never stalls ingestion for long.
 #pragma once
 
 #include <cstdint>
@@ -16,6 +19,7 @@
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
 #include "tile_lock_table.h"
+#include "writer_priority_mutex.h"
 
 namespace bgkmap {
 
@@ -54,8 +58,9 @@ class MapStore {
 
  private:
   std::unique_ptr<TerrainMap> map_;
-  mutable std::shared_mutex table_mu_;
+  mutable WriterPriorityMutex gate_;
   mutable TileLockTable tile_locks_;
+  mutable std::shared_mutex table_mu_;
 };
 
 }  // namespace bgkmap

@@ -4,12 +4,15 @@
 
 namespace bgkmap {
 
-TileLockTable::TileLockTable(size_t stripes)
-    : count_(std::max<size_t>(stripes, 1)), stripes_(new std::shared_mutex[count_]) {}
+TileLockTable::Guard::Guard(Guard&& other) noexcept
+    : table_(other.table_), held_(std::move(other.held_)) {
+  other.held_.clear();
+}
 
 TileLockTable::Guard& TileLockTable::Guard::operator=(Guard&& other) noexcept {
   if (this != &other) {
     Release();
+    table_ = other.table_;
     held_ = std::move(other.held_);
     other.held_.clear();
   }
@@ -17,63 +20,73 @@ TileLockTable::Guard& TileLockTable::Guard::operator=(Guard&& other) noexcept {
 }
 
 void TileLockTable::Guard::Release() {
-  // Reverse order of acquisition.
+  if (held_.empty()) return;
   for (auto it = held_.rbegin(); it != held_.rend(); ++it) {
-    if (it->second) {
-      it->first->unlock();
+    if (it->exclusive) {
+      it->entry->mu.unlock();
     } else {
-      it->first->unlock_shared();
+      it->entry->mu.unlock_shared();
     }
   }
+  table_->Unref(held_);
   held_.clear();
 }
 
 TileLockTable::Guard TileLockTable::Lock(std::span<const TileKey> exclusive,
                                          std::span<const TileKey> shared) {
-  std::vector<std::pair<size_t, bool>> wanted;
+  std::vector<std::pair<TileKey, bool>> wanted;
   wanted.reserve(exclusive.size() + shared.size());
-  for (TileKey k : exclusive) wanted.emplace_back(StripeOf(k), true);
-  for (TileKey k : shared) wanted.emplace_back(StripeOf(k), false);
-  return Acquire(std::move(wanted));
-}
-
-TileLockTable::Guard TileLockTable::LockRange(TileKey min, TileKey max) {
-  std::vector<std::pair<size_t, bool>> wanted;
-  const int64_t n = (int64_t{max.x} - min.x + 1) * (int64_t{max.y} - min.y + 1);
-  if (n <= 0) return {};
-  if (static_cast<uint64_t>(n) >= count_) return LockAll(false);  // every stripe anyway
-  wanted.reserve(static_cast<size_t>(n));
-  for (int y = min.y; y <= max.y; ++y) {
-    for (int x = min.x; x <= max.x; ++x) wanted.emplace_back(StripeOf({x, y}), false);
-  }
-  return Acquire(std::move(wanted));
-}
-
-TileLockTable::Guard TileLockTable::LockAll(bool exclusive) {
-  std::vector<std::pair<size_t, bool>> wanted;
-  wanted.reserve(count_);
-  for (size_t i = 0; i < count_; ++i) wanted.emplace_back(i, exclusive);
-  return Acquire(std::move(wanted));
-}
-
-TileLockTable::Guard TileLockTable::Acquire(std::vector<std::pair<size_t, bool>> wanted) {
-  // Sort by stripe, exclusive first, so the first entry of each stripe carries the strongest mode.
+  for (TileKey k : exclusive) wanted.emplace_back(k, true);
+  for (TileKey k : shared) wanted.emplace_back(k, false);
+  // Ascending keys, exclusive first, so the first entry of a key carries the strongest mode.
   std::sort(wanted.begin(), wanted.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first < b.first : a.second > b.second;
   });
   Guard guard;
+  guard.table_ = this;
   guard.held_.reserve(wanted.size());
-  for (size_t i = 0; i < wanted.size(); ++i) {
-    if (i > 0 && wanted[i].first == wanted[i - 1].first) continue;
-    std::shared_mutex* m = &stripes_[wanted[i].first];
-    if (wanted[i].second) {
-      m->lock();
-    } else {
-      m->lock_shared();
+  {
+    std::lock_guard lock(mu_);
+    for (size_t i = 0; i < wanted.size(); ++i) {
+      if (i > 0 && wanted[i].first == wanted[i - 1].first) continue;
+      std::unique_ptr<Entry>& e = entries_[wanted[i].first];
+      if (!e) e = std::make_unique<Entry>();
+      ++e->users;
+      guard.held_.push_back({wanted[i].first, e.get(), wanted[i].second});
     }
-    guard.held_.emplace_back(m, wanted[i].second);
+  }
+  for (const Guard::Held& h : guard.held_) {
+    if (h.exclusive) {
+      h.entry->mu.lock();
+    } else {
+      h.entry->mu.lock_shared();
+    }
   }
   return guard;
+}
+
+TileLockTable::Guard TileLockTable::LockRange(TileKey min, TileKey max) {
+  std::vector<TileKey> keys;
+  if (min.x <= max.x && min.y <= max.y) {
+    keys.reserve(static_cast<size_t>(int64_t{max.x} - min.x + 1) *
+                 static_cast<size_t>(int64_t{max.y} - min.y + 1));
+    for (int x = min.x; x <= max.x; ++x) {
+      for (int y = min.y; y <= max.y; ++y) keys.push_back({x, y});
+    }
+  }
+  return Lock({}, keys);
+}
+
+void TileLockTable::Unref(const std::vector<Guard::Held>& held) {
+  std::lock_guard lock(mu_);
+  for (const Guard::Held& h : held) {
+    if (--h.entry->users == 0) entries_.erase(h.key);
+  }
+}
+
+size_t TileLockTable::entry_count() const {
+  std::lock_guard lock(mu_);
+  return entries_.size();
 }
 
 }  // namespace bgkmap

@@ -1,14 +1,18 @@
-// Reader/writer exclusion between map readers (queries) and scan integration, per tile.
-// Ordering between scans is ScanScheduler's job; these locks only make each scan atomic for
-// readers: a reader holds its tiles shared for the whole read, a scan holds its write tiles
-// exclusive (and read tiles shared) for the whole integration.
+// Reader/writer exclusion between map readers (queries) and changes, per tile. Ordering between
+// changes is ScanScheduler's job; these locks only make each change atomic for readers: a reader
+// holds the tiles it reads shared for the whole read, a scan holds the tiles it writes exclusive
+// for the whole integration.
+//
+// One lock per tile key, so scans of disjoint tiles never contend. Entries exist only while
+// someone holds or waits for them, so memory is bounded by the operations in flight, not by the
+// keys ever queried.
 #pragma once
 
-#include <cstddef>
 #include <memory>
+#include <mutex>
 #include <shared_mutex>
 #include <span>
-#include <utility>
+#include <unordered_map>
 #include <vector>
 
 #include "bgkmap/core/grid.h"
@@ -16,15 +20,18 @@
 namespace bgkmap {
 
 class TileLockTable {
- public:
-  // Tiles hash onto `stripes` locks; two tiles sharing a stripe only cost some parallelism.
-  explicit TileLockTable(size_t stripes = 1024);
+ private:
+  struct Entry {
+    std::shared_mutex mu;
+    int users = 0;  // holders and waiters; guarded by TileLockTable::mu_
+  };
 
+ public:
   // Releases its locks on destruction.
   class Guard {
    public:
     Guard() = default;
-    Guard(Guard&& other) noexcept : held_(std::move(other.held_)) { other.held_.clear(); }
+    Guard(Guard&& other) noexcept;
     Guard& operator=(Guard&& other) noexcept;
     Guard(const Guard&) = delete;
     Guard& operator=(const Guard&) = delete;
@@ -33,23 +40,28 @@ class TileLockTable {
 
    private:
     friend class TileLockTable;
-    std::vector<std::pair<std::shared_mutex*, bool>> held_;  // (lock, exclusive)
+    struct Held {
+      TileKey key;
+      Entry* entry;
+      bool exclusive;
+    };
+    TileLockTable* table_ = nullptr;
+    std::vector<Held> held_;
   };
 
-  // Locks the stripes of `exclusive` tiles exclusively and of `shared` tiles shared. Stripes are
-  // taken in ascending order, so any two callers are deadlock-free.
+  // Locks `exclusive` tiles exclusively and `shared` tiles shared (a key in both is exclusive).
+  // Tiles are locked in ascending key order, so any two callers are deadlock-free.
   Guard Lock(std::span<const TileKey> exclusive, std::span<const TileKey> shared);
-  // Every tile of the inclusive key rectangle [min, max], shared.
+  // Every key of the inclusive rectangle [min, max], shared.
   Guard LockRange(TileKey min, TileKey max);
-  // Every stripe: the whole map (Info, ClearRegion).
-  Guard LockAll(bool exclusive);
+
+  size_t entry_count() const;
 
  private:
-  size_t StripeOf(TileKey key) const { return TileKeyHash{}(key) % count_; }
-  Guard Acquire(std::vector<std::pair<size_t, bool>> wanted);
+  void Unref(const std::vector<Guard::Held>& held);
 
-  size_t count_;
-  std::unique_ptr<std::shared_mutex[]> stripes_;
+  mutable std::mutex mu_;
+  std::unordered_map<TileKey, std::unique_ptr<Entry>, TileKeyHash> entries_;
 };
 
 }  // namespace bgkmap
