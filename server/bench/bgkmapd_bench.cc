@@ -84,6 +84,7 @@ double Percentile(std::vector<double> v, double p) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bgkmap::KeepLargeAllocationsInHeap();  // as bgkmapd does
   const size_t per_robot = argc > 1 ? std::strtoul(argv[1], nullptr, 10) : 40;
   std::printf("simulating VLP-16 scans of the city...\n");
   const std::vector<SimScan> scans = SimulateCity(60);

@@ -88,6 +88,7 @@ int main(int argc, char** argv) {
   spdlog::set_level(level);
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e%z %^%l%$ %v");
 
+  bgkmap::KeepLargeAllocationsInHeap();
   bgkmap::Result<std::unique_ptr<bgkmap::MapServer>> server = bgkmap::MapServer::Start(config);
   if (!server.ok()) {
     spdlog::error("event=start_failed reason=\"{}\"", server.status().message());

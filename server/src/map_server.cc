@@ -6,6 +6,7 @@
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/server.h>
 #include <grpcpp/server_builder.h>
+#include <malloc.h>
 #include <spdlog/spdlog.h>
 
 #include <boost/asio/thread_pool.hpp>
@@ -68,6 +69,11 @@ struct MapServer::Impl {
   std::mutex shutdown_mu;
   bool stopped = false;
 };
+
+void KeepLargeAllocationsInHeap() {
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+}
 
 MapServer::MapServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
