@@ -145,6 +145,7 @@ ServerReport MapServer::Report() const {
   const MapSummary summary = impl_->store.Summarize();
   r.tile_count = summary.tile_count;
   r.known_cells = summary.known_cells;
+  r.peak_parallel_integrations = impl_->store.peak_parallel_integrations();
   for (const RobotProgress& p : impl_->scheduler.Robots()) {
     r.robots.push_back(
         {p.robot_id, p.last_sequence, p.scans_applied, p.scans_duplicate, p.scans_rejected});

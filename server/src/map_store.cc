@@ -23,7 +23,13 @@ ScanReport MapStore::ApplyScan(const PreparedScan& scan, uint64_t version) {
     window = map_->MakeWindow(scan);
   }
   // Integrate() touches only the window's tiles: no table lock, other scans run beside it.
-  return map_->Integrate(scan, window, version);
+  const uint32_t now = integrations_.fetch_add(1) + 1;
+  uint32_t peak = peak_integrations_.load();
+  while (now > peak && !peak_integrations_.compare_exchange_weak(peak, now)) {
+  }
+  ScanReport report = map_->Integrate(scan, window, version);
+  integrations_.fetch_sub(1);
+  return report;
 }
 
 std::vector<TileKey> MapStore::ClearBox(const CellBox& box, uint64_t version) {

@@ -10,6 +10,7 @@
 //      take it shared in short bands, so a large query never stalls ingestion for long.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <shared_mutex>
@@ -53,6 +54,9 @@ class MapStore {
   std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
   MapSummary Summarize() const;
 
+  // Most ApplyScan() calls ever inside Integrate() at once.
+  uint32_t peak_parallel_integrations() const { return peak_integrations_.load(); }
+
   // For tests and shutdown reports: a consistent copy of every tile.
   std::unique_ptr<TerrainMap> Snapshot() const;
 
@@ -61,6 +65,8 @@ class MapStore {
   mutable WriterPriorityMutex gate_;
   mutable TileLockTable tile_locks_;
   mutable std::shared_mutex table_mu_;
+  std::atomic<uint32_t> integrations_{0};
+  std::atomic<uint32_t> peak_integrations_{0};
 };
 
 }  // namespace bgkmap

@@ -29,6 +29,8 @@ struct ServerReport {
   uint64_t scans_applied = 0;
   uint64_t tile_count = 0;
   uint64_t known_cells = 0;
+  // Most scans ever integrating at the same moment: > 1 shows disjoint scans ran in parallel.
+  uint32_t peak_parallel_integrations = 0;
   std::vector<RobotSummary> robots;  // sorted by id
 };
 
