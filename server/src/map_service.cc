@@ -5,8 +5,8 @@
 namespace bgkmap {
 
 grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* MapService::Ingest(
-    grpc::CallbackServerContext* /*call*/) {
-  return StartIngestStream(ctx_);
+    grpc::CallbackServerContext* call) {
+  return StartIngestStream(ctx_, call->peer());
 }
 
 grpc::ServerUnaryReactor* MapService::IngestScan(grpc::CallbackServerContext* call,

@@ -1,4 +1,6 @@
 // ClearRegion (admin): forgets every cell of a box. Ordered with scans as a barrier.
+#include <spdlog/spdlog.h>
+
 #include "handlers/handlers.h"
 #include "proto_convert.h"
 #include "request_checks.h"
@@ -20,12 +22,14 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
     reactor->Finish(s);
     return reactor;
   }
-  ctx.scheduler.SubmitClear(box,
-                            [reactor, response](uint64_t version, std::vector<TileKey> changed) {
-                              for (TileKey k : changed) ToProto(k, response->add_changed_tiles());
-                              response->set_map_version(version);
-                              reactor->Finish(grpc::Status::OK);
-                            });
+  ctx.scheduler.SubmitClear(
+      box, [reactor, response, box](uint64_t version, std::vector<TileKey> changed) {
+        spdlog::info("event=clear_region cells=[{},{}]..[{},{}] version={} tiles={}", box.min.x,
+                     box.min.y, box.max.x, box.max.y, version, changed.size());
+        for (TileKey k : changed) ToProto(k, response->add_changed_tiles());
+        response->set_map_version(version);
+        reactor->Finish(grpc::Status::OK);
+      });
   return reactor;
 }
 

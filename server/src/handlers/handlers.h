@@ -9,7 +9,8 @@
 
 namespace bgkmap {
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx);
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
+                                                                  std::string peer);
 grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                           const v1::Scan* request, v1::ScanAck* response);
 grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,

@@ -1,5 +1,7 @@
 #include "handlers/ingest_pipeline.h"
 
+#include <spdlog/spdlog.h>
+
 #include <memory>
 
 #include "proto_convert.h"
@@ -25,6 +27,9 @@ v1::ScanAck DuplicateAck(ServiceContext& ctx, const v1::Scan& scan) {
 }  // namespace
 
 v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::Status& status) {
+  spdlog::warn("event=scan_rejected robot={} sequence={} code={} reason=\"{}\"",
+               scan.robot_id().substr(0, 128), scan.sequence(),
+               static_cast<int>(status.error_code()), status.error_message());
   v1::ScanAck ack = BaseAck(scan);
   ack.set_status(v1::ACK_REJECTED);
   ack.set_code(status.error_code());

@@ -4,6 +4,8 @@
 // read is posted, so HTTP/2 flow control pushes back on the robot (no unbounded queue). Scans
 // are prepared and admitted one at a time in stream order (sequence numbers stay ordered) while
 // earlier ones integrate; acks go out in stream order.
+#include <spdlog/spdlog.h>
+
 #include <boost/asio/post.hpp>
 #include <deque>
 #include <mutex>
@@ -17,8 +19,8 @@ namespace {
 class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>,
                            public DrainListener {
  public:
-  explicit IngestStream(ServiceContext& ctx)
-      : ctx_(ctx), window_(ctx.limits.max_inflight_scans_per_stream) {
+  IngestStream(ServiceContext& ctx, std::string peer)
+      : ctx_(ctx), peer_(std::move(peer)), window_(ctx.limits.max_inflight_scans_per_stream) {
     const SessionRegistry::Admit admit =
         ctx_.sessions.Add(this, SessionRegistry::Kind::kIngest, ctx_.limits.max_ingest_streams);
     if (admit != SessionRegistry::Admit::kOk) {
@@ -32,6 +34,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
       return;
     }
     registered_ = true;
+    spdlog::debug("event=ingest_open peer={}", peer_);
     std::unique_lock lock(mu_);
     Step(lock);
   }
@@ -114,6 +117,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
       Slot* slot = next.slot;
       IngestScanMessage(ctx_, next.scan, [this, slot](v1::ScanAck ack, grpc::Status) {
         std::unique_lock lock(mu_);
+        ++counts_[ack.status()];
         slot->ack = std::move(ack);
         slot->ready = true;
         Step(lock);
@@ -152,6 +156,12 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
                               "server is shutting down: every scan read was acknowledged");
       }
     }
+    if (finish) {
+      spdlog::info(
+          "event=ingest_closed peer={} applied={} duplicate={} rejected={} code={} reason=\"{}\"",
+          peer_, counts_[v1::ACK_APPLIED], counts_[v1::ACK_DUPLICATE], counts_[v1::ACK_REJECTED],
+          static_cast<int>(status.error_code()), status.error_message());
+    }
     lock.unlock();
     if (write != nullptr) StartWrite(write);
     if (read) StartRead(&incoming_);
@@ -159,6 +169,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   }
 
   ServiceContext& ctx_;
+  const std::string peer_;
   const size_t window_;
   bool registered_ = false;
 
@@ -173,12 +184,14 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   bool draining_ = false;
   bool broken_ = false;
   bool finished_ = false;
+  uint64_t counts_[4] = {0, 0, 0, 0};  // acks by AckStatus
 };
 
 }  // namespace
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx) {
-  return new IngestStream(ctx);
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
+                                                                  std::string peer) {
+  return new IngestStream(ctx, std::move(peer));
 }
 
 }  // namespace bgkmap
