@@ -71,6 +71,14 @@ TEST(IngestContractTest, UnaryInsertAppliesAndReportsCounts) {
   EXPECT_EQ(
       c.kept + c.dropped_nonfinite + c.dropped_range + c.dropped_height + c.dropped_out_of_bounds,
       c.input);
+  // A scan with no points (or none kept) is valid: it is applied and changes nothing.
+  OwnedScan empty = scans[1];
+  empty.points.clear();
+  RpcResult<ScanAck> none = fixture.client().Insert(empty.Data());
+  ASSERT_TRUE(none.ok()) << none.status().ToString();
+  EXPECT_EQ(none->status, AckStatus::kApplied);
+  EXPECT_EQ(none->map_version, 2u);
+  EXPECT_TRUE(none->changed_tiles.empty());
 }
 
 TEST(IngestContractTest, ShutdownAcksEveryScanReadAndTheMapHoldsExactlyTheAckedOnes) {
