@@ -160,7 +160,7 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
   Result<MapParams> params = MapParamsFromYaml(root, {"server"}, base.map);
   if (!params.ok()) return params.status();
   config.map = *params;
-  if (root["server"]) {
+  if (root["server"] && !root["server"].IsNull()) {  // "server:" alone means defaults
     if (Status s = ReadServerSection(root["server"], config); !s.ok()) return s;
   }
   if (Status s = ValidateServerConfig(config); !s.ok()) return s;

@@ -27,6 +27,13 @@ server:
   EXPECT_EQ(c->limits.max_region_cells, 123456u);
 }
 
+TEST(ServerConfigTest, EmptyServerSectionMeansDefaults) {
+  Result<ServerConfig> c = ServerConfigFromYaml(YAML::Load("server:\nresolution: 0.2\n"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->listen_address, ServerConfig{}.listen_address);
+  EXPECT_EQ(c->map.resolution, 0.2);
+}
+
 TEST(ServerConfigTest, ErrorsNameTheKey) {
   auto error = [](const char* text) {
     Result<ServerConfig> c = ServerConfigFromYaml(YAML::Load(text));
