@@ -135,10 +135,11 @@ int RunBuild(const BuildOptions& o) {
 
 void RegisterBuildCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<BuildOptions>();
-  CLI::App* cmd = app.add_subcommand(
-      "build", "Map scans offline (a KITTI-like directory, or a .las/.pcd cloud) into a GeoTIFF");
+  CLI::App* cmd = app.add_subcommand("build",
+                                     "Map scans offline (a KITTI-like directory, an OctoMap "
+                                     ".graph, or a .las/.pcd cloud) into a GeoTIFF");
   cmd->add_option("input", o->input,
-                  "KITTI-like directory (velodyne/*.bin + poses.txt), .las or .pcd")
+                  "KITTI-like directory (velodyne/*.bin + poses.txt), .graph, .las or .pcd")
       ->required();
   cmd->add_option("--config", o->config, "YAML map parameters (docs/configuration.md)");
   cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
