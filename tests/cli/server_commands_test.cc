@@ -104,7 +104,7 @@ TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
 
 TEST_F(ServerCommandsTest, ErrorsAreOneLineAndNonZero) {
   for (const std::string& args :
-       {std::string("info --server 127.0.0.1:1"), "query --bbox 1,1,0,0 --out x.tif" + S(),
+       {std::string("info --server unix:/nonexistent/bgkmapd.sock"), "query --bbox 1,1,0,0 --out x.tif" + S(),
         "points 1" + S(), "check-path --poses 0,0,0" + S(),
         "query --bbox -1e6,-1e6,1e6,1e6 --out " + Path("huge.tif") + S()}) {
     const testing::CliRun run = testing::RunCli(args, "2>&1 >/dev/null");
