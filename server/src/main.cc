@@ -53,6 +53,7 @@ int main(int argc, char** argv) {
                  "Override a key: KEY=VALUE for engine keys, server.KEY=VALUE for server keys "
                  "(repeatable)");
   app.add_flag("--print-config", print_config, "Print the effective configuration and exit");
+  app.set_version_flag("--version", std::string("bgkmapd ") + BGKMAP_VERSION);
   CLI11_PARSE(app, argc, argv);
 
   bgkmap::ServerConfig config;
