@@ -127,22 +127,23 @@ void ScanScheduler::PostReady(const std::vector<Job*>& ready) {
 }
 
 void ScanScheduler::Run(Job* job) {
+  // Watchers are told after Finish(), so the applied version they read covers this change.
   if (job->scan != nullptr) {
     ScanOutcome outcome;
     outcome.version = job->version;
     outcome.report = store_.ApplyScan(*job->scan, job->version);
+    auto callback = std::move(job->on_applied);
+    Finish(job);
     if (on_tiles_changed_ && !outcome.report.changed_tiles.empty()) {
       on_tiles_changed_(outcome.report.changed_tiles);
     }
-    auto callback = std::move(job->on_applied);
-    Finish(job);
     if (callback) callback(std::move(outcome));
   } else {
     std::vector<TileKey> changed = store_.ClearBox(job->clear_box, job->version);
-    if (on_tiles_changed_ && !changed.empty()) on_tiles_changed_(changed);
     auto callback = std::move(job->on_cleared);
     const uint64_t version = job->version;
     Finish(job);
+    if (on_tiles_changed_ && !changed.empty()) on_tiles_changed_(changed);
     if (callback) callback(version, std::move(changed));
   }
 }

@@ -57,7 +57,8 @@ struct ScanOutcome {
 
 class ScanScheduler {
  public:
-  // Called on a worker after each change, before its completion callback: the changed tiles.
+  // Called on a worker after each change (once it counts as applied), before its completion
+  // callback: the changed tiles.
   using TilesChanged = std::function<void(const std::vector<TileKey>&)>;
 
   ScanScheduler(MapStore& store, boost::asio::thread_pool& pool, uint32_t max_robots,

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <condition_variable>
 #include <map>
 #include <mutex>
@@ -119,6 +120,27 @@ TEST(WatchTest, DeliversEveryChangedTileWithItsLatestContent) {
 
   watch->Cancel();
   EXPECT_EQ(watch->Wait().code(), RpcCode::kCancelled);
+}
+
+TEST(WatchTest, DeliversClearedTilesToo) {
+  ServerFixture fixture;
+  Ingest(fixture.client(), SubScans("w", 8, 1));
+  Collector c;
+  auto watch = fixture.client().Watch({{-500, -500, 500, 500}, {Layer::kElevation}, false},
+                                      [&](const TileUpdate& u) { c(u); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  RpcResult<ClearResult> clear = fixture.client().ClearRegion({-20, -20, 20, 20});
+  ASSERT_TRUE(clear.ok());
+  ASSERT_FALSE(clear->changed_tiles.empty());
+  std::map<TileKey, uint64_t> want;
+  for (TileKey k : clear->changed_tiles) want[k] = clear->map_version;
+  ASSERT_TRUE(c.WaitFor(want, std::chrono::seconds(20)));
+  // Tiles wholly inside the box are empty now.
+  for (const auto& [key, raster] : c.latest()) {
+    if (key.x >= -2 && key.x <= 2 && key.y >= -2 && key.y <= 2) {
+      for (float v : raster.data[0]) ASSERT_TRUE(std::isnan(v));
+    }
+  }
 }
 
 TEST(WatchTest, InitialSnapshotSendsExistingTiles) {

@@ -128,7 +128,8 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     update_.Clear();
     ToProto(key, update_.mutable_key());
     ToProto(content.raster.box, update_.mutable_cells());
-    update_.set_tile_version(content.version);
+    // A tile a clear emptied no longer exists: its last change is covered by the applied version.
+    update_.set_tile_version(content.version != 0 ? content.version : version);
     update_.set_resolution(content.raster.resolution);
     update_.set_map_version(std::max(version, content.version));
     AppendRows(content.raster, 0, content.raster.rows, update_.mutable_layers());
