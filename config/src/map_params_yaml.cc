@@ -1,8 +1,10 @@
 #include "bgkmap/config/map_params_yaml.h"
 
 #include <algorithm>
+#include <charconv>
 #include <fstream>
 #include <sstream>
+#include <system_error>
 
 namespace bgkmap {
 namespace {
@@ -127,28 +129,39 @@ Result<MapParams> LoadMapParamsFile(const std::string& path,
   return p;
 }
 
+namespace {
+
+// The shortest text that reads back as exactly `v` (0.1, not 0.10000000000000001).
+YAML::Node Number(double v) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  return YAML::Node(std::string(buf, ec == std::errc() ? end : buf));
+}
+
+}  // namespace
+
 YAML::Node MapParamsToYaml(const MapParams& p) {
   YAML::Node n;
-  n["resolution"] = p.resolution;
-  n["kernel_length"] = p.kernel_length;
-  n["lambda"] = p.lambda;
-  n["prior_mean"] = p.prior_mean;
-  n["sigma2"] = p.sigma2;
-  n["alpha0"] = p.alpha0;
-  n["beta0"] = p.beta0;
-  n["robot_radius"] = p.robot_radius;
-  n["step_crit"] = p.step_crit;
-  n["slope_crit_deg"] = p.slope_crit_deg;
-  n["roughness_crit"] = p.roughness_crit;
+  n["resolution"] = Number(p.resolution);
+  n["kernel_length"] = Number(p.kernel_length);
+  n["lambda"] = Number(p.lambda);
+  n["prior_mean"] = Number(p.prior_mean);
+  n["sigma2"] = Number(p.sigma2);
+  n["alpha0"] = Number(p.alpha0);
+  n["beta0"] = Number(p.beta0);
+  n["robot_radius"] = Number(p.robot_radius);
+  n["step_crit"] = Number(p.step_crit);
+  n["slope_crit_deg"] = Number(p.slope_crit_deg);
+  n["roughness_crit"] = Number(p.roughness_crit);
   YAML::Node w(YAML::NodeType::Sequence);
-  for (double x : p.weights) w.push_back(x);
+  for (double x : p.weights) w.push_back(Number(x));
   w.SetStyle(YAML::EmitterStyle::Flow);
   n["weights"] = w;
-  n["trav_threshold"] = p.trav_threshold;
-  n["variance_threshold"] = p.variance_threshold;
-  n["min_range"] = p.min_range;
-  n["max_range"] = p.max_range;
-  n["max_height_above_sensor"] = p.max_height_above_sensor;
+  n["trav_threshold"] = Number(p.trav_threshold);
+  n["variance_threshold"] = Number(p.variance_threshold);
+  n["min_range"] = Number(p.min_range);
+  n["max_range"] = Number(p.max_range);
+  n["max_height_above_sensor"] = Number(p.max_height_above_sensor);
   n["observation"] = std::string(ObservationName(p.observation));
   n["tile_size"] = p.tile_size;
   n["method"] = std::string(MethodName(p.method));

@@ -145,3 +145,19 @@ TEST(MapParamsTest, ShippedDefaultConfigEqualsTheBuiltInDefaults) {
 
 }  // namespace
 }  // namespace bgkmap
+
+namespace bgkmap {
+namespace {
+
+TEST(MapParamsTest, EmitsShortestRoundTripNumbers) {
+  MapParams p;
+  p.prior_mean = 1.0 / 3.0;
+  const std::string text = YAML::Dump(MapParamsToYaml(p));
+  EXPECT_NE(text.find("resolution: 0.1\n"), std::string::npos) << text;
+  Result<MapParams> back = MapParamsFromYaml(YAML::Load(text));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->prior_mean, p.prior_mean);  // exact, not merely close
+}
+
+}  // namespace
+}  // namespace bgkmap
