@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   int worker_threads = -1;
   int query_threads = -1;
   std::string log_level;
+  std::string data_dir;
   std::vector<std::string> overrides;
   bool print_config = false;
   app.add_option("-c,--config", config_path,
@@ -49,6 +50,8 @@ int main(int argc, char** argv) {
   app.add_option("--worker-threads", worker_threads, "Ingest worker threads (0 = all cores)");
   app.add_option("--query-threads", query_threads, "Query worker threads (0 = all cores)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off");
+  app.add_option("--data-dir", data_dir,
+                 "Persist the map in this directory (overrides storage.data_dir)");
   app.add_option("--set", overrides,
                  "Override a key: KEY=VALUE for engine keys, server.KEY=VALUE for server keys "
                  "(repeatable)");
@@ -73,6 +76,7 @@ int main(int argc, char** argv) {
     flag_overrides.push_back("server.query_threads=" + std::to_string(query_threads));
   }
   if (!log_level.empty()) flag_overrides.push_back("server.log_level=" + log_level);
+  if (!data_dir.empty()) flag_overrides.push_back("storage.data_dir=" + data_dir);
   flag_overrides.insert(flag_overrides.end(), overrides.begin(), overrides.end());
   for (const std::string& o : flag_overrides) {
     if (bgkmap::Status s = bgkmap::ApplyConfigOverride(config, o); !s.ok()) {

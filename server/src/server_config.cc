@@ -20,20 +20,21 @@ struct ServerKey {
   std::function<YAML::Node(const ServerConfig&)> write;
 };
 
+// `key` is the key's full name ("server.x", "storage.y"): every message starts with it.
 template <typename T>
 Status ReadScalar(const YAML::Node& node, const std::string& key, T* out) {
   try {
     T value = node.as<T>();
     if constexpr (std::is_floating_point_v<T>) {
       if (!std::isfinite(value)) {
-        return Status::InvalidArgument("server." + key + ": must be finite");
+        return Status::InvalidArgument(key + ": must be finite");
       }
     }
     *out = value;
     return Status::Ok();
   } catch (const YAML::Exception&) {
     std::string shown = node.IsScalar() ? node.Scalar() : "(not a scalar)";
-    return Status::InvalidArgument("server." + key + ": '" + shown + "' is not a valid value");
+    return Status::InvalidArgument(key + ": '" + shown + "' is not a valid value");
   }
 }
 
@@ -43,21 +44,21 @@ Status ReadUnsigned(const YAML::Node& node, const std::string& key, T* out) {
   int64_t v = 0;
   if (Status s = ReadScalar(node, key, &v); !s.ok()) return s;
   if (v < 0 || static_cast<uint64_t>(v) > std::numeric_limits<T>::max()) {
-    return Status::InvalidArgument("server." + key + ": " + std::to_string(v) + " is out of range");
+    return Status::InvalidArgument(key + ": " + std::to_string(v) + " is out of range");
   }
   *out = static_cast<T>(v);
   return Status::Ok();
 }
 
 template <typename T, typename Member>
-ServerKey Key(std::string name, Member member) {
+ServerKey Key(std::string name, Member member, const std::string& section = "server") {
   ServerKey k;
   k.name = name;
-  k.read = [name, member](const YAML::Node& n, ServerConfig& c) {
+  k.read = [full = section + "." + name, member](const YAML::Node& n, ServerConfig& c) {
     if constexpr (std::is_unsigned_v<T>) {
-      return ReadUnsigned<T>(n, name, &member(c));
+      return ReadUnsigned<T>(n, full, &member(c));
     } else {
-      return ReadScalar<T>(n, name, &member(c));
+      return ReadScalar<T>(n, full, &member(c));
     }
   };
   k.write = [member](const ServerConfig& c) {
@@ -126,16 +127,35 @@ const std::vector<ServerKey>& Keys() {
   return keys;
 }
 
-Status ReadServerSection(const YAML::Node& section, ServerConfig& config) {
-  if (!section.IsMap()) return Status::InvalidArgument("server: must be a mapping of keys");
+const std::vector<ServerKey>& StorageKeys() {
+  static const std::vector<ServerKey> keys = {
+      Key<std::string>(
+          "data_dir", [](ServerConfig & c) -> auto& { return c.storage.data_dir; }, "storage"),
+      Key<std::string>(
+          "durability", [](ServerConfig & c) -> auto& { return c.storage.durability; }, "storage"),
+      Key<uint32_t>(
+          "periodic_sync_ms", [](ServerConfig & c) -> auto& { return c.storage.periodic_sync_ms; },
+          "storage"),
+      Key<double>(
+          "checkpoint_interval_s",
+          [](ServerConfig & c) -> auto& { return c.storage.checkpoint_interval_s; }, "storage"),
+  };
+  return keys;
+}
+
+Status ReadSection(const YAML::Node& section, const std::string& section_name,
+                   const std::vector<ServerKey>& keys, ServerConfig& config) {
+  if (!section.IsMap()) {
+    return Status::InvalidArgument(section_name + ": must be a mapping of keys");
+  }
   for (const auto& entry : section) {
     const std::string name = entry.first.as<std::string>();
     const ServerKey* key = nullptr;
-    for (const ServerKey& k : Keys()) {
+    for (const ServerKey& k : keys) {
       if (k.name == name) key = &k;
     }
     if (key == nullptr) {
-      return Status::InvalidArgument("server." + name + ": unknown key");
+      return Status::InvalidArgument(section_name + "." + name + ": unknown key");
     }
     if (Status s = key->read(entry.second, config); !s.ok()) return s;
   }
@@ -143,6 +163,15 @@ Status ReadServerSection(const YAML::Node& section, ServerConfig& config) {
 }
 
 }  // namespace
+
+const std::vector<std::string>& StorageConfigKeys() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n;
+    for (const ServerKey& k : StorageKeys()) n.push_back(k.name);
+    return n;
+  }();
+  return names;
+}
 
 const std::vector<std::string>& ServerConfigKeys() {
   static const std::vector<std::string> names = [] {
@@ -157,11 +186,16 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
   ServerConfig config = base;
   if (!root || root.IsNull()) return config;
   if (!root.IsMap()) return Status::InvalidArgument("config: the document must be a mapping");
-  Result<MapParams> params = MapParamsFromYaml(root, {"server"}, base.map);
+  Result<MapParams> params = MapParamsFromYaml(root, {"server", "storage"}, base.map);
   if (!params.ok()) return params.status();
   config.map = *params;
   if (root["server"] && !root["server"].IsNull()) {  // "server:" alone means defaults
-    if (Status s = ReadServerSection(root["server"], config); !s.ok()) return s;
+    if (Status s = ReadSection(root["server"], "server", Keys(), config); !s.ok()) return s;
+  }
+  if (root["storage"] && !root["storage"].IsNull()) {
+    if (Status s = ReadSection(root["storage"], "storage", StorageKeys(), config); !s.ok()) {
+      return s;
+    }
   }
   if (Status s = ValidateServerConfig(config); !s.ok()) return s;
   return config;
@@ -172,6 +206,9 @@ std::string ServerConfigToYaml(const ServerConfig& config) {
   YAML::Node server(YAML::NodeType::Map);
   for (const ServerKey& k : Keys()) server[k.name] = k.write(config);
   root["server"] = server;
+  YAML::Node storage(YAML::NodeType::Map);
+  for (const ServerKey& k : StorageKeys()) storage[k.name] = k.write(config);
+  root["storage"] = storage;
   YAML::Emitter out;
   out << root;
   return std::string(out.c_str()) + "\n";
@@ -190,9 +227,10 @@ Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment) 
     return Status::InvalidArgument("--set " + key + ": " + e.what());
   }
   YAML::Node root(YAML::NodeType::Map);
-  const std::string prefix = "server.";
-  if (key.rfind(prefix, 0) == 0) {
-    root["server"][key.substr(prefix.size())] = value;
+  const size_t dot = key.find('.');
+  const std::string section = dot == std::string::npos ? "" : key.substr(0, dot);
+  if (section == "server" || section == "storage") {
+    root[section][key.substr(dot + 1)] = value;
   } else {
     root[key] = value;
   }
@@ -243,6 +281,19 @@ Status ValidateServerConfig(const ServerConfig& c) {
   }
   if (l.region_chunk_bytes < 4096 || l.region_chunk_bytes > l.max_message_bytes / 2) {
     return bad("region_chunk_bytes", "must be in [4096, max_message_bytes / 2]");
+  }
+  const StorageConfig& st = c.storage;
+  auto bad_storage = [](const std::string& key, const std::string& why) {
+    return Status::InvalidArgument("storage." + key + ": " + why);
+  };
+  if (st.durability != "sync" && st.durability != "periodic") {
+    return bad_storage("durability", "'" + st.durability + "' is not one of sync|periodic");
+  }
+  if (st.periodic_sync_ms == 0 || st.periodic_sync_ms > 60'000) {
+    return bad_storage("periodic_sync_ms", "must be in 1..60000");
+  }
+  if (!(st.checkpoint_interval_s > 0) || st.checkpoint_interval_s > 86'400) {
+    return bad_storage("checkpoint_interval_s", "must be in (0, 86400]");
   }
   return Status::Ok();
 }

@@ -77,4 +77,32 @@ TEST(ServerConfigTest, PrintedConfigReadsBackIdentically) {
 }
 
 }  // namespace
+TEST(ServerConfigTest, StorageSection) {
+  Result<ServerConfig> c = ServerConfigFromYaml(
+      YAML::Load("storage: {data_dir: /tmp/m, durability: periodic, periodic_sync_ms: 50, "
+                 "checkpoint_interval_s: 5}\n"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->storage.data_dir, "/tmp/m");
+  EXPECT_EQ(c->storage.durability, "periodic");
+  EXPECT_EQ(c->storage.periodic_sync_ms, 50u);
+  EXPECT_EQ(c->storage.checkpoint_interval_s, 5.0);
+  auto error = [](const char* text) {
+    Result<ServerConfig> r = ServerConfigFromYaml(YAML::Load(text));
+    return r.ok() ? std::string("ok") : r.status().message();
+  };
+  EXPECT_EQ(error("storage: {durability: maybe}").rfind("storage.durability", 0), 0u);
+  EXPECT_EQ(error("storage: {periodic_sync_ms: -1}").rfind("storage.periodic_sync_ms", 0), 0u);
+  EXPECT_EQ(error("storage: {checkpoint_interval_s: 0}").rfind("storage.checkpoint_interval_s", 0),
+            0u);
+  EXPECT_EQ(error("storage: {bogus: 1}").rfind("storage.bogus", 0), 0u);
+  ServerConfig o;
+  ASSERT_TRUE(ApplyConfigOverride(o, "storage.data_dir=/x").ok());
+  EXPECT_EQ(o.storage.data_dir, "/x");
+  const std::string text = ServerConfigToYaml(*c);
+  Result<ServerConfig> back = ServerConfigFromYaml(YAML::Load(text));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->storage.durability, "periodic");
+  EXPECT_EQ(back->storage.data_dir, "/tmp/m");
+}
+
 }  // namespace bgkmap

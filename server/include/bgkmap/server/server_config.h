@@ -36,6 +36,14 @@ struct ServerLimits {
   uint64_t region_chunk_bytes = 1ull << 20;          // region_chunk_bytes: target chunk size
 };
 
+// The `storage:` section: where and how the map is persisted (docs/storage.md).
+struct StorageConfig {
+  std::string data_dir;               // data_dir: the store's directory ("" = in memory only)
+  std::string durability = "sync";    // durability: sync|periodic (when an ack is durable)
+  uint32_t periodic_sync_ms = 100;    // periodic_sync_ms: power-loss window of "periodic"
+  double checkpoint_interval_s = 30;  // checkpoint_interval_s: tiles written, log truncated
+};
+
 struct ServerConfig {
   MapParams map;
   std::string listen_address = "127.0.0.1:50051";  // listen_address (host:port; port 0 = any)
@@ -44,12 +52,17 @@ struct ServerConfig {
   std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
   double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
   ServerLimits limits;
+  StorageConfig storage;
 };
 
 // The keys of the `server:` section, in documentation order.
 const std::vector<std::string>& ServerConfigKeys();
 
-// Reads a whole config document: engine keys at the top level, server keys under `server:`.
+// The keys of the `storage:` section, in documentation order.
+const std::vector<std::string>& StorageConfigKeys();
+
+// Reads a whole config document: engine keys at the top level, server keys under `server:`,
+// storage keys under `storage:`.
 // Starts from `base`; unknown keys and bad values fail with a message naming the key.
 Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root,
                                           const ServerConfig& base = ServerConfig{});
@@ -57,7 +70,7 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root,
 // The effective configuration as a YAML document (what --print-config prints).
 std::string ServerConfigToYaml(const ServerConfig& config);
 
-// Applies one "key=value" override: an engine key or "server.<key>".
+// Applies one "key=value" override: an engine key, "server.<key>" or "storage.<key>".
 Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment);
 
 // Checks cross-field rules (the engine parameters and the limits).
