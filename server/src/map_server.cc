@@ -11,6 +11,8 @@
 
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
+#include <condition_variable>
+#include <future>
 #include <mutex>
 #include <thread>
 
@@ -45,8 +47,10 @@ size_t ThreadCount(int configured) {
 }  // namespace
 
 struct MapServer::Impl {
-  Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map)
+  Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map,
+       std::unique_ptr<MapPersistence> persisted)
       : config(cfg),
+        persistence(std::move(persisted)),
         ingest_pool(ThreadCount(cfg.worker_threads)),
         query_pool(ThreadCount(cfg.query_threads)),
         store(std::move(map)),
@@ -55,7 +59,13 @@ struct MapServer::Impl {
         ctx(cfg, store, scheduler, hub, ingest_pool, query_pool),
         service(ctx) {}
 
+  // Takes a checkpoint at a scheduler barrier and writes it; returns the write's status.
+  Status Checkpoint();
+  void CheckpointLoop();
+  void StopCheckpoints();
+
   ServerConfig config;
+  std::unique_ptr<MapPersistence> persistence;  // outlives the workers that journal into it
   boost::asio::thread_pool ingest_pool;
   boost::asio::thread_pool query_pool;
   MapStore store;
@@ -68,7 +78,53 @@ struct MapServer::Impl {
 
   std::mutex shutdown_mu;
   bool stopped = false;
+
+  std::thread checkpointer;
+  std::mutex checkpoint_mu;
+  std::condition_variable checkpoint_cv;
+  bool stop_checkpoints = false;
 };
+
+Status MapServer::Impl::Checkpoint() {
+  std::promise<CapturedCheckpoint> captured;
+  std::future<CapturedCheckpoint> ready = captured.get_future();
+  scheduler.SubmitBarrier([this, &captured](uint64_t applied) {
+    captured.set_value(persistence->Capture(store, applied));
+  });
+  CapturedCheckpoint c = ready.get();
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t tiles = c.keys.size();
+  const uint64_t version = c.version;
+  Status s = persistence->Write(std::move(c));
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (s.ok()) {
+    spdlog::debug("event=checkpoint version={} tiles={} seconds={:.3f}", version, tiles, seconds);
+  } else {
+    spdlog::error("event=checkpoint_failed version={} reason=\"{}\"", version, s.message());
+  }
+  return s;
+}
+
+void MapServer::Impl::CheckpointLoop() {
+  const auto interval = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::duration<double>(config.storage.checkpoint_interval_s));
+  std::unique_lock lock(checkpoint_mu);
+  while (!checkpoint_cv.wait_for(lock, interval, [this] { return stop_checkpoints; })) {
+    lock.unlock();
+    (void)Checkpoint();  // a failure is logged; the log keeps the changes
+    lock.lock();
+  }
+}
+
+void MapServer::Impl::StopCheckpoints() {
+  {
+    std::lock_guard lock(checkpoint_mu);
+    stop_checkpoints = true;
+  }
+  checkpoint_cv.notify_all();
+  if (checkpointer.joinable()) checkpointer.join();
+}
 
 void KeepLargeAllocationsInHeap() {
   mallopt(M_MMAP_THRESHOLD, 256 << 20);
@@ -85,7 +141,28 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   KeepServiceDescriptorLinked();
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
   if (!map.ok()) return map.status();
-  auto impl = std::make_unique<Impl>(config, std::move(map).value());
+  std::unique_ptr<MapPersistence> persistence;
+  if (!config.storage.data_dir.empty()) {
+    Result<std::unique_ptr<MapPersistence>> opened =
+        MapPersistence::Open(config.storage, config.map, **map);
+    if (!opened.ok()) return opened.status();
+    persistence = std::move(opened).value();
+    const storage::RecoveryReport& r = persistence->recovery();
+    spdlog::info(
+        "event=recovered data_dir={} durability={} checkpoint_version={} map_version={} "
+        "scans_replayed={} clears_replayed={} tiles={} corrupt_records={} corrupt_tiles={} "
+        "seconds={:.3f}",
+        persistence->directory(), persistence->durability(), r.checkpoint_version, r.map_version,
+        r.scans_replayed, r.clears_replayed, (*map)->tile_count(), r.corrupt_records.size(),
+        persistence->CorruptTiles().size(), r.seconds);
+  }
+  auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(persistence));
+  if (impl->persistence != nullptr) {
+    impl->scheduler.Restore(impl->persistence->map_version(), impl->persistence->RobotSequences());
+    impl->scheduler.SetJournal(impl->persistence.get());
+    impl->ctx.persistence = impl->persistence.get();
+    impl->checkpointer = std::thread([p = impl.get()] { p->CheckpointLoop(); });
+  }
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -131,6 +208,17 @@ void MapServer::Shutdown() {
       std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
   impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
   impl_->scheduler.WaitIdle();
+  if (impl_->persistence != nullptr) {
+    // Last checkpoint: the next start replays nothing.
+    impl_->StopCheckpoints();
+    const Status s = impl_->Checkpoint();
+    spdlog::info(
+        "event=storage_closed data_dir={} durability={} checkpoint_version={} corrupt_tiles={} "
+        "checkpoint={}",
+        impl_->persistence->directory(), impl_->persistence->durability(),
+        impl_->persistence->checkpoint_version(), impl_->persistence->CorruptTiles().size(),
+        s.ok() ? "ok" : s.message());
+  }
   impl_->ingest_pool.join();
   impl_->query_pool.join();
   const double seconds =

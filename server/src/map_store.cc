@@ -129,6 +129,17 @@ MapSummary MapStore::Summarize() const {
   return s;
 }
 
+std::vector<std::unique_ptr<Tile>> MapStore::CopyTiles(std::span<const TileKey> keys) const {
+  std::shared_lock table(table_mu_);
+  std::vector<std::unique_ptr<Tile>> out;
+  out.reserve(keys.size());
+  for (TileKey k : keys) {
+    const Tile* t = map_->FindTile(k);
+    out.push_back(t == nullptr ? nullptr : std::make_unique<Tile>(*t));
+  }
+  return out;
+}
+
 std::unique_ptr<TerrainMap> MapStore::Snapshot() const {
   std::unique_lock gate(gate_);
   std::shared_lock table(table_mu_);

@@ -57,6 +57,10 @@ class MapStore {
   // Most ApplyScan() calls ever inside Integrate() at once.
   uint32_t peak_parallel_integrations() const { return peak_integrations_.load(); }
 
+  // Copies of the tiles at `keys` (null where the map has none), for a checkpoint. Call with no
+  // writer running (at a scheduler barrier).
+  std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const;
+
   // For tests and shutdown reports: a consistent copy of every tile.
   std::unique_ptr<TerrainMap> Snapshot() const;
 

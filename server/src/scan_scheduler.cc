@@ -6,11 +6,16 @@
 namespace bgkmap {
 
 struct ScanScheduler::Job {
-  uint64_t version = 0;
-  std::shared_ptr<const PreparedScan> scan;  // null for a clear
+  uint64_t version = 0;                      // 0 for a barrier
+  std::shared_ptr<const PreparedScan> scan;  // null for a clear or a barrier
+  std::string robot_id;
+  uint64_t sequence = 0;
+  uint64_t previous_sequence = 0;  // the robot's before this scan: restored if it is refused
+  Stamp stamp;
   CellBox clear_box;
   std::function<void(ScanOutcome)> on_applied;
-  std::function<void(uint64_t, std::vector<TileKey>)> on_cleared;
+  std::function<void(uint64_t, std::vector<TileKey>, Status)> on_cleared;
+  std::function<void(uint64_t)> on_barrier;
   int pending = 0;  // unfinished changes this one waits for
   std::vector<Job*> dependents;
 };
@@ -57,12 +62,16 @@ ScanScheduler::Admission ScanScheduler::SubmitScan(const std::string& robot_id, 
       return Admission::kDuplicate;
     }
     RobotProgress& robot = it->second;
+    auto job = std::make_unique<Job>();
+    job->robot_id = robot_id;
+    job->sequence = sequence;
+    job->previous_sequence = robot.last_sequence;
+    job->stamp = stamp;
     robot.last_sequence = sequence;
     robot.last_stamp = stamp;
     ++robot.scans_applied;
     robot.points_kept += scan->counts.kept;
 
-    auto job = std::make_unique<Job>();
     job->scan = std::move(scan);
     job->on_applied = std::move(on_applied);
     Job* j = AdmitLocked(std::move(job));
@@ -72,8 +81,32 @@ ScanScheduler::Admission ScanScheduler::SubmitScan(const std::string& robot_id, 
   return Admission::kAdmitted;
 }
 
-void ScanScheduler::SubmitClear(const CellBox& box,
-                                std::function<void(uint64_t, std::vector<TileKey>)> on_cleared) {
+void ScanScheduler::SubmitBarrier(std::function<void(uint64_t)> fn) {
+  Job* ready = nullptr;
+  {
+    std::lock_guard lock(mu_);
+    auto job = std::make_unique<Job>();
+    job->on_barrier = std::move(fn);
+    Job* j = AdmitLocked(std::move(job));
+    if (j->pending == 0) ready = j;
+  }
+  if (ready != nullptr) PostReady({ready});
+}
+
+void ScanScheduler::Restore(uint64_t version,
+                            const std::map<std::string, uint64_t>& robot_sequences) {
+  std::lock_guard lock(mu_);
+  next_version_ = version + 1;
+  applied_version_ = version;
+  for (const auto& [id, sequence] : robot_sequences) {
+    RobotProgress& r = robots_[id];
+    r.robot_id = id;
+    r.last_sequence = sequence;
+  }
+}
+
+void ScanScheduler::SubmitClear(
+    const CellBox& box, std::function<void(uint64_t, std::vector<TileKey>, Status)> on_cleared) {
   Job* ready = nullptr;
   {
     std::lock_guard lock(mu_);
@@ -88,7 +121,8 @@ void ScanScheduler::SubmitClear(const CellBox& box,
 
 ScanScheduler::Job* ScanScheduler::AdmitLocked(std::unique_ptr<Job> owned) {
   Job* job = owned.get();
-  job->version = next_version_++;
+  const bool barrier = job->on_barrier != nullptr;
+  if (!barrier) job->version = next_version_++;
   std::vector<Job*> deps;
   if (job->scan == nullptr) {
     // A barrier: after every change admitted so far.
@@ -127,28 +161,53 @@ void ScanScheduler::PostReady(const std::vector<Job*>& ready) {
 }
 
 void ScanScheduler::Run(Job* job) {
+  if (job->on_barrier) {
+    // Everything admitted before has finished, so the applied version covers all of it.
+    job->on_barrier(applied_version());
+    Finish(job, false);
+    return;
+  }
+  ChangeRecord change;
+  Status journaled;
+  if (journal_ != nullptr) {
+    change.version = job->version;
+    change.scan = job->scan;
+    change.robot_id = job->robot_id;
+    change.sequence = job->sequence;
+    change.stamp = job->stamp;
+    change.clear_box = job->clear_box;
+    journaled = journal_->Record(change);
+  }
   // Watchers are told after Finish(), so the applied version they read covers this change.
   if (job->scan != nullptr) {
     ScanOutcome outcome;
     outcome.version = job->version;
-    outcome.report = store_.ApplyScan(*job->scan, job->version);
+    outcome.status = journaled;
+    if (journaled.ok()) {
+      outcome.report = store_.ApplyScan(*job->scan, job->version);
+      if (journal_ != nullptr) journal_->Applied(job->scan->write_tiles);
+    }
     auto callback = std::move(job->on_applied);
-    Finish(job);
+    Finish(job, journaled.ok());
     if (on_tiles_changed_ && !outcome.report.changed_tiles.empty()) {
       on_tiles_changed_(outcome.report.changed_tiles);
     }
     if (callback) callback(std::move(outcome));
   } else {
-    std::vector<TileKey> changed = store_.ClearBox(job->clear_box, job->version);
+    std::vector<TileKey> changed;
+    if (journaled.ok()) {
+      changed = store_.ClearBox(job->clear_box, job->version);
+      if (journal_ != nullptr) journal_->Applied(changed);
+    }
     auto callback = std::move(job->on_cleared);
     const uint64_t version = job->version;
-    Finish(job);
+    Finish(job, journaled.ok());
     if (on_tiles_changed_ && !changed.empty()) on_tiles_changed_(changed);
-    if (callback) callback(version, std::move(changed));
+    if (callback) callback(version, std::move(changed), journaled);
   }
 }
 
-void ScanScheduler::Finish(Job* job) {
+void ScanScheduler::Finish(Job* job, bool applied_change) {
   std::vector<Job*> ready;
   uint64_t applied = 0;
   {
@@ -156,8 +215,17 @@ void ScanScheduler::Finish(Job* job) {
     for (Job* d : job->dependents) {
       if (--d->pending == 0) ready.push_back(d);
     }
+    if (job->scan != nullptr && !applied_change) {
+      // Refused by the journal: a retry of this sequence number must be accepted.
+      if (auto it = robots_.find(job->robot_id); it != robots_.end()) {
+        RobotProgress& r = it->second;
+        --r.scans_applied;
+        r.points_kept -= job->scan->counts.kept;
+        if (r.last_sequence == job->sequence) r.last_sequence = job->previous_sequence;
+      }
+    }
     if (job->scan != nullptr) {
-      ++scans_applied_;
+      if (applied_change) ++scans_applied_;
       // Forget the ordering entries that point at this job: nothing can wait on it any more.
       for (TileKey k : job->scan->write_tiles) {
         auto it = order_.find(k);
@@ -175,7 +243,7 @@ void ScanScheduler::Finish(Job* job) {
     }
     if (barrier_ == job) barrier_ = nullptr;
     // Advance the applied watermark over every contiguous finished version.
-    finished_ahead_.insert(job->version);
+    if (job->version != 0) finished_ahead_.insert(job->version);
     while (!finished_ahead_.empty() && *finished_ahead_.begin() == applied_version_ + 1) {
       applied_version_ = *finished_ahead_.begin();
       finished_ahead_.erase(finished_ahead_.begin());

@@ -12,7 +12,8 @@
 //
 // Sequence numbers: a robot's scan is admitted only if its sequence number is above the robot's
 // last admitted one; otherwise it is a duplicate and is not applied again. Admitted changes
-// always apply (validation happens before admission).
+// apply unless the journal (the persistent scan log) refuses them: then the change is skipped,
+// still finishes (so later changes are not blocked) and its callback carries the error.
 #pragma once
 
 #include <boost/asio/thread_pool.hpp>
@@ -24,6 +25,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
@@ -31,6 +33,7 @@
 
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/scan_integrator.h"
+#include "bgkmap/core/status.h"
 #include "map_store.h"
 
 namespace bgkmap {
@@ -53,6 +56,31 @@ struct RobotProgress {
 struct ScanOutcome {
   uint64_t version = 0;
   ScanReport report;
+  Status status;  // not OK: the journal refused the scan and it was not applied
+};
+
+// A change about to be applied, as the journal sees it.
+struct ChangeRecord {
+  uint64_t version = 0;
+  std::shared_ptr<const PreparedScan> scan;  // null for a clear
+  std::string robot_id;
+  uint64_t sequence = 0;
+  Stamp stamp;
+  CellBox clear_box;
+};
+
+// Makes changes durable. Both calls run on the worker of the change, before it counts as
+// finished, so a barrier (SubmitBarrier) sees every change either journaled and marked or not
+// started. Changes that do not conflict call it concurrently.
+class ChangeJournal {
+ public:
+  // Before the change is applied; not OK: skip the change.
+  virtual Status Record(const ChangeRecord& change) = 0;
+  // After it was applied: every tile it may have changed.
+  virtual void Applied(std::span<const TileKey> tiles) = 0;
+
+ protected:
+  ~ChangeJournal() = default;
 };
 
 class ScanScheduler {
@@ -79,9 +107,20 @@ class ScanScheduler {
   // Counts a duplicate answered without admission.
   void CountDuplicate(const std::string& robot_id);
 
-  // Admits a clear of `box`; `on_cleared(version, changed tiles)` runs once it is done.
+  // Admits a clear of `box`; `on_cleared(version, changed tiles, status)` runs once it is done
+  // (status not OK: the journal refused it and nothing was cleared).
   void SubmitClear(const CellBox& box,
-                   std::function<void(uint64_t, std::vector<TileKey>)> on_cleared);
+                   std::function<void(uint64_t, std::vector<TileKey>, Status)> on_cleared);
+
+  // Runs `fn(applied version)` on a worker once every change admitted before has finished and
+  // before any change admitted after starts: no change is in flight while it runs. Takes no
+  // map version.
+  void SubmitBarrier(std::function<void(uint64_t)> fn);
+
+  // Before anything is submitted: continue from a recovered map.
+  void Restore(uint64_t version, const std::map<std::string, uint64_t>& robot_sequences);
+  // Before anything is submitted; `journal` must outlive the scheduler's work.
+  void SetJournal(ChangeJournal* journal) { journal_ = journal; }
 
   // Every change up to this version is in the map.
   uint64_t applied_version() const;
@@ -102,13 +141,14 @@ class ScanScheduler {
 
   Job* AdmitLocked(std::unique_ptr<Job> job);  // requires mu_
   void Run(Job* job);
-  void Finish(Job* job);
+  void Finish(Job* job, bool applied);
   void PostReady(const std::vector<Job*>& ready);
 
   MapStore& store_;
   boost::asio::thread_pool& pool_;
   const uint32_t max_robots_;
   TilesChanged on_tiles_changed_;
+  ChangeJournal* journal_ = nullptr;
 
   mutable std::mutex mu_;
   std::condition_variable idle_cv_;

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "bgkmap/server/server_config.h"
+#include "map_persistence.h"
 #include "map_store.h"
 #include "scan_scheduler.h"
 #include "watch_hub.h"
@@ -93,6 +94,7 @@ struct ServiceContext {
   std::atomic<uint32_t> queries{0};      // concurrent queries
   std::atomic<uint32_t> unary_scans{0};  // concurrent IngestScan calls
   ByteBudget region_bytes{limits.max_region_bytes_in_flight};
+  MapPersistence* persistence = nullptr;  // null: the map is in memory only
 };
 
 }  // namespace bgkmap

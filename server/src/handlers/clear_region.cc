@@ -23,7 +23,14 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
     return reactor;
   }
   ctx.scheduler.SubmitClear(
-      box, [reactor, response, box](uint64_t version, std::vector<TileKey> changed) {
+      box, [reactor, response, box](uint64_t version, std::vector<TileKey> changed, Status status) {
+        if (!status.ok()) {
+          spdlog::error("event=clear_not_persisted version={} reason=\"{}\"", version,
+                        status.message());
+          reactor->Finish({grpc::StatusCode::UNAVAILABLE,
+                           "region not cleared: cannot persist the change: " + status.message()});
+          return;
+        }
         spdlog::info("event=clear_region cells=[{},{}]..[{},{}] version={} tiles={}", box.min.x,
                      box.min.y, box.max.x, box.max.y, version, changed.size());
         for (TileKey k : changed) ToProto(k, response->add_changed_tiles());

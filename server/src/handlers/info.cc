@@ -50,6 +50,13 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
   lim->set_max_message_bytes(l.max_message_bytes);
   lim->set_max_inflight_scans_per_stream(l.max_inflight_scans_per_stream);
   response->set_server_version(BGKMAP_VERSION);
+  if (const MapPersistence* p = ctx.persistence) {
+    v1::StorageInfo* st = response->mutable_storage();
+    st->set_data_dir(p->directory());
+    st->set_durability(p->durability());
+    st->set_checkpoint_version(p->checkpoint_version());
+    st->set_corrupt_tiles(p->CorruptTiles().size());
+  }
   return grpc::Status::OK;
 }
 

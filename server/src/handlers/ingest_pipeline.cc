@@ -61,6 +61,20 @@ void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback do
   const ScanScheduler::Admission admission = ctx.scheduler.SubmitScan(
       scan.robot_id(), scan.sequence(), stamp, prepared,
       [applied, done, counts = prepared->counts](ScanOutcome outcome) mutable {
+        if (!outcome.status.ok()) {
+          // Not in the log, so not in the map: the robot may send it again.
+          grpc::Status s(grpc::StatusCode::UNAVAILABLE,
+                         "scan not applied: cannot persist it: " + outcome.status.message());
+          spdlog::error("event=scan_not_persisted robot={} sequence={} reason=\"{}\"",
+                        applied.robot_id().substr(0, 128), applied.sequence(),
+                        outcome.status.message());
+          applied.set_status(v1::ACK_REJECTED);
+          applied.set_code(s.error_code());
+          applied.set_message(s.error_message());
+          applied.set_map_version(outcome.version);
+          done(std::move(applied), s);
+          return;
+        }
         applied.set_status(v1::ACK_APPLIED);
         applied.set_map_version(outcome.version);
         ToProto(counts, applied.mutable_counts());

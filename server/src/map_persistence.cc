@@ -1,0 +1,123 @@
+#include "map_persistence.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+#include "bgkmap/storage/log_record.h"
+
+namespace bgkmap {
+namespace {
+
+// The tiles the log after the checkpoint changes: what recovery rewrote (or erased) in `map`.
+Result<std::set<TileKey>> TilesTouchedByLog(const storage::TileStore& store,
+                                            const GridGeometry& geometry) {
+  std::set<TileKey> touched;
+  Status s = store.log().ForEach(
+      store.checkpoint_version(), [&](uint64_t, Result<storage::LogRecord> record) -> Status {
+        if (!record.ok()) return Status::Ok();  // reported by RecoverMap
+        if (record->type == storage::LogRecord::Type::kScan) {
+          touched.insert(record->scan->write_tiles.begin(), record->scan->write_tiles.end());
+          return Status::Ok();
+        }
+        const CellBox& box = record->clear_box;
+        Result<std::vector<storage::StoredTileInfo>> stored =
+            store.ListTiles(geometry.TileOf(box.min), geometry.TileOf(box.max));
+        if (!stored.ok()) return stored.status();
+        for (const storage::StoredTileInfo& t : *stored) touched.insert(t.key);
+        return Status::Ok();
+      });
+  if (!s.ok()) return s;
+  return touched;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<MapPersistence>> MapPersistence::Open(const StorageConfig& config,
+                                                             const MapParams& params,
+                                                             TerrainMap& map) {
+  storage::StoreOptions options;
+  Result<storage::Durability> durability = storage::ParseDurability(config.durability);
+  if (!durability.ok()) return durability.status();
+  options.durability = *durability;
+  options.periodic_sync_ms = config.periodic_sync_ms;
+  Result<std::unique_ptr<storage::TileStore>> store =
+      storage::TileStore::Open(config.data_dir, options, params);
+  if (!store.ok()) return store.status();
+  std::unique_ptr<MapPersistence> p(new MapPersistence(std::move(store).value()));
+  storage::TileStore& ts = *p->store_;
+
+  Result<std::set<TileKey>> touched = TilesTouchedByLog(ts, map.geometry());
+  if (!touched.ok()) return touched.status();
+  Result<storage::RecoveryReport> report = storage::RecoverMap(ts, map);
+  if (!report.ok()) return report.status();
+  p->recovery_ = *report;
+
+  // Checkpoint the recovered tiles at once: the log becomes empty, and tiles that replayed
+  // clears erased are deleted from the store before LoadAllTiles() could bring them back.
+  // Corrupt tiles are left out so that they stay listed as corrupt.
+  if (!touched->empty()) {
+    const std::vector<TileKey> corrupt = ts.CorruptTiles();
+    std::vector<storage::TileUpdate> updates;
+    for (TileKey k : *touched) {
+      if (std::binary_search(corrupt.begin(), corrupt.end(), k)) continue;
+      updates.push_back({k, map.FindTile(k)});
+    }
+    if (Status s = ts.Checkpoint(ts.map_version(), updates); !s.ok()) return s;
+  }
+  // Every other tile is current in the store. Loading them all keeps the map complete for
+  // queries and scans; loading on demand and eviction under max_memory_mb are left for later.
+  std::vector<TileKey> corrupt;
+  if (Status s = storage::LoadAllTiles(ts, map, &corrupt); !s.ok()) return s;
+  return p;
+}
+
+Status MapPersistence::Record(const ChangeRecord& change) {
+  storage::LogRecord record =
+      change.scan != nullptr
+          ? storage::LogRecord::Scan(change.version, change.robot_id, change.sequence, change.scan,
+                                     change.stamp.seconds * 1'000'000'000 + change.stamp.nanos)
+          : storage::LogRecord::Clear(change.version, change.clear_box);
+  return store_->log().Append(record);
+}
+
+void MapPersistence::Applied(std::span<const TileKey> tiles) {
+  std::lock_guard lock(dirty_mu_);
+  dirty_.insert(tiles.begin(), tiles.end());
+}
+
+CapturedCheckpoint MapPersistence::Capture(const MapStore& map, uint64_t version) {
+  CapturedCheckpoint c;
+  c.version = version;
+  {
+    std::lock_guard lock(dirty_mu_);
+    c.keys.assign(dirty_.begin(), dirty_.end());
+    dirty_.clear();
+  }
+  c.tiles = map.CopyTiles(c.keys);
+  return c;
+}
+
+Status MapPersistence::Write(CapturedCheckpoint captured) {
+  if (captured.version <= store_->checkpoint_version() && captured.keys.empty()) {
+    return Status::Ok();
+  }
+  std::vector<storage::TileUpdate> updates;
+  updates.reserve(captured.keys.size());
+  for (size_t i = 0; i < captured.keys.size(); ++i) {
+    updates.push_back({captured.keys[i], captured.tiles[i].get()});
+  }
+  Status s = store_->Checkpoint(captured.version, updates);
+  if (!s.ok()) {
+    // The log still holds these changes; the next checkpoint writes the tiles again.
+    std::lock_guard lock(dirty_mu_);
+    dirty_.insert(captured.keys.begin(), captured.keys.end());
+  }
+  return s;
+}
+
+std::string MapPersistence::durability() const {
+  return std::string(storage::DurabilityName(store_->options().durability));
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,68 @@
+// The served map's persistent store (storage/): opens and recovers it at start, journals every
+// change to the scan log before it is applied, and writes checkpoints of the changed tiles.
+//
+// Checkpoints are two steps so that ingestion stalls only for a copy: Capture() runs at a
+// scheduler barrier (no change in flight) and copies the tiles changed since the last
+// checkpoint; Write() then stores them with TileStore::Checkpoint outside the barrier.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/server/server_config.h"
+#include "bgkmap/storage/recovery.h"
+#include "bgkmap/storage/tile_store.h"
+#include "map_store.h"
+#include "scan_scheduler.h"
+
+namespace bgkmap {
+
+// Tiles copied at a barrier, ready to be written.
+struct CapturedCheckpoint {
+  uint64_t version = 0;
+  std::vector<TileKey> keys;
+  std::vector<std::unique_ptr<Tile>> tiles;  // null: the tile is gone (cleared)
+};
+
+class MapPersistence final : public ChangeJournal {
+ public:
+  // Opens (or creates) the store in config.data_dir, brings `map` (empty, created with
+  // `params`) to the store's latest state and loads every other stored tile. The error is the
+  // store's own one-line message.
+  static Result<std::unique_ptr<MapPersistence>> Open(const StorageConfig& config,
+                                                      const MapParams& params, TerrainMap& map);
+
+  // ChangeJournal: appends the change to the scan log (durable as configured); marks tiles.
+  Status Record(const ChangeRecord& change) override;
+  void Applied(std::span<const TileKey> tiles) override;
+
+  // At a barrier: copies the tiles changed since the last capture; `version` is the applied
+  // version (every change up to it is in the map, none above).
+  CapturedCheckpoint Capture(const MapStore& map, uint64_t version);
+  // Outside the barrier. On failure the tiles stay marked for the next checkpoint.
+  Status Write(CapturedCheckpoint captured);
+
+  const storage::RecoveryReport& recovery() const { return recovery_; }
+  uint64_t map_version() const { return store_->map_version(); }
+  std::map<std::string, uint64_t> RobotSequences() const { return store_->log().RobotSequences(); }
+  uint64_t checkpoint_version() const { return store_->checkpoint_version(); }
+  std::vector<TileKey> CorruptTiles() const { return store_->CorruptTiles(); }
+  const std::string& directory() const { return store_->directory(); }
+  std::string durability() const;
+  storage::StoreCounters counters() const { return store_->counters(); }
+
+ private:
+  explicit MapPersistence(std::unique_ptr<storage::TileStore> store) : store_(std::move(store)) {}
+
+  std::unique_ptr<storage::TileStore> store_;
+  storage::RecoveryReport recovery_;
+  std::mutex dirty_mu_;
+  std::set<TileKey> dirty_;  // changed since the last capture
+};
+
+}  // namespace bgkmap
