@@ -99,7 +99,7 @@ Status MapServer::Impl::Checkpoint() {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (s.ok()) {
-    spdlog::debug("event=checkpoint version={} tiles={} seconds={:.3f}", version, tiles, seconds);
+    spdlog::info("event=checkpoint version={} tiles={} seconds={:.3f}", version, tiles, seconds);
   } else {
     spdlog::error("event=checkpoint_failed version={} reason=\"{}\"", version, s.message());
   }

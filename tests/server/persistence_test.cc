@@ -2,6 +2,7 @@
 // duplicate detection; a SIGKILL at a random moment loses no acknowledged scan and the restarted
 // map is exactly the replay of the scans it reports applied; incompatible parameters are refused.
 #include <gtest/gtest.h>
+#include <rocksdb/db.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -14,6 +15,7 @@
 #include <random>
 #include <thread>
 
+#include "bgkmap/storage/tile_store.h"
 #include "bgkmapd_process.h"
 #include "test_support.h"
 
@@ -159,6 +161,89 @@ TEST(PersistenceTest, IncompatibleParametersAreRefusedNamingTheKey) {
   EXPECT_NE(server.Wait(), 0);
   const std::string line = server.FindLine("event=start_failed");
   EXPECT_NE(line.find("resolution"), std::string::npos) << line;
+}
+
+// Flips a byte of the first stored tile with RocksDB directly, as a disk error would; returns
+// its key.
+TileKey CorruptFirstTile(const std::string& dir) {
+  {
+    // Tiles into SST files first, as they are after a while in service.
+    auto store = storage::TileStore::OpenExisting(dir, {});
+    EXPECT_TRUE(store.ok()) << store.status().ToString();
+    EXPECT_TRUE(store.ok() && (*store)->Compact().ok());
+  }
+  std::vector<std::string> names;
+  EXPECT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &names).ok());
+  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
+  for (const auto& n : names) descriptors.emplace_back(n, rocksdb::ColumnFamilyOptions());
+  std::vector<rocksdb::ColumnFamilyHandle*> handles;
+  rocksdb::DB* raw = nullptr;
+  EXPECT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
+  std::unique_ptr<rocksdb::DB> db(raw);
+  rocksdb::ColumnFamilyHandle* tiles = nullptr;
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (names[i] == "tiles") tiles = handles[i];
+  }
+  TileKey key;
+  if (tiles != nullptr) {
+    std::unique_ptr<rocksdb::Iterator> it(db->NewIterator(rocksdb::ReadOptions(), tiles));
+    it->SeekToFirst();
+    if (!it->Valid()) {
+      ADD_FAILURE() << "no stored tile: " << it->status().ToString();
+      return key;
+    }
+    const std::string k = it->key().ToString();
+    std::string value = it->value().ToString();
+    // The store's key layout: x and y as big-endian u32 with the sign bit flipped.
+    auto coord = [&](size_t at) {
+      uint32_t v = 0;
+      for (size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<uint8_t>(k[at + i]);
+      return static_cast<int>(v ^ 0x80000000u);
+    };
+    key = {coord(0), coord(4)};
+    value[value.size() / 2] ^= 0x20;
+    EXPECT_TRUE(db->Put(rocksdb::WriteOptions(), tiles, k, value).ok());
+  }
+  for (auto* h : handles) db->DestroyColumnFamilyHandle(h);
+  db->Close();
+  return key;
+}
+
+TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
+  TempDir dir;
+  const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 3);
+  {
+    BgkmapdProcess server({"--data-dir", dir.str()});
+    ASSERT_TRUE(server.started());
+    Client client(server.target());
+    std::vector<ScanData> data;
+    for (const OwnedScan& s : scans) data.push_back(s.Data());
+    ASSERT_TRUE(client.IngestAll(data).ok());
+    server.Signal(SIGTERM);  // the last checkpoint writes every tile
+    ASSERT_EQ(server.Wait(), 0);
+  }
+  const TileKey victim = CorruptFirstTile(dir.str());
+  BgkmapdProcess server({"--data-dir", dir.str()});
+  ASSERT_TRUE(server.started());
+  EXPECT_NE(server.FindLine("corrupt_tiles=1"), "");
+  Client client(server.target());
+  RpcResult<MapInfo> info = client.Info();
+  ASSERT_TRUE(info.ok());
+  const double r = info->params.resolution, edge = info->params.tile_size * r;
+  const MetricBox on_victim = {victim.x * edge + r, victim.y * edge + r, (victim.x + 1) * edge - r,
+                               (victim.y + 1) * edge - r};
+  RpcResult<Raster> bad = client.QueryRegion({on_victim, {}, 1});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), RpcCode::kDataLoss);
+  const std::string name = "tile (" + std::to_string(victim.x) + ", " + std::to_string(victim.y);
+  EXPECT_NE(bad.status().message().find(name), std::string::npos) << bad.status().message();
+  const std::array<double, 2> point = {on_victim.min_x, on_victim.min_y};
+  RpcResult<PointValues> points = client.QueryPoints(std::span(&point, 1), {});
+  EXPECT_FALSE(points.ok());
+  // Other tiles still answer.
+  const MetricBox elsewhere = {on_victim.min_x + 3 * edge, on_victim.min_y,
+                               on_victim.max_x + 3 * edge, on_victim.max_y};
+  EXPECT_TRUE(client.QueryRegion({elsewhere, {}, 1}).ok());
 }
 
 // Kills bgkmapd at random moments while two robots stream with durability: sync.

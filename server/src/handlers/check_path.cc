@@ -4,6 +4,7 @@
 // in one atomic read.
 #include <cmath>
 
+#include "corrupt_tiles.h"
 #include "handlers/handlers.h"
 #include "proto_convert.h"
 #include "request_checks.h"
@@ -128,6 +129,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
   }
   first[n] = cells.size();
 
+  if (grpc::Status s = CheckNoCorruptTile(ctx, cells); !s.ok()) return s;
   const uint64_t version = ctx.scheduler.applied_version();
   const std::vector<CellEstimate> estimates = ctx.store.ReadCells(cells);  // one atomic read
   bool all_safe = true;

@@ -1,6 +1,7 @@
 // QueryPoints: the chosen layers at a batch of points, read atomically.
 #include <cmath>
 
+#include "corrupt_tiles.h"
 #include "handlers/handlers.h"
 #include "proto_convert.h"
 #include "request_checks.h"
@@ -28,6 +29,7 @@ grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
     if (grpc::Status s = CheckCoordinate(p.y(), field + ".y", ctx.limits); !s.ok()) return s;
     cells.push_back(g.CellAt(p.x(), p.y()));
   }
+  if (grpc::Status s = CheckNoCorruptTile(ctx, cells); !s.ok()) return s;
   const uint64_t version = ctx.scheduler.applied_version();
   const std::vector<CellEstimate> estimates = ctx.store.ReadCells(cells);
   for (Layer l : layers) response->add_layers(ToProto(l));

@@ -3,6 +3,7 @@
 // bands), then streamed without holding any lock, so a slow reader never blocks ingestion.
 #include <boost/asio/post.hpp>
 
+#include "corrupt_tiles.h"
 #include "handlers/handlers.h"
 #include "proto_convert.h"
 #include "request_checks.h"
@@ -77,6 +78,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
         !s.ok()) {
       return s;
     }
+    if (grpc::Status s = CheckNoCorruptTile(ctx_, box_); !s.ok()) return s;
     // A chunk holds whole rows; one row must fit in a message.
     const uint64_t row_bytes = static_cast<uint64_t>(box_.width() / stride_) * layers_.size() * 4;
     if (row_bytes + 4096 > ctx_.limits.max_message_bytes) {
