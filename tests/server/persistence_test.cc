@@ -147,6 +147,38 @@ TEST(PersistenceTest, RestartGivesTheSameMapRobotsAndDuplicates) {
   EXPECT_EQ(again->status, AckStatus::kDuplicate);
 }
 
+TEST(PersistenceTest, PeriodicCheckpointLeavesNothingToReplay) {
+  TempDir dir;
+  const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 6);
+  const std::vector<std::string> args = {"--data-dir", dir.str(), "--set",
+                                         "storage.checkpoint_interval_s=0.1"};
+  {
+    BgkmapdProcess server(args);
+    ASSERT_TRUE(server.started());
+    Client client(server.target());
+    std::vector<ScanData> data;
+    for (const OwnedScan& s : scans) data.push_back(s.Data());
+    ASSERT_TRUE(client.IngestAll(data).ok());
+    std::string line;
+    for (int i = 0; i < 100 && line.empty(); ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      line = server.FindLine("event=checkpoint version=6 ");
+    }
+    EXPECT_NE(line, "");
+    server.Signal(SIGKILL);  // no last checkpoint
+    server.Wait();
+  }
+  BgkmapdProcess server(args);
+  ASSERT_TRUE(server.started());
+  const std::string recovered = server.FindLine("event=recovered");
+  EXPECT_NE(recovered.find("checkpoint_version=6 "), std::string::npos) << recovered;
+  EXPECT_NE(recovered.find("scans_replayed=0 "), std::string::npos) << recovered;
+  RpcResult<MapInfo> info = Client(server.target()).Info();
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->map_version, 6u);
+  EXPECT_EQ(LastSequence(*info, "alpha"), 6u);
+}
+
 TEST(PersistenceTest, IncompatibleParametersAreRefusedNamingTheKey) {
   TempDir dir;
   {
@@ -260,8 +292,16 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   int trials = 0;
   for (; trials < 20; ++trials) {
     TempDir dir;
-    const std::vector<std::string> args = {"--data-dir", dir.str(), "--worker-threads",
-                                           "2",          "--set",   "storage.durability=sync"};
+    // Every other trial checkpoints while the robots stream: the kill also lands mid-checkpoint.
+    const std::vector<std::string> args = {"--data-dir",
+                                           dir.str(),
+                                           "--worker-threads",
+                                           "2",
+                                           "--set",
+                                           "storage.durability=sync",
+                                           "--set",
+                                           trials % 2 == 0 ? "storage.checkpoint_interval_s=0.05"
+                                                           : "storage.checkpoint_interval_s=30"};
     RobotRun a, b;
     {
       BgkmapdProcess server(args);
