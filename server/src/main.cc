@@ -94,14 +94,15 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e%z %^%l%$ %v");
 
   bgkmap::KeepLargeAllocationsInHeap();
+  // Signals are caught before the server starts: a SIGTERM right after "event=listening" (or
+  // during a long recovery) must still shut down gracefully, with the last checkpoint.
+  boost::asio::io_context io;
+  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   bgkmap::Result<std::unique_ptr<bgkmap::MapServer>> server = bgkmap::MapServer::Start(config);
   if (!server.ok()) {
     spdlog::error("event=start_failed reason=\"{}\"", server.status().message());
     return 1;
   }
-
-  boost::asio::io_context io;
-  boost::asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
     spdlog::info("event=signal signal={}", signal == SIGINT ? "SIGINT" : "SIGTERM");
