@@ -315,7 +315,10 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
       server.Wait();
     }
     BgkmapdProcess server(args);
-    ASSERT_TRUE(server.started());
+    if (!server.started()) {
+      for (const std::string& line : server.Log()) ADD_FAILURE() << line;
+    }
+    ASSERT_TRUE(server.started()) << "trial " << trials;
     Client client(server.target());
     RpcResult<MapInfo> info = client.Info();
     ASSERT_TRUE(info.ok());
@@ -356,6 +359,47 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   std::printf("beta=");
   for (const auto& [n, _] : served_b) std::printf("%zu ", static_cast<size_t>(n));
   std::printf("\n");
+}
+
+// Measurement, not a check (run with --gtest_also_run_disabled_tests): ingest rate of two
+// streaming robots in memory, with durability sync and periodic, and restart times.
+TEST(PersistenceTest, DISABLED_MeasureIngestAndRestart) {
+  const std::vector<OwnedScan> alpha = RobotScans("alpha", 0.0, 8, 150);
+  const std::vector<OwnedScan> beta = RobotScans("beta", kBetaShift, 8, 150);
+  for (const std::string mode : {"memory", "sync", "periodic"}) {
+    TempDir dir;
+    std::vector<std::string> args = {"--worker-threads", "2", "--set",
+                                     "storage.checkpoint_interval_s=3600"};
+    if (mode != "memory") {
+      args.insert(args.end(), {"--data-dir", dir.str(), "--set", "storage.durability=" + mode});
+    }
+    double seconds = 0;
+    {
+      BgkmapdProcess server(args);
+      ASSERT_TRUE(server.started());
+      RobotRun a, b;
+      const auto t0 = std::chrono::steady_clock::now();
+      std::thread ta([&] { Stream(server.target(), alpha, &a); });
+      std::thread tb([&] { Stream(server.target(), beta, &b); });
+      ta.join();
+      tb.join();
+      seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      EXPECT_EQ(LastAcked(a) + LastAcked(b), 300u);
+      server.Signal(SIGKILL);  // the log is replayed at the next start
+      server.Wait();
+    }
+    std::printf("%s: %.0f scans/s (300 scans of ~%zu points)\n", mode.c_str(), 300 / seconds,
+                alpha.front().points.size());
+    if (mode == "memory") continue;
+    for (int restart = 0; restart < 2; ++restart) {
+      BgkmapdProcess server(args);
+      ASSERT_TRUE(server.started());
+      std::printf("%s restart %d: %s\n", mode.c_str(), restart,
+                  server.FindLine("event=recovered").c_str());
+      server.Signal(SIGTERM);  // the last checkpoint: the second start replays nothing
+      EXPECT_EQ(server.Wait(), 0);
+    }
+  }
 }
 
 }  // namespace
