@@ -148,6 +148,10 @@ MapInfo FromProto(const v1::InfoResponse& r) {
                  l.max_message_bytes(),
                  l.max_inflight_scans_per_stream()};
   info.server_version = r.server_version();
+  if (r.has_storage()) {
+    info.storage = StorageInfo{r.storage().data_dir(), r.storage().durability(),
+                               r.storage().checkpoint_version(), r.storage().corrupt_tiles()};
+  }
   return info;
 }
 

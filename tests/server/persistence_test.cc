@@ -138,6 +138,11 @@ TEST(PersistenceTest, RestartGivesTheSameMapRobotsAndDuplicates) {
   EXPECT_EQ(info->tile_count, info_before.tile_count);
   EXPECT_EQ(info->known_cells, info_before.known_cells);
   EXPECT_EQ(LastSequence(*info, "alpha"), scans.size());
+  ASSERT_TRUE(info->storage.has_value());
+  EXPECT_EQ(info->storage->data_dir, dir.str());
+  EXPECT_EQ(info->storage->durability, "sync");
+  EXPECT_EQ(info->storage->checkpoint_version, info_before.map_version);
+  EXPECT_EQ(info->storage->corrupt_tiles, 0u);
   RpcResult<Raster> after = client.QueryRegion({box, {}, 1});
   ASSERT_TRUE(after.ok());
   EXPECT_TRUE(BitwiseEqual(before, *after));
@@ -261,6 +266,8 @@ TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
   Client client(server.target());
   RpcResult<MapInfo> info = client.Info();
   ASSERT_TRUE(info.ok());
+  ASSERT_TRUE(info->storage.has_value());
+  EXPECT_EQ(info->storage->corrupt_tiles, 1u);
   const double r = info->params.resolution, edge = info->params.tile_size * r;
   const MetricBox on_victim = {victim.x * edge + r, victim.y * edge + r, (victim.x + 1) * edge - r,
                                (victim.y + 1) * edge - r};

@@ -169,6 +169,14 @@ struct ServerLimitsInfo {
   uint32_t max_inflight_scans_per_stream = 0;
 };
 
+// The server's map store (absent when the map lives in memory only).
+struct StorageInfo {
+  std::string data_dir;
+  std::string durability;  // "sync" | "periodic"
+  uint64_t checkpoint_version = 0;
+  uint64_t corrupt_tiles = 0;  // queries touching them fail with DATA_LOSS
+};
+
 struct MapInfo {
   MapParams params;
   std::string params_yaml;
@@ -181,6 +189,7 @@ struct MapInfo {
   std::vector<RobotInfo> robots;  // sorted by id
   ServerLimitsInfo limits;
   std::string server_version;
+  std::optional<StorageInfo> storage;
   const RobotInfo* FindRobot(const std::string& id) const;
 };
 
