@@ -73,11 +73,16 @@ Result<std::unique_ptr<MapPersistence>> MapPersistence::Open(const StorageConfig
 }
 
 Status MapPersistence::Record(const ChangeRecord& change) {
-  storage::LogRecord record =
-      change.scan != nullptr
-          ? storage::LogRecord::Scan(change.version, change.robot_id, change.sequence, change.scan,
-                                     change.stamp.seconds * 1'000'000'000 + change.stamp.nanos)
-          : storage::LogRecord::Clear(change.version, change.clear_box);
+  // The stamp is informational; a sender's absurd seconds must not overflow.
+  int64_t stamp_ns = 0;
+  if (__builtin_mul_overflow(change.stamp.seconds, int64_t{1'000'000'000}, &stamp_ns) ||
+      __builtin_add_overflow(stamp_ns, int64_t{change.stamp.nanos}, &stamp_ns)) {
+    stamp_ns = 0;
+  }
+  storage::LogRecord record = change.scan != nullptr
+                                  ? storage::LogRecord::Scan(change.version, change.robot_id,
+                                                             change.sequence, change.scan, stamp_ns)
+                                  : storage::LogRecord::Clear(change.version, change.clear_box);
   return store_->log().Append(record);
 }
 

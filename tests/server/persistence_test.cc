@@ -184,6 +184,17 @@ TEST(PersistenceTest, PeriodicCheckpointLeavesNothingToReplay) {
   EXPECT_EQ(LastSequence(*info, "alpha"), 6u);
 }
 
+TEST(PersistenceTest, PrintConfigShowsTheStorageSection) {
+  auto [code, out] = RunBgkmapd(
+      {"--data-dir", "/tmp/somewhere", "--set", "storage.durability=periodic", "--print-config"});
+  EXPECT_EQ(code, 0);
+  EXPECT_NE(out.find("storage:"), std::string::npos) << out;
+  EXPECT_NE(out.find("data_dir: /tmp/somewhere"), std::string::npos) << out;
+  EXPECT_NE(out.find("durability: periodic"), std::string::npos) << out;
+  EXPECT_NE(out.find("checkpoint_interval_s: 30"), std::string::npos) << out;
+  EXPECT_EQ(RunBgkmapd({"--set", "storage.durability=never", "--print-config"}).first, 2);
+}
+
 TEST(PersistenceTest, IncompatibleParametersAreRefusedNamingTheKey) {
   TempDir dir;
   {
