@@ -184,6 +184,62 @@ TEST(PersistenceTest, PeriodicCheckpointLeavesNothingToReplay) {
   EXPECT_EQ(LastSequence(*info, "alpha"), 6u);
 }
 
+// A clear replayed from the log after kill -9 erases its tiles for good: they must not come back
+// from the stored checkpoint when the other tiles are loaded, at this start or the next.
+TEST(PersistenceTest, ClearReplayedAfterSigkillStaysCleared) {
+  TempDir dir;
+  const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 6);
+  const std::vector<std::string> args = {"--data-dir", dir.str()};
+  const MetricBox wide = BoxAround(scans.front(), 25.6);
+  const MetricBox cleared = BoxAround(scans.front(), 12.8);
+  Raster before;
+  MapInfo info_before;
+  {
+    BgkmapdProcess server(args);
+    ASSERT_TRUE(server.started());
+    Client client(server.target());
+    std::vector<ScanData> data;
+    for (const OwnedScan& s : scans) data.push_back(s.Data());
+    ASSERT_TRUE(client.IngestAll(data).ok());
+    server.Signal(SIGTERM);  // a checkpoint holding the tiles the clear will erase
+    ASSERT_EQ(server.Wait(), 0);
+  }
+  {
+    BgkmapdProcess server(args);
+    ASSERT_TRUE(server.started());
+    Client client(server.target());
+    RpcResult<ClearResult> clear = client.ClearRegion(cleared);
+    ASSERT_TRUE(clear.ok());
+    RpcResult<Raster> r = client.QueryRegion({wide, {}, 1});
+    ASSERT_TRUE(r.ok());
+    before = *r;
+    RpcResult<MapInfo> info = client.Info();
+    ASSERT_TRUE(info.ok());
+    info_before = *info;
+    server.Signal(SIGKILL);  // the clear is only in the log
+    server.Wait();
+  }
+  for (int start = 0; start < 2; ++start) {
+    BgkmapdProcess server(args);
+    ASSERT_TRUE(server.started());
+    if (start == 0) {
+      const std::string line = server.FindLine("event=recovered");
+      EXPECT_NE(line.find("clears_replayed=1"), std::string::npos) << line;
+    }
+    Client client(server.target());
+    RpcResult<MapInfo> info = client.Info();
+    ASSERT_TRUE(info.ok());
+    EXPECT_EQ(info->map_version, info_before.map_version) << "start " << start;
+    EXPECT_EQ(info->tile_count, info_before.tile_count) << "start " << start;
+    EXPECT_EQ(info->known_cells, info_before.known_cells) << "start " << start;
+    RpcResult<Raster> r = client.QueryRegion({wide, {}, 1});
+    ASSERT_TRUE(r.ok());
+    EXPECT_TRUE(BitwiseEqual(before, *r)) << "start " << start;
+    server.Signal(SIGKILL);
+    server.Wait();
+  }
+}
+
 TEST(PersistenceTest, PrintConfigShowsTheStorageSection) {
   auto [code, out] = RunBgkmapd(
       {"--data-dir", "/tmp/somewhere", "--set", "storage.durability=periodic", "--print-config"});
