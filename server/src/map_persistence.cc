@@ -83,7 +83,16 @@ Status MapPersistence::Record(const ChangeRecord& change) {
                                   ? storage::LogRecord::Scan(change.version, change.robot_id,
                                                              change.sequence, change.scan, stamp_ns)
                                   : storage::LogRecord::Clear(change.version, change.clear_box);
-  return store_->log().Append(record);
+  Status s = store_->log().Append(record);
+  if (s.code() == Status::Code::kIoError) write_failed_.store(true);
+  return s;
+}
+
+Status MapPersistence::ResumeIfFailed() {
+  if (!write_failed_.load() && store_->log().write_failure().ok()) return Status::Ok();
+  Status s = store_->Resume();
+  if (s.ok()) write_failed_.store(false);
+  return s;
 }
 
 void MapPersistence::Applied(std::span<const TileKey> tiles) {

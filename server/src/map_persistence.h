@@ -6,6 +6,7 @@
 // checkpoint; Write() then stores them with TileStore::Checkpoint outside the barrier.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -47,6 +48,12 @@ class MapPersistence final : public ChangeJournal {
   // Outside the barrier. On failure the tiles stay marked for the next checkpoint.
   Status Write(CapturedCheckpoint captured);
 
+  // After a failed write the store refuses every write until it is resumed. Call at a barrier:
+  // TileStore::Resume() needs no other call in flight, and only changes call the store.
+  // OK if nothing had failed or the store accepts writes again.
+  Status ResumeIfFailed();
+  bool write_failed() const { return write_failed_.load(); }
+
   const storage::RecoveryReport& recovery() const { return recovery_; }
   uint64_t map_version() const { return store_->map_version(); }
   std::map<std::string, uint64_t> RobotSequences() const { return store_->log().RobotSequences(); }
@@ -61,6 +68,7 @@ class MapPersistence final : public ChangeJournal {
 
   std::unique_ptr<storage::TileStore> store_;
   storage::RecoveryReport recovery_;
+  std::atomic<bool> write_failed_{false};
   std::mutex dirty_mu_;
   std::set<TileKey> dirty_;  // changed since the last capture
 };

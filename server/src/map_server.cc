@@ -9,6 +9,7 @@
 #include <malloc.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
 #include <condition_variable>
@@ -89,6 +90,14 @@ Status MapServer::Impl::Checkpoint() {
   std::promise<CapturedCheckpoint> captured;
   std::future<CapturedCheckpoint> ready = captured.get_future();
   scheduler.SubmitBarrier([this, &captured](uint64_t applied) {
+    if (persistence->write_failed()) {
+      const Status resumed = persistence->ResumeIfFailed();
+      if (resumed.ok()) {
+        spdlog::info("event=storage_resumed");
+      } else {
+        spdlog::warn("event=storage_resume_failed reason=\"{}\"", resumed.message());
+      }
+    }
     captured.set_value(persistence->Capture(store, applied));
   });
   CapturedCheckpoint c = ready.get();
@@ -110,10 +119,19 @@ void MapServer::Impl::CheckpointLoop() {
   const auto interval = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double>(config.storage.checkpoint_interval_s));
   std::unique_lock lock(checkpoint_mu);
-  while (!checkpoint_cv.wait_for(lock, interval, [this] { return stop_checkpoints; })) {
+  // After a write failure, checkpoint (which first resumes the store) every second rather than
+  // every interval, so ingestion comes back soon after the disk has room.
+  const auto tick =
+      std::clamp(interval, std::chrono::milliseconds(1), std::chrono::milliseconds(1000));
+  auto last = std::chrono::steady_clock::now();
+  while (!checkpoint_cv.wait_for(lock, tick, [this] { return stop_checkpoints; })) {
+    if (!persistence->write_failed() && std::chrono::steady_clock::now() - last < interval) {
+      continue;
+    }
     lock.unlock();
     (void)Checkpoint();  // a failure is logged; the log keeps the changes
     lock.lock();
+    last = std::chrono::steady_clock::now();
   }
 }
 
