@@ -6,6 +6,8 @@
 #include <string>
 #include <utility>
 
+#include "bgkmap/core/status.h"
+
 namespace bgkmap {
 
 // The google.rpc.Code values.
@@ -48,25 +50,6 @@ class RpcStatus {
 
 // A value or the RpcStatus explaining why there is none.
 template <typename T>
-class RpcResult {
- public:
-  RpcResult(T value) : value_(std::move(value)) {}  // NOLINT(google-explicit-constructor)
-  RpcResult(RpcStatus status)
-      : status_(std::move(status)) {}  // NOLINT(google-explicit-constructor)
-
-  bool ok() const { return value_.has_value(); }
-  const RpcStatus& status() const { return status_; }
-  T& value() & { return *value_; }
-  const T& value() const& { return *value_; }
-  T&& value() && { return std::move(*value_); }
-  T* operator->() { return &*value_; }
-  const T* operator->() const { return &*value_; }
-  T& operator*() & { return *value_; }
-  const T& operator*() const& { return *value_; }
-
- private:
-  std::optional<T> value_;
-  RpcStatus status_;
-};
+using RpcResult = Result<T, RpcStatus>;
 
 }  // namespace bgkmap

@@ -42,15 +42,16 @@ class Status {
   std::string message_;
 };
 
-// A value or the Status explaining why there is none.
-template <typename T>
+// A value or the error explaining why there is none. E is Status in the engine and storage;
+// the client uses the same template with its gRPC status (bgkmap::RpcResult).
+template <typename T, typename E = Status>
 class Result {
  public:
-  Result(T value) : value_(std::move(value)) {}          // NOLINT(google-explicit-constructor)
-  Result(Status status) : status_(std::move(status)) {}  // NOLINT(google-explicit-constructor)
+  Result(T value) : value_(std::move(value)) {}     // NOLINT(google-explicit-constructor)
+  Result(E status) : status_(std::move(status)) {}  // NOLINT(google-explicit-constructor)
 
   bool ok() const { return value_.has_value(); }
-  const Status& status() const { return status_; }
+  const E& status() const { return status_; }
   T& value() & { return *value_; }
   const T& value() const& { return *value_; }
   T&& value() && { return std::move(*value_); }
@@ -61,7 +62,7 @@ class Result {
 
  private:
   std::optional<T> value_;
-  Status status_;
+  E status_;
 };
 
 }  // namespace bgkmap
