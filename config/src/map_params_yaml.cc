@@ -140,6 +140,11 @@ YAML::Node Number(double v) {
 
 }  // namespace
 
+Result<MapParams> LoadMapParamsFileOrDefaults(const std::string& path) {
+  if (path.empty()) return MapParams{};
+  return LoadMapParamsFile(path);
+}
+
 YAML::Node MapParamsToYaml(const MapParams& p) {
   YAML::Node n;
   n["resolution"] = Number(p.resolution);

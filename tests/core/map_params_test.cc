@@ -161,3 +161,16 @@ TEST(MapParamsTest, EmitsShortestRoundTripNumbers) {
 
 }  // namespace
 }  // namespace bgkmap
+
+namespace bgkmap {
+namespace {
+
+TEST(MapParamsTest, NoConfigPathMeansDefaultsAndABadPathIsAnError) {
+  Result<MapParams> none = LoadMapParamsFileOrDefaults("");
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(YAML::Dump(MapParamsToYaml(*none)), YAML::Dump(MapParamsToYaml(MapParams{})));
+  EXPECT_FALSE(LoadMapParamsFileOrDefaults("/nonexistent/bgkmap.yaml").ok());
+}
+
+}  // namespace
+}  // namespace bgkmap

@@ -39,12 +39,9 @@ int Fail(const std::string& msg) {
 
 int RunBuild(const BuildOptions& o) {
   const auto start = std::chrono::steady_clock::now();
-  MapParams params;
-  if (!o.config.empty()) {
-    Result<MapParams> p = LoadMapParamsFile(o.config);
-    if (!p.ok()) return Fail(p.status().message());
-    params = *p;
-  }
+  Result<MapParams> loaded = LoadMapParamsFileOrDefaults(o.config);
+  if (!loaded.ok()) return Fail(loaded.status().message());
+  MapParams params = *loaded;
   if (!o.method.empty()) {
     Result<Method> m = ParseMethod(o.method);
     if (!m.ok()) return Fail(m.status().message());

@@ -80,12 +80,9 @@ Raster FigureLayers(const TerrainMap& map, const Raster& truth) {
 int RunEval(const EvalOptions& o) {
   namespace fs = std::filesystem;
   const auto start = Clock::now();
-  MapParams params;
-  if (!o.config.empty()) {
-    Result<MapParams> p = LoadMapParamsFile(o.config);
-    if (!p.ok()) return Fail(p.status().message());
-    params = *p;
-  }
+  Result<MapParams> loaded = LoadMapParamsFileOrDefaults(o.config);
+  if (!loaded.ok()) return Fail(loaded.status().message());
+  MapParams params = *loaded;
   if (!(o.rate_hz > 0)) return Fail("--rate must be > 0");
   std::vector<Method> methods;
   for (const std::string& name : o.methods) {

@@ -60,12 +60,9 @@ void ParallelFor(size_t n, int threads, io::ProgressBar& progress, Fn fn) {
 int RunSimulate(const SimulateOptions& o) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
-  MapParams params;
-  if (!o.config.empty()) {
-    Result<MapParams> p = LoadMapParamsFile(o.config);
-    if (!p.ok()) return Fail(p.status().message());
-    params = *p;
-  }
+  Result<MapParams> loaded = LoadMapParamsFileOrDefaults(o.config);
+  if (!loaded.ok()) return Fail(loaded.status().message());
+  MapParams params = *loaded;
   if (o.threads < 1) return Fail("--threads must be at least 1");
 
   sim::Scenario scenario;

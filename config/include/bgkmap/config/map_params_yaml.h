@@ -28,6 +28,10 @@ Result<YAML::Node> LoadYamlFile(const std::string& path);
 Result<MapParams> LoadMapParamsFile(const std::string& path,
                                     const std::vector<std::string_view>& other_sections = {});
 
+// An optional config file, as command-line tools take it: the built-in defaults when `path` is
+// empty, otherwise LoadMapParamsFile(path).
+Result<MapParams> LoadMapParamsFileOrDefaults(const std::string& path);
+
 // Every engine key with its value, in MapParamKeys() order.
 YAML::Node MapParamsToYaml(const MapParams& params);
 
