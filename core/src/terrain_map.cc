@@ -90,12 +90,11 @@ CellBox TerrainMap::KnownBounds() const {
   return box;
 }
 
-std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box) {
+std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version) {
   std::vector<TileKey> changed;
   if (box.empty()) return changed;
   const TileKey lo = geometry_.TileOf(box.min), hi = geometry_.TileOf(box.max);
   const int T = params_.tile_size;
-  ++version_;
   for (auto it = tiles_.begin(); it != tiles_.end();) {
     const TileKey key = it->first;
     if (key.x < lo.x || key.x > hi.x || key.y < lo.y || key.y > hi.y) {
@@ -112,7 +111,7 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box) {
         tile.a()[i] = tile.b()[i] = 0.0f;
       }
     }
-    tile.set_version(version_);
+    tile.set_version(version);
     changed.push_back(key);
     it = tile.Empty() ? tiles_.erase(it) : std::next(it);
   }

@@ -38,11 +38,7 @@ std::vector<TileKey> MapStore::ClearBox(const CellBox& box, uint64_t version) {
   const std::vector<TileKey> existing = ListTiles(g.TileOf(box.min), g.TileOf(box.max));
   TileLockTable::Guard tiles = tile_locks_.Lock(existing, {});
   std::unique_lock table(table_mu_);
-  std::vector<TileKey> changed = map_->ClearBox(box);
-  for (TileKey k : changed) {
-    if (Tile* t = map_->FindMutableTile(k)) t->set_version(version);
-  }
-  return changed;
+  return map_->ClearBox(box, version);
 }
 
 void MapStore::SetMapVersion(uint64_t version) {

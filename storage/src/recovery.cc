@@ -94,8 +94,8 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
           ++report.scans_replayed;
         } else {
           if (Status s = loader.EnsureBox(record->clear_box); !s.ok()) return s;
-          map.set_version(version - 1);  // ClearBox stamps the next version
-          map.ClearBox(record->clear_box);
+          map.ClearBox(record->clear_box, version);
+          map.set_version(version);
           ++report.clears_replayed;
         }
         return Status::Ok();

@@ -125,6 +125,24 @@ TEST(ScanIntegrationTest, ElevationStatisticsDoNotDependOnScanOrder) {
   }
 }
 
+TEST(ScanIntegrationTest, ClearBoxStampsTheVersionItIsGiven) {
+  auto map = NewMap();
+  const Eigen::Vector3d origin(0, 0, 1.0);
+  ASSERT_TRUE(
+      map->IntegrateScan(testing::SampleSurface(testing::RollingWithStep, origin, 4.0, 5000, 3),
+                         testing::At(origin))
+          .ok());
+  const CellBox left{map->KnownBounds().min, {0, 0}};
+  const std::vector<TileKey> changed = map->ClearBox(left, 42);
+  ASSERT_FALSE(changed.empty());
+  for (TileKey k : changed) {
+    if (const Tile* t = map->FindTile(k)) {  // tiles left empty are dropped
+      EXPECT_EQ(t->version(), 42u);
+    }
+  }
+  EXPECT_EQ(map->version(), 1u) << "an explicit version leaves the map's counter to the caller";
+}
+
 TEST(ScanIntegrationTest, RejectedScanLeavesTheMapUnchanged) {
   auto map = NewMap();
   const Eigen::Vector3d origin(0, 0, 1.0);
@@ -166,6 +184,7 @@ TEST(ScanIntegrationTest, ClearBoxForgetsCellsAndDropsEmptyTiles) {
   EXPECT_NE(map->Estimate({10, 0}).state, CellState::kUnknown);
   map->ClearBox(all);
   EXPECT_EQ(map->CountKnownCells(), 0);
+  EXPECT_EQ(map->version(), 3u);  // the scan, then two clears
   EXPECT_EQ(map->tile_count(), 0u);
 }
 

@@ -58,8 +58,11 @@ class TerrainMap {
   CellEstimate EstimateAt(double x, double y) const { return Estimate(geometry_.CellAt(x, y)); }
   int64_t CountKnownCells() const;
   CellBox KnownBounds() const;  // empty if no cell is known
-  // Zeroes the statistics of every cell inside `box`; returns the tiles that changed.
-  std::vector<TileKey> ClearBox(const CellBox& box);
+  // Zeroes the statistics of every cell inside `box`, stamps the changed tiles with `version`
+  // (like Integrate) and drops tiles left empty; returns the tiles that changed.
+  std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version);
+  // The same as the next change of this map: ClearBox(box, version() + 1), version() advanced.
+  std::vector<TileKey> ClearBox(const CellBox& box) { return ClearBox(box, ++version_); }
 
   // Bytes held by tile storage (what "bytes per known cell" divides).
   size_t TileMemoryBytes() const;
