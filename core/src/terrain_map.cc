@@ -65,6 +65,15 @@ void TerrainMap::AddTile(TileKey key, const Tile& tile) {
   dst.set_version(std::max(dst.version(), tile.version()));
 }
 
+void TerrainMap::SetTile(TileKey key, const Tile& tile) {
+  Tile& dst = GetOrCreateTile(key);
+  std::copy(tile.w().begin(), tile.w().end(), dst.w().begin());
+  std::copy(tile.s().begin(), tile.s().end(), dst.s().begin());
+  std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
+  std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
+  dst.set_version(tile.version());
+}
+
 CellEstimate TerrainMap::Estimate(CellIndex cell) const {
   const Tile* tile = FindTile(geometry_.TileOf(cell));
   if (tile == nullptr) return EstimateCell(params_, 0.0, 0.0, 0.0f, 0.0f);

@@ -102,6 +102,11 @@ void MapPersistence::Applied(std::span<const TileKey> tiles) {
 
 CapturedCheckpoint MapPersistence::Capture(const MapStore& map, uint64_t version) {
   CapturedCheckpoint c;
+  checkpoint_order_->acquire();
+  c.order = std::shared_ptr<std::binary_semaphore>(checkpoint_order_.get(),
+                                                   [keep = checkpoint_order_](auto* slot) {
+                                                     slot->release();
+                                                   });
   c.version = version;
   {
     std::lock_guard lock(dirty_mu_);

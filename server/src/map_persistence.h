@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <semaphore>
 #include <set>
 #include <string>
 #include <vector>
@@ -28,6 +29,10 @@ struct CapturedCheckpoint {
   uint64_t version = 0;
   std::vector<TileKey> keys;
   std::vector<std::unique_ptr<Tile>> tiles;  // null: the tile is gone (cleared)
+  // Checkpoints are written in the order they were captured: a later one must not land first
+  // and drop log records that an earlier, still unwritten one has not stored yet. Held from
+  // Capture() to the end of Write() (possibly on another thread, hence a semaphore).
+  std::shared_ptr<std::binary_semaphore> order;
 };
 
 class MapPersistence final : public ChangeJournal {
@@ -43,7 +48,8 @@ class MapPersistence final : public ChangeJournal {
   void Applied(std::span<const TileKey> tiles) override;
 
   // At a barrier: copies the tiles changed since the last capture; `version` is the applied
-  // version (every change up to it is in the map, none above).
+  // version (every change up to it is in the map, none above). Waits while an earlier capture
+  // is not written yet; the result must be passed to Write() (or dropped) promptly.
   CapturedCheckpoint Capture(const MapStore& map, uint64_t version);
   // Outside the barrier. On failure the tiles stay marked for the next checkpoint.
   Status Write(CapturedCheckpoint captured);
@@ -55,6 +61,7 @@ class MapPersistence final : public ChangeJournal {
   bool write_failed() const { return write_failed_.load(); }
 
   const storage::RecoveryReport& recovery() const { return recovery_; }
+  storage::TileStore& store() { return *store_; }
   uint64_t map_version() const { return store_->map_version(); }
   std::map<std::string, uint64_t> RobotSequences() const { return store_->log().RobotSequences(); }
   uint64_t checkpoint_version() const { return store_->checkpoint_version(); }
@@ -69,6 +76,8 @@ class MapPersistence final : public ChangeJournal {
   std::unique_ptr<storage::TileStore> store_;
   storage::RecoveryReport recovery_;
   std::atomic<bool> write_failed_{false};
+  std::shared_ptr<std::binary_semaphore> checkpoint_order_ =
+      std::make_shared<std::binary_semaphore>(1);
   std::mutex dirty_mu_;
   std::set<TileKey> dirty_;  // changed since the last capture
 };

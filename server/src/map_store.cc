@@ -47,6 +47,31 @@ void MapStore::SetMapVersion(uint64_t version) {
   if (version > map_->version()) map_->set_version(version);
 }
 
+void MapStore::AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,
+                        uint64_t version) {
+  std::unique_lock gate(gate_);
+  TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
+  std::unique_lock table(table_mu_);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    map_->AddTile(keys[i], *tiles[i]);
+    map_->FindMutableTile(keys[i])->set_version(version);
+  }
+}
+
+void MapStore::ReplaceTiles(std::span<const TileKey> keys,
+                            std::span<const std::unique_ptr<Tile>> tiles) {
+  std::unique_lock gate(gate_);
+  TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
+  std::unique_lock table(table_mu_);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    if (tiles[i] == nullptr) {
+      map_->EraseTile(keys[i]);
+    } else {
+      map_->SetTile(keys[i], *tiles[i]);
+    }
+  }
+}
+
 Raster MapStore::ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                             int stride) const {
   const GridGeometry& g = geometry();

@@ -46,6 +46,13 @@ class MapStore {
   ScanReport ApplyScan(const PreparedScan& scan, uint64_t version);
   std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version);
   void SetMapVersion(uint64_t version);
+  // Import: adds each tile's statistics into the map (a merge: sums) and stamps the tiles with
+  // `version`. Call at a scheduler barrier (no change in flight); readers see all or nothing.
+  void AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,
+                uint64_t version);
+  // Sets the tiles at `keys` to bitwise copies of `tiles` (null: no tile), e.g. to undo an
+  // AddTiles() whose checkpoint failed with copies taken by CopyTiles() before it. At a barrier.
+  void ReplaceTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles);
 
   // Readers.
   Raster ReadRegion(const CellBox& box, const std::vector<Layer>& layers, int stride) const;

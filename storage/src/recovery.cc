@@ -40,14 +40,7 @@ class TileLoader {
 
 }  // namespace
 
-void InstallTile(TerrainMap& map, TileKey key, const Tile& tile) {
-  Tile& dst = map.GetOrCreateTile(key);
-  std::copy(tile.w().begin(), tile.w().end(), dst.w().begin());
-  std::copy(tile.s().begin(), tile.s().end(), dst.s().begin());
-  std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
-  std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
-  dst.set_version(tile.version());
-}
+void InstallTile(TerrainMap& map, TileKey key, const Tile& tile) { map.SetTile(key, tile); }
 
 Result<bool> LoadTileInto(const TileStore& store, TileKey key, TerrainMap& map) {
   Result<std::unique_ptr<Tile>> tile = store.LoadTile(key);

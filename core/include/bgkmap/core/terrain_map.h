@@ -52,6 +52,9 @@ class TerrainMap {
   void ForEachTile(const std::function<void(TileKey, const Tile&)>& fn) const;
   // Adds `tile`'s statistics into the tile at `key` (creating it): the merge of two maps.
   void AddTile(TileKey key, const Tile& tile);
+  // Makes the tile at `key` a bitwise copy of `tile`, version included (AddTile onto an empty
+  // tile would not be: 0 + -0 is +0).
+  void SetTile(TileKey key, const Tile& tile);
 
   // Cells.
   CellEstimate Estimate(CellIndex cell) const;
