@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <utility>
@@ -34,34 +35,59 @@ Status SyncFile(const std::string& path) {
 
 }  // namespace
 
-MapArchiveWriter::MapArchiveWriter(std::string path, std::ofstream out)
-    : path_(std::move(path)), out_(std::move(out)) {}
+struct MapArchiveWriter::File {
+  std::string path;  // the final name; written as path + ".partial"
+  std::ofstream out;
+};
+
+MapArchiveWriter::MapArchiveWriter(ArchiveSink sink, std::unique_ptr<File> file)
+    : sink_(std::move(sink)), file_(std::move(file)) {}
 
 MapArchiveWriter::~MapArchiveWriter() {
-  if (!finished_) {
-    out_.close();
-    std::remove((path_ + ".partial").c_str());
+  if (file_ != nullptr && !finished_) {
+    file_->out.close();
+    std::remove((file_->path + ".partial").c_str());
   }
 }
 
 Result<std::unique_ptr<MapArchiveWriter>> MapArchiveWriter::Create(const std::string& path,
                                                                    const MapMetadata& metadata) {
-  std::ofstream out(path + ".partial", std::ios::binary | std::ios::trunc);
-  if (!out) return Status::IoError("cannot create " + path + ".partial");
-  std::unique_ptr<MapArchiveWriter> writer(new MapArchiveWriter(path, std::move(out)));
+  auto file = std::make_unique<File>();
+  file->path = path;
+  file->out.open(path + ".partial", std::ios::binary | std::ios::trunc);
+  if (!file->out) return Status::IoError("cannot create " + path + ".partial");
+  File* f = file.get();
+  ArchiveSink sink = [f](std::string_view bytes) {
+    f->out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    return f->out ? Status::Ok() : Status::IoError("writing " + f->path + ".partial failed");
+  };
+  std::unique_ptr<MapArchiveWriter> writer(new MapArchiveWriter(std::move(sink), std::move(file)));
+  if (Status s = writer->WriteHeader(metadata); !s.ok()) return s;
+  return writer;
+}
+
+Result<std::unique_ptr<MapArchiveWriter>> MapArchiveWriter::CreateForSink(
+    ArchiveSink sink, const MapMetadata& metadata) {
+  std::unique_ptr<MapArchiveWriter> writer(new MapArchiveWriter(std::move(sink), nullptr));
+  if (Status s = writer->WriteHeader(metadata); !s.ok()) return s;
+  return writer;
+}
+
+Status MapArchiveWriter::WriteHeader(const MapMetadata& metadata) {
   std::string header(kMagic, kMagicSize);
   const std::string meta = EncodeMetadata(metadata);
   ByteWriter w(&header);
   w.PutFixed32(static_cast<uint32_t>(meta.size()));
   w.PutBytes(meta);
-  if (Status s = writer->Write(header); !s.ok()) return s;
-  return writer;
+  return Emit(header);
 }
 
-Status MapArchiveWriter::Write(const std::string& bytes) {
-  crc_ = Crc32cExtend(crc_, bytes.data(), bytes.size());
-  out_.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  return out_ ? Status::Ok() : Status::IoError("writing " + path_ + ".partial failed");
+Status MapArchiveWriter::Emit(std::string_view bytes, bool checksummed) {
+  if (!status_.ok()) return status_;
+  if (checksummed) crc_ = Crc32cExtend(crc_, bytes.data(), bytes.size());
+  status_ = sink_(bytes);
+  if (status_.ok()) bytes_ += bytes.size();
+  return status_;
 }
 
 Status MapArchiveWriter::Add(TileKey key, const Tile& tile) {
@@ -73,8 +99,9 @@ Status MapArchiveWriter::Add(TileKey key, const Tile& tile) {
   w.PutFixed32(static_cast<uint32_t>(key.y));
   w.PutFixed32(static_cast<uint32_t>(encoded.size()));
   w.PutBytes(encoded);
+  if (Status s = Emit(entry); !s.ok()) return s;
   ++tiles_;
-  return Write(entry);
+  return Status::Ok();
 }
 
 Status MapArchiveWriter::Finish() {
@@ -82,21 +109,26 @@ Status MapArchiveWriter::Finish() {
   ByteWriter w(&trailer);
   w.PutU8('E');
   w.PutFixed64(tiles_);
-  if (Status s = Write(trailer); !s.ok()) return s;
+  if (Status s = Emit(trailer); !s.ok()) return s;
   std::string crc;
   ByteWriter(&crc).PutFixed32(crc_);
-  out_.write(crc.data(), 4);
-  out_.close();
-  if (!out_) return Status::IoError("writing " + path_ + ".partial failed");
-  if (Status s = SyncFile(path_ + ".partial"); !s.ok()) return s;
-  if (std::rename((path_ + ".partial").c_str(), path_.c_str()) != 0) {
-    return Status::IoError("cannot rename " + path_ + ".partial to " + path_);
+  if (Status s = Emit(crc, /*checksummed=*/false); !s.ok()) return s;
+  if (file_ != nullptr) {
+    const std::string partial = file_->path + ".partial";
+    file_->out.close();
+    if (!file_->out) return status_ = Status::IoError("writing " + partial + " failed");
+    if (Status s = SyncFile(partial); !s.ok()) return status_ = s;
+    if (std::rename(partial.c_str(), file_->path.c_str()) != 0) {
+      return status_ = Status::IoError("cannot rename " + partial + " to " + file_->path);
+    }
   }
   finished_ = true;
   return Status::Ok();
 }
 
 bool MapArchiveReader::Read(size_t n, std::string* bytes) {
+  if (n > remaining_) return false;  // a damaged length must not allocate beyond the file
+  remaining_ -= n;
   bytes->resize(n);
   in_.read(bytes->data(), static_cast<std::streamsize>(n));
   if (static_cast<size_t>(in_.gcount()) != n) return false;
@@ -108,6 +140,9 @@ Result<std::unique_ptr<MapArchiveReader>> MapArchiveReader::Open(const std::stri
   std::unique_ptr<MapArchiveReader> reader(new MapArchiveReader());
   reader->in_.open(path, std::ios::binary);
   if (!reader->in_) return Status::IoError("cannot open " + path);
+  reader->in_.seekg(0, std::ios::end);
+  reader->remaining_ = static_cast<uint64_t>(std::max<std::streamoff>(reader->in_.tellg(), 0));
+  reader->in_.seekg(0, std::ios::beg);
   std::string bytes;
   if (!reader->Read(kMagicSize + 4, &bytes) || bytes.compare(0, kMagicSize, kMagic) != 0) {
     return Status::DataLoss(path + " is not a bgkmap map archive");
@@ -137,6 +172,10 @@ Result<bool> MapArchiveReader::Next(TileKey* key, std::unique_ptr<Tile>* tile) {
     if (in_.gcount() != 4 || Fixed32(stored, 0) != computed || n != tiles_) {
       return Status::DataLoss("map archive trailer does not verify (" + std::to_string(tiles_) +
                               " tiles read)");
+    }
+    if (remaining_ != 4) {
+      return Status::DataLoss("map archive has " + std::to_string(remaining_ - 4) +
+                              " unexpected bytes after its trailer");
     }
     done_ = true;
     return false;

@@ -190,18 +190,24 @@ void TileStore::MarkCorrupt(TileKey key) const {
 }
 
 Result<std::unique_ptr<Tile>> TileStore::LoadTile(TileKey key) const {
+  return LoadTileAt(key, nullptr);
+}
+
+Result<std::unique_ptr<Tile>> TileStore::LoadTileAt(TileKey key,
+                                                    const rocksdb::Snapshot* snapshot) const {
   rocksdb::PinnableSlice value;
   rocksdb::ReadOptions read;
   read.verify_checksums = true;
+  read.snapshot = snapshot;
   const rocksdb::Status s = db_->db->Get(read, db_->tiles, TileKeyBytes(key), &value);
   if (s.IsNotFound()) return std::unique_ptr<Tile>();
   if (!s.ok()) {
-    if (s.IsCorruption()) MarkCorrupt(key);
+    if (s.IsCorruption() && snapshot == nullptr) MarkCorrupt(key);
     return FromRocks(s, "reading tile " + TileKeyName(key));
   }
   Result<std::unique_ptr<Tile>> tile = DecodeTile(value.ToStringView(), params_.tile_size);
   if (!tile.ok()) {
-    if (tile.status().code() == Status::Code::kDataLoss) MarkCorrupt(key);
+    if (tile.status().code() == Status::Code::kDataLoss && snapshot == nullptr) MarkCorrupt(key);
     return Status(
         tile.status().code() == Status::Code::kDataLoss
             ? Status::DataLoss("tile " + TileKeyName(key) + ": " + tile.status().message())
@@ -270,10 +276,16 @@ Result<std::vector<StoredTileInfo>> TileStore::ListTiles() const {
 }
 
 Result<std::vector<StoredTileInfo>> TileStore::ListTiles(TileKey min, TileKey max) const {
+  return ListTilesAt(min, max, nullptr);
+}
+
+Result<std::vector<StoredTileInfo>> TileStore::ListTilesAt(
+    TileKey min, TileKey max, const rocksdb::Snapshot* snapshot) const {
   std::vector<StoredTileInfo> out;
   if (min.x > max.x || min.y > max.y) return out;
-  std::unique_ptr<rocksdb::Iterator> it(
-      db_->db->NewIterator(rocksdb::ReadOptions(), db_->tile_index));
+  rocksdb::ReadOptions read;
+  read.snapshot = snapshot;
+  std::unique_ptr<rocksdb::Iterator> it(db_->db->NewIterator(read, db_->tile_index));
   const std::string end = TileKeyBytes(max);
   for (it->Seek(TileKeyBytes(min)); it->Valid() && it->key().ToStringView() <= end; it->Next()) {
     StoredTileInfo info;
@@ -322,6 +334,10 @@ Status TileStore::Resume() {
   }
   // RocksDB cannot resume in place after a failed log write: reopen the database, which
   // replays its log up to the last complete record. Every acknowledged record is in it.
+  if (const int open = open_snapshots_.load(); open > 0) {
+    return Status::IoError("cannot reopen the store while " + std::to_string(open) +
+                           " snapshot(s) of it are open (an export is running); retry later");
+  }
   log_.reset();
   db_.reset();
   Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir_, options_);

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "bgkmap/storage/recovery.h"
+#include "bgkmap/storage/tile_snapshot.h"
 #include "store_test_util.h"
 
 namespace bgkmap::storage {
@@ -134,6 +135,33 @@ TEST(CorruptionTest, FlippedTileValueIsDataLossAndOtherTilesServe) {
   ASSERT_TRUE(store->Checkpoint(store->checkpoint_version(), {&rewrite, 1}).ok());
   EXPECT_TRUE(store->CorruptTiles().empty());
   EXPECT_TRUE(store->LoadTile(victim).ok());
+}
+
+TEST(CorruptionTest, FlippedTileValueReadThroughASnapshotIsDataLossNamingIt) {
+  TempDir dir;
+  BuildStore(dir.path());
+  TileKey victim;
+  {
+    auto store = std::move(TileStore::OpenExisting(dir.path(), {})).value();
+    victim = store->ListTiles()->at(2).key;
+  }
+  FlipStoredByte(dir.path(), "tiles", TileKeyBytes(victim), 40);
+
+  auto store = std::move(TileStore::OpenExisting(dir.path(), {})).value();
+  std::unique_ptr<TileSnapshot> snapshot = store->NewSnapshot();
+  Result<std::unique_ptr<Tile>> bad = snapshot->LoadTile(victim);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), Status::Code::kDataLoss);
+  const std::string name = "tile (" + std::to_string(victim.x) + ", " + std::to_string(victim.y);
+  EXPECT_NE(bad.status().message().find(name), std::string::npos) << bad.status().message();
+  // Only the store's own reads list a tile as corrupt; other tiles load through the snapshot.
+  EXPECT_TRUE(store->CorruptTiles().empty());
+  const std::vector<StoredTileInfo> listed = *snapshot->ListTiles();
+  for (const StoredTileInfo& t : listed) {
+    if (t.key != victim) {
+      EXPECT_TRUE(snapshot->LoadTile(t.key).ok());
+    }
+  }
 }
 
 TEST(CorruptionTest, FlippedLogRecordIsSkippedAndReported) {

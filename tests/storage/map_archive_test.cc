@@ -4,6 +4,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <set>
 
 #include "store_test_util.h"
 
@@ -115,6 +117,96 @@ TEST(MapArchiveTest, DamagedArchiveIsDataLossAndTheMapIsUntouched) {
   std::filesystem::resize_file(path, size - 3);
   auto target = NewMap(SmallParams());
   EXPECT_EQ(ImportMap(path, *target).status().code(), Status::Code::kDataLoss);
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void WriteFile(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(bytes.data(), static_cast<long>(bytes.size()));
+}
+
+// Every tile of `map` into `writer`, then the trailer.
+Status WriteAll(const TerrainMap& map, MapArchiveWriter& writer) {
+  Status status;
+  map.ForEachTile([&](TileKey k, const Tile& t) {
+    if (status.ok()) status = writer.Add(k, t);
+  });
+  return status.ok() ? writer.Finish() : status;
+}
+
+TEST(MapArchiveTest, SinkWriterWritesTheFileWritersBytes) {
+  TempDir dir;
+  const auto map = RobotMap(0, 5);
+  ASSERT_TRUE(ExportMap(*map, MetadataOf(*map), dir.Sub("file")).ok());
+  std::string streamed;
+  size_t calls = 0;
+  auto writer = MapArchiveWriter::CreateForSink(
+      [&](std::string_view bytes) {
+        streamed.append(bytes);
+        ++calls;
+        return Status::Ok();
+      },
+      MetadataOf(*map));
+  ASSERT_TRUE(writer.ok());
+  ASSERT_TRUE(WriteAll(*map, **writer).ok());
+  EXPECT_EQ((*writer)->tiles(), map->tile_count());
+  EXPECT_EQ((*writer)->bytes(), streamed.size());
+  EXPECT_GT(calls, map->tile_count());  // header, one call per tile, trailer
+  EXPECT_EQ(streamed, ReadFile(dir.Sub("file")));
+  // And it reads back as the map.
+  WriteFile(dir.Sub("streamed"), streamed);
+  auto imported = NewMap(SmallParams());
+  ASSERT_TRUE(ImportMap(dir.Sub("streamed"), *imported).ok());
+  EXPECT_TRUE(MapsIdentical(*map, *imported));
+}
+
+TEST(MapArchiveTest, SinkErrorStopsTheWriter) {
+  const auto map = RobotMap(0, 3);
+  std::string streamed;
+  auto writer = MapArchiveWriter::CreateForSink(
+      [&](std::string_view bytes) {
+        if (streamed.size() > 2000) return Status::IoError("peer went away");
+        streamed.append(bytes);
+        return Status::Ok();
+      },
+      MetadataOf(*map));
+  ASSERT_TRUE(writer.ok());
+  const Status s = WriteAll(*map, **writer);
+  EXPECT_EQ(s.code(), Status::Code::kIoError);
+  EXPECT_EQ(s.message(), "peer went away");
+  EXPECT_EQ((*writer)->Finish().message(), "peer went away");  // sticky
+  EXPECT_LT((*writer)->tiles(), map->tile_count());
+}
+
+TEST(MapArchiveTest, TrailingBytesAndAbsurdLengthsAreDataLoss) {
+  TempDir dir;
+  const auto map = RobotMap(0, 2);
+  const std::string path = dir.Sub("a");
+  ASSERT_TRUE(ExportMap(*map, MetadataOf(*map), path).ok());
+  const std::string good = ReadFile(path);
+
+  WriteFile(dir.Sub("trailing"), good + "xyz");
+  auto target = NewMap(SmallParams());
+  Result<ImportReport> r = ImportMap(dir.Sub("trailing"), *target);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(r.status().message().find("after its trailer"), std::string::npos);
+  EXPECT_EQ(target->tile_count(), 0u);
+
+  // A metadata length of 4 GiB in a tiny file: refused as truncated, nothing that large read.
+  std::string huge = good;
+  for (int i = 8; i < 12; ++i) huge[i] = static_cast<char>(0xff);
+  WriteFile(dir.Sub("huge"), huge);
+  EXPECT_EQ(ImportMap(dir.Sub("huge"), *target).status().code(), Status::Code::kDataLoss);
+
+  WriteFile(dir.Sub("text"), "this is not a map archive at all\n");
+  r = ImportMap(dir.Sub("text"), *target);
+  EXPECT_EQ(r.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(r.status().message().find("not a bgkmap map archive"), std::string::npos);
 }
 
 }  // namespace

@@ -7,8 +7,10 @@
 
 #include <cstdint>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
@@ -17,26 +19,44 @@
 
 namespace bgkmap::storage {
 
+// Receives an archive's bytes in order. A non-OK status stops the writer: every later call
+// returns it.
+using ArchiveSink = std::function<Status(std::string_view bytes)>;
+
+// Writes one archive, to a file or to any byte sink (e.g. a network stream). The encoding is the
+// same for both; only a file is synced and renamed into place.
 class MapArchiveWriter {
  public:
   // Starts `path` (written as path + ".partial" and renamed by Finish, so a reader never sees
   // half an archive). IoError if the file cannot be created.
   static Result<std::unique_ptr<MapArchiveWriter>> Create(const std::string& path,
                                                           const MapMetadata& metadata);
-  ~MapArchiveWriter();  // without Finish(): removes the partial file
+  // Starts an archive whose bytes go to `sink`: the header at once, each tile on Add(), the
+  // trailer on Finish(). The sink's error if it refuses the header.
+  static Result<std::unique_ptr<MapArchiveWriter>> CreateForSink(ArchiveSink sink,
+                                                                 const MapMetadata& metadata);
+  ~MapArchiveWriter();  // a file without Finish(): removes the partial file
 
   Status Add(TileKey key, const Tile& tile);
-  // Writes the trailer, syncs and renames into place.
+  // Writes the trailer; a file is then synced and renamed into place.
   Status Finish();
 
- private:
-  MapArchiveWriter(std::string path, std::ofstream out);
-  Status Write(const std::string& bytes);
+  uint64_t tiles() const { return tiles_; }
+  uint64_t bytes() const { return bytes_; }  // written so far
 
-  std::string path_;
-  std::ofstream out_;
+ private:
+  struct File;
+  MapArchiveWriter(ArchiveSink sink, std::unique_ptr<File> file);
+  Status WriteHeader(const MapMetadata& metadata);
+  // Passes `bytes` to the sink; `checksummed` bytes extend the trailer's CRC.
+  Status Emit(std::string_view bytes, bool checksummed = true);
+
+  ArchiveSink sink_;
+  std::unique_ptr<File> file_;  // null for a sink
+  Status status_;               // the first failure; sticky
   uint32_t crc_ = 0;
   uint64_t tiles_ = 0;
+  uint64_t bytes_ = 0;
   bool finished_ = false;
 };
 
@@ -56,6 +76,7 @@ class MapArchiveReader {
   bool Read(size_t n, std::string* bytes);
 
   std::ifstream in_;
+  uint64_t remaining_ = 0;  // bytes of the file not read yet: no length field reads past them
   MapMetadata metadata_;
   uint32_t crc_ = 0;
   uint64_t tiles_ = 0;

@@ -27,9 +27,14 @@
 #include "bgkmap/storage/scan_log.h"
 #include "bgkmap/storage/store_options.h"
 
+namespace rocksdb {
+class Snapshot;
+}
+
 namespace bgkmap::storage {
 
 struct StoreDb;
+class TileSnapshot;
 
 // One tile of a checkpoint. A null or all-zero tile deletes the key (a cleared tile).
 struct TileUpdate {
@@ -119,6 +124,11 @@ class TileStore {
   Result<std::vector<StoredTileInfo>> ListTiles() const;
   Result<std::vector<StoredTileInfo>> ListTiles(TileKey min, TileKey max) const;
 
+  // A read-only view of the stored tiles as of now (tile_snapshot.h): later checkpoints do not
+  // change what it lists or loads. Destroy it before the store; while one is open, Resume()
+  // cannot reopen the database (it retries later).
+  std::unique_ptr<TileSnapshot> NewSnapshot() const;
+
   // Tiles found corrupt since open and not rewritten since, sorted. Queries of these tiles
   // must not be answered from what the map holds for them.
   std::vector<TileKey> CorruptTiles() const;
@@ -150,6 +160,12 @@ class TileStore {
   // Takes over an opened database: reads the versions and robots, starts the log.
   Status Attach(std::unique_ptr<StoreDb> db);
   void MarkCorrupt(TileKey key) const;
+  // LoadTile() and ListTiles() as of `snapshot` (null: now). A corrupt tile found through a
+  // snapshot is not marked: a later checkpoint may have rewritten it.
+  friend class TileSnapshot;
+  Result<std::unique_ptr<Tile>> LoadTileAt(TileKey key, const rocksdb::Snapshot* snapshot) const;
+  Result<std::vector<StoredTileInfo>> ListTilesAt(TileKey min, TileKey max,
+                                                  const rocksdb::Snapshot* snapshot) const;
 
   std::string dir_;
   StoreOptions options_;
@@ -165,6 +181,7 @@ class TileStore {
   mutable std::mutex corrupt_mu_;
   mutable std::set<TileKey> corrupt_;  // until rewritten by a checkpoint
   mutable std::atomic<uint64_t> corrupt_found_{0};
+  mutable std::atomic<int> open_snapshots_{0};
 };
 
 }  // namespace bgkmap::storage
