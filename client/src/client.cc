@@ -1,12 +1,18 @@
 #include "bgkmap/client/client.h"
 
+#include <fcntl.h>
 #include <grpc/grpc.h>
 #include <grpcpp/channel.h>
 #include <grpcpp/client_context.h>
 #include <grpcpp/create_channel.h>
 #include <grpcpp/security/credentials.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
 #include <mutex>
 #include <thread>
 
@@ -355,6 +361,118 @@ RpcResult<ClearResult> Client::ClearRegion(const MetricBox& box) {
   for (const v1::TileKey& k : response.changed_tiles()) out.changed_tiles.push_back({k.x(), k.y()});
   out.map_version = response.map_version();
   return out;
+}
+
+namespace {
+
+constexpr size_t kArchiveChunkBytes = 1 << 20;
+
+RpcStatus FileError(const std::string& what, const std::string& path) {
+  return RpcStatus(RpcCode::kInvalidArgument, what + " " + path + ": " + std::strerror(errno));
+}
+
+// Flushes `path` to the disk, so a renamed archive survives a crash.
+bool SyncFile(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool ok = ::fsync(fd) == 0;
+  ::close(fd);
+  return ok;
+}
+
+}  // namespace
+
+RpcResult<ExportResult> Client::ExportMap(const std::optional<MetricBox>& box,
+                                          const std::string& path) {
+  v1::ExportRequest request;
+  if (box) ToProto(*box, request.mutable_box());
+  const std::string partial = path + ".partial";
+  std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+  if (!out) return FileError("cannot create", partial);
+  // Removes the partial file unless the archive was completed and renamed.
+  struct Cleanup {
+    const std::string& file;
+    bool keep = false;
+    ~Cleanup() {
+      if (!keep) std::remove(file.c_str());
+    }
+  } cleanup{partial};
+
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  std::unique_ptr<grpc::ClientReader<v1::ArchiveChunk>> reader =
+      impl_->stub->ExportMap(&context, request);
+  ExportResult result;
+  bool first = true, last = false;
+  RpcStatus problem;
+  v1::ArchiveChunk chunk;
+  while (reader->Read(&chunk)) {
+    if (!problem.ok()) continue;  // drain the stream before Finish()
+    if (first) result.map_version = chunk.map_version();
+    first = false;
+    if (last) {
+      problem = Malformed("archive chunk after the last one");
+      context.TryCancel();
+      continue;
+    }
+    out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
+    if (!out) {
+      problem = FileError("writing", partial);
+      context.TryCancel();
+      continue;
+    }
+    result.bytes += chunk.data().size();
+    if (chunk.last()) {
+      last = true;
+      result.tiles = chunk.tiles();
+    }
+  }
+  grpc::Status status = reader->Finish();
+  if (!problem.ok()) return problem;
+  if (!status.ok()) return FromGrpc(status);
+  if (!last) return Malformed("archive stream ended before its last chunk");
+  out.close();
+  if (!out || !SyncFile(partial)) return FileError("writing", partial);
+  if (std::rename(partial.c_str(), path.c_str()) != 0) return FileError("cannot rename to", path);
+  cleanup.keep = true;
+  return result;
+}
+
+RpcResult<ImportResult> Client::ImportMap(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return FileError("cannot open", path);
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  v1::ImportResponse response;
+  std::unique_ptr<grpc::ClientWriter<v1::ArchiveChunk>> writer =
+      impl_->stub->ImportMap(&context, &response);
+  v1::ArchiveChunk chunk;
+  std::string buffer(kArchiveChunkBytes, '\0');
+  RpcStatus problem;
+  for (;;) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    const std::streamsize n = in.gcount();
+    if (n > 0) {
+      chunk.set_data(buffer.data(), static_cast<size_t>(n));
+      if (!writer->Write(chunk)) break;  // the server ended the call: Finish() says why
+    }
+    if (in.eof()) break;
+    if (!in) {
+      problem = FileError("reading", path);
+      context.TryCancel();
+      break;
+    }
+  }
+  writer->WritesDone();
+  grpc::Status status = writer->Finish();
+  if (!problem.ok()) return problem;
+  if (!status.ok()) return FromGrpc(status);
+  ImportResult result;
+  result.tiles_added = response.tiles_added();
+  result.map_version = response.map_version();
+  result.known_cells = response.known_cells();
+  result.archive_map_version = response.archive_map_version();
+  return result;
 }
 
 RpcResult<std::optional<uint64_t>> Client::LastSequence(const std::string& robot_id) {

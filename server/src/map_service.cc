@@ -48,4 +48,14 @@ grpc::ServerUnaryReactor* MapService::ClearRegion(grpc::CallbackServerContext* c
   return StartClearRegion(ctx_, call, request, response);
 }
 
+grpc::ServerWriteReactor<v1::ArchiveChunk>* MapService::ExportMap(
+    grpc::CallbackServerContext* /*call*/, const v1::ExportRequest* request) {
+  return StartExportMap(ctx_, request);
+}
+
+grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(
+    grpc::CallbackServerContext* /*call*/, v1::ImportResponse* response) {
+  return StartImportMap(ctx_, response);
+}
+
 }  // namespace bgkmap

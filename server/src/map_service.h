@@ -29,6 +29,10 @@ class MapService final : public v1::MapService::CallbackService {
   grpc::ServerUnaryReactor* ClearRegion(grpc::CallbackServerContext* call,
                                         const v1::ClearRegionRequest* request,
                                         v1::ClearRegionResponse* response) override;
+  grpc::ServerWriteReactor<v1::ArchiveChunk>* ExportMap(grpc::CallbackServerContext* call,
+                                                        const v1::ExportRequest* request) override;
+  grpc::ServerReadReactor<v1::ArchiveChunk>* ImportMap(grpc::CallbackServerContext* call,
+                                                       v1::ImportResponse* response) override;
 
  private:
   ServiceContext& ctx_;

@@ -16,6 +16,8 @@ struct ScanScheduler::Job {
   std::function<void(ScanOutcome)> on_applied;
   std::function<void(uint64_t, std::vector<TileKey>, Status)> on_cleared;
   std::function<void(uint64_t)> on_barrier;
+  ExclusiveChange exclusive;  // with on_exclusive_done: an exclusive change
+  std::function<void(uint64_t, Status)> on_exclusive_done;
   int pending = 0;  // unfinished changes this one waits for
   std::vector<Job*> dependents;
 };
@@ -93,6 +95,20 @@ void ScanScheduler::SubmitBarrier(std::function<void(uint64_t)> fn) {
   if (ready != nullptr) PostReady({ready});
 }
 
+void ScanScheduler::SubmitExclusive(ExclusiveChange fn,
+                                    std::function<void(uint64_t, Status)> on_done) {
+  Job* ready = nullptr;
+  {
+    std::lock_guard lock(mu_);
+    auto job = std::make_unique<Job>();
+    job->exclusive = std::move(fn);
+    job->on_exclusive_done = std::move(on_done);
+    Job* j = AdmitLocked(std::move(job));  // no scan: ordered like a clear
+    if (j->pending == 0) ready = j;
+  }
+  if (ready != nullptr) PostReady({ready});
+}
+
 void ScanScheduler::Restore(uint64_t version,
                             const std::map<std::string, uint64_t>& robot_sequences) {
   std::lock_guard lock(mu_);
@@ -165,6 +181,16 @@ void ScanScheduler::Run(Job* job) {
     // Everything admitted before has finished, so the applied version covers all of it.
     job->on_barrier(applied_version());
     Finish(job, false);
+    return;
+  }
+  if (job->exclusive) {
+    // Not journaled: the change makes itself durable (or undoes itself) inside `exclusive`.
+    Result<std::vector<TileKey>> changed = job->exclusive(job->version);
+    auto callback = std::move(job->on_exclusive_done);
+    const uint64_t version = job->version;
+    Finish(job, changed.ok());
+    if (changed.ok() && on_tiles_changed_ && !changed->empty()) on_tiles_changed_(*changed);
+    if (callback) callback(version, changed.status());
     return;
   }
   ChangeRecord change;

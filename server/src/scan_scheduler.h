@@ -117,6 +117,14 @@ class ScanScheduler {
   // map version.
   void SubmitBarrier(std::function<void(uint64_t)> fn);
 
+  // An exclusive change that makes itself durable instead of going through the journal (an
+  // archive import): it takes the next map version and, like a clear, `fn(version)` runs on a
+  // worker once every change admitted before has finished and before any change admitted after
+  // starts. `fn` returns the tiles it changed (published to watchers once the change counts as
+  // applied) or why it changed nothing; then `on_done(version, status)` runs.
+  using ExclusiveChange = std::function<Result<std::vector<TileKey>>(uint64_t version)>;
+  void SubmitExclusive(ExclusiveChange fn, std::function<void(uint64_t, Status)> on_done);
+
   // Before anything is submitted: continue from a recovered map.
   void Restore(uint64_t version, const std::map<std::string, uint64_t>& robot_sequences);
   // Before anything is submitted; `journal` must outlive the scheduler's work.

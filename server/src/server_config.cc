@@ -123,6 +123,9 @@ const std::vector<ServerKey>& Keys() {
       Key<uint64_t>(
           "region_chunk_bytes",
           [](ServerConfig & c) -> auto& { return c.limits.region_chunk_bytes; }),
+      Key<uint64_t>(
+          "max_import_bytes",
+          [](ServerConfig & c) -> auto& { return c.limits.max_import_bytes; }),
   };
   return keys;
 }
@@ -282,6 +285,7 @@ Status ValidateServerConfig(const ServerConfig& c) {
   if (l.region_chunk_bytes < 4096 || l.region_chunk_bytes > l.max_message_bytes / 2) {
     return bad("region_chunk_bytes", "must be in [4096, max_message_bytes / 2]");
   }
+  if (l.max_import_bytes == 0) return bad("max_import_bytes", "must be > 0");
   const StorageConfig& st = c.storage;
   auto bad_storage = [](const std::string& key, const std::string& why) {
     return Status::InvalidArgument("storage." + key + ": " + why);

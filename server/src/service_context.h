@@ -93,6 +93,7 @@ struct ServiceContext {
   SessionRegistry sessions;
   std::atomic<uint32_t> queries{0};      // concurrent queries
   std::atomic<uint32_t> unary_scans{0};  // concurrent IngestScan calls
+  std::atomic<uint32_t> imports{0};      // ImportMap calls (one at a time)
   ByteBudget region_bytes{limits.max_region_bytes_in_flight};
   MapPersistence* persistence = nullptr;  // null: the map is in memory only
 };

@@ -16,8 +16,7 @@
 namespace bgkmap::storage {
 namespace {
 
-constexpr char kMagic[] = "BGKMAPA1";
-constexpr size_t kMagicSize = 8;
+constexpr size_t kMagicSize = kMapArchiveMagic.size();
 
 uint32_t Fixed32(const std::string& bytes, size_t at) {
   uint32_t v;
@@ -74,7 +73,7 @@ Result<std::unique_ptr<MapArchiveWriter>> MapArchiveWriter::CreateForSink(
 }
 
 Status MapArchiveWriter::WriteHeader(const MapMetadata& metadata) {
-  std::string header(kMagic, kMagicSize);
+  std::string header(kMapArchiveMagic);
   const std::string meta = EncodeMetadata(metadata);
   ByteWriter w(&header);
   w.PutFixed32(static_cast<uint32_t>(meta.size()));
@@ -144,7 +143,8 @@ Result<std::unique_ptr<MapArchiveReader>> MapArchiveReader::Open(const std::stri
   reader->remaining_ = static_cast<uint64_t>(std::max<std::streamoff>(reader->in_.tellg(), 0));
   reader->in_.seekg(0, std::ios::beg);
   std::string bytes;
-  if (!reader->Read(kMagicSize + 4, &bytes) || bytes.compare(0, kMagicSize, kMagic) != 0) {
+  if (!reader->Read(kMagicSize + 4, &bytes) ||
+      bytes.compare(0, kMagicSize, kMapArchiveMagic) != 0) {
     return Status::DataLoss(path + " is not a bgkmap map archive");
   }
   std::string meta;

@@ -28,6 +28,10 @@ grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerCon
 grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            const v1::ClearRegionRequest* request,
                                            v1::ClearRegionResponse* response);
+grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
+                                                           const v1::ExportRequest* request);
+grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
+                                                          v1::ImportResponse* response);
 
 // Runs `work` on the query pool under the concurrent-query limit and finishes `reactor` with its
 // status (RESOURCE_EXHAUSTED without running it when the limit is reached).

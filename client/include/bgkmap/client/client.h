@@ -198,6 +198,19 @@ struct ClearResult {
   uint64_t map_version = 0;
 };
 
+struct ExportResult {
+  uint64_t bytes = 0;        // of the archive file
+  uint64_t tiles = 0;        // in the archive
+  uint64_t map_version = 0;  // the archive is the map at exactly this version
+};
+
+struct ImportResult {
+  uint64_t tiles_added = 0;
+  uint64_t map_version = 0;          // of the import (one change)
+  uint64_t known_cells = 0;          // of the whole map once the import was done
+  uint64_t archive_map_version = 0;  // the version the archive was exported at
+};
+
 class Client {
  public:
   // `target`: "host:port" (any gRPC target string). Connects lazily.
@@ -227,6 +240,15 @@ class Client {
                                            std::function<void(const TileUpdate&)> on_update);
   RpcResult<MapInfo> Info();
   RpcResult<ClearResult> ClearRegion(const MetricBox& box);
+
+  // Admin: the whole map, or the cells meeting `box`, as one map archive at `path` (a
+  // consistent snapshot at one map version). Written to path + ".partial", synced, then renamed:
+  // `path` is either the complete archive or untouched; the partial file is removed on failure.
+  RpcResult<ExportResult> ExportMap(const std::optional<MetricBox>& box, const std::string& path);
+  // Admin: adds the archive at `path` into the served map: statistics are summed, so importing
+  // two robots' archives gives exactly their sum. Nothing changes unless the whole archive
+  // verifies (see ImportMap in map_service.proto for the status codes).
+  RpcResult<ImportResult> ImportMap(const std::string& path);
 
   // The last sequence number the server admitted for `robot_id` (nullopt: none yet), to resume
   // a stream after a restart.

@@ -34,6 +34,7 @@ struct ServerLimits {
   uint64_t max_region_bytes_in_flight = 1ull << 30;  // max_region_bytes_in_flight: rasters held
   uint64_t max_message_bytes = 64ull << 20;          // max_message_bytes: largest gRPC message
   uint64_t region_chunk_bytes = 1ull << 20;          // region_chunk_bytes: target chunk size
+  uint64_t max_import_bytes = 1ull << 30;  // max_import_bytes: largest archive ImportMap takes
 };
 
 // The `storage:` section: where and how the map is persisted (docs/storage.md).

@@ -19,6 +19,9 @@
 
 namespace bgkmap::storage {
 
+// The first bytes of every archive.
+inline constexpr std::string_view kMapArchiveMagic = "BGKMAPA1";
+
 // Receives an archive's bytes in order. A non-OK status stops the writer: every later call
 // returns it.
 using ArchiveSink = std::function<Status(std::string_view bytes)>;

@@ -1,0 +1,169 @@
+// ImportMap (admin): adds an uploaded archive's statistics into the served map, as one change.
+//
+//   1. The chunks are spooled to a file (the store's tmp/ directory, or the system's temporary
+//      directory for a map in memory), refusing more than server.max_import_bytes.
+//   2. The whole file is read and verified (archive_upload.h) before anything changes.
+//   3. The tiles are added as one exclusive change with its own map version, ordered like a
+//      clear. It is not written to the scan log (an archive can be huge): with a store the
+//      change checkpoints the map right away, and if that write fails the tiles are put back as
+//      they were and the call answers UNAVAILABLE, nothing imported.
+// The spool file is removed in every outcome. Robots' sequence numbers are not touched.
+#include <spdlog/spdlog.h>
+
+#include <boost/asio/post.hpp>
+#include <chrono>
+#include <filesystem>
+#include <optional>
+
+#include "archive_upload.h"
+#include "handlers/handlers.h"
+
+namespace bgkmap {
+namespace {
+
+class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
+ public:
+  ImportStream(ServiceContext& ctx, v1::ImportResponse* response) : ctx_(ctx), response_(response) {
+    permit_.emplace(ctx.imports, 1);
+    if (!*permit_) {
+      End({grpc::StatusCode::RESOURCE_EXHAUSTED, "an import is already running; retry later"});
+      return;
+    }
+    if (ctx.sessions.draining()) {
+      End({grpc::StatusCode::UNAVAILABLE, "server is shutting down"});
+      return;
+    }
+    std::string dir = std::filesystem::temp_directory_path().string();
+    if (ctx.persistence != nullptr) {
+      dir = ctx.persistence->directory() + "/tmp";
+      RemoveStaleSpoolFiles(dir);  // imports run one at a time: any other is a crash's leftover
+    }
+    Result<std::unique_ptr<SpoolFile>> spool = SpoolFile::Create(dir);
+    if (!spool.ok()) {
+      End({grpc::StatusCode::UNAVAILABLE,
+           "archive not imported: cannot spool it: " + spool.status().message()});
+      return;
+    }
+    spool_ = std::move(*spool);
+    start_ = std::chrono::steady_clock::now();
+    StartRead(&chunk_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {  // the client finished sending (or the call ended)
+      boost::asio::post(ctx_.query_pool, [this] { VerifyAndSubmit(); });
+      return;
+    }
+    if (spool_->size() + chunk_.data().size() > ctx_.limits.max_import_bytes) {
+      End({grpc::StatusCode::RESOURCE_EXHAUSTED, "archive: more than server.max_import_bytes = " +
+                                                     std::to_string(ctx_.limits.max_import_bytes) +
+                                                     " bytes; nothing imported"});
+      return;
+    }
+    boost::asio::post(ctx_.query_pool, [this] {
+      if (Status s = spool_->Append(chunk_.data()); !s.ok()) {
+        End({grpc::StatusCode::UNAVAILABLE, "archive not imported: " + s.message()});
+        return;
+      }
+      StartRead(&chunk_);
+    });
+  }
+
+  void OnCancel() override { cancelled_.store(true); }
+
+  void OnDone() override { delete this; }
+
+ private:
+  // Frees the import slot and the spool file before the client hears the outcome, so that its
+  // next import is not refused as concurrent with this one.
+  void End(const grpc::Status& status) {
+    spool_.reset();
+    permit_.reset();
+    Finish(status);
+  }
+
+  void VerifyAndSubmit() {
+    const uint64_t bytes = spool_->size();
+    if (Status s = spool_->Close(); !s.ok()) {
+      End({grpc::StatusCode::UNAVAILABLE, "archive not imported: " + s.message()});
+      return;
+    }
+    grpc::Status verified = ReadVerifiedArchive(spool_->path(), ctx_.store.params(), &archive_);
+    spool_.reset();  // the tiles are in memory now
+    if (!verified.ok()) {
+      spdlog::warn("event=import_refused bytes={} reason=\"{}\"", bytes, verified.error_message());
+      End(verified);
+      return;
+    }
+    if (cancelled_.load()) {
+      End({grpc::StatusCode::CANCELLED, "import cancelled; nothing imported"});
+      return;
+    }
+    bytes_ = bytes;
+    ctx_.scheduler.SubmitExclusive([this](uint64_t version) { return Apply(version); },
+                                   [this](uint64_t version, Status s) { Done(version, s); });
+  }
+
+  // The exclusive change: no other change runs, every earlier one is in the map.
+  Result<std::vector<TileKey>> Apply(uint64_t version) {
+    std::vector<const Tile*> tiles;
+    tiles.reserve(archive_.tiles.size());
+    for (const auto& t : archive_.tiles) tiles.push_back(t.get());
+    if (ctx_.persistence == nullptr) {
+      ctx_.store.AddTiles(archive_.keys, tiles, version);
+      return archive_.keys;
+    }
+    MapPersistence& p = *ctx_.persistence;
+    const std::vector<std::unique_ptr<Tile>> before = ctx_.store.CopyTiles(archive_.keys);
+    ctx_.store.AddTiles(archive_.keys, tiles, version);
+    p.Applied(archive_.keys);
+    // Durable before it counts: the checkpoint at `version` holds the import and every earlier
+    // change, and truncates the log below it.
+    if (Status s = p.Write(p.Capture(ctx_.store, version)); !s.ok()) {
+      ctx_.store.ReplaceTiles(archive_.keys, before);
+      return s;
+    }
+    return archive_.keys;
+  }
+
+  void Done(uint64_t version, const Status& status) {
+    if (!status.ok()) {
+      spdlog::error("event=import_not_persisted version={} reason=\"{}\"", version,
+                    status.message());
+      End({grpc::StatusCode::UNAVAILABLE,
+           "archive not imported: cannot persist it: " + status.message()});
+      return;
+    }
+    response_->set_tiles_added(archive_.keys.size());
+    response_->set_map_version(version);
+    response_->set_archive_map_version(archive_.metadata.map_version);
+    archive_.tiles.clear();
+    boost::asio::post(ctx_.query_pool, [this] {
+      response_->set_known_cells(ctx_.store.Summarize().known_cells);
+      spdlog::info(
+          "event=import_map version={} tiles={} archive_known_cells={} bytes={} seconds={:.3f}",
+          response_->map_version(), response_->tiles_added(), archive_.known_cells, bytes_,
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
+      End(grpc::Status::OK);
+    });
+  }
+
+  ServiceContext& ctx_;
+  v1::ImportResponse* response_;
+  std::optional<Permit> permit_;  // one import at a time
+  std::unique_ptr<SpoolFile> spool_;
+  std::chrono::steady_clock::time_point start_;
+  std::atomic<bool> cancelled_{false};
+  v1::ArchiveChunk chunk_;
+  VerifiedArchive archive_;
+  uint64_t bytes_ = 0;
+};
+
+}  // namespace
+
+grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
+                                                          v1::ImportResponse* response) {
+  return new ImportStream(ctx, response);
+}
+
+}  // namespace bgkmap
