@@ -19,6 +19,8 @@ int main(int argc, char** argv) {
   bgkmap::cli::RegisterWatchCommand(app, exit_code);
   bgkmap::cli::RegisterInfoCommand(app, exit_code);
   bgkmap::cli::RegisterClearCommand(app, exit_code);
+  bgkmap::cli::RegisterExportCommand(app, exit_code);
+  bgkmap::cli::RegisterImportCommand(app, exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
