@@ -149,8 +149,10 @@ MapInfo FromProto(const v1::InfoResponse& r) {
                  l.max_inflight_scans_per_stream()};
   info.server_version = r.server_version();
   if (r.has_storage()) {
-    info.storage = StorageInfo{r.storage().data_dir(), r.storage().durability(),
-                               r.storage().checkpoint_version(), r.storage().corrupt_tiles()};
+    const v1::StorageInfo& s = r.storage();
+    info.storage = StorageInfo{s.data_dir(),       s.durability(),         s.checkpoint_version(),
+                               s.corrupt_tiles(),  s.memory_limit_bytes(), s.resident_tiles(),
+                               s.resident_bytes(), s.tiles_loaded(),       s.tiles_evicted()};
   }
   return info;
 }

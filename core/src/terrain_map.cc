@@ -90,11 +90,11 @@ int64_t TerrainMap::CountKnownCells() const {
 CellBox TerrainMap::KnownBounds() const {
   CellBox box;
   for (const auto& [key, tile] : tiles_) {
+    const CellBox local = tile->KnownLocalBox();
+    if (local.empty()) continue;
     const CellIndex o = geometry_.TileOrigin(key);
-    const int T = params_.tile_size;
-    for (int i = 0; i < tile->cell_count(); ++i) {
-      if (tile->IsKnown(i)) box.Extend({o.x + i % T, o.y + i / T});
-    }
+    box.Extend({o.x + local.min.x, o.y + local.min.y});
+    box.Extend({o.x + local.max.x, o.y + local.max.y});
   }
   return box;
 }

@@ -26,6 +26,14 @@ int Tile::CountKnown() const {
   return known;
 }
 
+CellBox Tile::KnownLocalBox() const {
+  CellBox box;
+  for (int i = 0; i < cell_count(); ++i) {
+    if (IsKnown(i)) box.Extend({i % size_, i / size_});
+  }
+  return box;
+}
+
 void Tile::Add(const Tile& o) {
   for (size_t i = 0; i < n(); ++i) {
     w_[i] += o.w_[i];

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <chrono>
 
 #include "bgkmap/storage/log_record.h"
 
@@ -65,10 +66,13 @@ Result<std::unique_ptr<MapPersistence>> MapPersistence::Open(const StorageConfig
     }
     if (Status s = ts.Checkpoint(ts.map_version(), updates); !s.ok()) return s;
   }
-  // Every other tile is current in the store. Loading them all keeps the map complete for
-  // queries and scans; loading on demand and eviction under max_memory_mb are left for later.
-  std::vector<TileKey> corrupt;
-  if (Status s = storage::LoadAllTiles(ts, map, &corrupt); !s.ok()) return s;
+  // Every other tile is current in the store and is loaded when the served map needs it.
+  Result<std::vector<storage::StoredTileInfo>> stored = ts.ListTiles();
+  if (!stored.ok()) return stored.status();
+  for (const storage::StoredTileInfo& t : *stored) {
+    p->stored_[t.key] = {t.known_cells, t.known_box};
+  }
+  p->durable_version_.store(ts.checkpoint_version());
   return p;
 }
 
@@ -103,10 +107,8 @@ void MapPersistence::Applied(std::span<const TileKey> tiles) {
 CapturedCheckpoint MapPersistence::Capture(const MapStore& map, uint64_t version) {
   CapturedCheckpoint c;
   checkpoint_order_->acquire();
-  c.order = std::shared_ptr<std::binary_semaphore>(checkpoint_order_.get(),
-                                                   [keep = checkpoint_order_](auto* slot) {
-                                                     slot->release();
-                                                   });
+  c.order = std::shared_ptr<std::binary_semaphore>(
+      checkpoint_order_.get(), [keep = checkpoint_order_](auto* slot) { slot->release(); });
   c.version = version;
   {
     std::lock_guard lock(dirty_mu_);
@@ -131,8 +133,86 @@ Status MapPersistence::Write(CapturedCheckpoint captured) {
     // The log still holds these changes; the next checkpoint writes the tiles again.
     std::lock_guard lock(dirty_mu_);
     dirty_.insert(captured.keys.begin(), captured.keys.end());
+    return s;
   }
+  {
+    std::unique_lock lock(stored_mu_);
+    for (const storage::TileUpdate& u : updates) {
+      const CellBox local = u.tile != nullptr ? u.tile->KnownLocalBox() : CellBox{};
+      if (local.empty()) {
+        stored_.erase(u.key);
+        continue;
+      }
+      const int t = store_->params().tile_size;
+      const CellIndex o{u.key.x * t, u.key.y * t};
+      stored_[u.key] = {
+          static_cast<uint32_t>(u.tile->CountKnown()),
+          {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}}};
+    }
+  }
+  durable_version_.store(std::max(durable_version_.load(), captured.version));
   return s;
+}
+
+MapPersistence::VerifyReport MapPersistence::VerifyStoredTiles(
+    const std::atomic<bool>& stop) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<TileKey> keys;
+  {
+    std::shared_lock lock(stored_mu_);
+    keys.reserve(stored_.size());
+    for (const auto& entry : stored_) keys.push_back(entry.first);
+  }
+  VerifyReport r;
+  for (TileKey k : keys) {
+    if (stop.load()) {
+      r.stopped = true;
+      break;
+    }
+    Result<std::unique_ptr<Tile>> tile = store_->LoadTile(k);  // marks a corrupt tile
+    ++r.tiles;
+    if (tile.ok()) continue;
+    if (tile.status().code() == Status::Code::kDataLoss) {
+      ++r.corrupt;
+      spdlog::error("event=corrupt_tile tile=({},{}) reason=\"{}\"", k.x, k.y,
+                    tile.status().message());
+    } else {
+      ++r.unreadable;
+      spdlog::error("event=tile_unreadable tile=({},{}) reason=\"{}\"", k.x, k.y,
+                    tile.status().message());
+    }
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+bool MapPersistence::IsStored(TileKey key) const {
+  std::shared_lock lock(stored_mu_);
+  return stored_.contains(key);
+}
+
+void MapPersistence::StoredIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const {
+  if (min.x > max.x || min.y > max.y) return;
+  std::shared_lock lock(stored_mu_);
+  // Keys sort by x, then y: one contiguous run per column.
+  for (auto it = stored_.lower_bound(min); it != stored_.end() && it->first.x <= max.x;) {
+    const TileKey k = it->first;
+    if (k.y < min.y) {
+      it = stored_.lower_bound({k.x, min.y});
+    } else if (k.y > max.y) {
+      if (k.x == INT32_MAX) break;
+      it = stored_.lower_bound({k.x + 1, min.y});
+    } else {
+      keys->push_back(k);
+      ++it;
+    }
+  }
+}
+
+void MapPersistence::ForEachStored(
+    const std::function<void(TileKey, const StoredTile&)>& fn) const {
+  std::shared_lock lock(stored_mu_);
+  for (const auto& [k, t] : stored_) fn(k, t);
 }
 
 std::string MapPersistence::durability() const {

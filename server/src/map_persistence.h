@@ -12,6 +12,7 @@
 #include <mutex>
 #include <semaphore>
 #include <set>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,7 @@
 #include "bgkmap/storage/tile_store.h"
 #include "map_store.h"
 #include "scan_scheduler.h"
+#include "tile_backing.h"
 
 namespace bgkmap {
 
@@ -35,11 +37,12 @@ struct CapturedCheckpoint {
   std::shared_ptr<std::binary_semaphore> order;
 };
 
-class MapPersistence final : public ChangeJournal {
+class MapPersistence final : public ChangeJournal, public TileBacking {
  public:
-  // Opens (or creates) the store in config.data_dir, brings `map` (empty, created with
-  // `params`) to the store's latest state and loads every other stored tile. The error is the
-  // store's own one-line message.
+  // Opens (or creates) the store in config.data_dir and brings `map` (empty, created with
+  // `params`) to the store's latest state: the tiles the log after the last checkpoint touches
+  // are replayed into it and checkpointed at once; every other tile stays in the store until
+  // the served map loads it (TileBacking). The error is the store's own one-line message.
   static Result<std::unique_ptr<MapPersistence>> Open(const StorageConfig& config,
                                                       const MapParams& params, TerrainMap& map);
 
@@ -53,6 +56,25 @@ class MapPersistence final : public ChangeJournal {
   CapturedCheckpoint Capture(const MapStore& map, uint64_t version);
   // Outside the barrier. On failure the tiles stay marked for the next checkpoint.
   Status Write(CapturedCheckpoint captured);
+
+  // Reads and checks every stored tile without keeping it, so that damage is found and
+  // reported (CorruptTiles(), Info) before a query or scan meets it; tiles are otherwise read
+  // only on demand. Returns early once `stop` is set.
+  struct VerifyReport {
+    uint64_t tiles = 0;
+    uint64_t corrupt = 0;
+    uint64_t unreadable = 0;  // I/O errors
+    double seconds = 0;
+    bool stopped = false;
+  };
+  VerifyReport VerifyStoredTiles(const std::atomic<bool>& stop) const;
+
+  // TileBacking: the stored tiles, as of the last written checkpoint.
+  bool IsStored(TileKey key) const override;
+  void StoredIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const override;
+  void ForEachStored(const std::function<void(TileKey, const StoredTile&)>& fn) const override;
+  Result<std::unique_ptr<Tile>> Load(TileKey key) const override { return store_->LoadTile(key); }
+  uint64_t durable_version() const override { return durable_version_.load(); }
 
   // After a failed write the store refuses every write until it is resumed. Call at a barrier:
   // TileStore::Resume() needs no other call in flight, and only changes call the store.
@@ -80,6 +102,11 @@ class MapPersistence final : public ChangeJournal {
       std::make_shared<std::binary_semaphore>(1);
   std::mutex dirty_mu_;
   std::set<TileKey> dirty_;  // changed since the last capture
+  // The store's tile index in memory, updated after each checkpoint is written and before
+  // durable_version_ moves past it.
+  mutable std::shared_mutex stored_mu_;
+  std::map<TileKey, StoredTile> stored_;
+  std::atomic<uint64_t> durable_version_{0};
 };
 
 }  // namespace bgkmap

@@ -64,6 +64,9 @@ struct MapServer::Impl {
   Status Checkpoint();
   void CheckpointLoop();
   void StopCheckpoints();
+  // Keeps the tiles in memory under storage.max_memory_mb (a thread, woken by the map store).
+  void EvictionLoop();
+  void RequestEviction();
 
   ServerConfig config;
   std::unique_ptr<MapPersistence> persistence;  // outlives the workers that journal into it
@@ -84,7 +87,53 @@ struct MapServer::Impl {
   std::mutex checkpoint_mu;
   std::condition_variable checkpoint_cv;
   bool stop_checkpoints = false;
+
+  std::thread evictor;
+  std::thread verifier;
+  std::atomic<bool> stop_verifying{false};
+  bool eviction_requested = false;  // guarded by checkpoint_mu, signalled by checkpoint_cv
 };
+
+void MapServer::Impl::RequestEviction() {
+  {
+    std::lock_guard lock(checkpoint_mu);
+    if (eviction_requested) return;
+    eviction_requested = true;
+  }
+  checkpoint_cv.notify_all();
+}
+
+void MapServer::Impl::EvictionLoop() {
+  const uint64_t limit = config.storage.max_memory_mb << 20;
+  // Evict to below the bound, so that eviction runs in batches rather than after every scan.
+  const uint64_t target = limit / 10 * 8;
+  // A checkpoint makes changed tiles evictable, but it writes every changed tile: when the
+  // bound is smaller than what is being changed, take one at most this often.
+  constexpr auto kMinCheckpointGap = std::chrono::milliseconds(250);
+  auto last_checkpoint = std::chrono::steady_clock::now() - kMinCheckpointGap;
+  std::unique_lock lock(checkpoint_mu);
+  while (!stop_checkpoints) {
+    checkpoint_cv.wait_for(lock, std::chrono::seconds(1),
+                           [this] { return stop_checkpoints || eviction_requested; });
+    if (stop_checkpoints) break;
+    eviction_requested = false;
+    lock.unlock();
+    uint64_t held = store.Evict(target);
+    if (held > limit && std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
+      const Status s = Checkpoint();
+      last_checkpoint = std::chrono::steady_clock::now();
+      if (s.ok()) held = store.Evict(target);
+    }
+    lock.lock();
+    if (held > limit && !eviction_requested) {
+      // Still over (tiles in use or the checkpoint gap): look again soon.
+      lock.unlock();
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      lock.lock();
+      eviction_requested = true;
+    }
+  }
+}
 
 Status MapServer::Impl::Checkpoint() {
   std::promise<CapturedCheckpoint> captured;
@@ -141,7 +190,10 @@ void MapServer::Impl::StopCheckpoints() {
     stop_checkpoints = true;
   }
   checkpoint_cv.notify_all();
+  stop_verifying.store(true);
   if (checkpointer.joinable()) checkpointer.join();
+  if (evictor.joinable()) evictor.join();
+  if (verifier.joinable()) verifier.join();
 }
 
 void KeepLargeAllocationsInHeap() {
@@ -179,7 +231,21 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     impl->scheduler.Restore(impl->persistence->map_version(), impl->persistence->RobotSequences());
     impl->scheduler.SetJournal(impl->persistence.get());
     impl->ctx.persistence = impl->persistence.get();
+    impl->store.AttachBacking(impl->persistence.get(), config.storage.max_memory_mb << 20,
+                              [p = impl.get()] { p->RequestEviction(); });
     impl->checkpointer = std::thread([p = impl.get()] { p->CheckpointLoop(); });
+    if (config.storage.max_memory_mb > 0) {
+      impl->evictor = std::thread([p = impl.get()] { p->EvictionLoop(); });
+    }
+    if (config.storage.verify_on_start) {
+      impl->verifier = std::thread([p = impl.get()] {
+        const MapPersistence::VerifyReport r = p->persistence->VerifyStoredTiles(p->stop_verifying);
+        spdlog::info(
+            "event=verify_done tiles={} corrupt_tiles={} unreadable_tiles={} stopped={} "
+            "seconds={:.3f}",
+            r.tiles, r.corrupt, r.unreadable, r.stopped, r.seconds);
+      });
+    }
   }
 
   grpc::EnableDefaultHealthCheckService(true);

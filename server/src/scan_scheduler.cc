@@ -193,9 +193,13 @@ void ScanScheduler::Run(Job* job) {
     if (callback) callback(version, changed.status());
     return;
   }
+  // The change's tiles are brought into memory before it is journaled: a store that cannot be
+  // read refuses the change like a journal that cannot be written.
+  Result<MapStore::Pins> pins = job->scan != nullptr ? store_.PinForScan(*job->scan)
+                                                     : store_.PinForClear(job->clear_box);
   ChangeRecord change;
-  Status journaled;
-  if (journal_ != nullptr) {
+  Status journaled = pins.status();
+  if (journal_ != nullptr && journaled.ok()) {
     change.version = job->version;
     change.scan = job->scan;
     change.robot_id = job->robot_id;

@@ -55,7 +55,7 @@ ServerKey Key(std::string name, Member member, const std::string& section = "ser
   ServerKey k;
   k.name = name;
   k.read = [full = section + "." + name, member](const YAML::Node& n, ServerConfig& c) {
-    if constexpr (std::is_unsigned_v<T>) {
+    if constexpr (std::is_unsigned_v<T> && !std::is_same_v<T, bool>) {
       return ReadUnsigned<T>(n, full, &member(c));
     } else {
       return ReadScalar<T>(n, full, &member(c));
@@ -142,6 +142,12 @@ const std::vector<ServerKey>& StorageKeys() {
       Key<double>(
           "checkpoint_interval_s",
           [](ServerConfig & c) -> auto& { return c.storage.checkpoint_interval_s; }, "storage"),
+      Key<uint64_t>(
+          "max_memory_mb", [](ServerConfig & c) -> auto& { return c.storage.max_memory_mb; },
+          "storage"),
+      Key<bool>(
+          "verify_on_start", [](ServerConfig & c) -> auto& { return c.storage.verify_on_start; },
+          "storage"),
   };
   return keys;
 }
@@ -298,6 +304,12 @@ Status ValidateServerConfig(const ServerConfig& c) {
   }
   if (!(st.checkpoint_interval_s > 0) || st.checkpoint_interval_s > 86'400) {
     return bad_storage("checkpoint_interval_s", "must be in (0, 86400]");
+  }
+  if (st.max_memory_mb > 0 && st.data_dir.empty()) {
+    return bad_storage("max_memory_mb", "needs storage.data_dir (evicted tiles live in the store)");
+  }
+  if (st.max_memory_mb > (uint64_t{1} << 30)) {
+    return bad_storage("max_memory_mb", "must be at most 2^30 (1 PiB)");
   }
   return Status::Ok();
 }

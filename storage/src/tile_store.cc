@@ -15,16 +15,24 @@
 namespace bgkmap::storage {
 namespace {
 
-std::string EncodeTileInfo(uint64_t version, uint32_t known, uint32_t bytes) {
+// Index value: varints version, known cells, encoded bytes, then the known cells' tile-local
+// bounding box (min x, min y, max x, max y). Entries written before the box was added end after
+// the bytes; their box is the whole tile.
+std::string EncodeTileInfo(const Tile& tile, uint32_t bytes) {
   std::string out;
   ByteWriter w(&out);
-  w.PutVarint(version);
-  w.PutVarint(known);
+  w.PutVarint(tile.version());
+  w.PutVarint(static_cast<uint64_t>(tile.CountKnown()));
   w.PutVarint(bytes);
+  const CellBox box = tile.KnownLocalBox();
+  for (int v : {box.min.x, box.min.y, box.max.x, box.max.y}) {
+    w.PutVarint(static_cast<uint64_t>(v));
+  }
   return out;
 }
 
-bool DecodeTileInfo(std::string_view key, std::string_view value, StoredTileInfo* info) {
+bool DecodeTileInfo(std::string_view key, std::string_view value, int tile_size,
+                    StoredTileInfo* info) {
   ByteReader r(value);
   uint64_t version, known, bytes;
   if (!ParseTileKeyBytes(key, &info->key) || !r.GetVarint(&version) || !r.GetVarint(&known) ||
@@ -34,6 +42,17 @@ bool DecodeTileInfo(std::string_view key, std::string_view value, StoredTileInfo
   info->version = version;
   info->known_cells = static_cast<uint32_t>(known);
   info->encoded_bytes = static_cast<uint32_t>(bytes);
+  CellBox local{{0, 0}, {tile_size - 1, tile_size - 1}};
+  if (r.remaining() > 0) {
+    uint64_t v[4];
+    for (uint64_t& x : v) {
+      if (!r.GetVarint(&x) || x >= static_cast<uint64_t>(tile_size)) return false;
+    }
+    local = {{static_cast<int>(v[0]), static_cast<int>(v[1])},
+             {static_cast<int>(v[2]), static_cast<int>(v[3])}};
+  }
+  const CellIndex o{info->key.x * tile_size, info->key.y * tile_size};
+  info->known_box = {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}};
   return true;
 }
 
@@ -241,10 +260,8 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
     }
     const std::string value = EncodeTile(*update.tile, options_.tile_encoding);
     batch.Put(db_->tiles, key, value);
-    batch.Put(
-        db_->tile_index, key,
-        EncodeTileInfo(update.tile->version(), static_cast<uint32_t>(update.tile->CountKnown()),
-                       static_cast<uint32_t>(value.size())));
+    batch.Put(db_->tile_index, key,
+              EncodeTileInfo(*update.tile, static_cast<uint32_t>(value.size())));
     ++written;
   }
   batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));
@@ -289,7 +306,8 @@ Result<std::vector<StoredTileInfo>> TileStore::ListTilesAt(
   const std::string end = TileKeyBytes(max);
   for (it->Seek(TileKeyBytes(min)); it->Valid() && it->key().ToStringView() <= end; it->Next()) {
     StoredTileInfo info;
-    if (!DecodeTileInfo(it->key().ToStringView(), it->value().ToStringView(), &info)) {
+    if (!DecodeTileInfo(it->key().ToStringView(), it->value().ToStringView(), params_.tile_size,
+                        &info)) {
       return Status::DataLoss("tile index entry is malformed");
     }
     if (info.key.y < min.y || info.key.y > max.y) continue;

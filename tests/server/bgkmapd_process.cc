@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 #include <regex>
+#include <thread>
 
 namespace bgkmap::testing {
 namespace {
@@ -112,6 +113,15 @@ std::string BgkmapdProcess::FindLine(const std::string& needle) {
     if (l.find(needle) != std::string::npos) return l;
   }
   return "";
+}
+
+std::string BgkmapdProcess::WaitForLine(const std::string& needle, double seconds) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  for (;;) {
+    std::string line = FindLine(needle);
+    if (!line.empty() || std::chrono::steady_clock::now() > until) return line;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
 }
 
 std::pair<int, std::string> RunBgkmapd(const std::vector<std::string>& extra) {

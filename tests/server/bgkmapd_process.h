@@ -29,6 +29,8 @@ class BgkmapdProcess {
   std::vector<std::string> Log();
   // The first log line containing `needle` ("" if none).
   std::string FindLine(const std::string& needle);
+  // FindLine() until it finds one or `seconds` pass.
+  std::string WaitForLine(const std::string& needle, double seconds);
 
  private:
   void ReadLog(int fd);

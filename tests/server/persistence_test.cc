@@ -329,6 +329,8 @@ TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
   const TileKey victim = CorruptFirstTile(dir.str());
   BgkmapdProcess server({"--data-dir", dir.str()});
   ASSERT_TRUE(server.started());
+  // Tiles are read on demand; the background check after start finds the damage first.
+  EXPECT_NE(server.WaitForLine("event=verify_done", 30), "");
   EXPECT_NE(server.FindLine("corrupt_tiles=1"), "");
   Client client(server.target());
   RpcResult<MapInfo> info = client.Info();

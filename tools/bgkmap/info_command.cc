@@ -63,6 +63,18 @@ int RunInfo(const std::string& server) {
         {"max_path_poses", r->limits.max_path_poses},
         {"max_coordinate", r->limits.max_coordinate},
         {"max_message_bytes", r->limits.max_message_bytes}}}};
+  if (r->storage.has_value()) {
+    const StorageInfo& st = *r->storage;
+    out["storage"] = {{"data_dir", st.data_dir},
+                      {"durability", st.durability},
+                      {"checkpoint_version", st.checkpoint_version},
+                      {"corrupt_tiles", st.corrupt_tiles},
+                      {"memory_limit_bytes", st.memory_limit_bytes},
+                      {"resident_tiles", st.resident_tiles},
+                      {"resident_bytes", st.resident_bytes},
+                      {"tiles_loaded", st.tiles_loaded},
+                      {"tiles_evicted", st.tiles_evicted}};
+  }
   std::printf("%s\n", out.dump(2).c_str());
   return 0;
 }

@@ -131,7 +131,9 @@ grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
 
   if (grpc::Status s = CheckNoCorruptTile(ctx, cells); !s.ok()) return s;
   const uint64_t version = ctx.scheduler.applied_version();
-  const std::vector<CellEstimate> estimates = ctx.store.ReadCells(cells);  // one atomic read
+  const Result<std::vector<CellEstimate>> read = ctx.store.ReadCells(cells);
+  if (!read.ok()) return ToGrpcStatus(read.status());
+  const std::vector<CellEstimate>& estimates = *read;  // one atomic read
   bool all_safe = true;
   int first_unsafe = -1;
   for (size_t i = 0; i < n; ++i) {

@@ -31,7 +31,9 @@ grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
   }
   if (grpc::Status s = CheckNoCorruptTile(ctx, cells); !s.ok()) return s;
   const uint64_t version = ctx.scheduler.applied_version();
-  const std::vector<CellEstimate> estimates = ctx.store.ReadCells(cells);
+  const Result<std::vector<CellEstimate>> read = ctx.store.ReadCells(cells);
+  if (!read.ok()) return ToGrpcStatus(read.status());
+  const std::vector<CellEstimate>& estimates = *read;
   for (Layer l : layers) response->add_layers(ToProto(l));
   auto* values = response->mutable_values();
   values->Reserve(static_cast<int>(n * layers.size()));

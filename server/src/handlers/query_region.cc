@@ -43,7 +43,12 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     }
     boost::asio::post(ctx_.query_pool, [this] {
       version_ = ctx_.scheduler.applied_version();
-      raster_ = ctx_.store.ReadRegion(box_, layers_, stride_);
+      Result<Raster> read = ctx_.store.ReadRegion(box_, layers_, stride_);
+      if (!read.ok()) {
+        Finish(ToGrpcStatus(read.status()));
+        return;
+      }
+      raster_ = std::move(read).value();
       const int64_t row_bytes =
           std::max<int64_t>(1, raster_.cols * static_cast<int64_t>(layers_.size()) * 4);
       rows_per_chunk_ =

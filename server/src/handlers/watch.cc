@@ -124,7 +124,12 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
       }
     }
     const uint64_t version = ctx_.scheduler.applied_version();
-    TileContent content = ctx_.store.ReadTile(key, layers_);
+    Result<TileContent> read = ctx_.store.ReadTile(key, layers_);
+    if (!read.ok()) {
+      Stop(ToGrpcStatus(read.status()), /*was_active=*/true);
+      return;
+    }
+    const TileContent& content = *read;
     update_.Clear();
     ToProto(key, update_.mutable_key());
     ToProto(content.raster.box, update_.mutable_cells());

@@ -175,6 +175,12 @@ struct StorageInfo {
   std::string durability;  // "sync" | "periodic"
   uint64_t checkpoint_version = 0;
   uint64_t corrupt_tiles = 0;  // queries touching them fail with DATA_LOSS
+  // Tiles in memory (storage.max_memory_mb bounds them; the others are read on demand).
+  uint64_t memory_limit_bytes = 0;  // 0: unbounded
+  uint64_t resident_tiles = 0;
+  uint64_t resident_bytes = 0;
+  uint64_t tiles_loaded = 0;   // from the store since the server started
+  uint64_t tiles_evicted = 0;  // since the server started
 };
 
 struct MapInfo {

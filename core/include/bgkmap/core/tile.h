@@ -38,6 +38,8 @@ class Tile {
   // A cell is known once it has elevation weight or traversability pseudo-counts.
   bool IsKnown(int local) const { return w_[local] > 0.0 || (a_[local] + b_[local]) > 0.0f; }
   int CountKnown() const;
+  // The known cells' bounding box in tile-local cells (0..tile_size-1); empty if none.
+  CellBox KnownLocalBox() const;
   bool Empty() const { return CountKnown() == 0; }
 
   // Adds another tile's statistics cell by cell (same size required).

@@ -43,6 +43,13 @@ struct StorageConfig {
   std::string durability = "sync";    // durability: sync|periodic (when an ack is durable)
   uint32_t periodic_sync_ms = 100;    // periodic_sync_ms: power-loss window of "periodic"
   double checkpoint_interval_s = 30;  // checkpoint_interval_s: tiles written, log truncated
+  // max_memory_mb: bound on the tiles kept in memory (0 = keep every tile). Clean tiles not
+  // used recently are dropped (the store has them) and loaded again on demand; changed tiles
+  // are checkpointed first. Needs data_dir.
+  uint64_t max_memory_mb = 0;
+  // verify_on_start: read and check every stored tile in the background after start, so that
+  // damage is reported before a query meets it (tiles are otherwise read only on demand).
+  bool verify_on_start = true;
 };
 
 struct ServerConfig {

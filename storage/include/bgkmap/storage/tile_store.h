@@ -48,6 +48,7 @@ struct StoredTileInfo {
   uint64_t version = 0;        // of the tile's last change
   uint32_t known_cells = 0;    // Tile::CountKnown()
   uint32_t encoded_bytes = 0;  // before RocksDB's block compression
+  CellBox known_box;           // of the known cells, in map cells
 };
 
 struct StoreCounters {
