@@ -238,6 +238,13 @@ Result<std::unique_ptr<Tile>> TileStore::LoadTileAt(TileKey key,
 
 Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles) {
   std::lock_guard<std::mutex> lock(checkpoint_mu_);
+  if (Status failed = log_->write_failure(); !failed.ok()) {
+    // RocksDB must not write through a log writer that has failed (7.8 asserts): refuse, like
+    // an append, until Resume().
+    checkpoint_errors_.fetch_add(1);
+    return Status::IoError("the store refuses writes since an earlier failure (" +
+                           failed.message() + "); TileStore::Resume() once it is fixed");
+  }
   if (version < checkpoint_version_.load()) {
     return Status::InvalidArgument("checkpoint version " + std::to_string(version) +
                                    " is below the last checkpoint (" +
@@ -273,6 +280,7 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
           FromRocks(db_->db->Write(write, &batch), "writing checkpoint " + std::to_string(version));
       !s.ok()) {
     checkpoint_errors_.fetch_add(1);
+    log_->LatchFailure(s);  // every later write is refused until Resume()
     return s;
   }
   checkpoint_version_.store(version);

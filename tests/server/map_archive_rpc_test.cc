@@ -4,8 +4,11 @@
 // archives is exactly their sum, and bad uploads change nothing and leave the server serving.
 #include <gtest/gtest.h>
 #include <rocksdb/db.h>
+#include <signal.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +16,7 @@
 #include <fstream>
 #include <iterator>
 #include <set>
+#include <thread>
 
 #include "bgkmap/storage/tile_store.h"
 #include "test_support.h"
@@ -436,6 +440,68 @@ TEST_F(ArchiveBadInputTest, ExportOfAnInvertedBoxIsInvalidAndLeavesNoFile) {
   EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument) << r.status().ToString();
   EXPECT_FALSE(fs::exists(dir_.Sub("x")));
   EXPECT_FALSE(fs::exists(dir_.Sub("x.partial")));
+}
+
+// Lowers the process's file size limit (EFBIG instead of SIGXFSZ) until destroyed.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    signal(SIGXFSZ, SIG_IGN);
+    getrlimit(RLIMIT_FSIZE, &saved_);
+    rlimit limit = saved_;
+    limit.rlim_cur = bytes;
+    setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() { setrlimit(RLIMIT_FSIZE, &saved_); }
+
+ private:
+  rlimit saved_;
+};
+
+uintmax_t LargestFile(const fs::path& dir) {
+  uintmax_t largest = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.is_regular_file()) largest = std::max(largest, e.file_size());
+  }
+  return largest;
+}
+
+TEST_F(ArchiveBadInputTest, ImportWhoseCheckpointCannotBeWrittenIsUndone) {
+  // A small archive (a region), so that its spool file fits under the limit and the checkpoint
+  // of the whole map does not.
+  {
+    ServerFixture source(Config());
+    Ingest(source.client(), {StreetScans().front()});
+    ASSERT_TRUE(source.client().ExportMap(MetricBox{0, 0, 6, 6}, dir_.Sub("small.bgkmap")).ok());
+  }
+  const std::string data = dir_.Sub("store");
+  ServerFixture server(Config(data));
+  Hold(server);
+  const std::unique_ptr<TerrainMap> before = server.server().SnapshotMap();
+  {
+    FileSizeLimit limit(
+        std::max<uintmax_t>(LargestFile(data), fs::file_size(dir_.Sub("small.bgkmap"))) + 200'000);
+    RpcResult<ImportResult> r = server.client().ImportMap(dir_.Sub("small.bgkmap"));
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), RpcCode::kUnavailable) << r.status().ToString();
+    EXPECT_NE(r.status().message().find("cannot persist"), std::string::npos)
+        << r.status().ToString();
+    EXPECT_TRUE(MapsEqual(*before, *server.server().SnapshotMap()));
+  }
+  EXPECT_TRUE(server.client().Info().ok());
+  EXPECT_TRUE(fs::is_empty(data + "/tmp"));
+  // Once there is room the store is resumed (after a refused scan shows the failure, as for a
+  // failed append) and the same import goes through.
+  bool imported = false;
+  const OwnedScan& probe = StreetScans().front();
+  for (int attempt = 0; attempt < 40 && !imported; ++attempt) {
+    OwnedScan scan = Robot("probe", {probe}, 0).front();
+    scan.sequence = static_cast<uint64_t>(attempt + 1);
+    (void)server.client().Insert(scan.Data());
+    imported = server.client().ImportMap(dir_.Sub("small.bgkmap")).ok();
+    if (!imported) std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  EXPECT_TRUE(imported);
 }
 
 // Flips a byte of the stored value of the tile at the middle of the store's tile list.
