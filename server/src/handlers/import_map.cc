@@ -110,28 +110,31 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
     tiles.reserve(archive_.tiles.size());
     for (const auto& t : archive_.tiles) tiles.push_back(t.get());
     if (ctx_.persistence == nullptr) {
-      ctx_.store.AddTiles(archive_.keys, tiles, version);
+      if (Status s = ctx_.store.AddTiles(archive_.keys, tiles, version); !s.ok()) return s;
       return archive_.keys;
     }
     MapPersistence& p = *ctx_.persistence;
+    // Copies of the tiles in memory; one only in the store comes back as null, and erasing it
+    // on undo makes the stored tile current again.
     const std::vector<std::unique_ptr<Tile>> before = ctx_.store.CopyTiles(archive_.keys);
-    ctx_.store.AddTiles(archive_.keys, tiles, version);
+    // Loads the stored tiles first: DataLoss naming a corrupt one, and then nothing is added.
+    if (Status s = ctx_.store.AddTiles(archive_.keys, tiles, version); !s.ok()) return s;
     p.Applied(archive_.keys);
     // Durable before it counts: the checkpoint at `version` holds the import and every earlier
     // change, and truncates the log below it.
     if (Status s = p.Write(p.Capture(ctx_.store, version)); !s.ok()) {
       ctx_.store.ReplaceTiles(archive_.keys, before);
-      return s;
+      return Status::IoError("cannot persist it: " + s.message());
     }
     return archive_.keys;
   }
 
   void Done(uint64_t version, const Status& status) {
     if (!status.ok()) {
-      spdlog::error("event=import_not_persisted version={} reason=\"{}\"", version,
-                    status.message());
-      End({grpc::StatusCode::UNAVAILABLE,
-           "archive not imported: cannot persist it: " + status.message()});
+      spdlog::error("event=import_not_applied version={} reason=\"{}\"", version, status.message());
+      End({status.code() == Status::Code::kDataLoss ? grpc::StatusCode::DATA_LOSS
+                                                    : grpc::StatusCode::UNAVAILABLE,
+           "archive not imported: " + status.message()});
       return;
     }
     response_->set_tiles_added(archive_.keys.size());
