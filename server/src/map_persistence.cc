@@ -100,8 +100,24 @@ Status MapPersistence::ResumeIfFailed() {
 }
 
 void MapPersistence::Applied(std::span<const TileKey> tiles) {
+  bool over = false;
+  {
+    std::lock_guard lock(dirty_mu_);
+    dirty_.insert(tiles.begin(), tiles.end());
+    over = dirty_limit_ > 0 && dirty_.size() > dirty_limit_;
+  }
+  if (over) on_dirty_over_limit_();
+}
+
+void MapPersistence::SetDirtyLimit(size_t tiles, std::function<void()> on_over_limit) {
   std::lock_guard lock(dirty_mu_);
-  dirty_.insert(tiles.begin(), tiles.end());
+  dirty_limit_ = tiles;
+  on_dirty_over_limit_ = std::move(on_over_limit);
+}
+
+size_t MapPersistence::dirty_tiles() const {
+  std::lock_guard lock(dirty_mu_);
+  return dirty_.size();
 }
 
 CapturedCheckpoint MapPersistence::Capture(const MapStore& map, uint64_t version) {
@@ -129,6 +145,7 @@ Status MapPersistence::Write(CapturedCheckpoint captured) {
     updates.push_back({captured.keys[i], captured.tiles[i].get()});
   }
   Status s = store_->Checkpoint(captured.version, updates);
+  if (s.code() == Status::Code::kIoError) write_failed_.store(true);
   if (!s.ok()) {
     // The log still holds these changes; the next checkpoint writes the tiles again.
     std::lock_guard lock(dirty_mu_);

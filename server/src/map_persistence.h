@@ -50,6 +50,12 @@ class MapPersistence final : public ChangeJournal, public TileBacking {
   Status Record(const ChangeRecord& change) override;
   void Applied(std::span<const TileKey> tiles) override;
 
+  // Calls `on_over_limit` (from the applying worker, without locks held) whenever more than
+  // `tiles` tiles are changed since the last capture: under a memory bound, checkpoints must
+  // come often enough that their copies stay small. Call before any change is applied.
+  void SetDirtyLimit(size_t tiles, std::function<void()> on_over_limit);
+  size_t dirty_tiles() const;
+
   // At a barrier: copies the tiles changed since the last capture; `version` is the applied
   // version (every change up to it is in the map, none above). Waits while an earlier capture
   // is not written yet; the result must be passed to Write() (or dropped) promptly.
@@ -100,8 +106,10 @@ class MapPersistence final : public ChangeJournal, public TileBacking {
   std::atomic<bool> write_failed_{false};
   std::shared_ptr<std::binary_semaphore> checkpoint_order_ =
       std::make_shared<std::binary_semaphore>(1);
-  std::mutex dirty_mu_;
+  mutable std::mutex dirty_mu_;
   std::set<TileKey> dirty_;  // changed since the last capture
+  size_t dirty_limit_ = 0;   // 0: none
+  std::function<void()> on_dirty_over_limit_;
   // The store's tile index in memory, updated after each checkpoint is written and before
   // durable_version_ moves past it.
   mutable std::shared_mutex stored_mu_;

@@ -40,6 +40,14 @@ void KeepServiceDescriptorLinked() {
   (void)keep;
 }
 
+// storage.max_memory_mb bounds the map's memory: the tiles in memory, plus the copies of the
+// changed ones that a checkpoint holds while it writes them (a copy, and its encoding in the
+// write). Tiles get two thirds of the bound; changed tiles are kept to a quarter of that by
+// checkpointing, so a checkpoint holds at most the remaining third.
+uint64_t TileMemoryLimit(const StorageConfig& storage) {
+  return (storage.max_memory_mb << 20) / 3 * 2;
+}
+
 size_t ThreadCount(int configured) {
   if (configured > 0) return static_cast<size_t>(configured);
   return std::max(1u, std::thread::hardware_concurrency());
@@ -104,12 +112,12 @@ void MapServer::Impl::RequestEviction() {
 }
 
 void MapServer::Impl::EvictionLoop() {
-  const uint64_t limit = config.storage.max_memory_mb << 20;
+  const uint64_t limit = TileMemoryLimit(config.storage);
   // Evict to below the bound, so that eviction runs in batches rather than after every scan.
   const uint64_t target = limit / 10 * 8;
   // A checkpoint makes changed tiles evictable, but it writes every changed tile: when the
   // bound is smaller than what is being changed, take one at most this often.
-  constexpr auto kMinCheckpointGap = std::chrono::milliseconds(250);
+  constexpr auto kMinCheckpointGap = std::chrono::milliseconds(20);
   auto last_checkpoint = std::chrono::steady_clock::now() - kMinCheckpointGap;
   std::unique_lock lock(checkpoint_mu);
   while (!stop_checkpoints) {
@@ -119,11 +127,16 @@ void MapServer::Impl::EvictionLoop() {
     eviction_requested = false;
     lock.unlock();
     uint64_t held = store.Evict(target);
-    if (held > limit && std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
+    const bool too_dirty = persistence->dirty_tiles() * store.TileBytes() > limit / 4;
+    if ((held > limit || too_dirty) &&
+        std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
       const Status s = Checkpoint();
       last_checkpoint = std::chrono::steady_clock::now();
       if (s.ok()) held = store.Evict(target);
     }
+    // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
+    // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
+    malloc_trim(0);
     lock.lock();
     if (held > limit && !eviction_requested) {
       // Still over (tiles in use or the checkpoint gap): look again soon.
@@ -231,10 +244,13 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     impl->scheduler.Restore(impl->persistence->map_version(), impl->persistence->RobotSequences());
     impl->scheduler.SetJournal(impl->persistence.get());
     impl->ctx.persistence = impl->persistence.get();
-    impl->store.AttachBacking(impl->persistence.get(), config.storage.max_memory_mb << 20,
+    impl->store.AttachBacking(impl->persistence.get(), TileMemoryLimit(config.storage),
                               [p = impl.get()] { p->RequestEviction(); });
     impl->checkpointer = std::thread([p = impl.get()] { p->CheckpointLoop(); });
     if (config.storage.max_memory_mb > 0) {
+      impl->persistence->SetDirtyLimit(
+          std::max<size_t>(1, TileMemoryLimit(config.storage) / 4 / impl->store.TileBytes()),
+          [p = impl.get()] { p->RequestEviction(); });
       impl->evictor = std::thread([p = impl.get()] { p->EvictionLoop(); });
     }
     if (config.storage.verify_on_start) {

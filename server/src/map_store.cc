@@ -48,7 +48,7 @@ void MapStore::AttachBacking(const TileBacking* backing, uint64_t memory_limit_b
   on_over_limit_ = std::move(on_over_limit);
 }
 
-uint64_t MapStore::BytesPerTile() const {
+uint64_t MapStore::TileBytes() const {
   const uint64_t t = static_cast<uint64_t>(params().tile_size);
   return sizeof(Tile) + t * t * Tile::kBytesPerCell;
 }
@@ -57,7 +57,7 @@ void MapStore::NoteTileCount() const { resident_tiles_.store(map_->tile_count())
 
 void MapStore::SignalIfOverLimit() const {
   if (memory_limit_bytes_ == 0 || !on_over_limit_) return;
-  if (resident_tiles_.load() * BytesPerTile() > memory_limit_bytes_) on_over_limit_();
+  if (resident_tiles_.load() * TileBytes() > memory_limit_bytes_) on_over_limit_();
 }
 
 std::vector<TileKey> MapStore::KeysIn(TileKey min, TileKey max) const {
@@ -136,7 +136,7 @@ Result<MapStore::Pins> MapStore::PinForClear(const CellBox& box) const {
 }
 
 uint64_t MapStore::Evict(uint64_t target_bytes) {
-  const uint64_t per_tile = BytesPerTile();
+  const uint64_t per_tile = TileBytes();
   if (backing_ == nullptr) return resident_tiles_.load() * per_tile;
   const uint64_t durable = backing_->durable_version();
   std::lock_guard lock(residency_mu_);
@@ -178,8 +178,7 @@ uint64_t MapStore::Evict(uint64_t target_bytes) {
 ResidencyStats MapStore::Residency() const {
   ResidencyStats r;
   r.resident_tiles = resident_tiles_.load();
-  r.resident_bytes = r.resident_tiles * BytesPerTile();
-  r.memory_limit_bytes = memory_limit_bytes_;
+  r.resident_bytes = r.resident_tiles * TileBytes();
   r.tiles_loaded = tiles_loaded_.load();
   r.tiles_evicted = tiles_evicted_.load();
   return r;

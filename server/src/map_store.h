@@ -48,10 +48,9 @@ struct TileContent {
 
 struct ResidencyStats {
   uint64_t resident_tiles = 0;
-  uint64_t resident_bytes = 0;      // tile memory (TerrainMap::TileMemoryBytes)
-  uint64_t memory_limit_bytes = 0;  // 0: unbounded
-  uint64_t tiles_loaded = 0;        // from the backing, since start
-  uint64_t tiles_evicted = 0;       // since start
+  uint64_t resident_bytes = 0;  // tile memory (TerrainMap::TileMemoryBytes)
+  uint64_t tiles_loaded = 0;    // from the backing, since start
+  uint64_t tiles_evicted = 0;   // since start
 };
 
 class MapStore {
@@ -119,6 +118,8 @@ class MapStore {
   // checkpoint stay: a checkpoint makes them clean.
   uint64_t Evict(uint64_t target_bytes);
   ResidencyStats Residency() const;
+  // Memory of one tile in the table (what the bound counts).
+  uint64_t TileBytes() const;
 
   // Most ApplyScan() calls ever inside Integrate() at once.
   uint32_t peak_parallel_integrations() const { return peak_integrations_.load(); }
@@ -146,7 +147,6 @@ class MapStore {
   // Call with table_mu_ held after the tile table changed size.
   void NoteTileCount() const;
   void SignalIfOverLimit() const;
-  uint64_t BytesPerTile() const;
 
   std::unique_ptr<TerrainMap> map_;
   const TileBacking* backing_ = nullptr;

@@ -3,6 +3,7 @@
 #include <rocksdb/cache.h>
 #include <rocksdb/filter_policy.h>
 #include <rocksdb/table.h>
+#include <rocksdb/write_buffer_manager.h>
 
 #include "max_merge_operator.h"
 #include "store_keys.h"
@@ -61,6 +62,10 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
   db_options.max_background_jobs = 2;
 
   auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);
+  // One budget for the memory tables of all families: the log alone would otherwise hold up to
+  // 2 x 64 MiB of records between checkpoints, and the tiles as much again.
+  db_options.write_buffer_manager =
+      std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
   rocksdb::ColumnFamilyOptions meta;
   meta.merge_operator = std::make_shared<MaxMergeOperator>();
   rocksdb::ColumnFamilyOptions log;

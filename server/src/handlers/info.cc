@@ -57,7 +57,7 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
     st->set_checkpoint_version(p->checkpoint_version());
     st->set_corrupt_tiles(p->CorruptTiles().size());
     const ResidencyStats r = ctx.store.Residency();
-    st->set_memory_limit_bytes(r.memory_limit_bytes);
+    st->set_memory_limit_bytes(ctx.config.storage.max_memory_mb << 20);
     st->set_resident_tiles(r.resident_tiles);
     st->set_resident_bytes(r.resident_bytes);
     st->set_tiles_loaded(r.tiles_loaded);

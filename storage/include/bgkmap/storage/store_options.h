@@ -30,7 +30,10 @@ struct StoreOptions {
   Durability durability = Durability::kSync;
   uint32_t periodic_sync_ms = 100;  // kPeriodic: the power-loss window
   bool create_if_missing = true;    // Open() of an empty directory creates the store
-  size_t block_cache_bytes = size_t{64} << 20;
+  // RocksDB's own memory: the block cache, and the memory tables of every column family
+  // together (writes flush to files beyond it). A server's fixed overhead, whatever the map.
+  size_t block_cache_bytes = size_t{32} << 20;
+  size_t memtable_bytes = size_t{32} << 20;
   TileCompression tile_compression = TileCompression::kZstd;
   int zstd_level = 3;  // higher levels buy ~3% on real tiles for several times the CPU
   TileEncodeOptions tile_encoding;

@@ -1,0 +1,310 @@
+// Issue 4's storage benchmarks against the real bgkmapd binary (scripts/bench-storage.sh):
+//
+//  restart  A store of ~10^8 known cells, made of copies of the real Ouster street map written
+//           straight through the storage API, is opened by bgkmapd; measured: time from process
+//           start to the first answered point query and region query, and the RSS then.
+//  bounded  bgkmapd with storage.max_memory_mb maps the real street scans at many places (a map
+//           several times the bound), then answers a region query at every place; measured:
+//           the server's peak RSS (sampled from /proc) against the bound, with the same run
+//           unbounded for comparison.
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bgkmap/client/client.h"
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/io/kitti_sequence.h"
+#include "bgkmap/storage/tile_store.h"
+
+namespace bgkmap {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+[[noreturn]] void Die(const std::string& what) {
+  std::fprintf(stderr, "store_scale: %s\n", what.c_str());
+  std::exit(1);
+}
+
+std::vector<io::Scan> StreetScans(const std::string& dir) {
+  Result<io::KittiSequence> seq = io::KittiSequence::Open(dir);
+  if (!seq.ok()) Die(seq.status().ToString());
+  std::vector<io::Scan> scans;
+  for (size_t k = 0; k < seq->size(); ++k) {
+    Result<io::Scan> scan = seq->Read(k);
+    if (!scan.ok()) Die(scan.status().ToString());
+    scans.push_back(std::move(scan).value());
+  }
+  return scans;
+}
+
+// A bgkmapd child process; SIGTERM and reaped on destruction.
+class Server {
+ public:
+  Server(const std::string& binary, const std::vector<std::string>& args) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      std::vector<char*> argv;
+      argv.push_back(const_cast<char*>(binary.c_str()));
+      for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      // BGKMAP_BENCH_SERVER_LOG: where the server's log goes (default: nowhere).
+      const char* log = std::getenv("BGKMAP_BENCH_SERVER_LOG");
+      const int out = open(log != nullptr ? log : "/dev/null", O_WRONLY | O_CREAT | O_APPEND, 0644);
+      dup2(out, STDOUT_FILENO);
+      dup2(out, STDERR_FILENO);
+      execv(binary.c_str(), argv.data());
+      _exit(127);
+    }
+  }
+  ~Server() { Stop(); }
+  pid_t pid() const { return pid_; }
+  double Stop() {
+    if (pid_ <= 0) return 0;
+    const auto t0 = Clock::now();
+    kill(pid_, SIGTERM);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = 0;
+    return Seconds(t0);
+  }
+  // VmRSS or VmHWM of the process, bytes.
+  uint64_t Memory(const std::string& field) const {
+    std::ifstream in("/proc/" + std::to_string(pid_) + "/status");
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind(field + ":", 0) == 0) {
+        std::istringstream s(line.substr(field.size() + 1));
+        uint64_t kb = 0;
+        s >> kb;
+        return kb << 10;
+      }
+    }
+    return 0;
+  }
+
+ private:
+  pid_t pid_ = 0;
+};
+
+double Mb(uint64_t bytes) { return static_cast<double>(bytes) / (1 << 20); }
+
+// ---- restart
+
+// Writes copies of the street map's tiles on a grid of places until `cells` cells are known.
+void BuildLargeStore(const std::string& dir, const std::vector<io::Scan>& street, double cells) {
+  const MapParams params;
+  std::unique_ptr<TerrainMap> map = std::move(TerrainMap::Create(params)).value();
+  for (const io::Scan& s : street) {
+    if (!map->IntegrateScan(s.points, s.pose).ok()) Die("street scan rejected");
+  }
+  std::vector<std::pair<TileKey, const Tile*>> tiles;
+  TileKey lo{INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN};
+  map->ForEachTile([&](TileKey k, const Tile& t) {
+    tiles.emplace_back(k, &t);
+    lo = {std::min(lo.x, k.x), std::min(lo.y, k.y)};
+    hi = {std::max(hi.x, k.x), std::max(hi.y, k.y)};
+  });
+  const int64_t per_copy = map->CountKnownCells();
+  const int copies = static_cast<int>(std::ceil(cells / static_cast<double>(per_copy)));
+  const int span_x = hi.x - lo.x + 2, span_y = hi.y - lo.y + 2;
+  const int columns = static_cast<int>(std::ceil(std::sqrt(copies)));
+  std::printf("writing %d copies of the street map (%zu tiles, %lld known cells each) to %s\n",
+              copies, tiles.size(), static_cast<long long>(per_copy), dir.c_str());
+  storage::StoreOptions options;
+  Result<std::unique_ptr<storage::TileStore>> store =
+      storage::TileStore::Open(dir, options, params);
+  if (!store.ok()) Die(store.status().ToString());
+  const auto t0 = Clock::now();
+  std::vector<Tile> shifted;
+  for (int c = 0; c < copies; ++c) {
+    std::vector<storage::TileUpdate> updates;
+    std::vector<std::unique_ptr<Tile>> owned;
+    for (const auto& [k, t] : tiles) {
+      owned.push_back(std::make_unique<Tile>(*t));
+      owned.back()->set_version(1);
+      updates.push_back(
+          {{k.x + (c % columns) * span_x, k.y + (c / columns) * span_y}, owned.back().get()});
+    }
+    if (Status s = (*store)->Checkpoint(1, updates); !s.ok()) Die(s.ToString());
+  }
+  if (Status s = (*store)->Compact(); !s.ok()) Die(s.ToString());
+  const storage::DiskUsage usage = (*store)->Usage();
+  const double known = static_cast<double>(per_copy) * copies;
+  std::printf(
+      "store: %.3g known cells, %.1f MB on disk (%.1f bytes/known cell), written in %.1f s\n",
+      known, Mb(usage.total_bytes), usage.total_bytes / known, Seconds(t0));
+}
+
+int RunRestart(const std::string& bgkmapd, const std::string& dir, const std::string& street_dir,
+               double cells, int port, int trials) {
+  if (!fs::exists(fs::path(dir) / "CURRENT")) BuildLargeStore(dir, StreetScans(street_dir), cells);
+  const std::string target = "127.0.0.1:" + std::to_string(port);
+  std::printf(
+      "\n| trial | first point query | first 50x50 m region | RSS then | Info known cells |\n");
+  std::printf("|---|---|---|---|---|\n");
+  for (int trial = 1; trial <= trials; ++trial) {
+    const auto t0 = Clock::now();
+    Server server(bgkmapd, {"--listen", target, "--data-dir", dir, "--log-level", "warn"});
+    Client client(target);
+    // A point of the first copy: the query must load its tile from the store.
+    const std::array<double, 2> point{0.5, 0.5};
+    double first_point = -1;
+    while (Seconds(t0) < 120) {
+      if (client.QueryPoints(std::span(&point, 1)).ok()) {
+        first_point = Seconds(t0);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    if (first_point < 0) Die("bgkmapd did not answer within 120 s");
+    RpcResult<Raster> region = client.QueryRegion({{-25, -25, 25, 25}, {}, 1});
+    if (!region.ok()) Die(region.status().ToString());
+    const double first_region = Seconds(t0);
+    const uint64_t rss = server.Memory("VmRSS");
+    RpcResult<MapInfo> info = client.Info();
+    if (!info.ok()) Die(info.status().ToString());
+    std::printf("| %d | %.3f s | %.3f s | %.0f MB | %.4g |\n", trial, first_point, first_region,
+                Mb(rss), static_cast<double>(info->known_cells));
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+// ---- bounded
+
+int RunBounded(const std::string& bgkmapd, const std::string& street_dir, int sites,
+               uint64_t bound_mb, int port) {
+  const std::vector<io::Scan> street = StreetScans(street_dir);
+  const std::string dir =
+      (fs::temp_directory_path() / ("bgkmap_bounded_bench_" + std::to_string(getpid()))).string();
+  fs::remove_all(dir);
+  const std::string target = "127.0.0.1:" + std::to_string(port);
+  Server server(bgkmapd, {"--listen", target, "--data-dir", dir, "--log-level", "warn", "--set",
+                          "server.max_message_bytes=134217728", "--set",
+                          "storage.max_memory_mb=" + std::to_string(bound_mb)});
+  Client client(target);
+  for (int i = 0; i < 2000 && !client.Info().ok(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::atomic<bool> done{false};
+  std::atomic<uint64_t> peak{0};
+  std::thread sampler([&] {
+    while (!done.load()) {
+      peak.store(std::max(peak.load(), server.Memory("VmRSS")));
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+  const int columns = static_cast<int>(std::ceil(std::sqrt(sites)));
+  auto site_origin = [&](int site) {
+    return std::array<double, 2>{(site % columns) * 200.0, (site / columns) * 200.0};
+  };
+  const auto t0 = Clock::now();
+  uint64_t sequence = 0;
+  for (int site = 0; site < sites; ++site) {
+    std::vector<ScanData> batch;
+    for (const io::Scan& s : street) {
+      Pose pose = s.pose;
+      pose.translation.x() += site_origin(site)[0];
+      pose.translation.y() += site_origin(site)[1];
+      ScanData d;
+      d.robot_id = "tour";
+      d.sequence = ++sequence;
+      d.pose = ScanPose::FromPose(pose);
+      d.points = s.points;
+      batch.push_back(d);
+    }
+    RpcResult<std::vector<ScanAck>> acks = client.IngestAll(batch);
+    if (!acks.ok()) Die(acks.status().ToString());
+  }
+  const double ingest_s = Seconds(t0);
+  const uint64_t peak_ingest = peak.load();
+  const auto q0 = Clock::now();
+  for (int site = 0; site < sites; ++site) {
+    const auto [x, y] = site_origin(site);
+    RpcResult<Raster> r = client.QueryRegion({{x - 25, y - 25, x + 25, y + 25}, {}, 1});
+    if (!r.ok()) Die(r.status().ToString());
+  }
+  const double query_s = Seconds(q0);
+  RpcResult<MapInfo> info = client.Info();
+  if (!info.ok()) Die(info.status().ToString());
+  done.store(true);
+  sampler.join();
+  if (std::getenv("BGKMAP_BENCH_PAUSE") != nullptr) {
+    std::printf("server pid %d; press enter\n", static_cast<int>(server.pid()));
+    std::getchar();
+  }
+  const uint64_t tile_bytes = sizeof(Tile) + static_cast<uint64_t>(info->params.tile_size) *
+                                                 info->params.tile_size * Tile::kBytesPerCell;
+  const uint64_t map_bytes = info->tile_count * tile_bytes;
+  const StorageInfo& st = *info->storage;
+  std::printf(
+      "| %s | %d | %.0f MB | %.0f MB | %.0f MB | %.0f MB | %.1f s | %.2f s | %llu | %llu |\n",
+      bound_mb == 0 ? "none" : (std::to_string(bound_mb) + " MB").c_str(), sites, Mb(map_bytes),
+      Mb(peak_ingest), Mb(peak.load()), Mb(st.resident_bytes), ingest_s, query_s,
+      static_cast<unsigned long long>(st.tiles_evicted),
+      static_cast<unsigned long long>(st.tiles_loaded));
+  server.Stop();
+  fs::remove_all(dir);
+  return 0;
+}
+
+}  // namespace
+}  // namespace bgkmap
+
+int main(int argc, char** argv) {
+  CLI::App app{"bgkmapd storage at scale: lazy restart and bounded memory"};
+  std::string bgkmapd = "build/server/bgkmapd";
+  std::string street = "../shared/data/ouster_os1_128_street";
+  int port = 50581;
+  app.add_option("--bgkmapd", bgkmapd, "bgkmapd binary")->capture_default_str();
+  app.add_option("--street", street, "KITTI-like directory of the street scans")
+      ->capture_default_str();
+  app.add_option("--port", port, "loopback port for bgkmapd")->capture_default_str();
+  app.require_subcommand(1);
+
+  CLI::App* restart = app.add_subcommand("restart", "restart to first answer on a large store");
+  std::string dir = "out/bench/store_1e8";
+  double cells = 1e8;
+  int trials = 3;
+  restart->add_option("--data-dir", dir, "store directory (built if missing)")
+      ->capture_default_str();
+  restart->add_option("--cells", cells, "known cells to build")->capture_default_str();
+  restart->add_option("--trials", trials, "restarts to time")->capture_default_str();
+
+  CLI::App* bounded = app.add_subcommand("bounded", "build and query a map above the bound");
+  int sites = 40;
+  std::vector<uint64_t> bounds = {64, 0};
+  bounded->add_option("--sites", sites, "places the street is mapped at")->capture_default_str();
+  bounded->add_option("--bound-mb", bounds, "storage.max_memory_mb values (0: unbounded)")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  if (restart->parsed()) return bgkmap::RunRestart(bgkmapd, dir, street, cells, port, trials);
+  std::printf(
+      "| bound | places | map (tiles) | peak RSS ingest | peak RSS ingest+queries | "
+      "tiles in memory at end | ingest | region queries | tiles evicted | tiles loaded |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+  for (uint64_t b : bounds) {
+    if (int rc = bgkmap::RunBounded(bgkmapd, street, sites, b, port); rc != 0) return rc;
+  }
+  return 0;
+}
