@@ -15,3 +15,15 @@ build/server/bgkmapd --listen "$ADDR" >out/bench/bgkmapd.log 2>&1 &
 SERVER=$!
 trap 'kill -TERM $SERVER 2>/dev/null || true; wait $SERVER 2>/dev/null || true' EXIT
 build/bench/server_load --server "$ADDR" | tee out/bench/server_load.md
+kill -TERM $SERVER && wait $SERVER || true
+
+# Storage at scale (docs/benchmarks.md, "Bounded memory and lazy restart"): bgkmapd restarted on
+# a store of 10^8 known cells (built once, ~1.8 GB in out/bench/store_1e8), and a map of 40 and
+# 80 places under storage.max_memory_mb = 64 against the same run unbounded.
+cmake --build build -j"$(nproc)" --target store_scale
+build/bench/store_scale --bgkmapd build/server/bgkmapd restart --data-dir out/bench/store_1e8 \
+  | tee out/bench/store_restart.md
+build/bench/store_scale --bgkmapd build/server/bgkmapd bounded --sites 40 --bound-mb 64 \
+  | tee out/bench/store_bounded.md
+build/bench/store_scale --bgkmapd build/server/bgkmapd bounded --sites 80 --bound-mb 64 0 \
+  | tail -n 2 | tee -a out/bench/store_bounded.md

@@ -354,6 +354,44 @@ TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
   EXPECT_TRUE(client.QueryRegion({elsewhere, {}, 1}).ok());
 }
 
+// Without the background check, a corrupt tile is found when a query loads it: the query
+// still answers DATA_LOSS naming it, never the tile's cells as unknown.
+TEST(PersistenceTest, CorruptTileMetOnDemandIsDataLossNamingIt) {
+  TempDir dir;
+  const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 3);
+  {
+    BgkmapdProcess server({"--data-dir", dir.str()});
+    ASSERT_TRUE(server.started());
+    std::vector<ScanData> data;
+    for (const OwnedScan& s : scans) data.push_back(s.Data());
+    ASSERT_TRUE(Client(server.target()).IngestAll(data).ok());
+    server.Signal(SIGTERM);
+    ASSERT_EQ(server.Wait(), 0);
+  }
+  const TileKey victim = CorruptFirstTile(dir.str());
+  BgkmapdProcess server({"--data-dir", dir.str(), "--set", "storage.verify_on_start=false"});
+  ASSERT_TRUE(server.started());
+  Client client(server.target());
+  RpcResult<MapInfo> before = client.Info();
+  ASSERT_TRUE(before.ok() && before->storage.has_value());
+  EXPECT_EQ(before->storage->corrupt_tiles, 0u);  // not read yet
+  EXPECT_EQ(before->storage->resident_tiles, 0u);
+  const double r = before->params.resolution, edge = before->params.tile_size * r;
+  const std::array<double, 2> point = {victim.x * edge + r, victim.y * edge + r};
+  RpcResult<PointValues> bad = client.QueryPoints(std::span(&point, 1), {});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().code(), RpcCode::kDataLoss);
+  const std::string name = "tile (" + std::to_string(victim.x) + ", " + std::to_string(victim.y);
+  EXPECT_NE(bad.status().message().find(name), std::string::npos) << bad.status().message();
+  RpcResult<MapInfo> after = client.Info();
+  ASSERT_TRUE(after.ok());
+  EXPECT_EQ(after->storage->corrupt_tiles, 1u);
+  const MetricBox region = {point[0], point[1], point[0] + 1, point[1] + 1};
+  RpcResult<Raster> again = client.QueryRegion({region, {}, 1});
+  ASSERT_FALSE(again.ok());
+  EXPECT_EQ(again.status().code(), RpcCode::kDataLoss);
+}
+
 // Kills bgkmapd at random moments while two robots stream with durability: sync.
 TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   const std::vector<OwnedScan> alpha = RobotScans("alpha", 0.0, 8, 150);
