@@ -170,6 +170,41 @@ TEST(BoundedMemoryTest, ClearOfEvictedGroundAndRestartStayExact) {
   EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *offline));
 }
 
+// Export reads the store, so a map mostly evicted exports whole; importing it into a bounded
+// server adds onto evicted tiles, which are loaded first.
+TEST(BoundedMemoryTest, ExportAndImportOfAMapLargerThanTheBound) {
+  TempDir dir;
+  const int sites = 3;
+  const std::vector<OwnedScan> scans = Tour(sites);
+  const std::unique_ptr<TerrainMap> offline = OfflineOf(scans);
+  const std::string archive = dir.str() + ".bgkmap";
+  {
+    ServerFixture fixture(BoundedConfig(dir.str()));
+    std::vector<ScanData> data;
+    for (const OwnedScan& s : scans) data.push_back(s.Data());
+    ASSERT_TRUE(fixture.client().IngestAll(data).ok());
+    RpcResult<ExportResult> exported = fixture.client().ExportMap(std::nullopt, archive);
+    ASSERT_TRUE(exported.ok()) << exported.status().ToString();
+    EXPECT_EQ(exported->tiles, offline->tile_count());
+    // Imported onto itself: every statistic doubles, evicted tiles included.
+    RpcResult<ImportResult> imported = fixture.client().ImportMap(archive);
+    ASSERT_TRUE(imported.ok()) << imported.status().ToString();
+    std::unique_ptr<TerrainMap> doubled = std::move(TerrainMap::Create(MapParams{})).value();
+    offline->ForEachTile([&](TileKey k, const Tile& t) {
+      doubled->AddTile(k, t);
+      doubled->AddTile(k, t);
+    });
+    EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *doubled));
+    RpcResult<MapInfo> info = SettledInfo(fixture.client());
+    ASSERT_TRUE(info.ok());
+    EXPECT_LE(info->storage->resident_bytes, info->storage->memory_limit_bytes);
+  }
+  ServerFixture fresh;  // in memory
+  ASSERT_TRUE(fresh.client().ImportMap(archive).ok());
+  EXPECT_TRUE(MapsEqual(*fresh.server().SnapshotMap(), *offline));
+  fs::remove(archive);
+}
+
 TEST(BoundedMemoryTest, BoundNeedsADataDirectory) {
   ServerConfig c = TestConfig();
   c.storage.max_memory_mb = 64;

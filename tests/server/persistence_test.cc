@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -392,30 +393,43 @@ TEST(PersistenceTest, CorruptTileMetOnDemandIsDataLossNamingIt) {
   EXPECT_EQ(again.status().code(), RpcCode::kDataLoss);
 }
 
+int EnvInt(const char* name, int fallback) {
+  const char* v = std::getenv(name);
+  return v != nullptr && *v != '\0' ? std::atoi(v) : fallback;
+}
+
 // Kills bgkmapd at random moments while two robots stream with durability: sync.
 TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   const std::vector<OwnedScan> alpha = RobotScans("alpha", 0.0, 8, 150);
   const std::vector<OwnedScan> beta = RobotScans("beta", kBetaShift, 8, 150);
   const MetricBox box_a = BoxAround(alpha.front(), 12.8);
   const MetricBox box_b = BoxAround(beta.front(), 12.8);
-  std::mt19937 rng(20261121);
+  // scripts/soak-crash.sh runs more trials with other seeds.
+  const int trial_count = EnvInt("BGKMAP_CRASH_TRIALS", 21);
+  std::mt19937 rng(static_cast<unsigned>(EnvInt("BGKMAP_CRASH_SEED", 20261121)));
   std::uniform_int_distribution<int> kill_ms(0, 600);
   // The restarted servers' rasters, by the robot's last sequence; checked against offline runs.
   std::map<uint64_t, Raster> served_a, served_b;
   const auto t0 = std::chrono::steady_clock::now();
   int trials = 0;
-  for (; trials < 20; ++trials) {
+  for (; trials < trial_count; ++trials) {
     TempDir dir;
-    // Every other trial checkpoints while the robots stream: the kill also lands mid-checkpoint.
-    const std::vector<std::string> args = {"--data-dir",
-                                           dir.str(),
-                                           "--worker-threads",
-                                           "2",
-                                           "--set",
-                                           "storage.durability=sync",
-                                           "--set",
-                                           trials % 2 == 0 ? "storage.checkpoint_interval_s=0.05"
-                                                           : "storage.checkpoint_interval_s=30"};
+    // A third of the trials checkpoint while the robots stream, so the kill also lands
+    // mid-checkpoint; a third run under a 1 MB memory bound, so it also lands mid-eviction (and
+    // the restart loads evicted tiles on demand).
+    std::vector<std::string> args = {"--data-dir",
+                                     dir.str(),
+                                     "--worker-threads",
+                                     "2",
+                                     "--set",
+                                     "storage.durability=sync",
+                                     "--set",
+                                     "storage.checkpoint_interval_s=30"};
+    if (trials % 3 == 0) args.back() = "storage.checkpoint_interval_s=0.05";
+    if (trials % 3 == 2) {
+      args.push_back("--set");
+      args.push_back("storage.max_memory_mb=1");
+    }
     RobotRun a, b;
     {
       BgkmapdProcess server(args);
