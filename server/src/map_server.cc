@@ -275,6 +275,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   impl->server = builder.BuildAndStart();
   if (impl->server == nullptr || impl->port == 0) {
     impl->server.reset();
+    impl->StopCheckpoints();  // joins the store's threads (a joinable std::thread terminates)
     return Status::FailedPrecondition("server.listen_address: cannot listen on '" +
                                       config.listen_address + "'");
   }
