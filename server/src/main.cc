@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   int query_threads = -1;
   std::string log_level;
   std::string data_dir;
+  std::string metrics;
   std::vector<std::string> overrides;
   bool print_config = false;
   app.add_option("-c,--config", config_path,
@@ -47,6 +48,9 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("-l,--listen", listen,
                  "Listen address host:port (overrides server.listen_address)");
+  CLI::Option* metrics_flag = app.add_option("--metrics", metrics,
+                                             "Serve GET /metrics (Prometheus) on host:port; \"\" = "
+                                             "off (overrides server.metrics_address)");
   app.add_option("--worker-threads", worker_threads, "Ingest worker threads (0 = all cores)");
   app.add_option("--query-threads", query_threads, "Query worker threads (0 = all cores)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off");
@@ -69,6 +73,12 @@ int main(int argc, char** argv) {
   }
   std::vector<std::string> flag_overrides;
   if (!listen.empty()) flag_overrides.push_back("server.listen_address=" + listen);
+  if (metrics_flag->count() > 0) {
+    // Quoted, so that "" (off) and "[::1]:9100" read as the strings they are.
+    YAML::Emitter quoted;
+    quoted << YAML::DoubleQuoted << metrics;
+    flag_overrides.push_back("server.metrics_address=" + std::string(quoted.c_str()));
+  }
   if (worker_threads >= 0) {
     flag_overrides.push_back("server.worker_threads=" + std::to_string(worker_threads));
   }

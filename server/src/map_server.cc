@@ -19,6 +19,8 @@
 
 #include "bgkmap/v1/map_service.pb.h"
 #include "map_service.h"
+#include "metrics.h"
+#include "metrics_http.h"
 #include "service_context.h"
 
 namespace bgkmap {
@@ -100,6 +102,10 @@ struct MapServer::Impl {
   std::thread verifier;
   std::atomic<bool> stop_verifying{false};
   bool eviction_requested = false;  // guarded by checkpoint_mu, signalled by checkpoint_cv
+
+  // GET /metrics (server.metrics_address); null when off. Last: it reads everything above.
+  std::unique_ptr<MetricsHttpServer> metrics;
+  int metrics_port = 0;
 };
 
 void MapServer::Impl::RequestEviction() {
@@ -240,6 +246,17 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
         persistence->CorruptTiles().size(), r.seconds);
   }
   auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(persistence));
+  if (!config.metrics_address.empty()) {
+    // Bound before any thread starts, so that a bad address fails the start cleanly; served
+    // once the map service is up.
+    Result<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Listen(
+        config.metrics_address, [p = impl.get()] { return FormatMetrics(CollectMetrics(p->ctx)); });
+    if (!metrics.ok()) {
+      return Status::FailedPrecondition("server.metrics_address: " + metrics.status().message());
+    }
+    impl->metrics = std::move(metrics).value();
+    impl->metrics_port = impl->metrics->port();
+  }
   if (impl->persistence != nullptr) {
     impl->scheduler.Restore(impl->persistence->map_version(), impl->persistence->RobotSequences());
     impl->scheduler.SetJournal(impl->persistence.get());
@@ -286,10 +303,17 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   spdlog::info("event=listening address={} port={} worker_threads={} query_threads={}",
                config.listen_address, impl->port, ThreadCount(config.worker_threads),
                ThreadCount(config.query_threads));
+  if (impl->metrics != nullptr) {
+    impl->metrics->Start();
+    spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
+                 impl->metrics_port);
+  }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
 }
 
 int MapServer::port() const { return impl_->port; }
+
+int MapServer::metrics_port() const { return impl_->metrics_port; }
 
 void MapServer::Shutdown() {
   std::lock_guard lock(impl_->shutdown_mu);
@@ -309,6 +333,8 @@ void MapServer::Shutdown() {
       std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
   impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
   impl_->scheduler.WaitIdle();
+  // Scrapes see the drain above; the endpoint closes before the store and the pools do.
+  if (impl_->metrics != nullptr) impl_->metrics->Stop();
   if (impl_->persistence != nullptr) {
     // Last checkpoint: the next start replays nothing.
     impl_->StopCheckpoints();

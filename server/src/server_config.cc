@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "bgkmap/config/map_params_yaml.h"
+#include "host_port.h"
 
 namespace bgkmap {
 namespace {
@@ -79,6 +80,8 @@ const std::vector<ServerKey>& Keys() {
           "log_level", [](ServerConfig & c) -> auto& { return c.log_level; }),
       Key<double>(
           "shutdown_timeout_s", [](ServerConfig & c) -> auto& { return c.shutdown_timeout_s; }),
+      Key<std::string>(
+          "metrics_address", [](ServerConfig & c) -> auto& { return c.metrics_address; }),
       Key<uint64_t>(
           "max_points_per_scan",
           [](ServerConfig & c) -> auto& { return c.limits.max_points_per_scan; }),
@@ -255,6 +258,11 @@ Status ValidateServerConfig(const ServerConfig& c) {
     return Status::InvalidArgument("server." + key + ": " + why);
   };
   if (c.listen_address.empty()) return bad("listen_address", "must not be empty");
+  if (!c.metrics_address.empty()) {
+    if (Result<HostPort> m = ParseHostPort(c.metrics_address); !m.ok()) {
+      return bad("metrics_address", m.status().message() + " (\"\" turns the endpoint off)");
+    }
+  }
   static const std::vector<std::string> kLevels = {"trace", "debug",    "info", "warn",
                                                    "error", "critical", "off"};
   if (std::find(kLevels.begin(), kLevels.end(), c.log_level) == kLevels.end()) {

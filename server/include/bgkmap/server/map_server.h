@@ -42,14 +42,19 @@ void KeepLargeAllocationsInHeap();
 
 class MapServer {
  public:
-  // Creates the map and starts listening on config.listen_address (port 0: any free port).
+  // Creates the map and starts listening on config.listen_address (port 0: any free port), and
+  // on config.metrics_address for GET /metrics if it is set.
   static Result<std::unique_ptr<MapServer>> Start(const ServerConfig& config);
   ~MapServer();  // Shutdown()
 
   int port() const;
+  // The port of the Prometheus endpoint (server.metrics_address; the chosen one for port 0), or
+  // 0 when it is off.
+  int metrics_port() const;
 
   // Graceful stop: refuses new calls, lets every ingest stream ack the scans it has read (then
-  // ends it with UNAVAILABLE), ends watches, waits for admitted scans, stops the workers.
+  // ends it with UNAVAILABLE), ends watches, waits for admitted scans, closes the metrics
+  // endpoint, stops the workers.
   // Idempotent and thread-safe; returns when the server has stopped.
   void Shutdown();
 

@@ -59,6 +59,9 @@ struct ServerConfig {
   int query_threads = 0;   // query_threads: queries and watch updates (0 = all cores)
   std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
   double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
+  // metrics_address: host:port of the Prometheus endpoint (GET /metrics over HTTP); "" = off,
+  // port 0 = any free port (logged as event=metrics_listening).
+  std::string metrics_address;
   ServerLimits limits;
   StorageConfig storage;
 };

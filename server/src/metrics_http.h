@@ -1,0 +1,60 @@
+// The HTTP side of bgkmapd's metrics endpoint: a small HTTP/1.1 server (Boost.Beast on its own
+// Boost.Asio thread) that answers GET /metrics with whatever `render` returns, in the
+// Prometheus text format's content type. What is exported is metrics.{h,cc}.
+//
+// Every other path is 404 and every other method on /metrics 405. One request per connection
+// (the response closes it). A request must arrive whole within Options::read_timeout and fit in
+// Options::max_request_bytes: a malformed or oversized request is answered 400/413/431, a slow
+// or idle client is disconnected at the timeout. A client holds nothing but its own connection,
+// and at most Options::max_connections are open at once (more are closed at once).
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "bgkmap/core/status.h"
+
+namespace bgkmap {
+
+class MetricsHttpServer {
+ public:
+  // The body of a /metrics response. Runs on the endpoint's thread, one request at a time.
+  using Render = std::function<std::string()>;
+
+  struct Options {
+    std::chrono::milliseconds read_timeout{5000};  // to receive a request, and to send a reply
+    size_t max_request_bytes = 8192;               // request line, headers and body
+    size_t max_connections = 8;                    // open at the same time
+  };
+
+  // Resolves and binds `address` ("host:port", port 0 = any free port) and listens. Requests
+  // wait in the listen backlog until Start(). The error says why the address cannot be used
+  // (without naming a config key).
+  static Result<std::unique_ptr<MetricsHttpServer>> Listen(const std::string& address,
+                                                           Render render, Options options);
+  static Result<std::unique_ptr<MetricsHttpServer>> Listen(const std::string& address,
+                                                           Render render) {
+    return Listen(address, std::move(render), Options{});
+  }
+  ~MetricsHttpServer();  // Stop()
+
+  // The bound port (the chosen one for port 0).
+  int port() const;
+
+  // Starts serving on the endpoint's own thread.
+  void Start();
+  // Stops accepting, drops open connections and joins the thread; waits for a render in
+  // progress. Idempotent.
+  void Stop();
+
+  struct State;  // metrics_http.cc: the io_context, the listener and the open connections
+
+ private:
+  explicit MetricsHttpServer(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace bgkmap
