@@ -1,0 +1,498 @@
+// The Prometheus endpoint (server.metrics_address): scraped with a plain socket, the exposition
+// parses, every sample has its HELP and TYPE, and the values equal Info's after ingesting the
+// street scans; a tile corrupted on disk shows as corrupt-tile metrics after a restart; only GET
+// /metrics is served; malformed, oversized and idle clients neither crash nor block it; a bad
+// address stops bgkmapd with one line naming the key.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <rocksdb/db.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <chrono>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <regex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bgkmap/server/server_config.h"
+#include "bgkmap/storage/tile_store.h"
+#include "bgkmapd_process.h"
+#include "test_support.h"
+
+namespace bgkmap::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+class TempDir {
+ public:
+  TempDir() {
+    path_ = fs::temp_directory_path() /
+            ("bgkmap_metrics_" + std::to_string(getpid()) + "_" + std::to_string(counter_++));
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  std::string str() const { return path_.string(); }
+
+ private:
+  static inline int counter_ = 0;
+  fs::path path_;
+};
+
+ServerConfig MetricsConfig(const std::string& data_dir = "") {
+  ServerConfig c = TestConfig();
+  c.metrics_address = "127.0.0.1:0";
+  c.storage.data_dir = data_dir;
+  return c;
+}
+
+// A connected loopback socket with a receive timeout, closed on destruction.
+class Socket {
+ public:
+  explicit Socket(int port) {
+    fd_ = socket(AF_INET, SOCK_STREAM, 0);
+    timeval timeout{15, 0};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(static_cast<uint16_t>(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    connected_ = connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+  }
+  ~Socket() { close(fd_); }
+  bool connected() const { return connected_; }
+  bool Send(const std::string& bytes) {
+    size_t sent = 0;
+    while (sent < bytes.size()) {
+      const ssize_t n = send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) return false;
+      sent += static_cast<size_t>(n);
+    }
+    return true;
+  }
+  // Everything until the peer closes (or the receive timeout: then nullopt).
+  std::optional<std::string> ReadToEnd() {
+    std::string out;
+    char buf[4096];
+    for (;;) {
+      const ssize_t n = recv(fd_, buf, sizeof buf, 0);
+      if (n == 0) return out;
+      if (n < 0) return errno == ECONNRESET ? std::optional<std::string>(out) : std::nullopt;
+      out.append(buf, static_cast<size_t>(n));
+    }
+  }
+
+ private:
+  int fd_ = -1;
+  bool connected_ = false;
+};
+
+struct HttpReply {
+  int status = 0;  // 0: no response
+  std::string headers;
+  std::string body;
+};
+
+// Sends `request` as is and reads the reply (the server closes after one).
+HttpReply Exchange(int port, const std::string& request) {
+  Socket s(port);
+  EXPECT_TRUE(s.connected());
+  HttpReply reply;
+  if (!s.Send(request)) return reply;
+  std::optional<std::string> raw = s.ReadToEnd();
+  if (!raw) return reply;
+  const size_t end = raw->find("\r\n\r\n");
+  if (raw->rfind("HTTP/1.", 0) != 0 || end == std::string::npos) return reply;
+  reply.status = std::stoi(raw->substr(9, 3));
+  reply.headers = raw->substr(0, end);
+  reply.body = raw->substr(end + 4);
+  return reply;
+}
+
+HttpReply Get(int port, const std::string& path = "/metrics") {
+  return Exchange(port, "GET " + path + " HTTP/1.1\r\nHost: localhost\r\n\r\n");
+}
+
+// A parsed exposition: samples by their series ("name" or "name{labels}" as written).
+struct Exposition {
+  std::map<std::string, uint64_t> samples;
+  std::map<std::string, std::string> types;  // family -> counter|gauge
+};
+
+// Parses the text format strictly enough to catch what a Prometheus server would refuse: every
+// sample's family has HELP and TYPE lines before it, counters end in _total, values are
+// integers, series are unique.
+::testing::AssertionResult Parse(const std::string& text, Exposition* out) {
+  std::set<std::string> helped;
+  size_t at = 0;
+  while (at < text.size()) {
+    const size_t eol = text.find('\n', at);
+    if (eol == std::string::npos) return ::testing::AssertionFailure() << "no final line feed";
+    const std::string line = text.substr(at, eol - at);
+    at = eol + 1;
+    std::smatch m;
+    if (std::regex_match(line, m, std::regex("# HELP ([a-zA-Z_:][a-zA-Z0-9_:]*) .+"))) {
+      helped.insert(m[1]);
+      continue;
+    }
+    if (std::regex_match(line, m,
+                         std::regex("# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge)"))) {
+      if (!helped.count(m[1])) return ::testing::AssertionFailure() << "TYPE before HELP: " << line;
+      if (!out->types.emplace(m[1], m[2]).second) {
+        return ::testing::AssertionFailure() << "family twice: " << line;
+      }
+      if (m[2] == "counter" && !std::string(m[1]).ends_with("_total")) {
+        return ::testing::AssertionFailure() << "counter without _total: " << line;
+      }
+      continue;
+    }
+    // name, optional {labels} (values quoted, with \\, \" and \n escapes), space, value.
+    size_t i = 0;
+    while (i < line.size() && line[i] != '{' && line[i] != ' ') ++i;
+    const std::string name = line.substr(0, i);
+    if (i < line.size() && line[i] == '{') {
+      bool quoted = false;
+      for (++i; i < line.size() && (quoted || line[i] != '}'); ++i) {
+        if (quoted && line[i] == '\\') {
+          ++i;
+        } else if (line[i] == '"') {
+          quoted = !quoted;
+        }
+      }
+      ++i;
+    }
+    if (i >= line.size() || line[i] != ' ') {
+      return ::testing::AssertionFailure() << "bad sample line: " << line;
+    }
+    const std::string series = line.substr(0, i);
+    const std::string value = line.substr(i + 1);
+    if (!out->types.count(name)) {
+      return ::testing::AssertionFailure() << "sample without TYPE: " << line;
+    }
+    if (!std::regex_match(value, std::regex("[0-9]+"))) {
+      return ::testing::AssertionFailure() << "not an integer: " << line;
+    }
+    if (!out->samples.emplace(series, std::stoull(value)).second) {
+      return ::testing::AssertionFailure() << "series twice: " << line;
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+Exposition Scrape(int port) {
+  const HttpReply reply = Get(port);
+  EXPECT_EQ(reply.status, 200) << reply.headers;
+  EXPECT_NE(reply.headers.find("Content-Type: text/plain; version=0.0.4"), std::string::npos)
+      << reply.headers;
+  Exposition e;
+  EXPECT_TRUE(Parse(reply.body, &e)) << reply.body;
+  return e;
+}
+
+// Value of one series; fails the test if it is missing.
+uint64_t Value(const Exposition& e, const std::string& series) {
+  auto it = e.samples.find(series);
+  EXPECT_NE(it, e.samples.end()) << series;
+  return it == e.samples.end() ? ~uint64_t{0} : it->second;
+}
+
+void Ingest(Client& client, const std::vector<OwnedScan>& scans) {
+  std::vector<ScanData> data;
+  for (const OwnedScan& s : scans) data.push_back(s.Data());
+  RpcResult<std::vector<ScanAck>> acks = client.IngestAll(data);
+  ASSERT_TRUE(acks.ok()) << acks.status().ToString();
+}
+
+// Flips a byte of the first stored tile with RocksDB directly, as a disk error would.
+void CorruptFirstStoredTile(const std::string& dir) {
+  {
+    // Into SST files first, where a long-running store keeps its tiles.
+    auto store = storage::TileStore::OpenExisting(dir, {});
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    ASSERT_TRUE((*store)->Compact().ok());
+  }
+  std::vector<std::string> families;
+  ASSERT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &families).ok());
+  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
+  for (const std::string& f : families) descriptors.emplace_back(f, rocksdb::ColumnFamilyOptions());
+  std::vector<rocksdb::ColumnFamilyHandle*> handles;
+  rocksdb::DB* raw = nullptr;
+  ASSERT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
+  std::unique_ptr<rocksdb::DB> db(raw);
+  for (size_t i = 0; i < families.size(); ++i) {
+    if (families[i] != "tiles") continue;
+    std::unique_ptr<rocksdb::Iterator> it(db->NewIterator(rocksdb::ReadOptions(), handles[i]));
+    it->SeekToFirst();
+    ASSERT_TRUE(it->Valid()) << "no stored tile";
+    std::string value = it->value().ToString();
+    value[value.size() / 2] ^= 0x01;
+    EXPECT_TRUE(db->Put(rocksdb::WriteOptions(), handles[i], it->key(), value).ok());
+  }
+  for (rocksdb::ColumnFamilyHandle* h : handles) EXPECT_TRUE(db->DestroyColumnFamilyHandle(h).ok());
+  EXPECT_TRUE(db->Close().ok());
+}
+
+// A robot id that needs every escape of the format.
+const std::string kOddRobot = "be\"ta\\\n2";
+const std::string kOddRobotLabel = "{robot=\"be\\\"ta\\\\\\n2\"}";
+
+TEST(MetricsTest, ScrapeEqualsInfo) {
+  TempDir dir;
+  ServerFixture fixture(MetricsConfig(dir.str()));
+  const int port = fixture.server().metrics_port();
+  ASSERT_GT(port, 0);
+  ASSERT_NE(port, fixture.server().port());
+  const std::vector<OwnedScan> alpha = SubScans("alpha", 4, 8);
+  std::vector<OwnedScan> odd = SubScans(kOddRobot, 4, 3);
+  Ingest(fixture.client(), alpha);
+  Ingest(fixture.client(), odd);
+  Ingest(fixture.client(), {odd.front()});  // a duplicate
+
+  const Exposition e = Scrape(port);
+  RpcResult<MapInfo> info = fixture.client().Info();
+  ASSERT_TRUE(info.ok());
+  ASSERT_TRUE(info->storage.has_value());
+  EXPECT_EQ(Value(e, "bgkmap_map_version"), info->map_version);
+  EXPECT_EQ(Value(e, "bgkmap_map_version"), alpha.size() + odd.size());
+  EXPECT_EQ(Value(e, "bgkmap_scans_applied_total"), info->scans_applied);
+  EXPECT_EQ(Value(e, "bgkmap_map_tiles"), info->tile_count);
+  EXPECT_EQ(Value(e, "bgkmap_map_known_cells"), info->known_cells);
+  EXPECT_GT(info->known_cells, 0u);
+  EXPECT_EQ(Value(e, "bgkmap_robots"), 2u);
+  ASSERT_EQ(info->robots.size(), 2u);
+  for (const RobotInfo& r : info->robots) {
+    const std::string label = r.robot_id == "alpha" ? "{robot=\"alpha\"}" : kOddRobotLabel;
+    EXPECT_EQ(Value(e, "bgkmap_robot_scans_applied_total" + label), r.scans_applied);
+    EXPECT_EQ(Value(e, "bgkmap_robot_scans_duplicate_total" + label), r.scans_duplicate);
+    EXPECT_EQ(Value(e, "bgkmap_robot_scans_rejected_total" + label), r.scans_rejected);
+    EXPECT_EQ(Value(e, "bgkmap_robot_points_kept_total" + label), r.points_kept);
+    EXPECT_EQ(Value(e, "bgkmap_robot_last_sequence" + label), r.last_sequence);
+  }
+  EXPECT_EQ(Value(e, "bgkmap_robot_scans_applied_total{robot=\"alpha\"}"), alpha.size());
+  EXPECT_EQ(Value(e, "bgkmap_robot_scans_duplicate_total" + kOddRobotLabel), 1u);
+  EXPECT_EQ(e.types.at("bgkmap_map_version"), "gauge");
+  EXPECT_EQ(e.types.at("bgkmap_scans_applied_total"), "counter");
+
+  // The store's side.
+  EXPECT_EQ(Value(e, "bgkmap_store_checkpoint_version"), info->storage->checkpoint_version);
+  EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles_found_total"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_corrupt_log_records_total"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_write_failed"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_write_errors_total"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_log_records_appended_total"), alpha.size() + odd.size());
+  EXPECT_GT(Value(e, "bgkmap_store_log_appended_bytes_total"), 0u);
+  EXPECT_GT(Value(e, "bgkmap_store_disk_bytes"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_map_resident_tiles"), info->storage->resident_tiles);
+  EXPECT_EQ(Value(e, "bgkmap_map_resident_bytes"), info->storage->resident_bytes);
+  EXPECT_EQ(Value(e, "bgkmap_map_memory_limit_bytes"), 0u);
+  for (const char* name :
+       {"bgkmap_store_tiles_loaded_total", "bgkmap_store_tiles_written_total",
+        "bgkmap_store_tiles_deleted_total", "bgkmap_store_checkpoints_total",
+        "bgkmap_store_dirty_tiles", "bgkmap_store_tile_sst_bytes", "bgkmap_store_log_sst_bytes",
+        "bgkmap_map_tiles_loaded_total", "bgkmap_map_tiles_evicted_total", "bgkmap_ingest_streams",
+        "bgkmap_watchers"}) {
+    EXPECT_TRUE(e.samples.count(name)) << name;
+  }
+  EXPECT_GT(Value(e, "process_resident_memory_bytes"), 10u << 20);
+  EXPECT_EQ(e.samples.count("bgkmap_build_info{version=\"" + info->server_version + "\"}"), 1u);
+
+  // A later change shows at the next scrape.
+  RpcResult<ClearResult> cleared = fixture.client().ClearRegion({-1, -1, 1, 1});
+  ASSERT_TRUE(cleared.ok());
+  EXPECT_EQ(Value(Scrape(port), "bgkmap_map_version"), info->map_version + 1);
+}
+
+TEST(MetricsTest, InMemoryMapHasNoStoreMetrics) {
+  ServerFixture fixture(MetricsConfig());
+  Ingest(fixture.client(), SubScans("alpha", 4, 2));
+  const Exposition e = Scrape(fixture.server().metrics_port());
+  EXPECT_EQ(Value(e, "bgkmap_map_version"), 2u);
+  for (const auto& [series, value] : e.samples) {
+    EXPECT_FALSE(series.starts_with("bgkmap_store_")) << series;
+  }
+}
+
+TEST(MetricsTest, OffByDefault) {
+  ServerFixture fixture;
+  EXPECT_EQ(fixture.server().metrics_port(), 0);
+}
+
+TEST(MetricsTest, CorruptStoredTileIsCounted) {
+  TempDir dir;
+  {
+    ServerFixture fixture(MetricsConfig(dir.str()));
+    Ingest(fixture.client(), SubScans("alpha", 4, 3));
+  }  // the last checkpoint writes every tile
+  {
+    ServerFixture fixture(MetricsConfig(dir.str()));
+    const Exposition e = Scrape(fixture.server().metrics_port());
+    EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles"), 0u);
+    EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles_found_total"), 0u);
+  }
+  CorruptFirstStoredTile(dir.str());
+  ServerFixture fixture(MetricsConfig(dir.str()));
+  // storage.verify_on_start reads every stored tile in the background.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  Exposition e;
+  do {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    e = Scrape(fixture.server().metrics_port());
+  } while (Value(e, "bgkmap_store_corrupt_tiles") == 0 &&
+           std::chrono::steady_clock::now() < deadline);
+  EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles"), 1u);
+  EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles_found_total"), 1u);
+  RpcResult<MapInfo> info = fixture.client().Info();
+  ASSERT_TRUE(info.ok() && info->storage.has_value());
+  EXPECT_EQ(info->storage->corrupt_tiles, 1u);
+}
+
+TEST(MetricsTest, OnlyGetMetricsIsServed) {
+  ServerFixture fixture(MetricsConfig());
+  const int port = fixture.server().metrics_port();
+  EXPECT_EQ(Get(port, "/").status, 404);
+  EXPECT_EQ(Get(port, "/metricsx").status, 404);
+  EXPECT_EQ(Get(port, "/metrics/").status, 404);
+  EXPECT_EQ(Get(port, "/metrics?name[]=x").status, 200);
+  const HttpReply post =
+      Exchange(port, "POST /metrics HTTP/1.1\r\nHost: x\r\nContent-Length: 3\r\n\r\nabc");
+  EXPECT_EQ(post.status, 405);
+  EXPECT_NE(post.headers.find("Allow: GET"), std::string::npos) << post.headers;
+  EXPECT_EQ(Exchange(port, "HEAD /metrics HTTP/1.1\r\nHost: x\r\n\r\n").status, 405);
+  EXPECT_EQ(Exchange(port, "GET /metrics HTTP/1.0\r\n\r\n").status, 200);
+}
+
+TEST(MetricsTest, BadClientsNeitherCrashNorBlockIt) {
+  ServerFixture fixture(MetricsConfig());
+  const int port = fixture.server().metrics_port();
+  // An idle connection and a half-sent request stay open while others are answered.
+  Socket idle(port);
+  Socket half(port);
+  ASSERT_TRUE(idle.connected() && half.connected());
+  ASSERT_TRUE(half.Send("GET /metr"));
+  EXPECT_EQ(Exchange(port, "NOT HTTP AT ALL\r\n\r\n").status, 400);
+  EXPECT_EQ(Exchange(port, std::string("GET /metrics HTTP/1.1\r\n\0\x01\x02\r\n\r\n", 30)).status,
+            400);
+  EXPECT_EQ(
+      Exchange(port, "GET /metrics HTTP/1.1\r\nX-Big: " + std::string(20000, 'a') + "\r\n\r\n")
+          .status,
+      431);
+  EXPECT_EQ(Exchange(port, "GET /metrics HTTP/1.1\r\nContent-Length: 100000\r\n\r\n").status, 413);
+  {
+    Socket gone(port);  // connects and disappears mid-request
+    EXPECT_TRUE(gone.Send("GET /metrics HTTP/1.1\r\nHo"));
+  }
+  // More connections than the endpoint keeps open: the extra ones are closed, nothing waits.
+  std::vector<std::unique_ptr<Socket>> crowd;
+  for (int i = 0; i < 12; ++i) crowd.push_back(std::make_unique<Socket>(port));
+  crowd.clear();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  Scrape(port);
+  EXPECT_TRUE(fixture.client().Info().ok());
+  // The slow ones are dropped at the read timeout (5 s).
+  const auto t0 = std::chrono::steady_clock::now();
+  std::optional<std::string> rest = idle.ReadToEnd();
+  ASSERT_TRUE(rest.has_value()) << "the idle connection was not closed";
+  EXPECT_EQ(*rest, "");
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(8));
+  rest = half.ReadToEnd();
+  ASSERT_TRUE(rest.has_value());
+  EXPECT_EQ(*rest, "");
+  Scrape(port);
+}
+
+TEST(MetricsTest, ShutdownWithOpenConnectionsIsClean) {
+  ServerFixture fixture(MetricsConfig());
+  const int port = fixture.server().metrics_port();
+  Socket idle(port);
+  ASSERT_TRUE(idle.connected());
+  Scrape(port);
+  fixture.server().Shutdown();
+  EXPECT_TRUE(idle.ReadToEnd().has_value());  // closed by the shutdown
+  EXPECT_FALSE(Socket(port).connected());
+}
+
+TEST(MetricsConfigTest, AddressIsCheckedAndNamesTheKey) {
+  for (const char* good : {"127.0.0.1:0", "0.0.0.0:9100", "localhost:9100", "[::1]:9100"}) {
+    ServerConfig c;
+    EXPECT_TRUE(ApplyConfigOverride(c, std::string("server.metrics_address=\"") + good + "\"").ok())
+        << good;
+    EXPECT_EQ(c.metrics_address, good);
+  }
+  for (const char* bad : {"9100", ":9100", "127.0.0.1:", "127.0.0.1:99999", "127.0.0.1:91x",
+                          "::1:9100", "host name:1"}) {
+    ServerConfig c;
+    const Status s = ApplyConfigOverride(c, std::string("server.metrics_address=\"") + bad + "\"");
+    ASSERT_FALSE(s.ok()) << bad;
+    EXPECT_EQ(s.message().rfind("server.metrics_address: ", 0), 0u) << s.message();
+    EXPECT_NE(s.message().find(bad), std::string::npos) << s.message();
+    EXPECT_EQ(c.metrics_address, "");
+  }
+  ServerConfig printed;
+  printed.metrics_address = "127.0.0.1:9100";
+  Result<ServerConfig> back = ServerConfigFromYaml(YAML::Load(ServerConfigToYaml(printed)));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->metrics_address, "127.0.0.1:9100");
+}
+
+TEST(MetricsConfigTest, AddressInUseFailsTheStart) {
+  ServerFixture first(MetricsConfig());
+  ServerConfig c = MetricsConfig();
+  c.metrics_address = "127.0.0.1:" + std::to_string(first.server().metrics_port());
+  Result<std::unique_ptr<MapServer>> second = MapServer::Start(c);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.status().message().rfind("server.metrics_address: cannot listen on", 0), 0u)
+      << second.status().message();
+}
+
+TEST(MetricsProcessTest, FlagServesAndBadAddressExitsWithOneLine) {
+  {
+    BgkmapdProcess server({"--metrics", "127.0.0.1:0"});
+    ASSERT_TRUE(server.started());
+    const std::string line = server.WaitForLine("event=metrics_listening", 10);
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(line, m, std::regex("address=127.0.0.1:0 port=([0-9]+)")))
+        << line;
+    EXPECT_EQ(Value(Scrape(std::stoi(m[1])), "bgkmap_map_version"), 0u);
+    server.Signal(SIGTERM);
+    EXPECT_EQ(server.Wait(), 0);
+  }
+  {
+    BgkmapdProcess server({"--metrics", "nonsense"});
+    EXPECT_FALSE(server.started());
+    EXPECT_NE(server.Wait(), 0);
+    const std::vector<std::string> log = server.Log();
+    ASSERT_EQ(log.size(), 1u);
+    EXPECT_NE(log[0].find("server.metrics_address"), std::string::npos) << log[0];
+  }
+  {
+    // A port in use: bound and listened on here.
+    const int taken = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t size = sizeof addr;
+    ASSERT_EQ(bind(taken, reinterpret_cast<sockaddr*>(&addr), size), 0);
+    ASSERT_EQ(listen(taken, 1), 0);
+    ASSERT_EQ(getsockname(taken, reinterpret_cast<sockaddr*>(&addr), &size), 0);
+    BgkmapdProcess server({"--metrics", "127.0.0.1:" + std::to_string(ntohs(addr.sin_port))});
+    close(taken);
+    EXPECT_FALSE(server.started());
+    EXPECT_EQ(server.Wait(), 1);
+    EXPECT_NE(server.FindLine("event=start_failed reason=\"server.metrics_address: cannot listen"),
+              "");
+  }
+}
+
+}  // namespace
+}  // namespace bgkmap::testing
