@@ -18,21 +18,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("bgkmap_bounded_" + std::to_string(getpid()) + "_" + std::to_string(counter_++));
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string str() const { return path_.string(); }
-
- private:
-  static inline int counter_ = 0;
-  fs::path path_;
-};
-
 constexpr double kSiteSpacing = 300.0;  // metres between the places the robot maps
 constexpr uint64_t kBoundMb = 2;
 
@@ -101,7 +86,7 @@ void ExpectAnswersEqual(Client& client, const TerrainMap& offline, int sites) {
 }
 
 TEST(BoundedMemoryTest, MapLargerThanTheBoundIsBuiltAndQueriedExactly) {
-  TempDir dir;
+  TempDir dir("bgkmap_bounded");
   const int sites = 4;
   const std::vector<OwnedScan> scans = Tour(sites);
   const std::unique_ptr<TerrainMap> offline = OfflineOf(scans);
@@ -140,7 +125,7 @@ TEST(BoundedMemoryTest, MapLargerThanTheBoundIsBuiltAndQueriedExactly) {
 }
 
 TEST(BoundedMemoryTest, ClearOfEvictedGroundAndRestartStayExact) {
-  TempDir dir;
+  TempDir dir("bgkmap_bounded");
   const int sites = 3;
   std::vector<OwnedScan> scans = Tour(sites);
   scans.resize(scans.size() - SubScans("tour", 4).size());  // no revisit: site 0 stays evicted
@@ -173,7 +158,7 @@ TEST(BoundedMemoryTest, ClearOfEvictedGroundAndRestartStayExact) {
 // Export reads the store, so a map mostly evicted exports whole; importing it into a bounded
 // server adds onto evicted tiles, which are loaded first.
 TEST(BoundedMemoryTest, ExportAndImportOfAMapLargerThanTheBound) {
-  TempDir dir;
+  TempDir dir("bgkmap_bounded");
   const int sites = 3;
   const std::vector<OwnedScan> scans = Tour(sites);
   const std::unique_ptr<TerrainMap> offline = OfflineOf(scans);

@@ -19,28 +19,13 @@
 #include <thread>
 
 #include "bgkmap/storage/tile_store.h"
+#include "stored_tile_damage.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("bgkmap_archive_" + std::to_string(getpid()) + "_" + std::to_string(counter_++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string Sub(const std::string& name) const { return (path_ / name).string(); }
-
- private:
-  static inline int counter_ = 0;
-  fs::path path_;
-};
 
 // `base` street sub-scans as robot `robot`, shifted by `dx` metres, numbered 1...
 std::vector<OwnedScan> Robot(const std::string& robot, const std::vector<OwnedScan>& base,
@@ -105,7 +90,7 @@ class ArchiveRoundTripTest : public ::testing::TestWithParam<bool> {
   std::string DataDir(const std::string& name) const {
     return with_store() ? dir_.Sub(name) : std::string();
   }
-  TempDir dir_;
+  TempDir dir_{"bgkmap_archive"};
 };
 
 TEST_P(ArchiveRoundTripTest, ExportImportIsBitwiseAndDurable) {
@@ -307,7 +292,7 @@ StatsDifference Compare(const TerrainMap& x, const TerrainMap& y) {
 }
 
 TEST(ArchiveMergeTest, DisjointRobotsMergeToTheMapOfBothRobotsScans) {
-  TempDir dir;
+  TempDir dir("bgkmap_archive");
   const std::vector<OwnedScan> base = SubScans("x", 2);
   // 1 km apart: farther than robot_radius + kernel_length, no tile in common.
   const MergeRun run = Merge(Robot("a", base, 0.0), Robot("b", base, 1000.0), dir);
@@ -319,7 +304,7 @@ TEST(ArchiveMergeTest, DisjointRobotsMergeToTheMapOfBothRobotsScans) {
 }
 
 TEST(ArchiveMergeTest, OverlappingRobotsMergeElevationButNotTraversabilityExactly) {
-  TempDir dir;
+  TempDir dir("bgkmap_archive");
   // Robot A has the even points of each street scan, robot B the odd ones: the same street.
   const std::vector<OwnedScan> halves = SubScans("x", 2);
   std::vector<OwnedScan> a, b;
@@ -374,7 +359,7 @@ class ArchiveBadInputTest : public ::testing::Test {
     Ingest(server.client(), Robot("held", {StreetScans().begin() + 2, StreetScans().end()}, 0));
   }
 
-  TempDir dir_;
+  TempDir dir_{"bgkmap_archive"};
   std::string good_;
 };
 
@@ -504,53 +489,14 @@ TEST_F(ArchiveBadInputTest, ImportWhoseCheckpointCannotBeWrittenIsUndone) {
   EXPECT_TRUE(imported);
 }
 
-// Flips a byte of the stored value of the tile at the middle of the store's tile list.
-TileKey CorruptAStoredTile(const std::string& dir) {
-  {
-    // Tiles into SST files first, as they are after a while in service.
-    auto store = storage::TileStore::OpenExisting(dir, {});
-    EXPECT_TRUE(store.ok() && (*store)->Compact().ok());
-  }
-  std::vector<std::string> names;
-  EXPECT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &names).ok());
-  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
-  for (const auto& n : names) descriptors.emplace_back(n, rocksdb::ColumnFamilyOptions());
-  std::vector<rocksdb::ColumnFamilyHandle*> handles;
-  rocksdb::DB* raw = nullptr;
-  EXPECT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
-  std::unique_ptr<rocksdb::DB> db(raw);
-  rocksdb::ColumnFamilyHandle* tiles = nullptr;
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == "tiles") tiles = handles[i];
-  }
-  std::vector<std::string> keys;
-  std::unique_ptr<rocksdb::Iterator> it(db->NewIterator(rocksdb::ReadOptions(), tiles));
-  for (it->SeekToFirst(); it->Valid(); it->Next()) keys.push_back(it->key().ToString());
-  it.reset();
-  const std::string k = keys.at(keys.size() / 2);
-  std::string value;
-  EXPECT_TRUE(db->Get(rocksdb::ReadOptions(), tiles, k, &value).ok());
-  value[value.size() / 2] ^= 0x20;
-  EXPECT_TRUE(db->Put(rocksdb::WriteOptions(), tiles, k, value).ok());
-  // The store's key layout: x and y as big-endian u32 with the sign bit flipped.
-  auto coord = [&](size_t at) {
-    uint32_t v = 0;
-    for (size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<uint8_t>(k[at + i]);
-    return static_cast<int>(v ^ 0x80000000u);
-  };
-  for (auto* h : handles) db->DestroyColumnFamilyHandle(h);
-  db->Close();
-  return {coord(0), coord(4)};
-}
-
 TEST(ArchiveCorruptionTest, ExportOfACorruptStoredTileIsDataLossNamingIt) {
-  TempDir dir;
+  TempDir dir("bgkmap_archive");
   const std::string data = dir.Sub("store");
   {
     ServerFixture server(Config(data));
     Ingest(server.client(), StreetScans());
   }  // shutdown checkpoints every tile
-  const TileKey victim = CorruptAStoredTile(data);
+  const TileKey victim = CorruptStoredTile(data, StoredTilePick::kMiddle);
   ServerFixture server(Config(data));
   const MapParams p = server.server().SnapshotMap()->params();
   const double edge = p.tile_size * p.resolution;

@@ -6,7 +6,6 @@
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
-#include <rocksdb/db.h>
 #include <signal.h>
 #include <sys/socket.h>
 #include <sys/time.h>
@@ -24,30 +23,12 @@
 #include <vector>
 
 #include "bgkmap/server/server_config.h"
-#include "bgkmap/storage/tile_store.h"
 #include "bgkmapd_process.h"
+#include "stored_tile_damage.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
 namespace {
-
-namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("bgkmap_metrics_" + std::to_string(getpid()) + "_" + std::to_string(counter_++));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string str() const { return path_.string(); }
-
- private:
-  static inline int counter_ = 0;
-  fs::path path_;
-};
 
 ServerConfig MetricsConfig(const std::string& data_dir = "") {
   ServerConfig c = TestConfig();
@@ -213,41 +194,12 @@ void Ingest(Client& client, const std::vector<OwnedScan>& scans) {
   ASSERT_TRUE(acks.ok()) << acks.status().ToString();
 }
 
-// Flips a byte of the first stored tile with RocksDB directly, as a disk error would.
-void CorruptFirstStoredTile(const std::string& dir) {
-  {
-    // Into SST files first, where a long-running store keeps its tiles.
-    auto store = storage::TileStore::OpenExisting(dir, {});
-    ASSERT_TRUE(store.ok()) << store.status().ToString();
-    ASSERT_TRUE((*store)->Compact().ok());
-  }
-  std::vector<std::string> families;
-  ASSERT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &families).ok());
-  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
-  for (const std::string& f : families) descriptors.emplace_back(f, rocksdb::ColumnFamilyOptions());
-  std::vector<rocksdb::ColumnFamilyHandle*> handles;
-  rocksdb::DB* raw = nullptr;
-  ASSERT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
-  std::unique_ptr<rocksdb::DB> db(raw);
-  for (size_t i = 0; i < families.size(); ++i) {
-    if (families[i] != "tiles") continue;
-    std::unique_ptr<rocksdb::Iterator> it(db->NewIterator(rocksdb::ReadOptions(), handles[i]));
-    it->SeekToFirst();
-    ASSERT_TRUE(it->Valid()) << "no stored tile";
-    std::string value = it->value().ToString();
-    value[value.size() / 2] ^= 0x01;
-    EXPECT_TRUE(db->Put(rocksdb::WriteOptions(), handles[i], it->key(), value).ok());
-  }
-  for (rocksdb::ColumnFamilyHandle* h : handles) EXPECT_TRUE(db->DestroyColumnFamilyHandle(h).ok());
-  EXPECT_TRUE(db->Close().ok());
-}
-
 // A robot id that needs every escape of the format.
 const std::string kOddRobot = "be\"ta\\\n2";
 const std::string kOddRobotLabel = "{robot=\"be\\\"ta\\\\\\n2\"}";
 
 TEST(MetricsTest, ScrapeEqualsInfo) {
-  TempDir dir;
+  TempDir dir("bgkmap_metrics");
   ServerFixture fixture(MetricsConfig(dir.str()));
   const int port = fixture.server().metrics_port();
   ASSERT_GT(port, 0);
@@ -329,7 +281,7 @@ TEST(MetricsTest, OffByDefault) {
 }
 
 TEST(MetricsTest, CorruptStoredTileIsCounted) {
-  TempDir dir;
+  TempDir dir("bgkmap_metrics");
   {
     ServerFixture fixture(MetricsConfig(dir.str()));
     Ingest(fixture.client(), SubScans("alpha", 4, 3));
@@ -340,7 +292,7 @@ TEST(MetricsTest, CorruptStoredTileIsCounted) {
     EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles"), 0u);
     EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles_found_total"), 0u);
   }
-  CorruptFirstStoredTile(dir.str());
+  CorruptStoredTile(dir.str());
   ServerFixture fixture(MetricsConfig(dir.str()));
   // storage.verify_on_start reads every stored tile in the background.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);

@@ -18,27 +18,13 @@
 
 #include "bgkmap/storage/tile_store.h"
 #include "bgkmapd_process.h"
+#include "stored_tile_damage.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
 namespace {
 
 namespace fs = std::filesystem;
-
-class TempDir {
- public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("bgkmap_persist_" + std::to_string(getpid()) + "_" + std::to_string(counter_++));
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string str() const { return path_.string(); }
-
- private:
-  static inline int counter_ = 0;
-  fs::path path_;
-};
 
 constexpr double kBetaShift = 1000.0;  // metres: the two robots never share a tile
 
@@ -107,7 +93,7 @@ uint64_t LastSequence(const MapInfo& info, const std::string& robot) {
 }
 
 TEST(PersistenceTest, RestartGivesTheSameMapRobotsAndDuplicates) {
-  TempDir dir;
+  TempDir dir("bgkmap_persist");
   const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4);
   const MetricBox box = BoxAround(scans.front(), 20.0);
   Raster before;
@@ -154,7 +140,7 @@ TEST(PersistenceTest, RestartGivesTheSameMapRobotsAndDuplicates) {
 }
 
 TEST(PersistenceTest, PeriodicCheckpointLeavesNothingToReplay) {
-  TempDir dir;
+  TempDir dir("bgkmap_persist");
   const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 6);
   const std::vector<std::string> args = {"--data-dir", dir.str(), "--set",
                                          "storage.checkpoint_interval_s=0.1"};
@@ -188,7 +174,7 @@ TEST(PersistenceTest, PeriodicCheckpointLeavesNothingToReplay) {
 // A clear replayed from the log after kill -9 erases its tiles for good: they must not come back
 // from the stored checkpoint when the other tiles are loaded, at this start or the next.
 TEST(PersistenceTest, ClearReplayedAfterSigkillStaysCleared) {
-  TempDir dir;
+  TempDir dir("bgkmap_persist");
   const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 6);
   const std::vector<std::string> args = {"--data-dir", dir.str()};
   const MetricBox wide = BoxAround(scans.front(), 25.6);
@@ -253,7 +239,7 @@ TEST(PersistenceTest, PrintConfigShowsTheStorageSection) {
 }
 
 TEST(PersistenceTest, IncompatibleParametersAreRefusedNamingTheKey) {
-  TempDir dir;
+  TempDir dir("bgkmap_persist");
   {
     BgkmapdProcess server({"--data-dir", dir.str()});
     ASSERT_TRUE(server.started());
@@ -268,54 +254,8 @@ TEST(PersistenceTest, IncompatibleParametersAreRefusedNamingTheKey) {
   EXPECT_NE(line.find("resolution"), std::string::npos) << line;
 }
 
-// Flips a byte of the first stored tile with RocksDB directly, as a disk error would; returns
-// its key.
-TileKey CorruptFirstTile(const std::string& dir) {
-  {
-    // Tiles into SST files first, as they are after a while in service.
-    auto store = storage::TileStore::OpenExisting(dir, {});
-    EXPECT_TRUE(store.ok()) << store.status().ToString();
-    EXPECT_TRUE(store.ok() && (*store)->Compact().ok());
-  }
-  std::vector<std::string> names;
-  EXPECT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &names).ok());
-  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
-  for (const auto& n : names) descriptors.emplace_back(n, rocksdb::ColumnFamilyOptions());
-  std::vector<rocksdb::ColumnFamilyHandle*> handles;
-  rocksdb::DB* raw = nullptr;
-  EXPECT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
-  std::unique_ptr<rocksdb::DB> db(raw);
-  rocksdb::ColumnFamilyHandle* tiles = nullptr;
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == "tiles") tiles = handles[i];
-  }
-  TileKey key;
-  if (tiles != nullptr) {
-    std::unique_ptr<rocksdb::Iterator> it(db->NewIterator(rocksdb::ReadOptions(), tiles));
-    it->SeekToFirst();
-    if (!it->Valid()) {
-      ADD_FAILURE() << "no stored tile: " << it->status().ToString();
-      return key;
-    }
-    const std::string k = it->key().ToString();
-    std::string value = it->value().ToString();
-    // The store's key layout: x and y as big-endian u32 with the sign bit flipped.
-    auto coord = [&](size_t at) {
-      uint32_t v = 0;
-      for (size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<uint8_t>(k[at + i]);
-      return static_cast<int>(v ^ 0x80000000u);
-    };
-    key = {coord(0), coord(4)};
-    value[value.size() / 2] ^= 0x20;
-    EXPECT_TRUE(db->Put(rocksdb::WriteOptions(), tiles, k, value).ok());
-  }
-  for (auto* h : handles) db->DestroyColumnFamilyHandle(h);
-  db->Close();
-  return key;
-}
-
 TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
-  TempDir dir;
+  TempDir dir("bgkmap_persist");
   const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 3);
   {
     BgkmapdProcess server({"--data-dir", dir.str()});
@@ -327,7 +267,7 @@ TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
     server.Signal(SIGTERM);  // the last checkpoint writes every tile
     ASSERT_EQ(server.Wait(), 0);
   }
-  const TileKey victim = CorruptFirstTile(dir.str());
+  const TileKey victim = CorruptStoredTile(dir.str());
   BgkmapdProcess server({"--data-dir", dir.str()});
   ASSERT_TRUE(server.started());
   // Tiles are read on demand; the background check after start finds the damage first.
@@ -358,7 +298,7 @@ TEST(PersistenceTest, QueryOfACorruptTileIsDataLossNamingIt) {
 // Without the background check, a corrupt tile is found when a query loads it: the query
 // still answers DATA_LOSS naming it, never the tile's cells as unknown.
 TEST(PersistenceTest, CorruptTileMetOnDemandIsDataLossNamingIt) {
-  TempDir dir;
+  TempDir dir("bgkmap_persist");
   const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 3);
   {
     BgkmapdProcess server({"--data-dir", dir.str()});
@@ -369,7 +309,7 @@ TEST(PersistenceTest, CorruptTileMetOnDemandIsDataLossNamingIt) {
     server.Signal(SIGTERM);
     ASSERT_EQ(server.Wait(), 0);
   }
-  const TileKey victim = CorruptFirstTile(dir.str());
+  const TileKey victim = CorruptStoredTile(dir.str());
   BgkmapdProcess server({"--data-dir", dir.str(), "--set", "storage.verify_on_start=false"});
   ASSERT_TRUE(server.started());
   Client client(server.target());
@@ -413,7 +353,7 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   const auto t0 = std::chrono::steady_clock::now();
   int trials = 0;
   for (; trials < trial_count; ++trials) {
-    TempDir dir;
+    TempDir dir("bgkmap_persist");
     // A third of the trials checkpoint while the robots stream, so the kill also lands
     // mid-checkpoint; a third run under a 1 MB memory bound, so it also lands mid-eviction (and
     // the restart loads evicted tiles on demand).
@@ -495,7 +435,7 @@ TEST(PersistenceTest, DISABLED_MeasureIngestAndRestart) {
   const std::vector<OwnedScan> alpha = RobotScans("alpha", 0.0, 8, 150);
   const std::vector<OwnedScan> beta = RobotScans("beta", kBetaShift, 8, 150);
   for (const std::string mode : {"memory", "sync", "periodic"}) {
-    TempDir dir;
+    TempDir dir("bgkmap_persist");
     std::vector<std::string> args = {"--worker-threads", "2", "--set",
                                      "storage.checkpoint_interval_s=3600"};
     if (mode != "memory") {

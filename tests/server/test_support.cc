@@ -1,6 +1,10 @@
 #include "test_support.h"
 
+#include <unistd.h>
+
+#include <atomic>
 #include <cmath>
+#include <filesystem>
 
 #include "bgkmap/io/kitti_sequence.h"
 
@@ -73,6 +77,21 @@ std::unique_ptr<TerrainMap> OfflineMap(const std::vector<const OwnedScan*>& scan
     EXPECT_TRUE(r.ok()) << r.status().ToString();
   }
   return map;
+}
+
+TempDir::TempDir(const std::string& prefix) {
+  static std::atomic<int> counter{0};
+  const std::filesystem::path p =
+      std::filesystem::temp_directory_path() /
+      (prefix + "_" + std::to_string(getpid()) + "_" + std::to_string(counter++));
+  std::filesystem::remove_all(p);
+  std::filesystem::create_directories(p);
+  path_ = p.string();
+}
+
+TempDir::~TempDir() {
+  std::error_code ignored;
+  std::filesystem::remove_all(path_, ignored);
 }
 
 ServerConfig TestConfig() {

@@ -38,6 +38,20 @@ Pose WirePose(const ScanPose& pose);
 std::unique_ptr<TerrainMap> OfflineMap(const std::vector<const OwnedScan*>& scans,
                                        const MapParams& params = MapParams{});
 
+// A fresh directory under the system's temporary directory, removed with everything in it.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& prefix = "bgkmap_test");
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::string& str() const { return path_; }
+  std::string Sub(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
 // A config for tests: loopback, port 0, two threads each.
 ServerConfig TestConfig();
 
