@@ -72,21 +72,23 @@ int main(int argc, char** argv) {
     config = *parsed;
   }
   std::vector<std::string> flag_overrides;
-  if (!listen.empty()) flag_overrides.push_back("server.listen_address=" + listen);
-  if (metrics_flag->count() > 0) {
-    // Quoted, so that "" (off) and "[::1]:9100" read as the strings they are.
+  // String flags are quoted, so that "" (off), "[::1]:9100" or a path with '#' read as the
+  // strings they are rather than as YAML.
+  auto set_string = [&flag_overrides](const std::string& key, const std::string& value) {
     YAML::Emitter quoted;
-    quoted << YAML::DoubleQuoted << metrics;
-    flag_overrides.push_back("server.metrics_address=" + std::string(quoted.c_str()));
-  }
+    quoted << YAML::DoubleQuoted << value;
+    flag_overrides.push_back(key + "=" + std::string(quoted.c_str()));
+  };
+  if (!listen.empty()) set_string("server.listen_address", listen);
+  if (metrics_flag->count() > 0) set_string("server.metrics_address", metrics);
   if (worker_threads >= 0) {
     flag_overrides.push_back("server.worker_threads=" + std::to_string(worker_threads));
   }
   if (query_threads >= 0) {
     flag_overrides.push_back("server.query_threads=" + std::to_string(query_threads));
   }
-  if (!log_level.empty()) flag_overrides.push_back("server.log_level=" + log_level);
-  if (!data_dir.empty()) flag_overrides.push_back("storage.data_dir=" + data_dir);
+  if (!log_level.empty()) set_string("server.log_level", log_level);
+  if (!data_dir.empty()) set_string("storage.data_dir", data_dir);
   flag_overrides.insert(flag_overrides.end(), overrides.begin(), overrides.end());
   for (const std::string& o : flag_overrides) {
     if (bgkmap::Status s = bgkmap::ApplyConfigOverride(config, o); !s.ok()) {

@@ -77,6 +77,15 @@ TEST(BgkmapdProcessTest, PrintConfigShowsFileAndFlagOverrides) {
   EXPECT_EQ(RunBgkmapd({"--set", "server.bogus=1", "--print-config"}).first, 2);
 }
 
+// String flags are values, not YAML: an IPv6 address or a path with '#' or ': ' stays whole.
+TEST(BgkmapdProcessTest, StringFlagsAreTakenLiterally) {
+  const auto [code, out] =
+      RunBgkmapd({"--listen", "[::1]:50999", "--data-dir", "/tmp/maps #1: site", "--print-config"});
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("[::1]:50999"), std::string::npos) << out;
+  EXPECT_NE(out.find("/tmp/maps #1: site"), std::string::npos) << out;
+}
+
 struct RobotRun {
   std::vector<ScanAck> acks;
   RpcStatus end;
