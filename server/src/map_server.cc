@@ -8,12 +8,16 @@
 #include <grpcpp/server_builder.h>
 #include <malloc.h>
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <boost/asio/post.hpp>
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
 #include <condition_variable>
 #include <future>
+#include <latch>
 #include <mutex>
 #include <thread>
 
@@ -48,6 +52,22 @@ void KeepServiceDescriptorLinked() {
 // checkpointing, so a checkpoint holds at most the remaining third.
 uint64_t TileMemoryLimit(const StorageConfig& storage) {
   return (storage.max_memory_mb << 20) / 3 * 2;
+}
+
+// Lowers the scheduling priority of every thread of `pool` by `nice` (Linux: per thread). Each
+// thread takes exactly one task: all of them wait until every one has started.
+void LowerPriority(boost::asio::thread_pool& pool, size_t threads, int nice) {
+  if (nice == 0) return;
+  auto started = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
+  for (size_t i = 0; i < threads; ++i) {
+    boost::asio::post(pool, [started, nice] {
+      if (setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice) != 0) {
+        spdlog::warn("event=worker_nice_failed errno={}", errno);
+      }
+      started->arrive_and_wait();
+    });
+  }
+  started->wait();
 }
 
 size_t ThreadCount(int configured) {
@@ -246,6 +266,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
         persistence->CorruptTiles().size(), r.seconds);
   }
   auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(persistence));
+  LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served
     // once the map service is up.

@@ -76,6 +76,8 @@ const std::vector<ServerKey>& Keys() {
           "worker_threads", [](ServerConfig & c) -> auto& { return c.worker_threads; }),
       Key<int>(
           "query_threads", [](ServerConfig & c) -> auto& { return c.query_threads; }),
+      Key<int>(
+          "worker_nice", [](ServerConfig & c) -> auto& { return c.worker_nice; }),
       Key<std::string>(
           "log_level", [](ServerConfig & c) -> auto& { return c.log_level; }),
       Key<double>(
@@ -127,8 +129,7 @@ const std::vector<ServerKey>& Keys() {
           "region_chunk_bytes",
           [](ServerConfig & c) -> auto& { return c.limits.region_chunk_bytes; }),
       Key<uint64_t>(
-          "max_import_bytes",
-          [](ServerConfig & c) -> auto& { return c.limits.max_import_bytes; }),
+          "max_import_bytes", [](ServerConfig & c) -> auto& { return c.limits.max_import_bytes; }),
   };
   return keys;
 }
@@ -270,6 +271,7 @@ Status ValidateServerConfig(const ServerConfig& c) {
   }
   if (c.worker_threads < 0 || c.worker_threads > 1024) return bad("worker_threads", "0..1024");
   if (c.query_threads < 0 || c.query_threads > 1024) return bad("query_threads", "0..1024");
+  if (c.worker_nice < 0 || c.worker_nice > 19) return bad("worker_nice", "0..19");
   if (c.shutdown_timeout_s < 0) return bad("shutdown_timeout_s", "must be >= 0");
   const ServerLimits& l = c.limits;
   if (l.max_points_per_scan == 0) return bad("max_points_per_scan", "must be > 0");

@@ -1,7 +1,11 @@
 // A served map equals the offline map of the same scans.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "test_support.h"
 
@@ -182,6 +186,38 @@ TEST_F(ServedMapTest, PathCheckFindsTheWorstCellUnderTheFootprint) {
   EXPECT_EQ(unknown->first_unsafe_index, 0);
   EXPECT_FLOAT_EQ(unknown->poses[0].unknown_fraction, 1.0f);
   EXPECT_GT(unknown->poses[0].cell_count, 30u);
+}
+
+}  // namespace
+}  // namespace bgkmap::testing
+
+namespace bgkmap::testing {
+namespace {
+
+// Nice values of this process's threads (field 19 of /proc/self/task/TID/stat).
+std::vector<int> ThreadNiceValues() {
+  std::vector<int> out;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream in(entry.path() / "stat");
+    std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // The command name may hold spaces: fields are counted after its closing parenthesis.
+    std::istringstream fields(stat.substr(stat.rfind(')') + 2));
+    std::string field;
+    for (int i = 3; i <= 19 && fields >> field; ++i) {
+      if (i == 19) out.push_back(std::stoi(field));
+    }
+  }
+  return out;
+}
+
+TEST(WorkerPriorityTest, WorkerThreadsRunAtTheConfiguredNice) {
+  ServerConfig config = TestConfig();
+  config.worker_nice = 7;
+  const auto before = ThreadNiceValues();
+  const auto count7 = [](const std::vector<int>& v) { return std::count(v.begin(), v.end(), 7); };
+  ServerFixture fixture(config);
+  EXPECT_EQ(count7(ThreadNiceValues()) - count7(before), config.worker_threads);
+  EXPECT_TRUE(fixture.client().Info().ok());  // queries still answered
 }
 
 }  // namespace

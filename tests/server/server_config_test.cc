@@ -95,6 +95,19 @@ TEST(ServerConfigTest, StorageSection) {
   EXPECT_EQ(error("storage: {checkpoint_interval_s: 0}").rfind("storage.checkpoint_interval_s", 0),
             0u);
   EXPECT_EQ(error("storage: {bogus: 1}").rfind("storage.bogus", 0), 0u);
+  EXPECT_EQ(error("storage: {verify_on_start: maybe}").rfind("storage.verify_on_start", 0), 0u);
+  EXPECT_EQ(error("storage: {max_memory_mb: 64}").rfind("storage.max_memory_mb", 0), 0u)
+      << "a bound without a data_dir";
+  EXPECT_EQ(error("storage: {data_dir: /x, max_memory_mb: -5}").rfind("storage.max_memory_mb", 0),
+            0u);
+  EXPECT_EQ(error("server: {worker_nice: 20}").rfind("server.worker_nice", 0), 0u);
+  Result<ServerConfig> bounded = ServerConfigFromYaml(
+      YAML::Load("server: {worker_nice: 0}\n"
+                 "storage: {data_dir: /x, max_memory_mb: 512, verify_on_start: false}\n"));
+  ASSERT_TRUE(bounded.ok()) << bounded.status().ToString();
+  EXPECT_EQ(bounded->storage.max_memory_mb, 512u);
+  EXPECT_FALSE(bounded->storage.verify_on_start);
+  EXPECT_EQ(bounded->worker_nice, 0);
   ServerConfig o;
   ASSERT_TRUE(ApplyConfigOverride(o, "storage.data_dir=/x").ok());
   EXPECT_EQ(o.storage.data_dir, "/x");

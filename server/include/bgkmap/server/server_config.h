@@ -57,6 +57,9 @@ struct ServerConfig {
   std::string listen_address = "127.0.0.1:50051";  // listen_address (host:port; port 0 = any)
   int worker_threads = 0;  // worker_threads: scan preparation and integration (0 = all cores)
   int query_threads = 0;   // query_threads: queries and watch updates (0 = all cores)
+  // worker_nice: the worker threads' nice increment (0..19): a planner waits on its query, while a
+  // scan's integration can wait a few milliseconds, so on busy cores queries run first.
+  int worker_nice = 10;
   std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
   double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
   // metrics_address: host:port of the Prometheus endpoint (GET /metrics over HTTP); "" = off,
