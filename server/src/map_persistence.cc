@@ -55,7 +55,7 @@ Result<std::unique_ptr<MapPersistence>> MapPersistence::Open(const StorageConfig
   p->recovery_ = *report;
 
   // Checkpoint the recovered tiles at once: the log becomes empty, and tiles that replayed
-  // clears erased are deleted from the store before LoadAllTiles() could bring them back.
+  // clears erased are deleted from the store before a query could load them back.
   // Corrupt tiles are left out so that they stay listed as corrupt.
   if (!touched->empty()) {
     const std::vector<TileKey> corrupt = ts.CorruptTiles();

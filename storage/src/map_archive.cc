@@ -229,7 +229,7 @@ Result<ImportReport> ImportMap(const std::string& path, TerrainMap& map) {
   const bool was_empty = map.tile_count() == 0;
   for (const auto& [key, tile] : tiles) {
     if (map.FindTile(key) == nullptr) {
-      InstallTile(map, key, *tile);  // bitwise, even for -0 cells
+      map.SetTile(key, *tile);  // bitwise, even for -0 cells
     } else {
       map.AddTile(key, *tile);
     }

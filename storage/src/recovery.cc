@@ -40,13 +40,11 @@ class TileLoader {
 
 }  // namespace
 
-void InstallTile(TerrainMap& map, TileKey key, const Tile& tile) { map.SetTile(key, tile); }
-
 Result<bool> LoadTileInto(const TileStore& store, TileKey key, TerrainMap& map) {
   Result<std::unique_ptr<Tile>> tile = store.LoadTile(key);
   if (!tile.ok()) return tile.status();
   if (!*tile) return false;
-  InstallTile(map, key, **tile);
+  map.SetTile(key, **tile);
   return true;
 }
 

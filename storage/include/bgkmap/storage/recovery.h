@@ -51,8 +51,4 @@ Result<bool> LoadTileInto(const TileStore& store, TileKey key, TerrainMap& map);
 Status LoadAllTiles(const TileStore& store, TerrainMap& map,
                     std::vector<TileKey>* corrupt = nullptr);
 
-// Sets the tile at `key` to a bitwise copy of `tile` (TerrainMap::AddTile would add onto
-// what is there, and 0 + -0 is +0).
-void InstallTile(TerrainMap& map, TileKey key, const Tile& tile);
-
 }  // namespace bgkmap::storage
