@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -188,6 +189,51 @@ TEST(BoundedMemoryTest, ExportAndImportOfAMapLargerThanTheBound) {
   ASSERT_TRUE(fresh.client().ImportMap(archive).ok());
   EXPECT_TRUE(MapsEqual(*fresh.server().SnapshotMap(), *offline));
   fs::remove(archive);
+}
+
+// Queries race with ingestion, eviction and reloading of the ground they read: every answer is
+// the map after some whole number of scans, never a tile missing or half evicted.
+TEST(BoundedMemoryTest, ReadersRacingEvictionSeeWholeScans) {
+  TempDir dir("bgkmap_bounded");
+  const std::vector<OwnedScan> scans = Tour(3);  // site 0, 1, 2, then site 0 again
+  const MetricBox box{-20, -20, 20, 20};         // site 0
+  ServerFixture fixture(BoundedConfig(dir.str()));
+  std::unique_ptr<Client> reader = fixture.NewClient();
+  std::atomic<bool> done{false};
+  std::vector<std::pair<uint64_t, Raster>> seen;
+  std::thread querier([&] {
+    while (!done.load()) {
+      uint64_t version = 0;
+      RpcResult<Raster> r = reader->QueryRegion({box, {}, 1}, &version);
+      ASSERT_TRUE(r.ok()) << r.status().ToString();
+      seen.emplace_back(version, std::move(r).value());
+    }
+  });
+  std::vector<ScanData> data;
+  for (const OwnedScan& s : scans) data.push_back(s.Data());
+  ASSERT_TRUE(fixture.client().IngestAll(data).ok());
+  // A few more reads once the robot has left site 0 for good and the bound evicted it.
+  RpcResult<MapInfo> info = SettledInfo(fixture.client());
+  done = true;
+  querier.join();
+  ASSERT_TRUE(info.ok());
+  EXPECT_GT(info->storage->tiles_evicted, 0u);
+  ASSERT_GT(seen.size(), 3u);
+
+  std::vector<Raster> states;  // site 0 after the first k scans
+  std::unique_ptr<TerrainMap> map = std::move(TerrainMap::Create(MapParams{})).value();
+  states.push_back(OfflineRegion(*map, box));
+  for (const OwnedScan& s : scans) {
+    ASSERT_TRUE(map->IntegrateScan(s.points, WirePose(s.pose)).ok());
+    states.push_back(OfflineRegion(*map, box));
+  }
+  for (const auto& [version, raster] : seen) {
+    bool whole = false;
+    for (size_t k = version; k < states.size() && !whole; ++k) {
+      whole = RastersMatch(raster, states[k], 0.0);
+    }
+    EXPECT_TRUE(whole) << "a read at version " << version << " is no whole number of scans";
+  }
 }
 
 TEST(BoundedMemoryTest, BoundNeedsADataDirectory) {
