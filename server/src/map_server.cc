@@ -152,6 +152,7 @@ void MapServer::Impl::EvictionLoop() {
     if (stop_checkpoints) break;
     eviction_requested = false;
     lock.unlock();
+    const uint64_t evicted_before = store.Residency().tiles_evicted;
     uint64_t held = store.Evict(target);
     const bool too_dirty = persistence->dirty_tiles() * store.TileBytes() > limit / 4;
     if ((held > limit || too_dirty) &&
@@ -162,7 +163,7 @@ void MapServer::Impl::EvictionLoop() {
     }
     // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
     // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
-    malloc_trim(0);
+    if (store.Residency().tiles_evicted != evicted_before) malloc_trim(0);
     lock.lock();
     if (held > limit && !eviction_requested) {
       // Still over (tiles in use or the checkpoint gap): look again soon.
