@@ -99,7 +99,7 @@ CellBox TerrainMap::KnownBounds() const {
   return box;
 }
 
-std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version) {
+std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version, bool keep_empty) {
   std::vector<TileKey> changed;
   if (box.empty()) return changed;
   const TileKey lo = geometry_.TileOf(box.min), hi = geometry_.TileOf(box.max);
@@ -122,7 +122,7 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version) 
     }
     tile.set_version(version);
     changed.push_back(key);
-    it = tile.Empty() ? tiles_.erase(it) : std::next(it);
+    it = !keep_empty && tile.Empty() ? tiles_.erase(it) : std::next(it);
   }
   std::sort(changed.begin(), changed.end());
   return changed;

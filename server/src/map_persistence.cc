@@ -120,6 +120,11 @@ size_t MapPersistence::dirty_tiles() const {
   return dirty_.size();
 }
 
+bool MapPersistence::dirty_over_limit() const {
+  std::lock_guard lock(dirty_mu_);
+  return dirty_limit_ > 0 && dirty_.size() > dirty_limit_;
+}
+
 CapturedCheckpoint MapPersistence::Capture(const MapStore& map, uint64_t version) {
   CapturedCheckpoint c;
   checkpoint_order_->acquire();

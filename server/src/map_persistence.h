@@ -54,6 +54,7 @@ class MapPersistence final : public ChangeJournal, public TileBacking {
   // `tiles` tiles are changed since the last capture: under a memory bound, checkpoints must
   // come often enough that their copies stay small. Call before any change is applied.
   void SetDirtyLimit(size_t tiles, std::function<void()> on_over_limit);
+  bool dirty_over_limit() const;
   size_t dirty_tiles() const;
 
   // At a barrier: copies the tiles changed since the last capture; `version` is the applied

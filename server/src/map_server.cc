@@ -154,8 +154,7 @@ void MapServer::Impl::EvictionLoop() {
     lock.unlock();
     const uint64_t evicted_before = store.Residency().tiles_evicted;
     uint64_t held = store.Evict(target);
-    const bool too_dirty = persistence->dirty_tiles() * store.TileBytes() > limit / 4;
-    if ((held > limit || too_dirty) &&
+    if ((held > limit || persistence->dirty_over_limit()) &&
         std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
       const Status s = Checkpoint();
       last_checkpoint = std::chrono::steady_clock::now();

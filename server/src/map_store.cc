@@ -61,7 +61,23 @@ void MapStore::SignalIfOverLimit() const {
 }
 
 std::vector<TileKey> MapStore::KeysIn(TileKey min, TileKey max) const {
-  std::vector<TileKey> keys = ListResident(min, max);
+  std::vector<TileKey> keys;
+  const uint64_t resident = resident_tiles_.load();
+  const uint64_t w = min.x <= max.x ? uint64_t(int64_t{max.x} - min.x + 1) : 0;
+  const uint64_t h = min.y <= max.y ? uint64_t(int64_t{max.y} - min.y + 1) : 0;
+  // (w, h <= resident first: the whole key space would overflow w * h.)
+  if (w > 0 && h > 0 && w <= resident && h <= resident && w * h <= resident) {
+    // A small range (a query's): look its keys up rather than walk every tile in memory.
+    std::shared_lock table(table_mu_);
+    for (int64_t x = min.x; x <= max.x; ++x) {  // 64-bit: max.x may be INT32_MAX
+      for (int64_t y = min.y; y <= max.y; ++y) {
+        const TileKey k{static_cast<int>(x), static_cast<int>(y)};
+        if (map_->FindTile(k) != nullptr) keys.push_back(k);
+      }
+    }
+  } else {
+    keys = ListResident(min, max);
+  }
   if (backing_ != nullptr) backing_->StoredIn(min, max, &keys);
   SortUnique(&keys);
   return keys;
@@ -211,15 +227,10 @@ std::vector<TileKey> MapStore::ClearBox(const CellBox& box, uint64_t version) {
   const std::vector<TileKey> existing = ListResident(g.TileOf(box.min), g.TileOf(box.max));
   TileLockTable::Guard tiles = tile_locks_.Lock(existing, {});
   std::unique_lock table(table_mu_);
-  std::vector<TileKey> changed = map_->ClearBox(box, version);
-  if (backing_ != nullptr) {
-    // A tile the clear emptied stays in memory as an all-zero tile of this version until a
-    // checkpoint deletes it from the store: dropping it now would let the stored (uncleared)
-    // tile be loaded back. (Its version keeps it from eviction until then.)
-    for (TileKey k : changed) {
-      if (map_->FindTile(k) == nullptr) map_->GetOrCreateTile(k).set_version(version);
-    }
-  }
+  // With a backing, a tile the clear emptied stays in memory as an all-zero tile of this
+  // version until a checkpoint deletes it from the store: dropping it now would let the stored
+  // (uncleared) tile be loaded back. (Its version keeps it from eviction until then.)
+  std::vector<TileKey> changed = map_->ClearBox(box, version, /*keep_empty=*/backing_ != nullptr);
   NoteTileCount();
   return changed;
 }

@@ -188,5 +188,24 @@ TEST(ScanIntegrationTest, ClearBoxForgetsCellsAndDropsEmptyTiles) {
   EXPECT_EQ(map->tile_count(), 0u);
 }
 
+TEST(ScanIntegrationTest, ClearBoxCanKeepTheTilesItEmpties) {
+  auto map = NewMap();
+  const Eigen::Vector3d origin(0, 0, 1.0);
+  ASSERT_TRUE(
+      map->IntegrateScan(testing::SampleSurface(testing::RollingWithStep, origin, 4.0, 5000, 3),
+                         testing::At(origin))
+          .ok());
+  const size_t tiles = map->tile_count();
+  const std::vector<TileKey> changed = map->ClearBox(map->KnownBounds(), 7, /*keep_empty=*/true);
+  EXPECT_EQ(changed.size(), tiles);
+  EXPECT_EQ(map->tile_count(), tiles);
+  EXPECT_EQ(map->CountKnownCells(), 0);
+  for (TileKey k : changed) {
+    ASSERT_NE(map->FindTile(k), nullptr);
+    EXPECT_TRUE(map->FindTile(k)->Empty());
+    EXPECT_EQ(map->FindTile(k)->version(), 7u);
+  }
+}
+
 }  // namespace
 }  // namespace bgkmap

@@ -62,8 +62,10 @@ class TerrainMap {
   int64_t CountKnownCells() const;
   CellBox KnownBounds() const;  // empty if no cell is known
   // Zeroes the statistics of every cell inside `box`, stamps the changed tiles with `version`
-  // (like Integrate) and drops tiles left empty; returns the tiles that changed.
-  std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version);
+  // (like Integrate) and drops tiles left empty unless `keep_empty` (a caller whose tiles are
+  // also stored elsewhere needs the emptied tile as a record of the clear); returns the tiles
+  // that changed.
+  std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version, bool keep_empty = false);
   // The same as the next change of this map: ClearBox(box, version() + 1), version() advanced.
   std::vector<TileKey> ClearBox(const CellBox& box) { return ClearBox(box, ++version_); }
 
