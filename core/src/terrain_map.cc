@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <iterator>
 
+#include "bgkmap/core/tile_summary.h"
+
 namespace bgkmap {
 
 Result<std::unique_ptr<TerrainMap>> TerrainMap::Create(const MapParams& params) {
@@ -90,11 +92,10 @@ int64_t TerrainMap::CountKnownCells() const {
 CellBox TerrainMap::KnownBounds() const {
   CellBox box;
   for (const auto& [key, tile] : tiles_) {
-    const CellBox local = tile->KnownLocalBox();
-    if (local.empty()) continue;
-    const CellIndex o = geometry_.TileOrigin(key);
-    box.Extend({o.x + local.min.x, o.y + local.min.y});
-    box.Extend({o.x + local.max.x, o.y + local.max.y});
+    const TileSummary s = SummarizeTile(geometry_, key, tile.get());
+    if (s.known_box.empty()) continue;
+    box.Extend(s.known_box.min);
+    box.Extend(s.known_box.max);
   }
   return box;
 }

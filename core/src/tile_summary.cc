@@ -1,0 +1,16 @@
+#include "bgkmap/core/tile_summary.h"
+
+namespace bgkmap {
+
+TileSummary SummarizeTile(const GridGeometry& geometry, TileKey key, const Tile* tile) {
+  TileSummary s;
+  if (tile == nullptr) return s;
+  const CellBox local = tile->KnownLocalBox();
+  if (local.empty()) return s;
+  s.known_cells = static_cast<uint32_t>(tile->CountKnown());
+  const CellIndex o = geometry.TileOrigin(key);
+  s.known_box = {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}};
+  return s;
+}
+
+}  // namespace bgkmap
