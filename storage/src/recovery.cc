@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <set>
 #include <unordered_set>
 
 namespace bgkmap::storage {
@@ -23,11 +24,15 @@ class TileLoader {
     }
   }
 
-  Status EnsureBox(const CellBox& box) {
+  // Loads the stored tiles in `box` and appends their keys to `keys`.
+  Status EnsureBox(const CellBox& box, std::set<TileKey>* keys) {
     const TileKey lo = map_.geometry().TileOf(box.min), hi = map_.geometry().TileOf(box.max);
     Result<std::vector<StoredTileInfo>> stored = store_.ListTiles(lo, hi);
     if (!stored.ok()) return stored.status();
-    for (const StoredTileInfo& info : *stored) Ensure(info.key);
+    for (const StoredTileInfo& info : *stored) {
+      Ensure(info.key);
+      keys->insert(info.key);
+    }
     return Status::Ok();
   }
 
@@ -68,6 +73,7 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
   report.checkpoint_version = store.checkpoint_version();
   map.set_version(report.checkpoint_version);
   TileLoader loader(store, map, report);
+  std::set<TileKey> touched;
 
   const Status walked = store.log().ForEach(
       report.checkpoint_version, [&](uint64_t version, Result<LogRecord> record) -> Status {
@@ -79,12 +85,13 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
           const PreparedScan& scan = *record->scan;
           for (const TileKey& k : scan.write_tiles) loader.Ensure(k);
           for (const TileKey& k : scan.read_tiles) loader.Ensure(k);
+          touched.insert(scan.write_tiles.begin(), scan.write_tiles.end());
           const TileWindow window = map.MakeWindow(scan);
           map.Integrate(scan, window, version);
           map.set_version(version);
           ++report.scans_replayed;
         } else {
-          if (Status s = loader.EnsureBox(record->clear_box); !s.ok()) return s;
+          if (Status s = loader.EnsureBox(record->clear_box, &touched); !s.ok()) return s;
           map.ClearBox(record->clear_box, version);
           map.set_version(version);
           ++report.clears_replayed;
@@ -94,6 +101,7 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
   if (!walked.ok()) return walked;
   map.set_version(std::max(map.version(), store.map_version()));
   report.map_version = map.version();
+  report.touched_tiles.assign(touched.begin(), touched.end());
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
 }

@@ -28,6 +28,9 @@ struct RecoveryReport {
   // Tiles that could not be loaded: replay continued as if they were empty, so the map holds
   // wrong statistics for them until they are rebuilt; store.CorruptTiles() lists them too.
   std::vector<TileKey> corrupt_tiles;
+  // Tiles the replayed records changed, sorted: a scan's write tiles, and for a clear the stored
+  // tiles in its box. The map holds them newer than the store does.
+  std::vector<TileKey> touched_tiles;
   double seconds = 0;
 
   bool clean() const { return corrupt_records.empty() && corrupt_tiles.empty(); }
