@@ -22,10 +22,14 @@
 #include <thread>
 
 #include "bgkmap/v1/map_service.pb.h"
-#include "map_service.h"
-#include "metrics.h"
-#include "metrics_http.h"
-#include "service_context.h"
+#include "durability/memory_durability.h"
+#include "durability/store_durability.h"
+#include "http/metrics.h"
+#include "http/metrics_http.h"
+#include "rpc/map_service.h"
+#include "rpc/service_context.h"
+#include "serving/map_maintenance.h"
+#include "serving/served_map.h"
 
 namespace bgkmap {
 namespace {
@@ -44,14 +48,6 @@ void KeepGrpcInitialized() {
 void KeepServiceDescriptorLinked() {
   static const void* volatile keep = &::descriptor_table_bgkmap_2fv1_2fmap_5fservice_2eproto;
   (void)keep;
-}
-
-// storage.max_memory_mb bounds the map's memory: the tiles in memory, plus the copies of the
-// changed ones that a checkpoint holds while it writes them (a copy, and its encoding in the
-// write). Tiles get two thirds of the bound; changed tiles are kept to a quarter of that by
-// checkpointing, so a checkpoint holds at most the remaining third.
-uint64_t TileMemoryLimit(const StorageConfig& storage) {
-  return (storage.max_memory_mb << 20) / 3 * 2;
 }
 
 // Lowers the scheduling priority of every thread of `pool` by `nice` (Linux: per thread). Each
@@ -77,34 +73,36 @@ size_t ThreadCount(int configured) {
 
 }  // namespace
 
+// Member order is construction order: each part uses only those above it, and the parts are
+// destroyed in reverse.
 struct MapServer::Impl {
   Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map,
-       std::unique_ptr<MapPersistence> persisted)
+       std::unique_ptr<Durability> durable)
       : config(cfg),
-        persistence(std::move(persisted)),
+        durability(std::move(durable)),
         ingest_pool(ThreadCount(cfg.worker_threads)),
         query_pool(ThreadCount(cfg.query_threads)),
-        store(std::move(map)),
-        scheduler(store, ingest_pool, cfg.limits.max_robots,
-                  [this](const std::vector<TileKey>& changed) { hub.Publish(changed); }),
-        ctx(cfg, store, scheduler, hub, ingest_pool, query_pool),
+        map(std::move(map), *durability, ingest_pool, ServedMapOptionsFor(cfg)),
+        maintenance(this->map, *durability, cfg.storage),
+        ctx(cfg, this->map, hub, ingest_pool, query_pool),
         service(ctx) {}
 
-  // Takes a checkpoint at a scheduler barrier and writes it; returns the write's status.
-  Status Checkpoint();
-  void CheckpointLoop();
-  void StopCheckpoints();
-  // Keeps the tiles in memory under storage.max_memory_mb (a thread, woken by the map store).
-  void EvictionLoop();
-  void RequestEviction();
+  ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
+    ServedMapOptions o;
+    o.max_robots = cfg.limits.max_robots;
+    o.tile_memory_limit_bytes = TileMemoryLimit(cfg.storage);
+    o.on_over_memory = [this] { maintenance.RequestEviction(); };
+    o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
+    return o;
+  }
 
   ServerConfig config;
-  std::unique_ptr<MapPersistence> persistence;  // outlives the workers that journal into it
+  std::unique_ptr<Durability> durability;  // outlives the workers that journal into it
+  WatchHub hub;
   boost::asio::thread_pool ingest_pool;
   boost::asio::thread_pool query_pool;
-  MapStore store;
-  WatchHub hub;
-  ScanScheduler scheduler;
+  ServedMap map;
+  MapMaintenance maintenance;
   ServiceContext ctx;
   MapService service;
   std::unique_ptr<grpc::Server> server;
@@ -113,127 +111,10 @@ struct MapServer::Impl {
   std::mutex shutdown_mu;
   bool stopped = false;
 
-  std::thread checkpointer;
-  std::mutex checkpoint_mu;
-  std::condition_variable checkpoint_cv;
-  bool stop_checkpoints = false;
-
-  std::thread evictor;
-  std::thread verifier;
-  std::atomic<bool> stop_verifying{false};
-  bool eviction_requested = false;  // guarded by checkpoint_mu, signalled by checkpoint_cv
-
   // GET /metrics (server.metrics_address); null when off. Last: it reads everything above.
   std::unique_ptr<MetricsHttpServer> metrics;
   int metrics_port = 0;
 };
-
-void MapServer::Impl::RequestEviction() {
-  {
-    std::lock_guard lock(checkpoint_mu);
-    if (eviction_requested) return;
-    eviction_requested = true;
-  }
-  checkpoint_cv.notify_all();
-}
-
-void MapServer::Impl::EvictionLoop() {
-  const uint64_t limit = TileMemoryLimit(config.storage);
-  // Evict to below the bound, so that eviction runs in batches rather than after every scan.
-  const uint64_t target = limit / 10 * 8;
-  // A checkpoint makes changed tiles evictable, but it writes every changed tile: when the
-  // bound is smaller than what is being changed, take one at most this often.
-  constexpr auto kMinCheckpointGap = std::chrono::milliseconds(20);
-  auto last_checkpoint = std::chrono::steady_clock::now() - kMinCheckpointGap;
-  std::unique_lock lock(checkpoint_mu);
-  while (!stop_checkpoints) {
-    checkpoint_cv.wait_for(lock, std::chrono::seconds(1),
-                           [this] { return stop_checkpoints || eviction_requested; });
-    if (stop_checkpoints) break;
-    eviction_requested = false;
-    lock.unlock();
-    const uint64_t evicted_before = store.Residency().tiles_evicted;
-    uint64_t held = store.Evict(target);
-    if ((held > limit || persistence->dirty_over_limit()) &&
-        std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
-      const Status s = Checkpoint();
-      last_checkpoint = std::chrono::steady_clock::now();
-      if (s.ok()) held = store.Evict(target);
-    }
-    // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
-    // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
-    if (store.Residency().tiles_evicted != evicted_before) malloc_trim(0);
-    lock.lock();
-    if (held > limit && !eviction_requested) {
-      // Still over (tiles in use or the checkpoint gap): look again soon.
-      lock.unlock();
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      lock.lock();
-      eviction_requested = true;
-    }
-  }
-}
-
-Status MapServer::Impl::Checkpoint() {
-  std::promise<CapturedCheckpoint> captured;
-  std::future<CapturedCheckpoint> ready = captured.get_future();
-  scheduler.SubmitBarrier([this, &captured](uint64_t applied) {
-    if (persistence->write_failed()) {
-      const Status resumed = persistence->ResumeIfFailed();
-      if (resumed.ok()) {
-        spdlog::info("event=storage_resumed");
-      } else {
-        spdlog::warn("event=storage_resume_failed reason=\"{}\"", resumed.message());
-      }
-    }
-    captured.set_value(persistence->Capture(store, applied));
-  });
-  CapturedCheckpoint c = ready.get();
-  const auto t0 = std::chrono::steady_clock::now();
-  const size_t tiles = c.keys.size();
-  const uint64_t version = c.version;
-  Status s = persistence->Write(std::move(c));
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (s.ok()) {
-    spdlog::info("event=checkpoint version={} tiles={} seconds={:.3f}", version, tiles, seconds);
-  } else {
-    spdlog::error("event=checkpoint_failed version={} reason=\"{}\"", version, s.message());
-  }
-  return s;
-}
-
-void MapServer::Impl::CheckpointLoop() {
-  const auto interval = std::chrono::duration_cast<std::chrono::milliseconds>(
-      std::chrono::duration<double>(config.storage.checkpoint_interval_s));
-  std::unique_lock lock(checkpoint_mu);
-  // After a write failure, checkpoint (which first resumes the store) every second rather than
-  // every interval, so ingestion comes back soon after the disk has room.
-  const auto tick =
-      std::clamp(interval, std::chrono::milliseconds(1), std::chrono::milliseconds(1000));
-  auto last = std::chrono::steady_clock::now();
-  while (!checkpoint_cv.wait_for(lock, tick, [this] { return stop_checkpoints; })) {
-    if (!persistence->write_failed() && std::chrono::steady_clock::now() - last < interval) {
-      continue;
-    }
-    lock.unlock();
-    (void)Checkpoint();  // a failure is logged; the log keeps the changes
-    lock.lock();
-    last = std::chrono::steady_clock::now();
-  }
-}
-
-void MapServer::Impl::StopCheckpoints() {
-  {
-    std::lock_guard lock(checkpoint_mu);
-    stop_checkpoints = true;
-  }
-  checkpoint_cv.notify_all();
-  stop_verifying.store(true);
-  if (checkpointer.joinable()) checkpointer.join();
-  if (evictor.joinable()) evictor.join();
-  if (verifier.joinable()) verifier.join();
-}
 
 void KeepLargeAllocationsInHeap() {
   mallopt(M_MMAP_THRESHOLD, 256 << 20);
@@ -250,22 +131,23 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   KeepServiceDescriptorLinked();
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
   if (!map.ok()) return map.status();
-  std::unique_ptr<MapPersistence> persistence;
+  std::unique_ptr<Durability> durability = std::make_unique<MemoryDurability>();
   if (!config.storage.data_dir.empty()) {
-    Result<std::unique_ptr<MapPersistence>> opened =
-        MapPersistence::Open(config.storage, config.map, **map);
+    Result<std::unique_ptr<StoreDurability>> opened =
+        StoreDurability::Open(config.storage, config.map, **map);
     if (!opened.ok()) return opened.status();
-    persistence = std::move(opened).value();
-    const storage::RecoveryReport& r = persistence->recovery();
+    const StoreDurability& d = **opened;
+    const storage::RecoveryReport& r = d.recovery();
     spdlog::info(
         "event=recovered data_dir={} durability={} checkpoint_version={} map_version={} "
         "scans_replayed={} clears_replayed={} tiles={} corrupt_records={} corrupt_tiles={} "
         "seconds={:.3f}",
-        persistence->directory(), persistence->durability(), r.checkpoint_version, r.map_version,
-        r.scans_replayed, r.clears_replayed, (*map)->tile_count(), r.corrupt_records.size(),
-        persistence->CorruptTiles().size(), r.seconds);
+        d.directory(), d.durability_name(), r.checkpoint_version, r.map_version, r.scans_replayed,
+        r.clears_replayed, (*map)->tile_count(), r.corrupt_records.size(), d.CorruptTiles().size(),
+        r.seconds);
+    durability = std::move(opened).value();
   }
-  auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(persistence));
+  auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(durability));
   LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served
@@ -278,29 +160,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     impl->metrics = std::move(metrics).value();
     impl->metrics_port = impl->metrics->port();
   }
-  if (impl->persistence != nullptr) {
-    impl->scheduler.Restore(impl->persistence->map_version(), impl->persistence->RobotSequences());
-    impl->scheduler.SetJournal(impl->persistence.get());
-    impl->ctx.persistence = impl->persistence.get();
-    impl->store.AttachBacking(impl->persistence.get(), TileMemoryLimit(config.storage),
-                              [p = impl.get()] { p->RequestEviction(); });
-    impl->checkpointer = std::thread([p = impl.get()] { p->CheckpointLoop(); });
-    if (config.storage.max_memory_mb > 0) {
-      impl->persistence->SetDirtyLimit(
-          std::max<size_t>(1, TileMemoryLimit(config.storage) / 4 / impl->store.TileBytes()),
-          [p = impl.get()] { p->RequestEviction(); });
-      impl->evictor = std::thread([p = impl.get()] { p->EvictionLoop(); });
-    }
-    if (config.storage.verify_on_start) {
-      impl->verifier = std::thread([p = impl.get()] {
-        const MapPersistence::VerifyReport r = p->persistence->VerifyStoredTiles(p->stop_verifying);
-        spdlog::info(
-            "event=verify_done tiles={} corrupt_tiles={} unreadable_tiles={} stopped={} "
-            "seconds={:.3f}",
-            r.tiles, r.corrupt, r.unreadable, r.stopped, r.seconds);
-      });
-    }
-  }
+  impl->maintenance.Start();
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -313,7 +173,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   impl->server = builder.BuildAndStart();
   if (impl->server == nullptr || impl->port == 0) {
     impl->server.reset();
-    impl->StopCheckpoints();  // joins the store's threads (a joinable std::thread terminates)
+    impl->maintenance.Stop();  // joins its threads (a joinable std::thread terminates)
     return Status::FailedPrecondition("server.listen_address: cannot listen on '" +
                                       config.listen_address + "'");
   }
@@ -353,18 +213,18 @@ void MapServer::Shutdown() {
   const auto grace = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
   impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
-  impl_->scheduler.WaitIdle();
+  impl_->map.WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
   if (impl_->metrics != nullptr) impl_->metrics->Stop();
-  if (impl_->persistence != nullptr) {
+  impl_->maintenance.Stop();
+  if (std::optional<StoreStatus> store = impl_->map.store_status()) {
     // Last checkpoint: the next start replays nothing.
-    impl_->StopCheckpoints();
-    const Status s = impl_->Checkpoint();
+    const Status s = impl_->map.Checkpoint();
+    store = impl_->map.store_status();
     spdlog::info(
         "event=storage_closed data_dir={} durability={} checkpoint_version={} corrupt_tiles={} "
         "checkpoint={}",
-        impl_->persistence->directory(), impl_->persistence->durability(),
-        impl_->persistence->checkpoint_version(), impl_->persistence->CorruptTiles().size(),
+        store->directory, store->durability, store->checkpoint_version, store->corrupt_tiles,
         s.ok() ? "ok" : s.message());
   }
   impl_->ingest_pool.join();
@@ -375,20 +235,21 @@ void MapServer::Shutdown() {
 }
 
 ServerReport MapServer::Report() const {
+  const ServedMap& map = impl_->map;
   ServerReport r;
-  r.map_version = impl_->scheduler.applied_version();
-  r.scans_applied = impl_->scheduler.scans_applied();
-  const MapSummary summary = impl_->store.Summarize();
+  r.map_version = map.applied_version();
+  r.scans_applied = map.scans_applied();
+  const MapSummary summary = map.Summary();
   r.tile_count = summary.tile_count;
   r.known_cells = summary.known_cells;
-  r.peak_parallel_integrations = impl_->store.peak_parallel_integrations();
-  for (const RobotProgress& p : impl_->scheduler.Robots()) {
+  r.peak_parallel_integrations = map.peak_parallel_integrations();
+  for (const RobotProgress& p : map.robots().Robots()) {
     r.robots.push_back(
         {p.robot_id, p.last_sequence, p.scans_applied, p.scans_duplicate, p.scans_rejected});
   }
   return r;
 }
 
-std::unique_ptr<TerrainMap> MapServer::SnapshotMap() const { return impl_->store.Snapshot(); }
+std::unique_ptr<TerrainMap> MapServer::SnapshotMap() const { return impl_->map.Snapshot(); }
 
 }  // namespace bgkmap

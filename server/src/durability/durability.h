@@ -1,0 +1,138 @@
+// Where the served map is made durable: one interface, two implementations, so the map-serving
+// layer never asks whether there is a store.
+//   - StoreDurability: the persistent store (storage/): scan log, stored tiles, checkpoints.
+//   - MemoryDurability: a map in memory only; every call succeeds and stores nothing.
+//
+// The contract, in the order a change meets it:
+//   1. Record() journals the change before it is applied (a refused change is not applied);
+//   2. the change is applied in memory and its tiles are marked changed (Checkpointer);
+//   3. a checkpoint captures the changed tiles at a scheduler barrier and WriteCheckpoint()
+//      stores them, after which the log below that version may go.
+// Tiles not in memory are read back through TileBacking (durability/tile_backing.h).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/scan.h"
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/tile.h"
+#include "bgkmap/storage/tile_store.h"
+#include "durability/tile_backing.h"
+
+namespace bgkmap {
+
+struct Stamp {
+  int64_t seconds = 0;
+  int32_t nanos = 0;
+};
+
+// A change about to be applied, as the journal sees it: a scan, or a clear of `clear_box`.
+struct ChangeRecord {
+  uint64_t version = 0;
+  std::shared_ptr<const PreparedScan> scan;  // null for a clear
+  std::string robot_id;
+  uint64_t sequence = 0;
+  Stamp stamp;
+  CellBox clear_box;
+};
+
+// Copies of the served map's tiles, taken at a barrier (no change in flight).
+class TileCopier {
+ public:
+  // Bitwise copies of the tiles at `keys` (null where the map has none).
+  virtual std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const = 0;
+  // Keys of the tiles in memory with min <= key <= max, sorted.
+  virtual std::vector<TileKey> ListTiles(TileKey min, TileKey max) const = 0;
+
+ protected:
+  ~TileCopier() = default;
+};
+
+// The map's tiles as of one version, readable while the map changes on (an export).
+class TileSource {
+ public:
+  virtual ~TileSource() = default;
+  // The keys to read, sorted.
+  virtual const std::vector<TileKey>& keys() const = 0;
+  // The tile at keys()[i] (null: none); DataLoss naming a stored tile that fails its checksum.
+  virtual Result<std::unique_ptr<Tile>> Take(size_t i) = 0;
+};
+
+// What Info and /metrics report of a persistent store.
+struct StoreStatus {
+  std::string directory;
+  std::string durability;  // "sync" | "periodic"
+  uint64_t checkpoint_version = 0;
+  uint64_t corrupt_tiles = 0;
+  bool write_failed = false;
+  storage::StoreCounters counters;
+  storage::DiskUsage usage;  // only when asked for: it lists the store's directory
+};
+
+class Durability : public TileBacking {
+ public:
+  virtual ~Durability() = default;
+
+  // True when tiles live outside memory too: then clean tiles may be evicted, a cleared tile is
+  // kept (all zero) until a checkpoint deletes its stored copy, and checkpoints are worth taking.
+  virtual bool persists() const = 0;
+
+  // The state the map starts from: the version of its last change and each robot's last
+  // logged sequence number.
+  virtual uint64_t recovered_version() const = 0;
+  virtual std::map<std::string, uint64_t> LoggedRobotSequences() const = 0;
+
+  // Journals a change before it is applied (durable as configured); not OK: skip the change.
+  // Changes that do not conflict call it concurrently.
+  virtual Status Record(const ChangeRecord& change) = 0;
+
+  // Stores the tiles captured at `version` (null: the tile is gone). Checkpoints arrive in the
+  // order they were captured (Checkpointer).
+  virtual Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
+                                 std::span<const std::unique_ptr<Tile>> tiles) = 0;
+  // After a failed write the store refuses writes until resumed. Call at a barrier; OK if
+  // nothing had failed or writes are accepted again.
+  virtual bool write_failed() const = 0;
+  virtual Status Resume() = 0;
+
+  // At a barrier, right after a checkpoint at the applied version: the tiles in [min, max] as
+  // of now, readable after the barrier ends. `map` supplies them where nothing is stored.
+  virtual Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
+                                                             const TileCopier& map) = 0;
+
+  // Stored tiles found failing their checksum, sorted: queries must not answer from them.
+  virtual std::vector<TileKey> CorruptTiles() const = 0;
+
+  // Where an import spools its upload. `exclusive`: only this server writes there, so files a
+  // crash left behind may be removed.
+  struct ScratchDirectory {
+    std::string path;
+    bool exclusive = false;
+  };
+  virtual ScratchDirectory scratch_directory() const = 0;
+
+  // Reads and checks every stored tile without keeping it, so that damage is found and
+  // reported (CorruptTiles(), Info) before a query or scan meets it; tiles are otherwise read
+  // only on demand. Returns early once `stop` is set.
+  struct VerifyReport {
+    uint64_t tiles = 0;
+    uint64_t corrupt = 0;
+    uint64_t unreadable = 0;  // I/O errors
+    double seconds = 0;
+    bool stopped = false;
+  };
+  virtual VerifyReport VerifyStoredTiles(const std::atomic<bool>& stop) const = 0;
+
+  // The store's state for Info and /metrics; nullopt for a map in memory.
+  virtual std::optional<StoreStatus> store_status(bool with_disk_usage) const = 0;
+};
+
+}  // namespace bgkmap

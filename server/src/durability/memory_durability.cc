@@ -1,0 +1,34 @@
+#include "durability/memory_durability.h"
+
+#include <filesystem>
+
+namespace bgkmap {
+namespace {
+
+// Tiles copied at the barrier, handed out one by one.
+class CopiedTiles final : public TileSource {
+ public:
+  CopiedTiles(std::vector<TileKey> keys, std::vector<std::unique_ptr<Tile>> tiles)
+      : keys_(std::move(keys)), tiles_(std::move(tiles)) {}
+  const std::vector<TileKey>& keys() const override { return keys_; }
+  Result<std::unique_ptr<Tile>> Take(size_t i) override { return std::move(tiles_[i]); }
+
+ private:
+  std::vector<TileKey> keys_;
+  std::vector<std::unique_ptr<Tile>> tiles_;
+};
+
+}  // namespace
+
+Result<std::unique_ptr<TileSource>> MemoryDurability::OpenTileSource(TileKey min, TileKey max,
+                                                                     const TileCopier& map) {
+  std::vector<TileKey> keys = map.ListTiles(min, max);
+  std::vector<std::unique_ptr<Tile>> tiles = map.CopyTiles(keys);
+  return std::unique_ptr<TileSource>(new CopiedTiles(std::move(keys), std::move(tiles)));
+}
+
+Durability::ScratchDirectory MemoryDurability::scratch_directory() const {
+  return {std::filesystem::temp_directory_path().string(), /*exclusive=*/false};
+}
+
+}  // namespace bgkmap

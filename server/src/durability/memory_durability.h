@@ -1,0 +1,36 @@
+// Durability of a map served from memory only (no storage.data_dir): nothing is journaled or
+// stored, every call succeeds, and an export reads copies of the tiles taken at its barrier.
+#pragma once
+
+#include "durability/durability.h"
+
+namespace bgkmap {
+
+class MemoryDurability final : public Durability {
+ public:
+  bool persists() const override { return false; }
+  uint64_t recovered_version() const override { return 0; }
+  std::map<std::string, uint64_t> LoggedRobotSequences() const override { return {}; }
+  Status Record(const ChangeRecord&) override { return Status::Ok(); }
+  Status WriteCheckpoint(uint64_t, std::span<const TileKey>,
+                         std::span<const std::unique_ptr<Tile>>) override {
+    return Status::Ok();
+  }
+  bool write_failed() const override { return false; }
+  Status Resume() override { return Status::Ok(); }
+  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
+                                                     const TileCopier& map) override;
+  std::vector<TileKey> CorruptTiles() const override { return {}; }
+  ScratchDirectory scratch_directory() const override;
+  VerifyReport VerifyStoredTiles(const std::atomic<bool>&) const override { return {}; }
+  std::optional<StoreStatus> store_status(bool) const override { return std::nullopt; }
+
+  // TileBacking: nothing is stored, and nothing in memory is ever clean.
+  bool IsStored(TileKey) const override { return false; }
+  void StoredIn(TileKey, TileKey, std::vector<TileKey>*) const override {}
+  void ForEachStored(const std::function<void(TileKey, const TileSummary&)>&) const override {}
+  Result<std::unique_ptr<Tile>> Load(TileKey) const override { return std::unique_ptr<Tile>(); }
+  uint64_t durable_version() const override { return 0; }
+};
+
+}  // namespace bgkmap

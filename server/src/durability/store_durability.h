@@ -1,0 +1,72 @@
+// Durability in the persistent store (storage/, storage.data_dir): opens and recovers it at
+// start, journals every change to the scan log before it is applied, writes checkpoints of the
+// changed tiles, and serves the stored tiles back (TileBacking) from an index kept in memory.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/server/server_config.h"
+#include "bgkmap/storage/recovery.h"
+#include "bgkmap/storage/tile_store.h"
+#include "durability/durability.h"
+#include "durability/stored_tile_index.h"
+
+namespace bgkmap {
+
+class StoreDurability final : public Durability {
+ public:
+  // Opens (or creates) the store in config.data_dir and brings `map` (empty, created with
+  // `params`) to the store's latest state: the tiles the log after the last checkpoint touches
+  // are replayed into it and checkpointed at once; every other tile stays in the store until
+  // the served map loads it. The error is the store's own one-line message.
+  static Result<std::unique_ptr<StoreDurability>> Open(const StorageConfig& config,
+                                                       const MapParams& params, TerrainMap& map);
+
+  bool persists() const override { return true; }
+  uint64_t recovered_version() const override { return recovery_.map_version; }
+  std::map<std::string, uint64_t> LoggedRobotSequences() const override;
+  Status Record(const ChangeRecord& change) override;
+  Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
+                         std::span<const std::unique_ptr<Tile>> tiles) override;
+  bool write_failed() const override { return write_failed_.load(); }
+  Status Resume() override;
+  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
+                                                     const TileCopier& map) override;
+  std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
+  ScratchDirectory scratch_directory() const override;
+  std::optional<StoreStatus> store_status(bool with_disk_usage) const override;
+
+  // TileBacking: the stored tiles, as of the last written checkpoint.
+  bool IsStored(TileKey key) const override { return index_.Contains(key); }
+  void StoredIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const override {
+    index_.KeysIn(min, max, keys);
+  }
+  void ForEachStored(const std::function<void(TileKey, const TileSummary&)>& fn) const override {
+    index_.ForEach(fn);
+  }
+  Result<std::unique_ptr<Tile>> Load(TileKey key) const override { return store_->LoadTile(key); }
+  uint64_t durable_version() const override { return durable_version_.load(); }
+
+  VerifyReport VerifyStoredTiles(const std::atomic<bool>& stop) const override;
+
+  const storage::RecoveryReport& recovery() const { return recovery_; }
+  const std::string& directory() const { return store_->directory(); }
+  std::string durability_name() const;
+
+ private:
+  explicit StoreDurability(std::unique_ptr<storage::TileStore> store) : store_(std::move(store)) {}
+
+  std::unique_ptr<storage::TileStore> store_;
+  storage::RecoveryReport recovery_;
+  std::atomic<bool> write_failed_{false};
+  StoredTileIndex index_;
+  // Moves past a checkpoint's version only after the index holds its tiles.
+  std::atomic<uint64_t> durable_version_{0};
+};
+
+}  // namespace bgkmap

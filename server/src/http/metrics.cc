@@ -1,0 +1,227 @@
+#include "http/metrics.h"
+
+#include <fstream>
+#include <sstream>
+
+#include "rpc/service_context.h"
+
+namespace bgkmap {
+namespace {
+
+using Type = ExpositionWriter::Type;
+
+void WriteRobots(const std::vector<RobotProgress>& robots, ExpositionWriter& w) {
+  struct PerRobot {
+    const char* name;
+    Type type;
+    const char* help;
+    uint64_t RobotProgress::*value;
+  };
+  static constexpr PerRobot kPerRobot[] = {
+      {"bgkmap_robot_scans_applied_total", Type::kCounter,
+       "Scans of the robot integrated into the map since start.", &RobotProgress::scans_applied},
+      {"bgkmap_robot_scans_duplicate_total", Type::kCounter,
+       "Scans of the robot acknowledged as duplicates (sequence number not above the last) since "
+       "start.",
+       &RobotProgress::scans_duplicate},
+      {"bgkmap_robot_scans_rejected_total", Type::kCounter,
+       "Scans of the robot rejected (bad input, limits, storage failure) since start.",
+       &RobotProgress::scans_rejected},
+      {"bgkmap_robot_points_kept_total", Type::kCounter,
+       "Points of the robot's applied scans that were integrated (after filtering) since start.",
+       &RobotProgress::points_kept},
+      {"bgkmap_robot_last_sequence", Type::kGauge,
+       "The robot's last admitted sequence number (kept across restarts with a store).",
+       &RobotProgress::last_sequence},
+  };
+  for (const PerRobot& m : kPerRobot) {
+    w.Family(m.name, m.type, m.help);
+    for (const RobotProgress& r : robots) w.Sample(r.*m.value, {{"robot", r.robot_id}});
+  }
+}
+
+void WriteStore(const StoreMetrics& s, ExpositionWriter& w) {
+  w.Gauge("bgkmap_store_checkpoint_version",
+          "Map version of the last written checkpoint (every change up to it is in the stored "
+          "tiles).",
+          s.checkpoint_version);
+  w.Gauge("bgkmap_store_corrupt_tiles",
+          "Stored tiles currently listed as failing their checksum (until a checkpoint rewrites "
+          "them).",
+          s.corrupt_tiles);
+  w.Gauge("bgkmap_store_dirty_tiles", "Tiles changed since the last checkpoint was captured.",
+          s.dirty_tiles);
+  w.Gauge("bgkmap_store_write_failed",
+          "1 while the store refuses writes after a failed append or checkpoint, else 0.",
+          s.write_failed ? 1 : 0);
+  const storage::StoreCounters& c = s.counters;
+  w.Counter("bgkmap_store_tiles_loaded_total", "Tiles read from the store since it was opened.",
+            c.tiles_loaded);
+  w.Counter("bgkmap_store_tiles_written_total", "Tiles written by checkpoints since open.",
+            c.tiles_written);
+  w.Counter("bgkmap_store_tiles_deleted_total", "Tiles deleted by checkpoints since open.",
+            c.tiles_deleted);
+  w.Counter("bgkmap_store_checkpoints_total", "Checkpoints written since open.", c.checkpoints);
+  w.Counter("bgkmap_store_corrupt_tiles_found_total",
+            "Distinct stored tiles found failing their checksum since open.", c.corrupt_tiles);
+  w.Counter("bgkmap_store_corrupt_log_records_total",
+            "Scan log records found failing their checksum since open.", c.corrupt_log_records);
+  w.Counter("bgkmap_store_log_records_appended_total",
+            "Changes (scans, clears) appended to the scan log since open.", c.log_records_appended);
+  w.Counter("bgkmap_store_log_appended_bytes_total", "Bytes appended to the scan log since open.",
+            c.log_bytes_appended);
+  w.Counter("bgkmap_store_write_errors_total",
+            "Failed scan log appends and checkpoints since open.", c.write_errors);
+  w.Gauge("bgkmap_store_tile_sst_bytes", "Size of the tile column family's SST files.",
+          s.usage.tile_bytes);
+  w.Gauge("bgkmap_store_log_sst_bytes", "Size of the scan log column family's SST files.",
+          s.usage.log_bytes);
+  w.Gauge("bgkmap_store_disk_bytes",
+          "Size of every file in the store's directory (write-ahead log included).",
+          s.usage.total_bytes);
+  w.Gauge("bgkmap_map_resident_tiles", "Tiles held in memory.", s.residency.resident_tiles);
+  w.Gauge("bgkmap_map_resident_bytes", "Memory of the tiles held in memory.",
+          s.residency.resident_bytes);
+  w.Counter("bgkmap_map_tiles_loaded_total",
+            "Tiles loaded into memory from the store on demand since start.",
+            s.residency.tiles_loaded);
+  w.Counter("bgkmap_map_tiles_evicted_total",
+            "Clean tiles dropped from memory under storage.max_memory_mb since start.",
+            s.residency.tiles_evicted);
+  w.Gauge("bgkmap_map_memory_limit_bytes",
+          "storage.max_memory_mb in bytes: bound on tiles in memory plus checkpoint copies (0: "
+          "unbounded).",
+          s.memory_limit_bytes);
+}
+
+}  // namespace
+
+ServerMetrics CollectMetrics(ServiceContext& ctx) {
+  ServerMetrics m;
+  m.server_version = BGKMAP_VERSION;
+  m.map_version = ctx.map.applied_version();
+  m.scans_applied = ctx.map.scans_applied();
+  const MapSummary summary = ctx.map.Summary();
+  m.tile_count = summary.tile_count;
+  m.known_cells = summary.known_cells;
+  m.ingest_streams = ctx.sessions.count(SessionRegistry::Kind::kIngest);
+  m.watchers = ctx.sessions.count(SessionRegistry::Kind::kWatch);
+  m.robots = ctx.map.robots().Robots();
+  if (std::optional<StoreStatus> store = ctx.map.store_status(/*with_disk_usage=*/true)) {
+    StoreMetrics& s = m.store.emplace();
+    s.checkpoint_version = store->checkpoint_version;
+    s.corrupt_tiles = store->corrupt_tiles;
+    s.dirty_tiles = ctx.map.checkpointer().dirty_tiles();
+    s.write_failed = store->write_failed;
+    s.counters = store->counters;
+    s.usage = store->usage;
+    s.residency = ctx.map.Residency();
+    s.memory_limit_bytes = ctx.config.storage.max_memory_mb << 20;
+  }
+  m.process_resident_bytes = ProcessResidentBytes();
+  return m;
+}
+
+std::string FormatMetrics(const ServerMetrics& m) {
+  ExpositionWriter w;
+  w.Family("bgkmap_build_info", Type::kGauge, "Always 1; the label is the bgkmapd version.");
+  w.Sample(1, {{"version", m.server_version}});
+  w.Gauge("bgkmap_map_version",
+          "The applied map version: every change (scan, clear, import) up to it is in the map.",
+          m.map_version);
+  w.Counter("bgkmap_scans_applied_total", "Scans integrated into the map since start.",
+            m.scans_applied);
+  w.Gauge("bgkmap_map_tiles", "Tiles of the map (in memory or in the store).", m.tile_count);
+  w.Gauge("bgkmap_map_known_cells", "Cells of the map with an observation.", m.known_cells);
+  w.Gauge("bgkmap_ingest_streams", "Open Ingest streams.", m.ingest_streams);
+  w.Gauge("bgkmap_watchers", "Open Watch streams.", m.watchers);
+  w.Gauge("bgkmap_robots", "Robots the server has seen (or recovered from the store).",
+          m.robots.size());
+  WriteRobots(m.robots, w);
+  if (m.store) WriteStore(*m.store, w);
+  if (m.process_resident_bytes) {
+    w.Gauge("process_resident_memory_bytes", "Resident memory of the bgkmapd process (VmRSS).",
+            *m.process_resident_bytes);
+  }
+  return w.text();
+}
+
+std::optional<uint64_t> ProcessResidentBytes() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmRSS:", 0) != 0) continue;
+    std::istringstream fields(line.substr(6));
+    uint64_t kib = 0;
+    std::string unit;
+    if (fields >> kib >> unit && unit == "kB") return kib * 1024;
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+void ExpositionWriter::Family(std::string_view name, Type type, std::string_view help) {
+  family_ = name;
+  out_ += "# HELP ";
+  out_ += name;
+  out_ += ' ';
+  for (char c : help) {  // HELP escapes backslash and line feed
+    if (c == '\\') {
+      out_ += "\\\\";
+    } else if (c == '\n') {
+      out_ += "\\n";
+    } else {
+      out_ += c;
+    }
+  }
+  out_ += "\n# TYPE ";
+  out_ += name;
+  out_ += type == Type::kCounter ? " counter\n" : " gauge\n";
+}
+
+void ExpositionWriter::Sample(uint64_t value, const Labels& labels) {
+  out_ += family_;
+  if (!labels.empty()) {
+    out_ += '{';
+    for (size_t i = 0; i < labels.size(); ++i) {
+      if (i > 0) out_ += ',';
+      out_ += labels[i].first;
+      out_ += "=\"";
+      out_ += EscapeLabelValue(labels[i].second);
+      out_ += '"';
+    }
+    out_ += '}';
+  }
+  out_ += ' ';
+  out_ += std::to_string(value);
+  out_ += '\n';
+}
+
+void ExpositionWriter::Counter(std::string_view name, std::string_view help, uint64_t value) {
+  Family(name, Type::kCounter, help);
+  Sample(value);
+}
+
+void ExpositionWriter::Gauge(std::string_view name, std::string_view help, uint64_t value) {
+  Family(name, Type::kGauge, help);
+  Sample(value);
+}
+
+std::string EscapeLabelValue(std::string_view value) {
+  std::string out;
+  out.reserve(value.size());
+  for (char c : value) {
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,43 @@
+// ClearRegion (admin): forgets every cell of a box. Ordered with scans as a barrier.
+#include <spdlog/spdlog.h>
+
+#include "rpc/handlers/handlers.h"
+#include "rpc/proto_convert.h"
+#include "rpc/request_checks.h"
+
+namespace bgkmap {
+
+grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           const v1::ClearRegionRequest* request,
+                                           v1::ClearRegionResponse* response) {
+  grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
+  if (ctx.sessions.draining()) {
+    reactor->Finish({grpc::StatusCode::UNAVAILABLE, "server is shutting down"});
+    return reactor;
+  }
+  CellBox box;
+  if (grpc::Status s = RegionCells(request->box(), "box", ctx.map.geometry(), 1, ctx.limits,
+                                   /*limit_cells=*/false, &box);
+      !s.ok()) {
+    reactor->Finish(s);
+    return reactor;
+  }
+  ctx.map.SubmitClear(box, [reactor, response, box](const ClearOutcome& outcome) {
+    if (!outcome.status.ok()) {
+      spdlog::error("event=clear_not_persisted version={} reason=\"{}\"", outcome.version,
+                    outcome.status.message());
+      reactor->Finish(
+          {grpc::StatusCode::UNAVAILABLE,
+           "region not cleared: cannot persist the change: " + outcome.status.message()});
+      return;
+    }
+    spdlog::info("event=clear_region cells=[{},{}]..[{},{}] version={} tiles={}", box.min.x,
+                 box.min.y, box.max.x, box.max.y, outcome.version, outcome.changed_tiles.size());
+    for (TileKey k : outcome.changed_tiles) ToProto(k, response->add_changed_tiles());
+    response->set_map_version(outcome.version);
+    reactor->Finish(grpc::Status::OK);
+  });
+  return reactor;
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,41 @@
+// One handler per MapService RPC. Each returns the reactor that serves one call; heavy work runs
+// on the context's worker pools, never on gRPC's own threads.
+#pragma once
+
+#include <grpcpp/support/server_callback.h>
+
+#include "bgkmap/v1/map_service.grpc.pb.h"
+#include "rpc/service_context.h"
+
+namespace bgkmap {
+
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
+                                                                  std::string peer);
+grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                          const v1::Scan* request, v1::ScanAck* response);
+grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
+                                                            const v1::RegionRequest* request);
+grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           const v1::PointsRequest* request,
+                                           v1::PointsResponse* response);
+grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                         const v1::PathCheckRequest* request,
+                                         v1::PathCheckResponse* response);
+grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
+                                                     const v1::WatchRequest* request);
+grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                    v1::InfoResponse* response);
+grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           const v1::ClearRegionRequest* request,
+                                           v1::ClearRegionResponse* response);
+grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
+                                                           const v1::ExportRequest* request);
+grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
+                                                          v1::ImportResponse* response);
+
+// Runs `work` on the query pool under the concurrent-query limit and finishes `reactor` with its
+// status (RESOURCE_EXHAUSTED without running it when the limit is reached).
+grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                        std::function<grpc::Status()> work);
+
+}  // namespace bgkmap

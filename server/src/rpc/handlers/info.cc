@@ -1,0 +1,76 @@
+// Info: parameters, counts, bounds, version and per-robot progress.
+#include <yaml-cpp/yaml.h>
+
+#include "bgkmap/config/map_params_yaml.h"
+#include "rpc/handlers/handlers.h"
+#include "rpc/proto_convert.h"
+
+namespace bgkmap {
+namespace {
+
+grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
+  const uint64_t version = ctx.map.applied_version();
+  const uint64_t applied = ctx.map.scans_applied();
+  const MapSummary summary = ctx.map.Summary();
+  ToProto(ctx.map.params(), response->mutable_params());
+  YAML::Emitter yaml;
+  yaml << MapParamsToYaml(ctx.map.params());
+  response->set_params_yaml(std::string(yaml.c_str()) + "\n");
+  response->set_tile_count(summary.tile_count);
+  response->set_known_cells(summary.known_cells);
+  ToProto(summary.known_bounds, response->mutable_known_cells_box());
+  if (!summary.known_bounds.empty()) {
+    const double r = ctx.map.geometry().resolution();
+    v1::BoundingBox* b = response->mutable_known_bounds();
+    b->set_min_x(summary.known_bounds.min.x * r);
+    b->set_min_y(summary.known_bounds.min.y * r);
+    b->set_max_x((summary.known_bounds.max.x + 1) * r);
+    b->set_max_y((summary.known_bounds.max.y + 1) * r);
+  }
+  response->set_map_version(version);
+  response->set_scans_applied(applied);
+  for (const RobotProgress& r : ctx.map.robots().Robots()) {
+    v1::RobotInfo* out = response->add_robots();
+    out->set_robot_id(r.robot_id);
+    out->set_last_sequence(r.last_sequence);
+    out->mutable_last_stamp()->set_seconds(r.last_stamp.seconds);
+    out->mutable_last_stamp()->set_nanos(r.last_stamp.nanos);
+    out->set_scans_applied(r.scans_applied);
+    out->set_scans_duplicate(r.scans_duplicate);
+    out->set_scans_rejected(r.scans_rejected);
+    out->set_points_kept(r.points_kept);
+  }
+  const ServerLimits& l = ctx.limits;
+  v1::ServerLimits* lim = response->mutable_limits();
+  lim->set_max_points_per_scan(l.max_points_per_scan);
+  lim->set_max_region_cells(l.max_region_cells);
+  lim->set_max_query_points(l.max_query_points);
+  lim->set_max_path_poses(l.max_path_poses);
+  lim->set_max_coordinate(l.max_coordinate);
+  lim->set_max_message_bytes(l.max_message_bytes);
+  lim->set_max_inflight_scans_per_stream(l.max_inflight_scans_per_stream);
+  response->set_server_version(BGKMAP_VERSION);
+  if (const std::optional<StoreStatus> store = ctx.map.store_status()) {
+    v1::StorageInfo* st = response->mutable_storage();
+    st->set_data_dir(store->directory);
+    st->set_durability(store->durability);
+    st->set_checkpoint_version(store->checkpoint_version);
+    st->set_corrupt_tiles(store->corrupt_tiles);
+    const ResidencyStats r = ctx.map.Residency();
+    st->set_memory_limit_bytes(ctx.config.storage.max_memory_mb << 20);
+    st->set_resident_tiles(r.resident_tiles);
+    st->set_resident_bytes(r.resident_bytes);
+    st->set_tiles_loaded(r.tiles_loaded);
+    st->set_tiles_evicted(r.tiles_evicted);
+  }
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                    v1::InfoResponse* response) {
+  return RunUnaryQuery(ctx, call, [&ctx, response] { return Info(ctx, response); });
+}
+
+}  // namespace bgkmap

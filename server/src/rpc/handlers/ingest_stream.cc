@@ -1,0 +1,197 @@
+// Ingest: a robot's bidirectional scan stream.
+//
+// The stream reads ahead at most max_inflight_scans_per_stream scans; until acks free a slot no
+// read is posted, so HTTP/2 flow control pushes back on the robot (no unbounded queue). Scans
+// are prepared and admitted one at a time in stream order (sequence numbers stay ordered) while
+// earlier ones integrate; acks go out in stream order.
+#include <spdlog/spdlog.h>
+
+#include <boost/asio/post.hpp>
+#include <deque>
+#include <mutex>
+
+#include "rpc/handlers/handlers.h"
+#include "rpc/handlers/ingest_pipeline.h"
+
+namespace bgkmap {
+namespace {
+
+class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>,
+                           public DrainListener {
+ public:
+  IngestStream(ServiceContext& ctx, std::string peer)
+      : ctx_(ctx), peer_(std::move(peer)), window_(ctx.limits.max_inflight_scans_per_stream) {
+    const SessionRegistry::Admit admit =
+        ctx_.sessions.Add(this, SessionRegistry::Kind::kIngest, ctx_.limits.max_ingest_streams);
+    if (admit != SessionRegistry::Admit::kOk) {
+      finished_ = true;
+      Finish(admit == SessionRegistry::Admit::kDraining
+                 ? grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down")
+                 : grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                "server.max_ingest_streams = " +
+                                    std::to_string(ctx_.limits.max_ingest_streams) +
+                                    " ingest streams are already open"));
+      return;
+    }
+    registered_ = true;
+    spdlog::debug("event=ingest_open peer={}", peer_);
+    std::unique_lock lock(mu_);
+    Step(lock);
+  }
+
+  void OnReadDone(bool ok) override {
+    std::unique_lock lock(mu_);
+    reading_ = false;
+    if (finished_) return;  // a read that was pending when the call ended
+    if (!ok) {
+      read_closed_ = true;
+    } else {
+      Slot& slot = slots_.emplace_back();
+      if (draining_ || broken_) {
+        // Read after the drain began: answered, never applied.
+        slot.ack = RejectedAck(ctx_, incoming_,
+                               grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                                            "server is shutting down: scan not applied"));
+        slot.ready = true;
+      } else {
+        to_prepare_.push_back({std::move(incoming_), &slot});
+        if (!preparing_) {
+          preparing_ = true;
+          boost::asio::post(ctx_.ingest_pool, [this] { PrepareLoop(); });
+        }
+      }
+      incoming_.Clear();
+    }
+    Step(lock);
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::unique_lock lock(mu_);
+    writing_ = false;
+    slots_.pop_front();
+    if (!ok) broken_ = true;
+    Step(lock);
+  }
+
+  void OnCancel() override {
+    std::unique_lock lock(mu_);
+    broken_ = true;
+    Step(lock);
+  }
+
+  void OnDone() override {
+    if (registered_) ctx_.sessions.Remove(this);
+    delete this;
+  }
+
+  void BeginDrain() override {
+    std::unique_lock lock(mu_);
+    draining_ = true;
+    Step(lock);
+  }
+
+ private:
+  struct Slot {
+    v1::ScanAck ack;
+    bool ready = false;
+  };
+  struct Pending {
+    v1::Scan scan;
+    Slot* slot;
+  };
+
+  // Prepares and admits queued scans in order, on the ingest pool.
+  void PrepareLoop() {
+    for (;;) {
+      Pending next;
+      {
+        std::unique_lock lock(mu_);
+        if (to_prepare_.empty()) {
+          preparing_ = false;
+          Step(lock);  // may finish the call: nothing touches `this` afterwards
+          return;
+        }
+        next = std::move(to_prepare_.front());
+        to_prepare_.pop_front();
+      }
+      Slot* slot = next.slot;
+      IngestScanMessage(ctx_, next.scan, [this, slot](v1::ScanAck ack, grpc::Status) {
+        std::unique_lock lock(mu_);
+        ++counts_[ack.status()];
+        slot->ack = std::move(ack);
+        slot->ready = true;
+        Step(lock);
+      });
+    }
+  }
+
+  // Decides the next operations under the lock, then starts them without it. Finish is always
+  // the last thing done: OnDone may delete `this` as soon as it is called.
+  void Step(std::unique_lock<std::mutex>& lock) {
+    if (finished_) return;
+    const v1::ScanAck* write = nullptr;
+    bool read = false;
+    bool finish = false;
+    grpc::Status status;
+    if (broken_) {
+      // The client is gone: acks cannot be delivered (its scans still apply).
+      while (!writing_ && !slots_.empty() && slots_.front().ready) slots_.pop_front();
+    }
+    if (!writing_ && !broken_ && !slots_.empty() && slots_.front().ready) {
+      writing_ = true;
+      write = &slots_.front().ack;
+    }
+    if (!reading_ && !read_closed_ && !draining_ && !broken_ && slots_.size() < window_) {
+      reading_ = true;
+      read = true;
+    }
+    const bool no_more_input = read_closed_ || draining_ || broken_;
+    if (no_more_input && slots_.empty() && !preparing_ && !writing_) {
+      finished_ = true;
+      finish = true;
+      if (broken_) {
+        status = grpc::Status(grpc::StatusCode::CANCELLED, "stream cancelled");
+      } else if (draining_ && !read_closed_) {
+        status = grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                              "server is shutting down: every scan read was acknowledged");
+      }
+    }
+    if (finish) {
+      spdlog::info(
+          "event=ingest_closed peer={} applied={} duplicate={} rejected={} code={} reason=\"{}\"",
+          peer_, counts_[v1::ACK_APPLIED], counts_[v1::ACK_DUPLICATE], counts_[v1::ACK_REJECTED],
+          static_cast<int>(status.error_code()), status.error_message());
+    }
+    lock.unlock();
+    if (write != nullptr) StartWrite(write);
+    if (read) StartRead(&incoming_);
+    if (finish) Finish(status);
+  }
+
+  ServiceContext& ctx_;
+  const std::string peer_;
+  const size_t window_;
+  bool registered_ = false;
+
+  std::mutex mu_;
+  v1::Scan incoming_;
+  std::deque<Slot> slots_;  // read and not yet acked, in stream order (stable addresses)
+  std::deque<Pending> to_prepare_;
+  bool reading_ = false;
+  bool writing_ = false;
+  bool preparing_ = false;
+  bool read_closed_ = false;
+  bool draining_ = false;
+  bool broken_ = false;
+  bool finished_ = false;
+  uint64_t counts_[4] = {0, 0, 0, 0};  // acks by AckStatus
+};
+
+}  // namespace
+
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
+                                                                  std::string peer) {
+  return new IngestStream(ctx, std::move(peer));
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,54 @@
+// QueryPoints: the chosen layers at a batch of points, read atomically.
+#include <cmath>
+
+#include "rpc/handlers/handlers.h"
+#include "rpc/proto_convert.h"
+#include "rpc/request_checks.h"
+
+namespace bgkmap {
+namespace {
+
+grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
+                         v1::PointsResponse* response) {
+  const size_t n = static_cast<size_t>(request.points_size());
+  if (n > ctx.limits.max_query_points) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "points: " + std::to_string(n) +
+                                                      " points exceed server.max_query_points = " +
+                                                      std::to_string(ctx.limits.max_query_points)};
+  }
+  std::vector<Layer> layers;
+  if (grpc::Status s = LayersFromProto(request.layers(), "layers", &layers); !s.ok()) return s;
+  const GridGeometry& g = ctx.map.geometry();
+  std::vector<CellIndex> cells;
+  cells.reserve(n);
+  for (size_t i = 0; i < n; ++i) {
+    const v1::Point2& p = request.points(static_cast<int>(i));
+    const std::string field = "points[" + std::to_string(i) + "]";
+    if (grpc::Status s = CheckCoordinate(p.x(), field + ".x", ctx.limits); !s.ok()) return s;
+    if (grpc::Status s = CheckCoordinate(p.y(), field + ".y", ctx.limits); !s.ok()) return s;
+    cells.push_back(g.CellAt(p.x(), p.y()));
+  }
+  const uint64_t version = ctx.map.applied_version();
+  const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
+  if (!read.ok()) return ToGrpcStatus(read.status());
+  const std::vector<CellEstimate>& estimates = *read;
+  for (Layer l : layers) response->add_layers(ToProto(l));
+  auto* values = response->mutable_values();
+  values->Reserve(static_cast<int>(n * layers.size()));
+  for (const CellEstimate& e : estimates) {
+    for (Layer l : layers) values->Add(e.Get(l));
+  }
+  response->set_map_version(version);
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           const v1::PointsRequest* request,
+                                           v1::PointsResponse* response) {
+  return RunUnaryQuery(ctx, call,
+                       [&ctx, request, response] { return QueryPoints(ctx, *request, response); });
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,144 @@
+// QueryRegion: a region raster streamed as bands of rows, so any size fits under the gRPC
+// message limit. The region is read atomically first (tiles held shared, in short table-lock
+// bands), then streamed without holding any lock, so a slow reader never blocks ingestion.
+#include <boost/asio/post.hpp>
+
+#include "rpc/handlers/handlers.h"
+#include "rpc/proto_convert.h"
+#include "rpc/request_checks.h"
+
+namespace bgkmap {
+namespace {
+
+constexpr uint32_t kMaxStride = 4096;
+
+class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
+ public:
+  RegionStream(ServiceContext& ctx, const v1::RegionRequest& request)
+      : ctx_(ctx), permit_(ctx.queries, ctx.limits.max_concurrent_queries) {
+    if (!permit_) {
+      Finish(
+          {grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "server.max_concurrent_queries = " + std::to_string(ctx.limits.max_concurrent_queries) +
+               " queries are already running; retry later"});
+      return;
+    }
+    if (grpc::Status s = Parse(request); !s.ok()) {
+      Finish(s);
+      return;
+    }
+    // The raster is held in memory until streamed: bound the total over concurrent queries.
+    const uint64_t pixels = static_cast<uint64_t>(box_.width() / stride_) *
+                            static_cast<uint64_t>(box_.height() / stride_);
+    reserved_bytes_ = pixels * layers_.size() * sizeof(float);
+    if (!ctx_.region_bytes.TryAcquire(reserved_bytes_)) {
+      reserved_bytes_ = 0;
+      Finish({grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "region: " + std::to_string(pixels * layers_.size() * sizeof(float)) +
+                  " bytes do not fit in server.max_region_bytes_in_flight = " +
+                  std::to_string(ctx_.region_bytes.limit()) +
+                  " with the regions being served now; retry later"});
+      return;
+    }
+    boost::asio::post(ctx_.query_pool, [this] {
+      version_ = ctx_.map.applied_version();
+      Result<Raster> read = ctx_.map.ReadRegion(box_, layers_, stride_);
+      if (!read.ok()) {
+        Finish(ToGrpcStatus(read.status()));
+        return;
+      }
+      raster_ = std::move(read).value();
+      const int64_t row_bytes =
+          std::max<int64_t>(1, raster_.cols * static_cast<int64_t>(layers_.size()) * 4);
+      rows_per_chunk_ =
+          std::max<int64_t>(1, static_cast<int64_t>(ctx_.limits.region_chunk_bytes) / row_bytes);
+      WriteNext();
+    });
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {
+      Finish({grpc::StatusCode::CANCELLED, "region stream cancelled"});
+      return;
+    }
+    WriteNext();
+  }
+
+  void OnDone() override {
+    ctx_.region_bytes.Release(reserved_bytes_);
+    delete this;
+  }
+
+ private:
+  grpc::Status Parse(const v1::RegionRequest& request) {
+    if (grpc::Status s = LayersFromProto(request.layers(), "layers", &layers_); !s.ok()) return s;
+    stride_ = static_cast<int>(std::max<uint32_t>(request.stride(), 1));
+    if (request.stride() > kMaxStride) {
+      return {grpc::StatusCode::INVALID_ARGUMENT, "stride: " + std::to_string(request.stride()) +
+                                                      " exceeds " + std::to_string(kMaxStride)};
+    }
+    if (grpc::Status s = RegionCells(request.box(), "box", ctx_.map.geometry(), stride_,
+                                     ctx_.limits, /*limit_cells=*/true, &box_);
+        !s.ok()) {
+      return s;
+    }
+    // A chunk holds whole rows; one row must fit in a message.
+    const uint64_t row_bytes = static_cast<uint64_t>(box_.width() / stride_) * layers_.size() * 4;
+    if (row_bytes + 4096 > ctx_.limits.max_message_bytes) {
+      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+              "box: one raster row takes " + std::to_string(row_bytes) +
+                  " bytes, over server.max_message_bytes = " +
+                  std::to_string(ctx_.limits.max_message_bytes)};
+    }
+    return grpc::Status::OK;
+  }
+
+  void WriteNext() {
+    if (sent_header_ && next_row_ >= raster_.rows) {
+      Finish(grpc::Status::OK);
+      return;
+    }
+    chunk_.Clear();
+    if (!sent_header_) {
+      sent_header_ = true;
+      v1::RasterHeader* h = chunk_.mutable_header();
+      ToProto(raster_.box, h->mutable_cells());
+      h->set_stride(static_cast<uint32_t>(raster_.stride));
+      h->set_cols(static_cast<uint32_t>(raster_.cols));
+      h->set_rows(static_cast<uint32_t>(raster_.rows));
+      h->set_resolution(raster_.resolution);
+      h->set_x0(raster_.x0);
+      h->set_y1(raster_.y1);
+      for (Layer l : raster_.layers) h->add_layers(ToProto(l));
+      h->set_map_version(version_);
+    }
+    const int64_t end = std::min(raster_.rows, next_row_ + rows_per_chunk_);
+    chunk_.set_row_start(static_cast<uint32_t>(next_row_));
+    chunk_.set_row_count(static_cast<uint32_t>(end - next_row_));
+    AppendRows(raster_, next_row_, end, chunk_.mutable_layers());
+    next_row_ = end;
+    StartWrite(&chunk_);
+  }
+
+  ServiceContext& ctx_;
+  Permit permit_;
+  std::vector<Layer> layers_;
+  int stride_ = 1;
+  CellBox box_;
+  uint64_t version_ = 0;
+  Raster raster_;
+  int64_t rows_per_chunk_ = 1;
+  int64_t next_row_ = 0;
+  bool sent_header_ = false;
+  uint64_t reserved_bytes_ = 0;
+  v1::RegionChunk chunk_;
+};
+
+}  // namespace
+
+grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
+                                                            const v1::RegionRequest* request) {
+  return new RegionStream(ctx, *request);
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,41 @@
+// MapService wiring: each RPC is served by its handler (rpc/handlers/).
+#pragma once
+
+#include "bgkmap/v1/map_service.grpc.pb.h"
+#include "rpc/service_context.h"
+
+namespace bgkmap {
+
+class MapService final : public v1::MapService::CallbackService {
+ public:
+  explicit MapService(ServiceContext& ctx) : ctx_(ctx) {}
+
+  grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* Ingest(
+      grpc::CallbackServerContext* call) override;
+  grpc::ServerUnaryReactor* IngestScan(grpc::CallbackServerContext* call, const v1::Scan* request,
+                                       v1::ScanAck* response) override;
+  grpc::ServerWriteReactor<v1::RegionChunk>* QueryRegion(grpc::CallbackServerContext* call,
+                                                         const v1::RegionRequest* request) override;
+  grpc::ServerUnaryReactor* QueryPoints(grpc::CallbackServerContext* call,
+                                        const v1::PointsRequest* request,
+                                        v1::PointsResponse* response) override;
+  grpc::ServerUnaryReactor* CheckPath(grpc::CallbackServerContext* call,
+                                      const v1::PathCheckRequest* request,
+                                      v1::PathCheckResponse* response) override;
+  grpc::ServerWriteReactor<v1::TileUpdate>* Watch(grpc::CallbackServerContext* call,
+                                                  const v1::WatchRequest* request) override;
+  grpc::ServerUnaryReactor* Info(grpc::CallbackServerContext* call, const v1::InfoRequest* request,
+                                 v1::InfoResponse* response) override;
+  grpc::ServerUnaryReactor* ClearRegion(grpc::CallbackServerContext* call,
+                                        const v1::ClearRegionRequest* request,
+                                        v1::ClearRegionResponse* response) override;
+  grpc::ServerWriteReactor<v1::ArchiveChunk>* ExportMap(grpc::CallbackServerContext* call,
+                                                        const v1::ExportRequest* request) override;
+  grpc::ServerReadReactor<v1::ArchiveChunk>* ImportMap(grpc::CallbackServerContext* call,
+                                                       v1::ImportResponse* response) override;
+
+ private:
+  ServiceContext& ctx_;
+};
+
+}  // namespace bgkmap

@@ -1,0 +1,149 @@
+#include "rpc/request_checks.h"
+
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <vector>
+
+#include "rpc/proto_convert.h"
+
+namespace bgkmap {
+namespace {
+
+constexpr size_t kMaxRobotIdBytes = 128;
+constexpr size_t kBytesPerPoint = 3 * sizeof(float);
+
+grpc::Status Invalid(const std::string& message) {
+  return {grpc::StatusCode::INVALID_ARGUMENT, message};
+}
+
+std::string Num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+grpc::Status CheckPose(const v1::Pose3& pose, const MapParams& params, const ServerLimits& limits,
+                       Pose* out) {
+  const v1::Vector3& t = pose.translation();
+  const double tv[3] = {t.x(), t.y(), t.z()};
+  const char* axis[3] = {"x", "y", "z"};
+  for (int i = 0; i < 3; ++i) {
+    if (grpc::Status s = CheckCoordinate(tv[i], std::string("pose.translation.") + axis[i], limits);
+        !s.ok()) {
+      return s;
+    }
+  }
+  const v1::Quaternion& q = pose.rotation();
+  const double qv[4] = {q.w(), q.x(), q.y(), q.z()};
+  const char* qaxis[4] = {"w", "x", "y", "z"};
+  for (int i = 0; i < 4; ++i) {
+    if (!std::isfinite(qv[i])) {
+      return Invalid(std::string("pose.rotation.") + qaxis[i] + ": " + Num(qv[i]) +
+                     " is not finite");
+    }
+  }
+  const double norm = std::sqrt(qv[0] * qv[0] + qv[1] * qv[1] + qv[2] * qv[2] + qv[3] * qv[3]);
+  if (!(std::abs(norm - 1.0) <= limits.quaternion_tolerance)) {
+    return Invalid(
+        "pose.rotation: quaternion norm " + Num(norm) +
+        " is not 1 within server.quaternion_tolerance = " + Num(limits.quaternion_tolerance));
+  }
+  *out = Pose::FromQuaternion(qv[0] / norm, qv[1] / norm, qv[2] / norm, qv[3] / norm, tv[0], tv[1],
+                              tv[2]);
+  if (Status s = ValidatePose(*out, params); !s.ok()) {
+    return Invalid("pose: " + s.message());
+  }
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::Status CheckRobotId(const std::string& robot_id) {
+  if (robot_id.empty()) return Invalid("robot_id: must not be empty");
+  if (robot_id.size() > kMaxRobotIdBytes) {
+    return Invalid("robot_id: " + std::to_string(robot_id.size()) + " bytes exceed the limit of " +
+                   std::to_string(kMaxRobotIdBytes));
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status CheckCoordinate(double value, const std::string& field, const ServerLimits& limits) {
+  if (!std::isfinite(value)) return Invalid(field + ": " + Num(value) + " is not finite");
+  if (std::abs(value) > limits.max_coordinate) {
+    return Invalid(field + ": |" + Num(value) +
+                   "| exceeds server.max_coordinate = " + Num(limits.max_coordinate) + " m");
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
+                                const ServerLimits& limits, PreparedScan* out) {
+  if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) return s;
+  const std::string& bytes = scan.points();
+  if (bytes.size() % kBytesPerPoint != 0) {
+    return Invalid("points: " + std::to_string(bytes.size()) +
+                   " bytes is not a multiple of 12 (packed little-endian float32 x, y, z)");
+  }
+  const size_t count = bytes.size() / kBytesPerPoint;
+  if (count > limits.max_points_per_scan) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "points: " + std::to_string(count) + " points exceed server.max_points_per_scan = " +
+                std::to_string(limits.max_points_per_scan)};
+  }
+  if (!scan.has_pose()) return Invalid("pose: missing");
+  Pose pose;
+  if (grpc::Status s = CheckPose(scan.pose(), params, limits, &pose); !s.ok()) return s;
+
+  static_assert(sizeof(Point3f) == kBytesPerPoint);
+  std::vector<Point3f> points(count);
+  if (count > 0) std::memcpy(points.data(), bytes.data(), bytes.size());
+  Result<PreparedScan> prepared = PrepareScan(params, points, pose);
+  if (!prepared.ok()) return ToGrpcStatus(prepared.status());
+  *out = std::move(prepared).value();
+  return grpc::Status::OK;
+}
+
+grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
+                         const GridGeometry& g, int stride, const ServerLimits& limits,
+                         bool limit_cells, CellBox* out) {
+  const double v[4] = {box.min_x(), box.min_y(), box.max_x(), box.max_y()};
+  const char* names[4] = {"min_x", "min_y", "max_x", "max_y"};
+  for (int i = 0; i < 4; ++i) {
+    if (grpc::Status s = CheckCoordinate(v[i], field + "." + names[i], limits); !s.ok()) return s;
+  }
+  if (!(box.min_x() < box.max_x()) || !(box.min_y() < box.max_y())) {
+    return Invalid(field + ": min (" + Num(box.min_x()) + ", " + Num(box.min_y()) +
+                   ") must be below max (" + Num(box.max_x()) + ", " + Num(box.max_y()) + ")");
+  }
+  // Half-open: a max edge exactly on a cell border does not add the next cell. Edges within a
+  // micro-cell of a border snap to it, so 200 / 0.1 = 2000.0000000000002 and -10 / 0.1 =
+  // -100.00000000000001 do not add a cell either.
+  const double res = g.resolution();
+  constexpr double kSnap = 1e-6;
+  const auto lo = [&](double x) { return static_cast<int64_t>(std::floor(x / res + kSnap)); };
+  const auto hi = [&](double x) { return static_cast<int64_t>(std::ceil(x / res - kSnap)) - 1; };
+  int64_t x0 = lo(box.min_x()), y0 = lo(box.min_y());
+  int64_t x1 = std::max(x0, hi(box.max_x())), y1 = std::max(y0, hi(box.max_y()));
+  // Align pixel blocks with the global grid.
+  const auto floor_to = [stride](int64_t a) {
+    return (a >= 0 ? a / stride : -((-a + stride - 1) / stride)) * stride;
+  };
+  x0 = floor_to(x0);
+  y0 = floor_to(y0);
+  x1 = floor_to(x1) + stride - 1;
+  y1 = floor_to(y1) + stride - 1;
+  const int64_t w = x1 - x0 + 1, h = y1 - y0 + 1;
+  if (limit_cells &&
+      static_cast<uint64_t>(w) * static_cast<uint64_t>(h) > limits.max_region_cells) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            field + ": " + std::to_string(w) + " x " + std::to_string(h) + " = " +
+                std::to_string(w * h) + " cells exceed server.max_region_cells = " +
+                std::to_string(limits.max_region_cells)};
+  }
+  out->min = {static_cast<int>(x0), static_cast<int>(y0)};
+  out->max = {static_cast<int>(x1), static_cast<int>(y1)};
+  return grpc::Status::OK;
+}
+
+}  // namespace bgkmap

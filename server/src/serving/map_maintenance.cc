@@ -1,0 +1,119 @@
+#include "serving/map_maintenance.h"
+
+#include <malloc.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+
+namespace bgkmap {
+
+uint64_t TileMemoryLimit(const StorageConfig& storage) {
+  return (storage.max_memory_mb << 20) / 3 * 2;
+}
+
+MapMaintenance::MapMaintenance(ServedMap& map, const Durability& durability,
+                               const StorageConfig& config)
+    : map_(map), durability_(durability), config_(config) {}
+
+MapMaintenance::~MapMaintenance() { Stop(); }
+
+void MapMaintenance::Start() {
+  if (!durability_.persists()) return;
+  checkpointer_ = std::thread([this] { CheckpointLoop(); });
+  if (config_.max_memory_mb > 0) {
+    map_.checkpointer().SetDirtyLimit(
+        std::max<uint64_t>(1, TileMemoryLimit(config_) / 4 / map_.TileBytes()),
+        [this] { RequestEviction(); });
+    evictor_ = std::thread([this] { EvictionLoop(); });
+  }
+  if (config_.verify_on_start) {
+    verifier_ = std::thread([this] {
+      const Durability::VerifyReport r = durability_.VerifyStoredTiles(stop_verifying_);
+      spdlog::info(
+          "event=verify_done tiles={} corrupt_tiles={} unreadable_tiles={} stopped={} "
+          "seconds={:.3f}",
+          r.tiles, r.corrupt, r.unreadable, r.stopped, r.seconds);
+    });
+  }
+}
+
+void MapMaintenance::Stop() {
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  stop_verifying_.store(true);
+  for (std::thread* t : {&checkpointer_, &evictor_, &verifier_}) {
+    if (t->joinable()) t->join();
+  }
+}
+
+void MapMaintenance::RequestEviction() {
+  {
+    std::lock_guard lock(mu_);
+    if (eviction_requested_) return;
+    eviction_requested_ = true;
+  }
+  cv_.notify_all();
+}
+
+void MapMaintenance::CheckpointLoop() {
+  const auto interval = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::duration<double>(config_.checkpoint_interval_s));
+  // After a write failure, checkpoint (which first resumes the store) every second rather than
+  // every interval, so ingestion comes back soon after the disk has room.
+  const auto tick =
+      std::clamp(interval, std::chrono::milliseconds(1), std::chrono::milliseconds(1000));
+  auto last = std::chrono::steady_clock::now();
+  std::unique_lock lock(mu_);
+  while (!cv_.wait_for(lock, tick, [this] { return stopping_; })) {
+    if (!durability_.write_failed() && std::chrono::steady_clock::now() - last < interval) {
+      continue;
+    }
+    lock.unlock();
+    (void)map_.Checkpoint();  // a failure is logged; the log keeps the changes
+    lock.lock();
+    last = std::chrono::steady_clock::now();
+  }
+}
+
+void MapMaintenance::EvictionLoop() {
+  const uint64_t limit = TileMemoryLimit(config_);
+  // Evict to below the bound, so that eviction runs in batches rather than after every scan.
+  const uint64_t target = limit / 10 * 8;
+  // A checkpoint makes changed tiles evictable, but it writes every changed tile: when the
+  // bound is smaller than what is being changed, take one at most this often.
+  constexpr auto kMinCheckpointGap = std::chrono::milliseconds(20);
+  auto last_checkpoint = std::chrono::steady_clock::now() - kMinCheckpointGap;
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    cv_.wait_for(lock, std::chrono::seconds(1),
+                 [this] { return stopping_ || eviction_requested_; });
+    if (stopping_) break;
+    eviction_requested_ = false;
+    lock.unlock();
+    const uint64_t evicted_before = map_.Residency().tiles_evicted;
+    uint64_t held = map_.Evict(target);
+    if ((held > limit || map_.checkpointer().dirty_over_limit()) &&
+        std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
+      const Status s = map_.Checkpoint();
+      last_checkpoint = std::chrono::steady_clock::now();
+      if (s.ok()) held = map_.Evict(target);
+    }
+    // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
+    // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
+    if (map_.Residency().tiles_evicted != evicted_before) malloc_trim(0);
+    lock.lock();
+    if (held > limit && !eviction_requested_) {
+      // Still over (tiles in use or the checkpoint gap): look again soon.
+      lock.unlock();
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      lock.lock();
+      eviction_requested_ = true;
+    }
+  }
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,274 @@
+#include "serving/served_map.h"
+
+#include <algorithm>
+#include <future>
+#include <set>
+#include <string>
+
+namespace bgkmap {
+namespace {
+
+void SortUnique(std::vector<TileKey>* keys) {
+  std::sort(keys->begin(), keys->end());
+  keys->erase(std::unique(keys->begin(), keys->end()), keys->end());
+}
+
+Status CorruptTile(TileKey k) {
+  return Status::DataLoss("tile (" + std::to_string(k.x) + ", " + std::to_string(k.y) +
+                          ") of the stored map is corrupt: its cells cannot be answered");
+}
+
+}  // namespace
+
+ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
+                     boost::asio::thread_pool& workers, ServedMapOptions options)
+    : durability_(durability),
+      table_(std::move(map), /*keep_cleared=*/durability.persists()),
+      residency_(table_, durability, durability.persists(), options.tile_memory_limit_bytes,
+                 std::move(options.on_over_memory)),
+      checkpointer_(durability, table_),
+      robots_(options.max_robots),
+      scheduler_(workers, std::move(options.on_tiles_changed)) {
+  scheduler_.Restore(durability.recovered_version());
+  robots_.Restore(durability.LoggedRobotSequences());
+  // The summary starts from the tiles in memory (recovered) and the store's index of the rest.
+  ChangedTiles initial;
+  std::set<TileKey> resident;
+  for (const auto& [key, summary] : table_.SummarizeResident()) {
+    initial.keys.push_back(key);
+    initial.summaries.push_back(summary);
+    resident.insert(key);
+  }
+  durability.ForEachStored([&](TileKey key, const TileSummary& summary) {
+    if (resident.contains(key)) return;
+    initial.keys.push_back(key);
+    initial.summaries.push_back(summary);
+  });
+  UpdateSummary(initial);
+}
+
+ServedMap::~ServedMap() { scheduler_.WaitIdle(); }
+
+ServedMap::Admission ServedMap::SubmitScan(ScanOrigin origin,
+                                           std::shared_ptr<const PreparedScan> scan,
+                                           std::function<void(ScanOutcome)> done) {
+  std::lock_guard admission(admission_mu_);
+  uint64_t previous = 0;
+  const Admission a =
+      robots_.Admit(origin.robot_id, origin.sequence, origin.stamp, scan->counts.kept, &previous);
+  if (a != Admission::kAdmitted) return a;
+  ChangeScheduler::TileChange kind{scan->write_tiles, scan->read_tiles};
+  scheduler_.Submit(std::move(kind), [this, origin = std::move(origin), scan = std::move(scan),
+                                      previous, done = std::move(done)](uint64_t version) mutable {
+    return RunScan(origin, std::move(scan), previous, version, std::move(done));
+  });
+  return a;
+}
+
+ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
+                                         std::shared_ptr<const PreparedScan> shared_scan,
+                                         uint64_t previous_sequence, uint64_t version,
+                                         std::function<void(ScanOutcome)> done) {
+  const PreparedScan& scan = *shared_scan;
+  ScanOutcome outcome;
+  outcome.version = version;
+  // The tiles are brought into memory before the scan is journaled: a store that cannot be read
+  // refuses the scan like a journal that cannot be written.
+  std::vector<TileKey> keys = scan.write_tiles;
+  keys.insert(keys.end(), scan.read_tiles.begin(), scan.read_tiles.end());
+  SortUnique(&keys);
+  Result<TileResidency::Pins> pins = residency_.Pin(std::move(keys), /*strict=*/false);
+  outcome.status = pins.status();
+  if (outcome.status.ok()) {
+    ChangeRecord record{version, shared_scan, origin.robot_id, origin.sequence, origin.stamp, {}};
+    outcome.status = durability_.Record(record);
+  }
+  if (!outcome.status.ok()) {
+    // Not in the log, so not in the map: the robot may send it again.
+    robots_.Withdraw(origin.robot_id, origin.sequence, previous_sequence, scan.counts.kept);
+    return {{}, [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
+  }
+  ChangedTiles changed;
+  outcome.report = table_.ApplyScan(scan, version, &changed);
+  UpdateSummary(changed);
+  checkpointer_.MarkChanged(scan.write_tiles);
+  scans_applied_.fetch_add(1);
+  residency_.SignalIfOverLimit();
+  std::vector<TileKey> tiles = outcome.report.changed_tiles;
+  return {std::move(tiles),
+          [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
+}
+
+void ServedMap::SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done) {
+  scheduler_.Submit(ChangeScheduler::ExclusiveChange{},
+                    [this, box, done = std::move(done)](uint64_t version) mutable {
+                      return RunClear(box, version, std::move(done));
+                    });
+}
+
+ChangeScheduler::Done ServedMap::RunClear(const CellBox& box, uint64_t version,
+                                          std::function<void(ClearOutcome)> done) {
+  ClearOutcome outcome;
+  outcome.version = version;
+  Result<TileResidency::Pins> pins = TileResidency::Pins();
+  if (!box.empty()) {
+    pins = residency_.PinRange(geometry().TileOf(box.min), geometry().TileOf(box.max),
+                               /*strict=*/false);
+  }
+  outcome.status = pins.status();
+  if (outcome.status.ok()) {
+    ChangeRecord record;
+    record.version = version;
+    record.clear_box = box;
+    outcome.status = durability_.Record(record);
+  }
+  if (outcome.status.ok()) {
+    ChangedTiles changed;
+    table_.ClearBox(box, version, &changed);
+    UpdateSummary(changed);
+    checkpointer_.MarkChanged(changed.keys);
+    outcome.changed_tiles = std::move(changed.keys);
+  }
+  std::vector<TileKey> tiles = outcome.changed_tiles;
+  return {std::move(tiles),
+          [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
+}
+
+void ServedMap::SubmitImport(std::span<const TileKey> keys,
+                             std::span<const std::unique_ptr<Tile>> tiles,
+                             std::function<void(ImportOutcome)> done) {
+  scheduler_.Submit(ChangeScheduler::ExclusiveChange{},
+                    [this, keys, tiles, done = std::move(done)](uint64_t version) mutable {
+                      return RunImport(keys, tiles, version, std::move(done));
+                    });
+}
+
+ChangeScheduler::Done ServedMap::RunImport(std::span<const TileKey> keys,
+                                           std::span<const std::unique_ptr<Tile>> tiles,
+                                           uint64_t version,
+                                           std::function<void(ImportOutcome)> done) {
+  ImportOutcome outcome{version, Status::Ok()};
+  auto finish = [&](std::vector<TileKey> changed) -> ChangeScheduler::Done {
+    return {std::move(changed), [done = std::move(done), outcome] { done(outcome); }};
+  };
+  // Loads the stored tiles first: never add onto a tile that was lost.
+  Result<TileResidency::Pins> pins =
+      residency_.Pin(std::vector<TileKey>(keys.begin(), keys.end()), /*strict=*/true);
+  if (!pins.ok()) {
+    outcome.status = pins.status();
+    return finish({});
+  }
+  // Not journaled (an archive can be huge): durable by a checkpoint at its own version, which
+  // holds every earlier change too; undone from these copies if that fails.
+  const std::vector<std::unique_ptr<Tile>> before = table_.CopyTiles(keys);
+  std::vector<const Tile*> adding;
+  adding.reserve(tiles.size());
+  for (const auto& t : tiles) adding.push_back(t.get());
+  ChangedTiles changed;
+  table_.AddTiles(keys, adding, version, &changed);
+  checkpointer_.MarkChanged(keys);
+  if (Status s = checkpointer_.CheckpointAt(version); !s.ok()) {
+    table_.ReplaceTiles(keys, before, &changed);
+    outcome.status = Status::IoError("cannot persist it: " + s.message());
+    return finish({});
+  }
+  UpdateSummary(changed);
+  residency_.SignalIfOverLimit();
+  return finish(std::vector<TileKey>(keys.begin(), keys.end()));
+}
+
+void ServedMap::SubmitSnapshot(TileKey min, TileKey max,
+                               std::function<void(Result<MapSnapshot>)> done) {
+  scheduler_.Submit(
+      ChangeScheduler::Barrier{},
+      [this, min, max, done = std::move(done)](uint64_t applied) mutable -> ChangeScheduler::Done {
+        // The store must hold exactly the map at `applied` before it is read.
+        Result<MapSnapshot> snapshot = Status::Ok();
+        if (Status s = checkpointer_.CheckpointAt(applied); !s.ok()) {
+          snapshot = Status::IoError("cannot checkpoint it first: " + s.message());
+        } else if (Result<std::unique_ptr<TileSource>> tiles =
+                       durability_.OpenTileSource(min, max, table_);
+                   !tiles.ok()) {
+          snapshot = tiles.status();
+        } else {
+          snapshot = MapSnapshot{applied, durability_.LoggedRobotSequences(), std::move(*tiles)};
+        }
+        auto shared = std::make_shared<Result<MapSnapshot>>(std::move(snapshot));
+        return {{}, [done = std::move(done), shared] { done(std::move(*shared)); }};
+      });
+}
+
+Status ServedMap::Checkpoint() {
+  std::promise<CapturedCheckpoint> captured;
+  std::future<CapturedCheckpoint> ready = captured.get_future();
+  scheduler_.Submit(ChangeScheduler::Barrier{}, [this, &captured](uint64_t applied) {
+    captured.set_value(checkpointer_.Capture(applied));
+    return ChangeScheduler::Done{};
+  });
+  return checkpointer_.Write(ready.get());
+}
+
+Status ServedMap::RefuseCorrupt(TileKey min, TileKey max) const {
+  for (TileKey k : durability_.CorruptTiles()) {
+    if (k.x >= min.x && k.x <= max.x && k.y >= min.y && k.y <= max.y) return CorruptTile(k);
+  }
+  return Status::Ok();
+}
+
+Status ServedMap::RefuseCorrupt(std::span<const TileKey> keys) const {
+  const std::vector<TileKey> corrupt = durability_.CorruptTiles();  // sorted
+  for (TileKey k : keys) {
+    if (std::binary_search(corrupt.begin(), corrupt.end(), k)) return CorruptTile(k);
+  }
+  return Status::Ok();
+}
+
+Result<Raster> ServedMap::ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                                     int stride) {
+  const TileKey lo = geometry().TileOf(box.min), hi = geometry().TileOf(box.max);
+  if (Status s = RefuseCorrupt(lo, hi); !s.ok()) return s;
+  TileLockTable::Guard locked = table_.LockRangeShared(lo, hi);
+  // Pinned under the tile locks: no scan can add a tile to the range meanwhile.
+  Result<TileResidency::Pins> pins = residency_.PinRange(lo, hi, /*strict=*/true);
+  if (!pins.ok()) return pins.status();
+  return table_.ReadRegion(box, layers, stride);
+}
+
+Result<std::vector<CellEstimate>> ServedMap::ReadCells(std::span<const CellIndex> cells) {
+  std::vector<TileKey> keys;
+  keys.reserve(cells.size());
+  for (CellIndex c : cells) keys.push_back(geometry().TileOf(c));
+  SortUnique(&keys);
+  if (Status s = RefuseCorrupt(keys); !s.ok()) return s;
+  TileLockTable::Guard locked = table_.LockShared(keys);
+  Result<TileResidency::Pins> pins = residency_.Pin(std::move(keys), /*strict=*/true);
+  if (!pins.ok()) return pins.status();
+  return table_.ReadCells(cells);
+}
+
+Result<TileContent> ServedMap::ReadTile(TileKey key, const std::vector<Layer>& layers) {
+  const TileKey one[] = {key};
+  if (Status s = RefuseCorrupt(one); !s.ok()) return s;
+  TileLockTable::Guard locked = table_.LockShared(one);
+  Result<TileResidency::Pins> pins = residency_.Pin({key}, /*strict=*/true);
+  if (!pins.ok()) return pins.status();
+  auto [raster, version] = table_.ReadTile(key, layers);
+  return TileContent{std::move(raster), version};
+}
+
+std::vector<TileKey> ServedMap::ListTiles(TileKey min, TileKey max) const {
+  return residency_.KeysIn(min, max);
+}
+
+std::unique_ptr<TerrainMap> ServedMap::Snapshot() const {
+  std::set<TileKey> resident;
+  std::unique_ptr<TerrainMap> out = table_.CopyResident(applied_version(), &resident);
+  durability_.ForEachStored([&](TileKey k, const TileSummary&) {
+    if (resident.contains(k)) return;  // (a cleared tile in memory is newer than its stored copy)
+    Result<std::unique_ptr<Tile>> tile = durability_.Load(k);
+    if (tile.ok() && *tile != nullptr) out->SetTile(k, **tile);
+  });
+  return out;
+}
+
+}  // namespace bgkmap

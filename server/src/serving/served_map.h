@@ -1,0 +1,166 @@
+// The served map: the only way RPC handlers (and anything else) reach the map. No gRPC here.
+//
+// It owns the transactions and the rules every caller would otherwise repeat:
+//   - changes (scans, clears, imports) are ordered by ChangeScheduler, pin their tiles, are
+//     journaled by the Durability before they are applied, mark their tiles for the next
+//     checkpoint, and update the map summary as one step;
+//   - export snapshots and checkpoints run at scheduler barriers through the Checkpointer;
+//   - reads pin and lock what they read, see whole changes only, and never answer from a tile
+//     the store found corrupt (DataLoss naming it);
+//   - counts and bounds are kept incrementally (MapSummaryIndex), so Summary() locks nothing.
+#pragma once
+
+#include <atomic>
+#include <boost/asio/thread_pool.hpp>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/raster.h"
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/terrain_map.h"
+#include "durability/checkpointer.h"
+#include "durability/durability.h"
+#include "serving/change_scheduler.h"
+#include "serving/map_summary.h"
+#include "serving/robot_registry.h"
+#include "serving/tile_residency.h"
+#include "serving/tile_table.h"
+
+namespace bgkmap {
+
+struct ScanOrigin {
+  std::string robot_id;
+  uint64_t sequence = 0;
+  Stamp stamp;
+};
+
+struct ScanOutcome {
+  uint64_t version = 0;
+  ScanReport report;
+  Status status;  // not OK: the scan could not be made durable and was not applied
+};
+
+struct ClearOutcome {
+  uint64_t version = 0;
+  std::vector<TileKey> changed_tiles;
+  Status status;  // not OK: nothing was cleared
+};
+
+struct ImportOutcome {
+  uint64_t version = 0;
+  Status status;  // not OK: nothing was imported
+};
+
+// The map's tiles in a key range as of one version, readable while ingestion goes on.
+struct MapSnapshot {
+  uint64_t version = 0;
+  std::map<std::string, uint64_t> robot_sequences;  // as logged up to `version` (store only)
+  std::unique_ptr<TileSource> tiles;
+};
+
+struct TileContent {
+  Raster raster;         // the tile's cells at stride 1
+  uint64_t version = 0;  // of the tile's last change (0: the tile does not exist)
+};
+
+struct ServedMapOptions {
+  uint32_t max_robots = 0;
+  uint64_t tile_memory_limit_bytes = 0;  // 0: unbounded
+  // Called (from a worker, without locks held) when tiles in memory exceed the limit.
+  std::function<void()> on_over_memory;
+  // Called on a worker after each change with the tiles it changed (watchers).
+  ChangeScheduler::TilesChanged on_tiles_changed;
+};
+
+class ServedMap {
+ public:
+  // `map` holds what the durability recovered; `durability` outlives the served map.
+  ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
+            boost::asio::thread_pool& workers, ServedMapOptions options);
+  ~ServedMap();  // waits for admitted changes
+
+  const MapParams& params() const { return table_.params(); }
+  const GridGeometry& geometry() const { return table_.geometry(); }
+
+  // Changes. Each `done` runs on a worker once the change counts as applied (or was refused).
+  using Admission = RobotRegistry::Admission;
+  // A robot's scans must be submitted in the order they were sent.
+  Admission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,
+                       std::function<void(ScanOutcome)> done);
+  void SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done);
+  // Adds the tiles' statistics (a merge) as one exclusive change, checkpointed at once: if that
+  // fails the tiles are put back and the outcome is IoError; a stored tile that fails its
+  // checksum is DataLoss. `keys` (sorted, distinct) and `tiles` must outlive `done`.
+  void SubmitImport(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
+                    std::function<void(ImportOutcome)> done);
+  // At a barrier, checkpoints the map and opens its tiles in [min, max] as of that version.
+  void SubmitSnapshot(TileKey min, TileKey max, std::function<void(Result<MapSnapshot>)> done);
+  // Captures the changed tiles at a barrier and writes them outside it.
+  Status Checkpoint();
+
+  // Reads: IoError if the store cannot be read, DataLoss naming a corrupt tile.
+  Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers, int stride);
+  Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells);
+  Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers);
+  // Keys of the tiles with min <= key <= max, in memory or stored, sorted.
+  std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
+
+  MapSummary Summary() const { return summary_.Get(); }
+  Durability::ScratchDirectory scratch_directory() const { return durability_.scratch_directory(); }
+  // The store's state; nullopt for a map in memory.
+  std::optional<StoreStatus> store_status(bool with_disk_usage = false) const {
+    return durability_.store_status(with_disk_usage);
+  }
+  uint64_t applied_version() const { return scheduler_.applied_version(); }
+  uint64_t scans_applied() const { return scans_applied_.load(); }
+  RobotRegistry& robots() { return robots_; }
+  const RobotRegistry& robots() const { return robots_; }
+
+  // Memory.
+  uint64_t Evict(uint64_t target_bytes) { return residency_.Evict(target_bytes); }
+  ResidencyStats Residency() const { return residency_.Stats(); }
+  uint64_t TileBytes() const { return table_.TileBytes(); }
+  Checkpointer& checkpointer() { return checkpointer_; }
+  const Checkpointer& checkpointer() const { return checkpointer_; }
+  uint32_t peak_parallel_integrations() const { return table_.peak_parallel_integrations(); }
+
+  // Blocks until every admitted change has finished.
+  void WaitIdle() { scheduler_.WaitIdle(); }
+  // For tests and reports: a copy of every tile, stored ones included.
+  std::unique_ptr<TerrainMap> Snapshot() const;
+
+ private:
+  ChangeScheduler::Done RunScan(const ScanOrigin& origin, std::shared_ptr<const PreparedScan> scan,
+                                uint64_t previous_sequence, uint64_t version,
+                                std::function<void(ScanOutcome)> done);
+  ChangeScheduler::Done RunClear(const CellBox& box, uint64_t version,
+                                 std::function<void(ClearOutcome)> done);
+  ChangeScheduler::Done RunImport(std::span<const TileKey> keys,
+                                  std::span<const std::unique_ptr<Tile>> tiles, uint64_t version,
+                                  std::function<void(ImportOutcome)> done);
+  // DataLoss naming the first tile of the range (or of `keys`) the store found corrupt.
+  Status RefuseCorrupt(TileKey min, TileKey max) const;
+  Status RefuseCorrupt(std::span<const TileKey> keys) const;
+  void UpdateSummary(const ChangedTiles& changed) {
+    summary_.Update(changed.keys, changed.summaries);
+  }
+
+  Durability& durability_;
+  TileTable table_;
+  TileResidency residency_;
+  Checkpointer checkpointer_;
+  MapSummaryIndex summary_;
+  RobotRegistry robots_;
+  std::mutex admission_mu_;  // a robot's sequence order is its version order
+  std::atomic<uint64_t> scans_applied_{0};
+  ChangeScheduler scheduler_;  // last: its workers use everything above
+};
+
+}  // namespace bgkmap

@@ -1,0 +1,89 @@
+// Which tiles of the served map are in memory. Every operation first pins the tiles it touches,
+// which loads the stored ones not in memory; Evict() drops clean, unpinned tiles, least recently
+// used first, to stay under a byte bound. A tile in memory is authoritative; a tile not in memory
+// is what the backing stores. With a backing that persists nothing (a map in memory), pins cost
+// nothing and nothing is ever evicted.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <unordered_map>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+#include "durability/tile_backing.h"
+#include "serving/tile_table.h"
+
+namespace bgkmap {
+
+struct ResidencyStats {
+  uint64_t resident_tiles = 0;
+  uint64_t resident_bytes = 0;  // tile memory (TileTable::TileBytes each)
+  uint64_t tiles_loaded = 0;    // from the backing, since start
+  uint64_t tiles_evicted = 0;   // since start
+};
+
+class TileResidency {
+ public:
+  // Tiles an operation uses: they stay in memory until the pins are destroyed.
+  class Pins {
+   public:
+    Pins() = default;
+    Pins(Pins&& other) noexcept;
+    Pins& operator=(Pins&& other) noexcept;
+    Pins(const Pins&) = delete;
+    Pins& operator=(const Pins&) = delete;
+    ~Pins() { Release(); }
+    void Release();
+
+   private:
+    friend class TileResidency;
+    TileResidency* owner_ = nullptr;
+    std::vector<TileKey> keys_;
+  };
+
+  // `persists`: the backing holds tiles (else pins are free and nothing is evicted). When the
+  // tiles in memory exceed `memory_limit_bytes` (0: never), `on_over_limit` is called (from the
+  // thread that crossed it, without locks held) so that someone calls Evict().
+  TileResidency(TileTable& table, const TileBacking& backing, bool persists,
+                uint64_t memory_limit_bytes, std::function<void()> on_over_limit);
+
+  // Pins `keys` (sorted, unique) and loads the stored ones not in memory: IoError if the store
+  // cannot be read. `strict`: a stored tile failing its checksum is DataLoss naming it (readers);
+  // otherwise it is left out, and the change starts it afresh (the store keeps it listed).
+  Result<Pins> Pin(std::vector<TileKey> keys, bool strict);
+  // Pin() of every tile in memory or stored in [min, max].
+  Result<Pins> PinRange(TileKey min, TileKey max, bool strict);
+  // The keys in [min, max] in memory or stored (sorted, unique).
+  std::vector<TileKey> KeysIn(TileKey min, TileKey max) const;
+
+  // Drops clean, unpinned tiles, least recently used first, until the tiles in memory take at
+  // most `target_bytes`. Returns the bytes still held. Tiles changed since the backing's last
+  // checkpoint stay: a checkpoint makes them clean.
+  uint64_t Evict(uint64_t target_bytes);
+  ResidencyStats Stats() const;
+  // After tiles were added to memory other than by Pin() (a change creating them).
+  void SignalIfOverLimit() const;
+
+ private:
+  struct Use {
+    uint32_t pins = 0;
+    uint64_t last_use = 0;
+  };
+  void Unpin(const std::vector<TileKey>& keys);
+
+  TileTable& table_;
+  const TileBacking& backing_;
+  const bool persists_;
+  const uint64_t memory_limit_bytes_;
+  const std::function<void()> on_over_limit_;
+  std::mutex mu_;  // uses_ and use_clock_
+  std::unordered_map<TileKey, Use, TileKeyHash> uses_;
+  uint64_t use_clock_ = 0;
+  std::atomic<uint64_t> tiles_loaded_{0};
+  std::atomic<uint64_t> tiles_evicted_{0};
+};
+
+}  // namespace bgkmap

@@ -1,0 +1,236 @@
+#include "serving/tile_table.h"
+
+#include <algorithm>
+#include <mutex>
+
+namespace bgkmap {
+namespace {
+
+// Cells read per hold of the table lock: small enough that tile creation never waits long.
+constexpr int64_t kCellsPerBand = 1 << 18;
+
+}  // namespace
+
+TileTable::TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared)
+    : map_(std::move(map)), keep_cleared_(keep_cleared) {
+  resident_.store(map_->tile_count());
+}
+
+uint64_t TileTable::TileBytes() const {
+  const uint64_t t = static_cast<uint64_t>(params().tile_size);
+  return sizeof(Tile) + t * t * Tile::kBytesPerCell;
+}
+
+void TileTable::Summarize(std::span<const TileKey> keys, ChangedTiles* changed) const {
+  changed->keys.assign(keys.begin(), keys.end());
+  changed->summaries.clear();
+  changed->summaries.reserve(keys.size());
+  for (TileKey k : keys)
+    changed->summaries.push_back(SummarizeTile(geometry(), k, map_->FindTile(k)));
+}
+
+ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version, ChangedTiles* changed) {
+  std::shared_lock gate(gate_);
+  // Read tiles need no lock: the scheduler runs no writer of them now, and readers only read.
+  TileLockTable::Guard tiles = tile_locks_.Lock(scan.write_tiles, {});
+  TileWindow window;
+  {
+    std::unique_lock table(table_mu_);
+    window = map_->MakeWindow(scan);
+    NoteTileCount();
+  }
+  // Integrate() touches only the window's tiles: no table lock, other scans run beside it.
+  const uint32_t now = integrations_.fetch_add(1) + 1;
+  uint32_t peak = peak_integrations_.load();
+  while (now > peak && !peak_integrations_.compare_exchange_weak(peak, now)) {
+  }
+  ScanReport report = map_->Integrate(scan, window, version);
+  integrations_.fetch_sub(1);
+  {
+    // The write tiles are ours (locked exclusive): summarise them before readers see them.
+    std::shared_lock table(table_mu_);
+    Summarize(report.changed_tiles, changed);
+  }
+  return report;
+}
+
+void TileTable::ClearBox(const CellBox& box, uint64_t version, ChangedTiles* changed) {
+  std::unique_lock gate(gate_);  // no scan runs, so no tile appears meanwhile
+  const GridGeometry& g = geometry();
+  const std::vector<TileKey> existing = ListTiles(g.TileOf(box.min), g.TileOf(box.max));
+  TileLockTable::Guard tiles = tile_locks_.Lock(existing, {});
+  std::unique_lock table(table_mu_);
+  const std::vector<TileKey> keys = map_->ClearBox(box, version, keep_cleared_);
+  NoteTileCount();
+  Summarize(keys, changed);
+}
+
+void TileTable::AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,
+                         uint64_t version, ChangedTiles* changed) {
+  std::unique_lock gate(gate_);
+  TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
+  std::unique_lock table(table_mu_);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    map_->AddTile(keys[i], *tiles[i]);
+    map_->FindMutableTile(keys[i])->set_version(version);
+  }
+  NoteTileCount();
+  Summarize(keys, changed);
+}
+
+void TileTable::ReplaceTiles(std::span<const TileKey> keys,
+                             std::span<const std::unique_ptr<Tile>> tiles, ChangedTiles* changed) {
+  std::unique_lock gate(gate_);
+  TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
+  std::unique_lock table(table_mu_);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    if (tiles[i] == nullptr) {
+      map_->EraseTile(keys[i]);
+    } else {
+      map_->SetTile(keys[i], *tiles[i]);
+    }
+  }
+  NoteTileCount();
+  Summarize(keys, changed);
+}
+
+TileLockTable::Guard TileTable::LockShared(std::span<const TileKey> keys) {
+  return tile_locks_.Lock({}, keys);
+}
+
+TileLockTable::Guard TileTable::LockRangeShared(TileKey min, TileKey max) {
+  return tile_locks_.LockRange(min, max);
+}
+
+Raster TileTable::ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                             int stride) const {
+  // Bands of whole stride blocks, north to south, each read under its own table-lock hold.
+  const int64_t band_rows = std::max<int64_t>(
+      stride, (kCellsPerBand / std::max<int64_t>(box.width(), 1)) / stride * stride);
+  Raster out;
+  bool first = true;
+  for (int64_t top = box.max.y; top >= box.min.y; top -= band_rows) {
+    CellBox band = box;
+    band.max.y = static_cast<int>(top);
+    band.min.y = static_cast<int>(std::max<int64_t>(box.min.y, top - band_rows + 1));
+    Raster part;
+    {
+      std::shared_lock table(table_mu_);
+      part = ExtractRaster(*map_, band, layers, stride);
+    }
+    if (first) {
+      out = std::move(part);
+      out.box = box;
+      first = false;
+      continue;
+    }
+    out.rows += part.rows;
+    for (size_t i = 0; i < out.data.size(); ++i) {
+      out.data[i].insert(out.data[i].end(), part.data[i].begin(), part.data[i].end());
+    }
+  }
+  return out;
+}
+
+std::vector<CellEstimate> TileTable::ReadCells(std::span<const CellIndex> cells) const {
+  std::shared_lock table(table_mu_);
+  std::vector<CellEstimate> out;
+  out.reserve(cells.size());
+  for (CellIndex c : cells) out.push_back(map_->Estimate(c));
+  return out;
+}
+
+std::pair<Raster, uint64_t> TileTable::ReadTile(TileKey key,
+                                                const std::vector<Layer>& layers) const {
+  std::shared_lock table(table_mu_);
+  const Tile* t = map_->FindTile(key);
+  return {ExtractRaster(*map_, geometry().TileBox(key), layers, 1),
+          t != nullptr ? t->version() : 0};
+}
+
+std::vector<std::unique_ptr<Tile>> TileTable::CopyTiles(std::span<const TileKey> keys) const {
+  std::shared_lock table(table_mu_);
+  std::vector<std::unique_ptr<Tile>> out;
+  out.reserve(keys.size());
+  for (TileKey k : keys) {
+    const Tile* t = map_->FindTile(k);
+    out.push_back(t == nullptr ? nullptr : std::make_unique<Tile>(*t));
+  }
+  return out;
+}
+
+std::vector<TileKey> TileTable::ListTiles(TileKey min, TileKey max) const {
+  std::vector<TileKey> keys;
+  const uint64_t resident = resident_.load();
+  const uint64_t w = min.x <= max.x ? uint64_t(int64_t{max.x} - min.x + 1) : 0;
+  const uint64_t h = min.y <= max.y ? uint64_t(int64_t{max.y} - min.y + 1) : 0;
+  std::shared_lock table(table_mu_);
+  // (w, h <= resident first: the whole key space would overflow w * h.)
+  if (w > 0 && h > 0 && w <= resident && h <= resident && w * h <= resident) {
+    // A small range (a query's): look its keys up rather than walk every tile in memory.
+    for (int64_t x = min.x; x <= max.x; ++x) {  // 64-bit: max.x may be INT32_MAX
+      for (int64_t y = min.y; y <= max.y; ++y) {
+        const TileKey k{static_cast<int>(x), static_cast<int>(y)};
+        if (map_->FindTile(k) != nullptr) keys.push_back(k);
+      }
+    }
+    return keys;
+  }
+  map_->ForEachTile([&](TileKey k, const Tile&) {
+    if (k.x >= min.x && k.x <= max.x && k.y >= min.y && k.y <= max.y) keys.push_back(k);
+  });
+  std::sort(keys.begin(), keys.end());
+  return keys;
+}
+
+std::vector<TileKey> TileTable::NotResident(std::span<const TileKey> keys) const {
+  std::vector<TileKey> out;
+  std::shared_lock table(table_mu_);
+  for (TileKey k : keys) {
+    if (map_->FindTile(k) == nullptr) out.push_back(k);
+  }
+  return out;
+}
+
+std::vector<std::pair<TileKey, TileSummary>> TileTable::SummarizeResident() const {
+  std::shared_lock table(table_mu_);
+  std::vector<std::pair<TileKey, TileSummary>> out;
+  out.reserve(map_->tile_count());
+  map_->ForEachTile(
+      [&](TileKey k, const Tile& t) { out.emplace_back(k, SummarizeTile(geometry(), k, &t)); });
+  return out;
+}
+
+void TileTable::InsertLoaded(std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& loaded) {
+  std::unique_lock table(table_mu_);
+  for (auto& [k, tile] : loaded) {
+    if (map_->FindTile(k) == nullptr) map_->SetTile(k, *tile);
+  }
+  NoteTileCount();
+}
+
+void TileTable::ForEachResident(const std::function<void(TileKey, uint64_t)>& fn) const {
+  std::shared_lock table(table_mu_);
+  map_->ForEachTile([&](TileKey k, const Tile& t) { fn(k, t.version()); });
+}
+
+void TileTable::Erase(std::span<const TileKey> keys) {
+  std::unique_lock table(table_mu_);
+  for (TileKey k : keys) map_->EraseTile(k);
+  NoteTileCount();
+}
+
+std::unique_ptr<TerrainMap> TileTable::CopyResident(uint64_t version,
+                                                    std::set<TileKey>* resident) const {
+  std::unique_lock gate(gate_);
+  std::shared_lock table(table_mu_);
+  std::unique_ptr<TerrainMap> out = TerrainMap::Create(map_->params()).value();
+  map_->ForEachTile([&](TileKey k, const Tile& t) {
+    resident->insert(k);
+    if (!t.Empty()) out->SetTile(k, t);
+  });
+  out->set_version(version);
+  return out;
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,110 @@
+// The served map's tiles and the locks that make every change atomic for readers. Changes are
+// ordered by ChangeScheduler, which never runs two conflicting ones at once; readers may run at
+// any time and see every change either completely or not at all. Which tiles are in memory is
+// TileResidency's business; what the served map answers is ServedMap's.
+//
+// Locks, always taken in this order:
+//   1. gate_ (changes shared; map-wide reads and exclusive changes exclusive, with priority over
+//      new scans),
+//   2. tile locks (TileLockTable, ascending keys): a scan holds its write tiles exclusive, a
+//      reader holds the tiles it reads shared,
+//   3. (TileResidency's lock, taken by eviction before the table lock)
+//   4. table_mu_ (the tile hash table): exclusive only while tiles are created or erased; readers
+//      take it shared in short bands, so a large query never stalls ingestion for long.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <set>
+#include <shared_mutex>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "bgkmap/core/raster.h"
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/core/tile_summary.h"
+#include "durability/durability.h"
+#include "serving/tile_lock_table.h"
+#include "serving/writer_priority_mutex.h"
+
+namespace bgkmap {
+
+// The tiles a change touched and their summaries after it (same order).
+struct ChangedTiles {
+  std::vector<TileKey> keys;
+  std::vector<TileSummary> summaries;
+};
+
+class TileTable final : public TileCopier {
+ public:
+  // `keep_cleared`: a tile a clear empties stays (all zero, stamped) until a checkpoint deletes
+  // its stored copy; otherwise the uncleared stored tile could be loaded back.
+  TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared);
+
+  const MapParams& params() const { return map_->params(); }
+  const GridGeometry& geometry() const { return map_->geometry(); }
+  // Memory of one tile in the table (what the memory bound counts).
+  uint64_t TileBytes() const;
+  uint64_t resident_tiles() const { return resident_.load(); }
+
+  // Changes, with their tiles pinned. A scan holds its write tiles exclusively; the others hold
+  // the whole map exclusively (call them at a scheduler barrier).
+  ScanReport ApplyScan(const PreparedScan& scan, uint64_t version, ChangedTiles* changed);
+  void ClearBox(const CellBox& box, uint64_t version, ChangedTiles* changed);
+  // Adds each tile's statistics into the map (a merge: sums), stamped with `version`.
+  void AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles, uint64_t version,
+                ChangedTiles* changed);
+  // Sets the tiles at `keys` to bitwise copies of `tiles` (null: none, so a stored tile is
+  // current again): the undo of an AddTiles() with copies taken before it.
+  void ReplaceTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
+                    ChangedTiles* changed);
+
+  // Read locks. A reader holds them while it pins and reads.
+  TileLockTable::Guard LockShared(std::span<const TileKey> keys);
+  TileLockTable::Guard LockRangeShared(TileKey min, TileKey max);
+  // Reads, under the caller's tile locks (and pins).
+  Raster ReadRegion(const CellBox& box, const std::vector<Layer>& layers, int stride) const;
+  std::vector<CellEstimate> ReadCells(std::span<const CellIndex> cells) const;
+  // The tile's cells at stride 1 and its version (0: no such tile).
+  std::pair<Raster, uint64_t> ReadTile(TileKey key, const std::vector<Layer>& layers) const;
+
+  // TileCopier (at a barrier). ListTiles() lists the tiles in memory only.
+  std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const override;
+  std::vector<TileKey> ListTiles(TileKey min, TileKey max) const override;
+  // The keys of `keys` not in memory.
+  std::vector<TileKey> NotResident(std::span<const TileKey> keys) const;
+  // Summaries of every tile in memory.
+  std::vector<std::pair<TileKey, TileSummary>> SummarizeResident() const;
+
+  // For TileResidency: inserts loaded tiles not in memory yet (another operation may have
+  // loaded, even changed, one meanwhile: that one stays); erases tiles.
+  void InsertLoaded(std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& loaded);
+  void ForEachResident(const std::function<void(TileKey, uint64_t version)>& fn) const;
+  void Erase(std::span<const TileKey> keys);
+
+  // A consistent copy of every tile in memory (non-empty ones), with the map's version, and
+  // the keys of all tiles in memory.
+  std::unique_ptr<TerrainMap> CopyResident(uint64_t version, std::set<TileKey>* resident) const;
+
+  // Most ApplyScan() calls ever inside Integrate() at once.
+  uint32_t peak_parallel_integrations() const { return peak_integrations_.load(); }
+
+ private:
+  // Call with table_mu_ held after the tile table changed size.
+  void NoteTileCount() { resident_.store(map_->tile_count()); }
+  void Summarize(std::span<const TileKey> keys, ChangedTiles* changed) const;
+
+  std::unique_ptr<TerrainMap> map_;
+  const bool keep_cleared_;
+  std::atomic<uint64_t> resident_{0};
+  mutable WriterPriorityMutex gate_;
+  TileLockTable tile_locks_;
+  mutable std::shared_mutex table_mu_;
+  std::atomic<uint32_t> integrations_{0};
+  std::atomic<uint32_t> peak_integrations_{0};
+};
+
+}  // namespace bgkmap
