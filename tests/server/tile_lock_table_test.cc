@@ -1,5 +1,5 @@
 // TileLockTable: per-tile exclusion, no contention between disjoint tiles, entries only while used.
-#include "tile_lock_table.h"
+#include "serving/tile_lock_table.h"
 
 #include <gtest/gtest.h>
 
