@@ -7,6 +7,9 @@
 //           several times the bound), then answers a region query at every place; measured:
 //           the server's peak RSS (sampled from /proc) against the bound, with the same run
 //           unbounded for comparison.
+//  info     bgkmapd on a copy of a store of ~10^7 known cells while 4 robots stream the real
+//           scans at new places; measured: the ingest rate with a client calling Info at 20 Hz
+//           and a GET /metrics at 1 Hz, against the same run without them, and Info's latency.
 #include <arpa/inet.h>
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -16,6 +19,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -282,6 +286,123 @@ int RunBounded(const std::string& bgkmapd, const std::string& street_dir, int si
   return 0;
 }
 
+// ---- info
+
+// One GET of `path` from 127.0.0.1:port over a fresh connection; false on any failure.
+bool HttpGet(int port, const std::string& path) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bool ok = connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0;
+  const std::string request = "GET " + path + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+  ok = ok && write(fd, request.data(), request.size()) == static_cast<ssize_t>(request.size());
+  std::string response;
+  char buf[65536];
+  for (ssize_t n; ok && (n = read(fd, buf, sizeof(buf))) > 0;) response.append(buf, n);
+  close(fd);
+  return ok && response.rfind("HTTP/1.1 200", 0) == 0;
+}
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
+}
+
+// `with_readers`: a client calls Info at 20 Hz and scrapes /metrics at 1 Hz meanwhile.
+int RunInfo(const std::string& bgkmapd, const std::string& store, const std::string& street_dir,
+            double cells, int port, double seconds, bool with_readers) {
+  const std::vector<io::Scan> street = StreetScans(street_dir);
+  if (!fs::exists(fs::path(store) / "CURRENT")) BuildLargeStore(store, street, cells);
+  // Each run starts from the same map: a copy of the store.
+  const std::string dir =
+      (fs::temp_directory_path() / ("bgkmap_info_bench_" + std::to_string(getpid()))).string();
+  fs::remove_all(dir);
+  fs::copy(store, dir, fs::copy_options::recursive);
+  const std::string target = "127.0.0.1:" + std::to_string(port);
+  const int metrics_port = port + 1;
+  Server server(bgkmapd, {"--listen", target, "--data-dir", dir, "--log-level", "warn", "--metrics",
+                          "127.0.0.1:" + std::to_string(metrics_port), "--set",
+                          "storage.verify_on_start=false"});
+  Client client(target);
+  RpcResult<MapInfo> start_info = client.Info();
+  for (int i = 0; i < 2000 && !start_info.ok(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    start_info = client.Info();
+  }
+  if (!start_info.ok()) Die(start_info.status().ToString());
+
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> scans{0};
+  std::vector<std::thread> robots;
+  const auto t0 = Clock::now();
+  for (int r = 0; r < 4; ++r) {
+    robots.emplace_back([&, r] {
+      Client robot(target);
+      uint64_t sequence = 0;
+      // The street mapped at a new place each time, 100 m on from the last; robots 2 km apart.
+      for (int place = 0; !stop.load();) {
+        std::vector<ScanData> batch;
+        for (int k = 0; k < 4; ++k, ++place) {
+          for (const io::Scan& s : street) {
+            Pose pose = s.pose;
+            pose.translation.x() += 100.0 * place;
+            pose.translation.y() += -5000.0 - 2000.0 * r;
+            ScanData d;
+            d.robot_id = "robot" + std::to_string(r);
+            d.sequence = ++sequence;
+            d.pose = ScanPose::FromPose(pose);
+            d.points = s.points;
+            batch.push_back(d);
+          }
+        }
+        RpcResult<std::vector<ScanAck>> acks = robot.IngestAll(batch);
+        if (!acks.ok()) Die(acks.status().ToString());
+        if (Seconds(t0) < seconds) scans.fetch_add(acks->size());
+        if (Seconds(t0) >= seconds) stop.store(true);
+      }
+    });
+  }
+  std::vector<double> info_ms, scrape_ms;
+  std::thread readers;
+  if (with_readers) {
+    readers = std::thread([&] {
+      Client reader(target);
+      auto next = Clock::now();
+      int tick = 0;
+      while (!stop.load()) {
+        const auto q0 = Clock::now();
+        if (!reader.Info().ok()) Die("Info failed under load");
+        info_ms.push_back(Seconds(q0) * 1e3);
+        if (tick++ % 20 == 0) {
+          const auto h0 = Clock::now();
+          if (!HttpGet(metrics_port, "/metrics")) Die("GET /metrics failed under load");
+          scrape_ms.push_back(Seconds(h0) * 1e3);
+        }
+        next += std::chrono::milliseconds(50);
+        std::this_thread::sleep_until(next);
+      }
+    });
+  }
+  for (std::thread& t : robots) t.join();
+  if (readers.joinable()) readers.join();
+  RpcResult<MapInfo> end_info = client.Info();
+  if (!end_info.ok()) Die(end_info.status().ToString());
+  server.Stop();
+  fs::remove_all(dir);
+  std::printf("| %s | %.3g | %.3g | %.1f | %zu | %.2f ms | %.2f ms | %.2f ms | %zu | %.1f ms |\n",
+              with_readers ? "Info 20 Hz + /metrics 1 Hz" : "none",
+              static_cast<double>(start_info->known_cells),
+              static_cast<double>(end_info->known_cells), scans.load() / seconds, info_ms.size(),
+              Percentile(info_ms, 0.5), Percentile(info_ms, 0.99),
+              info_ms.empty() ? 0.0 : *std::max_element(info_ms.begin(), info_ms.end()),
+              scrape_ms.size(), Percentile(scrape_ms, 0.99));
+  std::fflush(stdout);
+  return 0;
+}
+
 }  // namespace
 }  // namespace bgkmap
 
@@ -311,9 +432,35 @@ int main(int argc, char** argv) {
   bounded->add_option("--sites", sites, "places the street is mapped at")->capture_default_str();
   bounded->add_option("--bound-mb", bounds, "storage.max_memory_mb values (0: unbounded)")
       ->capture_default_str();
+  CLI::App* info = app.add_subcommand("info", "ingest rate while Info and /metrics are polled");
+  std::string info_store = "out/bench/store_1e7";
+  double info_cells = 1e7, info_seconds = 20;
+  int info_trials = 2;
+  info->add_option("--data-dir", info_store, "store directory (built if missing; copied per run)")
+      ->capture_default_str();
+  info->add_option("--cells", info_cells, "known cells to build")->capture_default_str();
+  info->add_option("--seconds", info_seconds, "length of each run")->capture_default_str();
+  info->add_option("--trials", info_trials, "pairs of runs (without, with readers)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   if (restart->parsed()) return bgkmap::RunRestart(bgkmapd, dir, street, cells, port, trials);
+  if (info->parsed()) {
+    std::printf(
+        "| readers | known cells at start | at end | ingest scans/s | Info calls | Info p50 | "
+        "Info p99 | Info max | scrapes | scrape p99 |\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    for (int t = 0; t < info_trials; ++t) {
+      for (bool readers : {false, true}) {
+        if (int rc = bgkmap::RunInfo(bgkmapd, info_store, street, info_cells, port, info_seconds,
+                                     readers);
+            rc != 0) {
+          return rc;
+        }
+      }
+    }
+    return 0;
+  }
   std::printf(
       "| bound | places | map (tiles) | peak RSS ingest | peak RSS ingest+queries | "
       "tiles in memory at end | ingest | region queries | tiles evicted | tiles loaded |\n");
