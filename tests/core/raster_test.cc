@@ -3,6 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+
+#include "stride_oracle.h"
+#include "synthetic_terrain.h"
 
 namespace bgkmap {
 namespace {
@@ -57,6 +61,117 @@ TEST(RasterTest, StrideMergesStatisticsAndKeepsTheWorstTraversability) {
   EXPECT_FLOAT_EQ((*r.Find(Layer::kTraversability))[2], map->Estimate({1, 0}).traversability);
   EXPECT_EQ((*r.Find(Layer::kState))[2], 2.0f);
   EXPECT_TRUE(std::isnan((*r.Find(Layer::kElevation))[0]));
+}
+
+void SetCell(Tile& t, int x, int y, double w, double s, float a, float b) {
+  const int i = y * t.tile_size() + x;
+  t.w()[i] = w;
+  t.s()[i] = s;
+  t.a()[i] = a;
+  t.b()[i] = b;
+}
+
+// The worst traversability and the worst variance are kept separately, each the maximum over the
+// block, even when they come from different cells, and a block whose means are all below the
+// threshold is non-traversable if one cell's variance is not.
+// Mutations checked (core/src/raster.cc, PixelAggregate::Add / Estimate): keeping the last cell's
+// variance (`worst_var = e.traversability_variance`) fails the first block; dropping
+// `e.traversability_variance < p.variance_threshold` from the state fails the third.
+TEST(RasterTest, StrideKeepsTheWorstVarianceOfAnyCellAndItDecidesTheState) {
+  MapParams p;
+  auto map = std::move(TerrainMap::Create(p)).value();
+  Tile& t = map->GetOrCreateTile({0, 0});
+  // B before A in ExtractRaster's scan order (rows upward), so "the last cell's" variance is A's.
+  SetCell(t, 1, 1, 1, 1, 9.0f, 1.0f);  // A: mean 0.9, variance 0.008
+  SetCell(t, 0, 0, 1, 1, 0.3f, 0.7f);  // B: mean 0.3, variance 0.105
+  SetCell(t, 2, 0, 1, 1, 1.0f, 9.0f);  // C: mean 0.1, variance 0.008
+  SetCell(t, 3, 1, 1, 1, 2.0f, 8.0f);  // D: mean 0.2, variance 0.015
+  SetCell(t, 4, 0, 1, 1, 1.0f, 9.0f);  // E: mean 0.1, variance 0.008
+  SetCell(t, 5, 1, 1, 1, 0.3f, 0.7f);  // F: mean 0.3, variance 0.105
+  const CellEstimate a = map->Estimate({1, 1}), b = map->Estimate({0, 0}),
+                     c = map->Estimate({2, 0}), d = map->Estimate({3, 1}),
+                     f = map->Estimate({5, 1});
+  // The premises: A is the worse mean and B the worse variance; only B and F break the variance
+  // threshold, and C..F all have means below the traversability threshold.
+  ASSERT_GT(a.traversability, b.traversability);
+  ASSERT_GT(b.traversability_variance, a.traversability_variance);
+  ASSERT_GE(b.traversability_variance, p.variance_threshold);
+  ASSERT_LT(d.traversability_variance, p.variance_threshold);
+  ASSERT_LT(f.traversability, p.trav_threshold);
+  ASSERT_LT(d.traversability, p.trav_threshold);
+
+  const std::vector<Layer> layers = {Layer::kTraversability, Layer::kTraversabilityVariance,
+                                     Layer::kState};
+  const Raster r = ExtractRaster(*map, {{0, 0}, {5, 1}}, layers, 2);
+  ASSERT_EQ(r.cols, 3);
+  ASSERT_EQ(r.rows, 1);
+  const std::vector<float>&trav = r.data[0], &var = r.data[1], &state = r.data[2];
+  EXPECT_EQ(trav[0], a.traversability);
+  EXPECT_EQ(var[0], b.traversability_variance);  // not A's: the worst variance of any cell
+  EXPECT_EQ(state[0], 2.0f);
+  EXPECT_EQ(trav[1], d.traversability);
+  EXPECT_EQ(var[1], d.traversability_variance);
+  EXPECT_EQ(state[1], 1.0f);  // every mean and variance under its threshold
+  EXPECT_EQ(trav[2], f.traversability);
+  EXPECT_EQ(var[2], f.traversability_variance);
+  EXPECT_EQ(state[2], 2.0f);  // means fine, F's variance is not
+  EXPECT_LT(c.traversability, d.traversability);
+}
+
+// ExtractRaster at several strides and unaligned boxes equals the brute-force oracle
+// (stride_oracle.h, from the rule in docs/semantics.md and per-cell TerrainMap::Estimate) on a
+// map with real scans: an obstacle step, unknown holes, blocks split over tile borders.
+// Elevation and its variance sum W and S in another order than ExtractRaster, so they are
+// compared to a float's rounding; traversability, its variance, the state and W exactly.
+// Mutations checked (core/src/raster.cc): `std::min` for `std::max` in worst_trav; the last
+// cell's variance instead of the maximum; dropping the variance threshold from the state; not
+// summing `s` (elevation of one cell) -- each fails here.
+TEST(RasterTest, StrideEqualsBruteForceOracle) {
+  MapParams p;
+  p.tile_size = 16;  // blocks straddle tile borders
+  auto map = std::move(TerrainMap::Create(p)).value();
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d origin(1.0 * k, 0.3 * k, 1.0);
+    ASSERT_TRUE(map->IntegrateScan(
+                       testing::SampleSurface(testing::RollingWithStep, origin, 4.0, 3000, 7u + k),
+                       testing::At(origin))
+                    .ok());
+  }
+  const CellBox known = map->KnownBounds();
+  ASSERT_GT(known.width(), 40);
+  const std::vector<Layer> all = {Layer::kElevation,      Layer::kElevationVariance,
+                                  Layer::kTraversability, Layer::kTraversabilityVariance,
+                                  Layer::kState,          Layer::kElevationWeight};
+  int states[3] = {0, 0, 0};
+  for (int stride : {2, 3, 5, 8}) {
+    // Unaligned: start 3 cells outside the known area (unknown blocks too), odd size.
+    const CellBox box{{known.min.x - 3, known.min.y - 3}, {known.max.x + 2, known.max.y + 4}};
+    const Raster got = ExtractRaster(*map, box, all, stride);
+    const Raster want = testing::StrideOracle(*map, box, all, stride);
+    ASSERT_EQ(got.cols, want.cols);
+    ASSERT_EQ(got.rows, want.rows);
+    ASSERT_EQ(got.layers, want.layers);
+    int bad = 0;
+    for (size_t l = 0; l < all.size(); ++l) {
+      const bool rounded = all[l] == Layer::kElevation || all[l] == Layer::kElevationVariance;
+      for (size_t i = 0; i < want.data[l].size(); ++i) {
+        const float g = got.data[l][i], w = want.data[l][i];
+        const bool same = (std::isnan(g) && std::isnan(w)) ||
+                          (rounded ? std::abs(g - w) <= 1e-5f * std::max(1.0f, std::abs(w))
+                                   : std::memcmp(&g, &w, sizeof g) == 0);
+        if (!same && bad++ < 5) {
+          ADD_FAILURE() << "stride " << stride << " layer " << LayerName(all[l]) << " pixel " << i
+                        << ": ExtractRaster " << g << ", oracle " << w;
+        }
+        if (all[l] == Layer::kState) ++states[static_cast<int>(w)];
+      }
+    }
+    EXPECT_EQ(bad, 0) << "stride " << stride;
+  }
+  // The map exercises every state, or the comparison proves little.
+  EXPECT_GT(states[0], 0);
+  EXPECT_GT(states[1], 0);
+  EXPECT_GT(states[2], 0);
 }
 
 }  // namespace

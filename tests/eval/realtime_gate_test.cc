@@ -9,7 +9,11 @@ namespace {
 
 TEST(RealtimeGateTest, FastScansAreAllKept) {
   const std::vector<ScanTiming> t(20, {0.03, 0.05});
-  for (bool a : AdmitScans(t, 0.1)) EXPECT_TRUE(a);
+  const std::vector<bool> admitted = AdmitScans(t, 0.1);
+  // One verdict per scan: the loop below would pass on an empty answer. Mutation checked:
+  // AdmitScans returning {} for these timings failed only once this size check was added.
+  ASSERT_EQ(admitted.size(), t.size());
+  for (bool a : admitted) EXPECT_TRUE(a);
 }
 
 TEST(RealtimeGateTest, ASlowElevationStepDropsTheScansArrivingMeanwhile) {
@@ -29,7 +33,9 @@ TEST(RealtimeGateTest, ASlowTraversabilityStepDropsAtTheHandover) {
 TEST(RealtimeGateTest, TwoProcessesPipelineScansThatEachFitThePeriod) {
   // 0.09 s in each process: 0.18 s per scan in total, yet the pipeline keeps up at 10 Hz.
   const std::vector<ScanTiming> t(10, {0.09, 0.09});
-  for (bool a : AdmitScans(t, 0.1)) EXPECT_TRUE(a);
+  const std::vector<bool> admitted = AdmitScans(t, 0.1);
+  ASSERT_EQ(admitted.size(), t.size());
+  for (bool a : admitted) EXPECT_TRUE(a);
 }
 
 TEST(RealtimeGateTest, ConstantOverloadKeepsEveryOtherScan) {

@@ -105,4 +105,45 @@ TEST(RegressCommandTest, ParametersComeFromTheTrainingHalfAndTheSmoothSurfaceIsF
   fs::remove_all(dir);
 }
 
+// regress.json is JSON whatever the input: a path with a quote and a backslash is escaped, and a
+// non-finite metric (the CV score of a candidate whose parameters do not validate: kernel length
+// 1000 m at 2 m cells is more than 64 cells) is null. The hand-written JSON this replaced printed
+// the path raw and the score as `inf`, so parsing failed (checked on afffdea).
+TEST(RegressCommandTest, OutputIsJsonForAnyPathAndNonFiniteScores) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("bgkmap_regress_json_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  const fs::path sub = dir / "quote\"back\\slash";
+  fs::create_directories(sub);
+  WritePcd(sub / "c.pcd", Cloud());
+  const fs::path out = dir / "out";
+  // Single quotes: the shell passes the path's " and \ through unchanged.
+  const std::string cmd = std::string(BGKMAP_CLI) + " regress '" + (sub / "c.pcd").string() +
+                          "' --out " + out.string() +
+                          " --seed 3 --folds 2 --resolutions 2 --kernel-lengths 4,1000"
+                          " --peers none > " +
+                          (out.string() + ".log") + " 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  std::ifstream in(out / "regress.json");
+  std::stringstream text;
+  text << in.rdbuf();
+  nlohmann::json j;
+  ASSERT_NO_THROW(j = nlohmann::json::parse(text.str())) << text.str();
+  EXPECT_EQ(j["input"], (sub / "c.pcd").string());
+  ASSERT_EQ(j["cv"].size(), 2u);
+  EXPECT_EQ(j["cv"][1]["kernel_length"], 1000.0);
+  EXPECT_TRUE(j["cv"][1]["rmse"].is_null()) << j["cv"][1];
+  EXPECT_EQ(j["cv"][1]["coverage"], 0.0);
+  EXPECT_EQ(j["chosen"]["kernel_length"], 4.0);
+  ASSERT_EQ(j["results"].size(), 1u);  // bgk only (--peers none)
+  EXPECT_TRUE(j["results"][0]["rmse"].is_number());
+  // Same keys, in the order the hand-written file had (scripts and docs/results/ show them so).
+  const nlohmann::ordered_json ordered = nlohmann::ordered_json::parse(text.str());
+  std::vector<std::string> keys;
+  for (const auto& [k, v] : ordered.items()) keys.push_back(k);
+  EXPECT_EQ(keys, (std::vector<std::string>{"input", "points", "chosen", "train", "test", "seed",
+                                            "folds", "cv_seconds", "cv", "results"}));
+  fs::remove_all(dir);
+}
+
 }  // namespace

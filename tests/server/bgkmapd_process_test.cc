@@ -86,8 +86,12 @@ TEST(BgkmapdProcessTest, StringFlagsAreTakenLiterally) {
   EXPECT_NE(out.find("/tmp/maps #1: site"), std::string::npos) << out;
 }
 
+// `acks` is written by the stream's reader thread and read by the test only after that thread
+// has been joined; while it runs, the test reads the count only, which is atomic. (It used to
+// read acks.size() while the reader pushed: a data race in the test itself.)
 struct RobotRun {
   std::vector<ScanAck> acks;
+  std::atomic<size_t> acked{0};  // acks.size(), published after each push
   RpcStatus end;
 };
 
@@ -119,7 +123,10 @@ void StreamUntilStopped(const std::string& target, const std::string& robot, dou
   std::unique_ptr<IngestStream> stream = client.OpenIngest();
   std::thread reader([&] {
     ScanAck ack;
-    while (stream->ReadAck(&ack)) run->acks.push_back(ack);
+    while (stream->ReadAck(&ack)) {
+      run->acks.push_back(ack);
+      run->acked.store(run->acks.size(), std::memory_order_release);
+    }
   });
   // Loops over the parts with increasing sequence numbers until the server stops.
   for (uint64_t seqno = 1; seqno < 100000; ++seqno) {
@@ -141,8 +148,12 @@ TEST(BgkmapdProcessTest, SigtermWhileRobotsStreamKeepsEveryAcknowledgedScan) {
   RobotRun a, b;
   std::thread ta([&] { StreamUntilStopped(server.target(), "alpha", 0.0, &a); });
   std::thread tb([&] { StreamUntilStopped(server.target(), "beta", 150.0, &b); });
-  // Let both robots get some scans in, then stop the server under load.
-  for (int i = 0; i < 1000 && (a.acks.size() < 3 || b.acks.size() < 3); ++i) {
+  // Let both robots get some scans in, then stop the server under load. A generous deadline:
+  // on 2 busy cores the first acks can take seconds.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(90);
+  while ((a.acked.load(std::memory_order_acquire) < 3 ||
+          b.acked.load(std::memory_order_acquire) < 3) &&
+         std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   server.Signal(SIGTERM);

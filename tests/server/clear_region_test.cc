@@ -68,12 +68,27 @@ TEST(ClearRegionTest, ClearsAmongConcurrentScansApplyInVersionOrder) {
   });
   std::unique_ptr<Client> admin = fixture.NewClient();
   std::vector<std::pair<uint64_t, MetricBox>> clears;
+  // Each clear after the previous one waits until the robot's scans have moved the map on (Info's
+  // map version), instead of a fixed sleep, so the clears interleave with the scans however fast
+  // the machine is; a generous deadline in case the robot has already finished.
   for (int i = 0; i < 4; ++i) {
+    if (i > 0) {
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+      for (;;) {
+        RpcResult<MapInfo> info = admin->Info();
+        ASSERT_TRUE(info.ok());
+        if (info->map_version > clears.back().first ||
+            info->scans_applied >= static_cast<uint64_t>(scans.size()) ||
+            std::chrono::steady_clock::now() > deadline) {
+          break;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    }
     const MetricBox box{-30.0 + 12 * i, -8, -18.0 + 12 * i, 8};
     RpcResult<ClearResult> c = admin->ClearRegion(box);
     ASSERT_TRUE(c.ok());
     clears.emplace_back(c->map_version, box);
-    std::this_thread::sleep_for(std::chrono::milliseconds(15));
   }
   robot.join();
   ASSERT_EQ(acks.size(), scans.size());

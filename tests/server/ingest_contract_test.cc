@@ -23,6 +23,7 @@ TEST(IngestContractTest, DuplicatesAreNotDoubleCountedAndReconnectContinues) {
   // First connection: scans 1..5.
   RpcResult<std::vector<ScanAck>> first = fixture.client().IngestAll(DataOf(scans, 0, 5));
   ASSERT_TRUE(first.ok()) << first.status().ToString();
+  ASSERT_EQ(first->size(), 5u);  // an ack per scan, or the loop proves nothing
   for (const ScanAck& a : *first) EXPECT_EQ(a.status, AckStatus::kApplied);
 
   // The robot reconnects with a new client, resumes from what the server reports, and also
@@ -162,9 +163,11 @@ TEST(IngestContractTest, ShutdownAcksEveryScanReadAndTheMapHoldsExactlyTheAckedO
   Run ra, rb;
   std::thread ta([&] { robot(fixture.client(), a, &ra); });
   std::thread tb([&] { robot(*second, b, &rb); });
-  // Stop while both stream.
-  for (int i = 0; i < 400; ++i) {
-    if (fixture.server().Report().scans_applied >= 4) break;
+  // Stop while both stream: once 4 scans are in (polled, with a generous deadline for busy
+  // machines rather than the 2 s it used to give up after).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (fixture.server().Report().scans_applied < 4 &&
+         std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   fixture.server().Shutdown();

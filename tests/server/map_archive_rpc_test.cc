@@ -44,6 +44,7 @@ void Ingest(Client& client, const std::vector<OwnedScan>& scans) {
   for (const OwnedScan& s : scans) data.push_back(s.Data());
   RpcResult<std::vector<ScanAck>> acks = client.IngestAll(data);
   ASSERT_TRUE(acks.ok()) << acks.status().ToString();
+  ASSERT_EQ(acks->size(), data.size());  // an ack per scan, or the loop proves nothing
   for (const ScanAck& a : *acks) ASSERT_EQ(a.status, AckStatus::kApplied);
 }
 

@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -59,8 +60,11 @@ bool BitwiseEqual(const Raster& a, const Raster& b) {
   return true;
 }
 
+// `acks` is read only after the streaming thread is joined; `applied` (acks with status applied
+// so far) may be read while it runs.
 struct RobotRun {
   std::vector<ScanAck> acks;
+  std::atomic<uint64_t> applied{0};
 };
 
 // Streams `scans` until they are sent or the stream breaks; records every ack.
@@ -69,7 +73,10 @@ void Stream(const std::string& target, const std::vector<OwnedScan>& scans, Robo
   std::unique_ptr<IngestStream> stream = client.OpenIngest();
   std::thread reader([&] {
     ScanAck ack;
-    while (stream->ReadAck(&ack)) run->acks.push_back(ack);
+    while (stream->ReadAck(&ack)) {
+      run->acks.push_back(ack);
+      if (ack.status == AckStatus::kApplied) run->applied.fetch_add(1, std::memory_order_release);
+    }
   });
   for (const OwnedScan& s : scans) {
     if (!stream->Send(s.Data())) break;
@@ -338,7 +345,14 @@ int EnvInt(const char* name, int fallback) {
   return v != nullptr && *v != '\0' ? std::atoi(v) : fallback;
 }
 
-// Kills bgkmapd at random moments while two robots stream with durability: sync.
+// Kills bgkmapd at random moments while two robots stream with durability: sync. The kill waits
+// for the robots' progress, not a fixed time: it lands once alpha has a random number of scans
+// acknowledged in [1, 45] of 150 (beta streams alongside), so on a slow or a fast machine it
+// lands mid-stream, and the test asserts that most trials restart with some but not all of each
+// robot's scans. The restarted rasters must equal the offline replay bitwise (the server claims
+// an exact replay), not within a tolerance.
+// Mutation checked: killing after a fixed 5 s instead (every stream has finished by then on a
+// 2-core machine) fails the mid-stream counts (BGKMAP_CRASH_TRIALS=3).
 TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   const std::vector<OwnedScan> alpha = RobotScans("alpha", 0.0, 8, 150);
   const std::vector<OwnedScan> beta = RobotScans("beta", kBetaShift, 8, 150);
@@ -347,7 +361,8 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
   // scripts/soak-crash.sh runs more trials with other seeds.
   const int trial_count = EnvInt("BGKMAP_CRASH_TRIALS", 21);
   std::mt19937 rng(static_cast<unsigned>(EnvInt("BGKMAP_CRASH_SEED", 20261121)));
-  std::uniform_int_distribution<int> kill_ms(0, 600);
+  std::uniform_int_distribution<uint64_t> kill_at(1, 45);  // ~20 s for 21 trials on 2 cores
+  int mid_a = 0, mid_b = 0;
   // The restarted servers' rasters, by the robot's last sequence; checked against offline runs.
   std::map<uint64_t, Raster> served_a, served_b;
   const auto t0 = std::chrono::steady_clock::now();
@@ -376,7 +391,12 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
       ASSERT_TRUE(server.started());
       std::thread ta([&] { Stream(server.target(), alpha, &a); });
       std::thread tb([&] { Stream(server.target(), beta, &b); });
-      std::this_thread::sleep_for(std::chrono::milliseconds(kill_ms(rng)));
+      const uint64_t target = kill_at(rng);
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+      while (a.applied.load(std::memory_order_acquire) < target &&
+             std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
       server.Signal(SIGKILL);
       ta.join();
       tb.join();
@@ -395,6 +415,8 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
     EXPECT_GE(la, LastAcked(a)) << "trial " << trials;
     EXPECT_GE(lb, LastAcked(b)) << "trial " << trials;
     EXPECT_EQ(info->scans_applied, 0u);  // counts restart; the map version does not
+    mid_a += la > 0 && la < alpha.size() ? 1 : 0;
+    mid_b += lb > 0 && lb < beta.size() ? 1 : 0;
     for (auto [box, last, served] :
          {std::tuple{box_a, la, &served_a}, std::tuple{box_b, lb, &served_b}}) {
       RpcResult<Raster> r = client.QueryRegion({box, {}, 1});
@@ -417,12 +439,19 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
       }
       auto it = served->find(n);
       if (it == served->end()) continue;
-      EXPECT_TRUE(RastersMatch(it->second, OfflineRegion(*offline, box), 1e-5)) << n << " scans";
+      const Raster want = OfflineRegion(*offline, box);
+      EXPECT_TRUE(RastersMatch(it->second, want, 0.0)) << n << " scans";  // geometry, NaNs
+      EXPECT_TRUE(BitwiseEqual(it->second, want)) << n << " scans";
     }
   }
+  // Alpha's kill waits for its own progress, so it lands mid-stream nearly always; beta streams
+  // alongside at about the same pace.
+  EXPECT_GE(mid_a, trials * 3 / 4) << "alpha: kills landing mid-stream";
+  EXPECT_GE(mid_b, trials / 2) << "beta: kills landing mid-stream";
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("crash trials=%d seconds=%.1f recovered prefixes alpha=", trials, seconds);
+  std::printf("crash trials=%d seconds=%.1f mid-stream alpha=%d beta=%d recovered prefixes alpha=",
+              trials, seconds, mid_a, mid_b);
   for (const auto& [n, _] : served_a) std::printf("%zu ", static_cast<size_t>(n));
   std::printf("beta=");
   for (const auto& [n, _] : served_b) std::printf("%zu ", static_cast<size_t>(n));

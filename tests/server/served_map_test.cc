@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "../core/stride_oracle.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -78,6 +79,12 @@ TEST_F(ServedMapTest, CoarseRegionEqualsOfflineStrideAggregation) {
     EXPECT_EQ((served->box.max.y + 1) % stride, 0);
     EXPECT_NEAR(served->resolution, 0.1 * stride, 1e-12);
     EXPECT_TRUE(RastersMatch(*served, OfflineRegion(*offline_, box, stride), 1e-5));
+    // And against an answer not computed by ExtractRaster: the brute-force stride rule of
+    // docs/semantics.md on the offline map's cells (tests/core/stride_oracle.h). Mutation
+    // checked: keeping the last cell's variance instead of the block's worst (core/src/raster.cc)
+    // fails here, while the comparison above with OfflineRegion still passes.
+    EXPECT_TRUE(
+        RastersMatch(*served, StrideOracle(*offline_, served->box, served->layers, stride), 1e-5));
   }
 }
 

@@ -37,10 +37,12 @@ struct ChildRun {
   std::string error;
 };
 
-// Starts the writer, kills it `kill_after` after it is ready (unless it finishes first) and
-// collects what it acknowledged.
+// Starts the writer and kills it as soon as it has acknowledged `kill_at_ack` scans (0: never),
+// or `kill_after` after it is ready, whichever comes first (unless it finishes first); collects
+// what it acknowledged. Killing on the writer's own progress, not after a fixed time, makes the
+// kill land mid-stream however fast or slow the machine is.
 ChildRun RunAndKill(const std::string& dir, const char* durability,
-                    std::chrono::microseconds kill_after) {
+                    std::chrono::microseconds kill_after, size_t kill_at_ack = 0) {
   int fds[2];
   EXPECT_EQ(pipe(fds), 0);
   const pid_t pid = fork();
@@ -57,7 +59,8 @@ ChildRun RunAndKill(const std::string& dir, const char* durability,
   close(fds[1]);
   ChildRun run;
   std::string buffer;
-  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  // Until "ready": a generous deadline, only against a hung writer (2 busy cores are slow).
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
   bool killed = false;
   auto ready_at = std::chrono::steady_clock::now();
   for (;;) {
@@ -86,6 +89,10 @@ ChildRun RunAndKill(const std::string& dir, const char* durability,
         deadline = ready_at + kill_after;
       } else if (line.rfind("ack ", 0) == 0) {
         run.acked.insert(std::stoull(line.substr(4)));
+        if (!killed && kill_at_ack > 0 && run.acked.size() >= kill_at_ack) {
+          kill(pid, SIGKILL);
+          killed = true;
+        }
       } else if (line == "done") {
         run.finished = true;
         run.ingest_time = std::chrono::duration_cast<std::chrono::microseconds>(
@@ -102,8 +109,9 @@ ChildRun RunAndKill(const std::string& dir, const char* durability,
 }
 
 // What the kill left: the versions the store holds (all up to the checkpoint, then the logged
-// ones), checked against the acknowledgements and an uninterrupted run of the same scans.
-void CheckRecovered(const std::string& dir, const ChildRun& run) {
+// ones), checked against the acknowledgements and an uninterrupted run of the same scans
+// (MapsIdentical: bitwise statistics and versions). `*kept_count` is how many the store kept.
+void CheckRecovered(const std::string& dir, const ChildRun& run, size_t* kept_count = nullptr) {
   const MapParams params = SmallParams();
   auto store = TileStore::OpenExisting(dir, {});
   ASSERT_TRUE(store.ok()) << store.status().ToString();
@@ -118,6 +126,7 @@ void CheckRecovered(const std::string& dir, const ChildRun& run) {
                              return Status::Ok();
                            })
                   .ok());
+  if (kept_count != nullptr) *kept_count = kept.size();
   for (uint64_t v : run.acked) ASSERT_TRUE(kept.count(v)) << "acknowledged scan " << v << " lost";
 
   auto recovered = NewMap(params);
@@ -139,30 +148,44 @@ void CheckRecovered(const std::string& dir, const ChildRun& run) {
   }
 }
 
-// Kills `trials` writers at moments spread over an uninterrupted run's ingest time.
+// Kills `trials` writers mid-run: each as soon as it has acknowledged a random number of scans
+// in [1, kChanges - 2] (the kill then also lands at a random point of what the other threads are
+// doing: integrating, appending, checkpointing). Most trials must recover strictly between none
+// and all of the scans, or the test would not be testing a crash mid-stream.
+// Mutation checked: ignoring the writer's progress (kill_at_ack 0, so only the 120 s fallback
+// applies and every run finishes) fails both mid-stream counts below; the old fixed-time kill had
+// no such check on what was recovered.
 void KillAtRandomMoments(const char* durability, int trials, unsigned seed) {
   std::mt19937 rng(seed);
   TempDir calibration;
-  const ChildRun full = RunAndKill(calibration.path(), durability, std::chrono::seconds(30));
+  const ChildRun full = RunAndKill(calibration.path(), durability, std::chrono::seconds(120));
   ASSERT_TRUE(full.finished) << full.error;
   ASSERT_EQ(full.acked.size(), kChanges);
-  CheckRecovered(calibration.path(), full);
+  size_t kept_full = 0;
+  CheckRecovered(calibration.path(), full, &kept_full);
+  EXPECT_EQ(kept_full, kChanges);
 
   const auto span = full.ingest_time;
-  int interrupted = 0;
+  int interrupted = 0, mid_stream = 0;
+  std::uniform_int_distribution<size_t> at_ack(1, kChanges - 2);
   for (int trial = 0; trial < trials; ++trial) {
     SCOPED_TRACE("trial " + std::to_string(trial));
     TempDir dir;
-    std::uniform_int_distribution<int64_t> when(0, span.count());
-    const ChildRun run = RunAndKill(dir.path(), durability, std::chrono::microseconds(when(rng)));
+    const size_t k = at_ack(rng);
+    const ChildRun run = RunAndKill(dir.path(), durability, std::chrono::seconds(120), k);
     ASSERT_TRUE(run.error.empty()) << run.error;
     interrupted += run.finished ? 0 : 1;
-    CheckRecovered(dir.path(), run);
+    size_t kept = 0;
+    CheckRecovered(dir.path(), run, &kept);
     if (::testing::Test::HasFatalFailure()) return;
+    EXPECT_GE(kept, k);  // at least the acknowledged ones
+    mid_stream += kept > 0 && kept < kChanges ? 1 : 0;
   }
-  EXPECT_GE(interrupted, trials / 2) << "most kills should land mid-run";
-  std::cout << durability << ": " << interrupted << " of " << trials
-            << " runs killed mid-ingest (full ingest " << span.count() / 1000 << " ms)\n";
+  EXPECT_GE(interrupted, trials * 3 / 4) << "most kills should land mid-run";
+  EXPECT_GE(mid_stream, trials * 3 / 4) << "most trials should recover some but not all scans";
+  std::cout << durability << ": " << interrupted << " of " << trials << " runs killed mid-ingest, "
+            << mid_stream << " recovered strictly between 0 and " << kChanges
+            << " scans (full ingest " << span.count() / 1000 << " ms)\n";
 }
 
 TEST(CrashTest, SyncAcknowledgedScansSurviveSigkillAtRandomMoments) {

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "json_output.h"
+
 namespace bgkmap::cli {
 namespace {
 
@@ -19,52 +21,44 @@ std::string Num(double v, const char* fmt = "%.6g") {
 
 std::string Cell(double v, const char* fmt) { return std::isfinite(v) ? Num(v, fmt) : "n/a"; }
 
-void ScoreJson(std::ostringstream& o, const eval::MapScore& s, const std::string& indent) {
-  o << "{\n"
-    << indent << "  \"truth_cells\": " << s.truth_cells << ",\n"
-    << indent << "  \"known_cells\": " << s.known_cells << ",\n"
-    << indent << "  \"coverage\": " << Num(s.coverage) << ",\n"
-    << indent << "  \"mse_all_m2\": " << Num(s.mse_all) << ",\n"
-    << indent << "  \"mse_ground_m2\": " << Num(s.mse_ground) << ",\n"
-    << indent << "  \"auc\": " << Num(s.roc.auc) << ",\n"
-    << indent << "  \"roc_positives\": " << s.roc.positives << ",\n"
-    << indent << "  \"roc_negatives\": " << s.roc.negatives << ",\n"
-    << indent << "  \"state_accuracy\": " << Num(s.state_accuracy) << "\n"
-    << indent << "}";
-}
+using Json = nlohmann::ordered_json;  // keys in the order eval.json always had
 
-std::string Quote(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    out += c;
-  }
-  return out + "\"";
+Json ScoreJson(const eval::MapScore& s) {
+  return {{"truth_cells", s.truth_cells},
+          {"known_cells", s.known_cells},
+          {"coverage", JsonNumber<Json>(s.coverage)},
+          {"mse_all_m2", JsonNumber<Json>(s.mse_all)},
+          {"mse_ground_m2", JsonNumber<Json>(s.mse_ground)},
+          {"auc", JsonNumber<Json>(s.roc.auc)},
+          {"roc_positives", s.roc.positives},
+          {"roc_negatives", s.roc.negatives},
+          {"state_accuracy", JsonNumber<Json>(s.state_accuracy)}};
 }
 
 }  // namespace
 
 std::string ToJson(const EvalReport& r) {
-  std::ostringstream o;
-  o << "{\n  \"dataset\": " << Quote(r.name) << ",\n  \"sequence\": " << Quote(r.sequence)
-    << ",\n  \"rate_hz\": " << Num(r.rate_hz) << ",\n  \"resolution\": " << Num(r.params.resolution)
-    << ",\n  \"kernel_length\": " << Num(r.params.kernel_length) << ",\n  \"methods\": [";
-  for (size_t i = 0; i < r.methods.size(); ++i) {
-    const MethodResult& m = r.methods[i];
-    o << (i ? "," : "") << "\n    {\n      \"method\": " << Quote(std::string(MethodName(m.method)))
-      << ",\n      \"scans\": " << m.scans << ",\n      \"skipped\": " << m.skipped
-      << ",\n      \"mean_prepare_s\": " << Num(m.prepare_s)
-      << ",\n      \"mean_elevation_s\": " << Num(m.elevation_s)
-      << ",\n      \"mean_features_s\": " << Num(m.features_s)
-      << ",\n      \"mean_traversability_s\": " << Num(m.traversability_s)
-      << ",\n      \"max_scan_s\": " << Num(m.max_scan_s) << ",\n      \"realtime\": ";
-    ScoreJson(o, m.realtime, "      ");
-    o << ",\n      \"offline\": ";
-    ScoreJson(o, m.offline, "      ");
-    o << "\n    }";
+  Json methods = Json::array();
+  for (const MethodResult& m : r.methods) {
+    methods.push_back({{"method", std::string(MethodName(m.method))},
+                       {"scans", m.scans},
+                       {"skipped", m.skipped},
+                       {"mean_prepare_s", JsonNumber<Json>(m.prepare_s)},
+                       {"mean_elevation_s", JsonNumber<Json>(m.elevation_s)},
+                       {"mean_features_s", JsonNumber<Json>(m.features_s)},
+                       {"mean_traversability_s", JsonNumber<Json>(m.traversability_s)},
+                       {"max_scan_s", JsonNumber<Json>(m.max_scan_s)},
+                       {"realtime", ScoreJson(m.realtime)},
+                       {"offline", ScoreJson(m.offline)}});
   }
-  o << "\n  ]\n}\n";
-  return o.str();
+  Json j;
+  j["dataset"] = r.name;
+  j["sequence"] = r.sequence;
+  j["rate_hz"] = JsonNumber<Json>(r.rate_hz);
+  j["resolution"] = JsonNumber<Json>(r.params.resolution);
+  j["kernel_length"] = JsonNumber<Json>(r.params.kernel_length);
+  j["methods"] = std::move(methods);
+  return JsonText(j);
 }
 
 std::string ToMarkdown(const EvalReport& r) {

@@ -19,6 +19,7 @@
 #include "bgkmap/core/terrain_map.h"
 #include "commands.h"
 #include "gdal_grid_runner.h"
+#include "json_output.h"
 #include "scan_source.h"
 
 namespace bgkmap::cli {
@@ -26,6 +27,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using P3 = std::array<double, 3>;
+using Json = nlohmann::ordered_json;
 
 struct RegressOptions {
   std::string input;
@@ -280,29 +282,37 @@ int RunRegress(const RegressOptions& o) {
                   r.seconds / rows[0].seconds);
     md << line;
   }
-  std::ostringstream js;
-  js << "{\n  \"input\": \"" << o.input << "\",\n  \"points\": " << pts.size()
-     << ",\n  \"chosen\": {\"resolution\": " << chosen.resolution
-     << ", \"kernel_length\": " << chosen.kernel_length << ", \"cv_rmse\": " << chosen.cv.rmse
-     << "}"
-     << ",\n  \"train\": " << train.size() << ",\n  \"test\": " << test.size()
-     << ",\n  \"seed\": " << o.seed << ",\n  \"folds\": " << o.folds
-     << ",\n  \"cv_seconds\": " << cv_seconds << ",\n  \"cv\": [";
-  for (size_t i = 0; i < candidates.size(); ++i) {
-    const Candidate& c = candidates[i];
-    js << (i ? ", " : "") << "{\"resolution\": " << c.resolution
-       << ", \"kernel_length\": " << c.kernel_length << ", \"rmse\": " << c.cv.rmse
-       << ", \"coverage\": " << c.cv.coverage << "}";
+  // The keys in the order they were always written (ordered_json); NaN/inf are null.
+  Json cv = Json::array();
+  for (const Candidate& c : candidates) {
+    cv.push_back({{"resolution", JsonNumber<Json>(c.resolution)},
+                  {"kernel_length", JsonNumber<Json>(c.kernel_length)},
+                  {"rmse", JsonNumber<Json>(c.cv.rmse)},
+                  {"coverage", JsonNumber<Json>(c.cv.coverage)}});
   }
-  js << "],\n  \"results\": [";
-  for (size_t i = 0; i < rows.size(); ++i) {
-    const Row& r = rows[i];
-    js << (i ? "," : "") << "\n    {\"method\": \"" << r.method << "\", \"parameters\": \""
-       << r.params << "\", \"rmse\": " << r.test.rmse << ", \"coverage\": " << r.test.coverage
-       << ", \"rmse_common\": " << r.common.rmse << ", \"seconds\": " << r.seconds << "}";
+  Json results = Json::array();
+  for (const Row& r : rows) {
+    results.push_back({{"method", r.method},
+                       {"parameters", r.params},
+                       {"rmse", JsonNumber<Json>(r.test.rmse)},
+                       {"coverage", JsonNumber<Json>(r.test.coverage)},
+                       {"rmse_common", JsonNumber<Json>(r.common.rmse)},
+                       {"seconds", JsonNumber<Json>(r.seconds)}});
   }
-  js << "\n  ]\n}\n";
-  std::ofstream(fs::path(o.out) / "regress.json") << js.str();
+  Json js;
+  js["input"] = o.input;
+  js["points"] = pts.size();
+  js["chosen"] = {{"resolution", JsonNumber<Json>(chosen.resolution)},
+                  {"kernel_length", JsonNumber<Json>(chosen.kernel_length)},
+                  {"cv_rmse", JsonNumber<Json>(chosen.cv.rmse)}};
+  js["train"] = train.size();
+  js["test"] = test.size();
+  js["seed"] = o.seed;
+  js["folds"] = o.folds;
+  js["cv_seconds"] = JsonNumber<Json>(cv_seconds);
+  js["cv"] = std::move(cv);
+  js["results"] = std::move(results);
+  std::ofstream(fs::path(o.out) / "regress.json") << JsonText(js);
   std::ofstream(fs::path(o.out) / "table.md") << md.str();
   std::printf(
       "%s\nbgkmap regress: %zu points (%zu train, %zu test), chose l = %g m, res = %g m "

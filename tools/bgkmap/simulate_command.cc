@@ -20,6 +20,7 @@
 #include "bgkmap/sim/ray_caster.h"
 #include "bgkmap/sim/scenario.h"
 #include "commands.h"
+#include "json_output.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -142,14 +143,22 @@ int RunSimulate(const SimulateOptions& o) {
 
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  using Json = nlohmann::ordered_json;  // keys in the order scenario.json always had
+  Json scenario_json;
+  scenario_json["world"] = scenario.name;
+  scenario_json["sensor"] = scenario.beams.name;
+  scenario_json["mapping_scans"] = n;
+  scenario_json["truth_scans"] = scenario.truth_poses.size();
+  scenario_json["area_m"] = {JsonNumber<Json>(scenario.xmin), JsonNumber<Json>(scenario.ymin),
+                             JsonNumber<Json>(scenario.xmax), JsonNumber<Json>(scenario.ymax)};
+  scenario_json["resolution"] = JsonNumber<Json>(params.resolution);
+  scenario_json["truth_visible_cells"] = masks[0].count();
+  scenario_json["area_cells"] = box.cell_count();
+  scenario_json["world_origin_in_source_crs"] = {JsonNumber<Json>(origin_x),
+                                                 JsonNumber<Json>(origin_y)};
+  scenario_json["seconds"] = JsonNumber<Json>(seconds);
   std::ofstream js(fs::path(o.out) / "scenario.json");
-  js << "{\n  \"world\": \"" << scenario.name << "\",\n  \"sensor\": \"" << scenario.beams.name
-     << "\",\n  \"mapping_scans\": " << n << ",\n  \"truth_scans\": " << scenario.truth_poses.size()
-     << ",\n  \"area_m\": [" << scenario.xmin << ", " << scenario.ymin << ", " << scenario.xmax
-     << ", " << scenario.ymax << "],\n  \"resolution\": " << params.resolution
-     << ",\n  \"truth_visible_cells\": " << masks[0].count()
-     << ",\n  \"area_cells\": " << box.cell_count() << ",\n  \"world_origin_in_source_crs\": ["
-     << std::fixed << origin_x << ", " << origin_y << "],\n  \"seconds\": " << seconds << "\n}\n";
+  js << JsonText(scenario_json);
   if (!js) return Fail("cannot write scenario.json in " + o.out);
   std::printf(
       "bgkmap simulate: %s, %zu %s scans, ground truth from %zu scans sees %lld of %lld cells%s, "
