@@ -96,9 +96,7 @@ class GrpcWatch final : public WatchSubscription {
             std::function<void(const TileUpdate&)> on_update)
       : on_update_(std::move(on_update)) {
     v1::WatchRequest request;
-    ToProto(query.box, request.mutable_box());
-    for (Layer l : query.layers) request.add_layers(ToProto(l));
-    request.set_initial_snapshot(query.initial_snapshot);
+    ToProto(query, &request);
     reader_ = stub.Watch(&context_, request);
     thread_ = std::thread([this] { Loop(); });
   }
@@ -118,26 +116,7 @@ class GrpcWatch final : public WatchSubscription {
  private:
   void Loop() {
     v1::TileUpdate message;
-    while (reader_->Read(&message)) {
-      TileUpdate update;
-      update.key = {message.key().x(), message.key().y()};
-      update.tile_version = message.tile_version();
-      update.map_version = message.map_version();
-      Raster& r = update.raster;
-      r.box = FromProto(message.cells());
-      r.stride = 1;
-      r.cols = r.box.width();
-      r.rows = r.box.height();
-      r.resolution = message.resolution();
-      r.x0 = r.box.min.x * r.resolution;
-      r.y1 = (static_cast<double>(r.box.max.y) + 1.0) * r.resolution;
-      for (const v1::LayerValues& lv : message.layers()) {
-        r.layers.push_back(FromProto(lv.layer()));
-        r.data.emplace_back();
-        client_codec::UnpackFloats(lv.values(), &r.data.back());
-      }
-      on_update_(update);
-    }
+    while (reader_->Read(&message)) on_update_(FromProto(message));
     status_ = FromGrpc(reader_->Finish());
   }
 
@@ -217,9 +196,7 @@ RpcResult<std::vector<ScanAck>> Client::IngestAll(
 
 RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_version) {
   v1::RegionRequest request;
-  ToProto(query.box, request.mutable_box());
-  for (Layer l : query.layers) request.add_layers(ToProto(l));
-  request.set_stride(static_cast<uint32_t>(std::max(query.stride, 1)));
+  ToProto(query, &request);
   grpc::ClientContext context;
   impl_->SetDeadline(&context);
   std::unique_ptr<grpc::ClientReader<v1::RegionChunk>> reader =
@@ -228,23 +205,12 @@ RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_ve
   bool have_header = false;
   int64_t next_row = 0;
   v1::RegionChunk chunk;
-  std::vector<float> values;
   RpcStatus problem;
   while (reader->Read(&chunk)) {
     if (!problem.ok()) continue;  // drain the stream before Finish()
     if (chunk.has_header()) {
-      const v1::RasterHeader& h = chunk.header();
-      raster.box = FromProto(h.cells());
-      raster.stride = static_cast<int>(h.stride());
-      raster.cols = h.cols();
-      raster.rows = h.rows();
-      raster.resolution = h.resolution();
-      raster.x0 = h.x0();
-      raster.y1 = h.y1();
-      for (int l : h.layers()) raster.layers.push_back(FromProto(static_cast<v1::Layer>(l)));
-      raster.data.assign(raster.layers.size(),
-                         std::vector<float>(static_cast<size_t>(raster.rows * raster.cols)));
-      if (map_version != nullptr) *map_version = h.map_version();
+      raster = FromProto(chunk.header());
+      if (map_version != nullptr) *map_version = chunk.header().map_version();
       have_header = true;
     }
     if (!have_header || chunk.row_start() != next_row ||
@@ -254,15 +220,9 @@ RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_ve
       context.TryCancel();
       continue;
     }
-    for (int i = 0; i < chunk.layers_size(); ++i) {
-      const std::string& bytes = chunk.layers(i).values();
-      const size_t expect = static_cast<size_t>(chunk.row_count() * raster.cols) * sizeof(float);
-      if (bytes.size() != expect) {
-        problem = Malformed("region chunk of the wrong size");
-        context.TryCancel();
-        break;
-      }
-      std::memcpy(raster.data[i].data() + next_row * raster.cols, bytes.data(), bytes.size());
+    if (!CopyRows(chunk.layers(), next_row, chunk.row_count(), &raster)) {
+      problem = Malformed("region chunk of the wrong size");
+      context.TryCancel();
     }
     next_row += chunk.row_count();
   }
@@ -276,21 +236,13 @@ RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_ve
 RpcResult<PointValues> Client::QueryPoints(std::span<const std::array<double, 2>> points,
                                            const std::vector<Layer>& layers) {
   v1::PointsRequest request;
-  for (const auto& p : points) {
-    v1::Point2* q = request.add_points();
-    q->set_x(p[0]);
-    q->set_y(p[1]);
-  }
-  for (Layer l : layers) request.add_layers(ToProto(l));
+  ToProto(points, layers, &request);
   v1::PointsResponse response;
   grpc::ClientContext context;
   impl_->SetDeadline(&context);
   grpc::Status status = impl_->stub->QueryPoints(&context, request, &response);
   if (!status.ok()) return FromGrpc(status);
-  PointValues out;
-  for (int l : response.layers()) out.layers.push_back(FromProto(static_cast<v1::Layer>(l)));
-  out.values.assign(response.values().begin(), response.values().end());
-  out.map_version = response.map_version();
+  PointValues out = FromProto(response);
   if (out.values.size() != points.size() * out.layers.size()) {
     return Malformed("point values do not match the request");
   }
@@ -299,40 +251,13 @@ RpcResult<PointValues> Client::QueryPoints(std::span<const std::array<double, 2>
 
 RpcResult<PathCheck> Client::CheckPath(const PathQuery& query) {
   v1::PathCheckRequest request;
-  for (const Pose2& p : query.poses) {
-    v1::Pose2* q = request.add_poses();
-    q->set_x(p.x);
-    q->set_y(p.y);
-    q->set_yaw(p.yaw);
-  }
-  if (query.polygon.empty()) {
-    request.set_radius(query.radius);
-  } else {
-    for (const auto& v : query.polygon) {
-      v1::Point2* q = request.mutable_polygon()->add_vertices();
-      q->set_x(v[0]);
-      q->set_y(v[1]);
-    }
-  }
-  if (query.max_traversability) request.set_max_traversability(*query.max_traversability);
-  if (query.max_traversability_variance) {
-    request.set_max_traversability_variance(*query.max_traversability_variance);
-  }
-  if (query.max_unknown_fraction) request.set_max_unknown_fraction(*query.max_unknown_fraction);
+  ToProto(query, &request);
   v1::PathCheckResponse response;
   grpc::ClientContext context;
   impl_->SetDeadline(&context);
   grpc::Status status = impl_->stub->CheckPath(&context, request, &response);
   if (!status.ok()) return FromGrpc(status);
-  PathCheck out;
-  for (const v1::PoseCheck& pc : response.poses()) {
-    out.poses.push_back({pc.worst_traversability(), pc.worst_traversability_variance(),
-                         pc.unknown_fraction(), pc.cell_count(), pc.safe()});
-  }
-  out.safe = response.safe();
-  out.first_unsafe_index = response.first_unsafe_index();
-  out.map_version = response.map_version();
-  return out;
+  return FromProto(response);
 }
 
 std::unique_ptr<WatchSubscription> Client::Watch(const WatchQuery& query,
@@ -357,10 +282,7 @@ RpcResult<ClearResult> Client::ClearRegion(const MetricBox& box) {
   impl_->SetDeadline(&context);
   grpc::Status status = impl_->stub->ClearRegion(&context, request, &response);
   if (!status.ok()) return FromGrpc(status);
-  ClearResult out;
-  for (const v1::TileKey& k : response.changed_tiles()) out.changed_tiles.push_back({k.x(), k.y()});
-  out.map_version = response.map_version();
-  return out;
+  return FromProto(response);
 }
 
 namespace {
@@ -467,12 +389,7 @@ RpcResult<ImportResult> Client::ImportMap(const std::string& path) {
   grpc::Status status = writer->Finish();
   if (!problem.ok()) return problem;
   if (!status.ok()) return FromGrpc(status);
-  ImportResult result;
-  result.tiles_added = response.tiles_added();
-  result.map_version = response.map_version();
-  result.known_cells = response.known_cells();
-  result.archive_map_version = response.archive_map_version();
-  return result;
+  return FromProto(response);
 }
 
 RpcResult<std::optional<uint64_t>> Client::LastSequence(const std::string& robot_id) {

@@ -1,13 +1,9 @@
 #include "proto_codec.h"
 
 #include <Eigen/Geometry>
-#include <bit>
-#include <cstring>
+#include <algorithm>
 
 namespace bgkmap {
-
-static_assert(std::endian::native == std::endian::little,
-              "packed float32 payloads are little-endian; add byte swapping for this host");
 
 ScanPose ScanPose::FromPose(const Pose& pose) {
   Eigen::Quaterniond q(pose.rotation);
@@ -36,14 +32,15 @@ RpcStatus FromGrpc(const grpc::Status& status) {
   return RpcStatus(static_cast<RpcCode>(status.error_code()), status.error_message());
 }
 
-v1::Layer ToProto(Layer layer) { return static_cast<v1::Layer>(static_cast<int>(layer) + 1); }
-Layer FromProto(v1::Layer layer) { return static_cast<Layer>(static_cast<int>(layer) - 1); }
-
 void ToProto(const MetricBox& box, v1::BoundingBox* out) {
   out->set_min_x(box.min_x);
   out->set_min_y(box.min_y);
   out->set_max_x(box.max_x);
   out->set_max_y(box.max_y);
+}
+
+MetricBox FromProto(const v1::BoundingBox& box) {
+  return {box.min_x(), box.min_y(), box.max_x(), box.max_y()};
 }
 
 void ToProto(const ScanData& scan, v1::Scan* out) {
@@ -64,8 +61,49 @@ void ToProto(const ScanData& scan, v1::Scan* out) {
                                 scan.points.size() * sizeof(Point3f));
 }
 
-CellBox FromProto(const v1::CellBox& box) {
-  return {{box.min_x(), box.min_y()}, {box.max_x(), box.max_y()}};
+void ToProto(const RegionQuery& query, v1::RegionRequest* out) {
+  ToProto(query.box, out->mutable_box());
+  for (Layer l : query.layers) out->add_layers(ToProto(l));
+  out->set_stride(static_cast<uint32_t>(std::max(query.stride, 1)));
+}
+
+void ToProto(std::span<const std::array<double, 2>> points, const std::vector<Layer>& layers,
+             v1::PointsRequest* out) {
+  for (const auto& p : points) {
+    v1::Point2* q = out->add_points();
+    q->set_x(p[0]);
+    q->set_y(p[1]);
+  }
+  for (Layer l : layers) out->add_layers(ToProto(l));
+}
+
+void ToProto(const PathQuery& query, v1::PathCheckRequest* out) {
+  for (const Pose2& p : query.poses) {
+    v1::Pose2* q = out->add_poses();
+    q->set_x(p.x);
+    q->set_y(p.y);
+    q->set_yaw(p.yaw);
+  }
+  if (query.polygon.empty()) {
+    out->set_radius(query.radius);
+  } else {
+    for (const auto& v : query.polygon) {
+      v1::Point2* q = out->mutable_polygon()->add_vertices();
+      q->set_x(v[0]);
+      q->set_y(v[1]);
+    }
+  }
+  if (query.max_traversability) out->set_max_traversability(*query.max_traversability);
+  if (query.max_traversability_variance) {
+    out->set_max_traversability_variance(*query.max_traversability_variance);
+  }
+  if (query.max_unknown_fraction) out->set_max_unknown_fraction(*query.max_unknown_fraction);
+}
+
+void ToProto(const WatchQuery& query, v1::WatchRequest* out) {
+  ToProto(query.box, out->mutable_box());
+  for (Layer l : query.layers) out->add_layers(ToProto(l));
+  out->set_initial_snapshot(query.initial_snapshot);
 }
 
 ScanAck FromProto(const v1::ScanAck& a) {
@@ -84,48 +122,20 @@ ScanAck FromProto(const v1::ScanAck& a) {
       break;
   }
   ack.error = RpcStatus(static_cast<RpcCode>(a.code()), a.message());
-  for (const v1::TileKey& k : a.changed_tiles()) ack.changed_tiles.push_back({k.x(), k.y()});
+  for (const v1::TileKey& k : a.changed_tiles()) ack.changed_tiles.push_back(FromProto(k));
   ack.map_version = a.map_version();
-  const v1::PointCounts& c = a.counts();
-  ack.counts.input = c.input();
-  ack.counts.kept = c.kept();
-  ack.counts.dropped_nonfinite = c.dropped_nonfinite();
-  ack.counts.dropped_range = c.dropped_range();
-  ack.counts.dropped_height = c.dropped_height();
-  ack.counts.dropped_out_of_bounds = c.dropped_out_of_bounds();
+  ack.counts = FromProto(a.counts());
   return ack;
 }
 
 MapInfo FromProto(const v1::InfoResponse& r) {
   MapInfo info;
-  const v1::MapParameters& p = r.params();
-  MapParams& m = info.params;
-  m.resolution = p.resolution();
-  m.kernel_length = p.kernel_length();
-  m.lambda = p.lambda();
-  m.prior_mean = p.prior_mean();
-  m.sigma2 = p.sigma2();
-  m.alpha0 = p.alpha0();
-  m.beta0 = p.beta0();
-  m.robot_radius = p.robot_radius();
-  m.step_crit = p.step_crit();
-  m.slope_crit_deg = p.slope_crit_deg();
-  m.roughness_crit = p.roughness_crit();
-  for (int i = 0; i < 3 && i < p.weights_size(); ++i) m.weights[i] = p.weights(i);
-  m.trav_threshold = p.trav_threshold();
-  m.variance_threshold = p.variance_threshold();
-  m.min_range = p.min_range();
-  m.max_range = p.max_range();
-  m.max_height_above_sensor = p.max_height_above_sensor();
-  if (Result<Observation> o = ParseObservation(p.observation()); o.ok()) m.observation = *o;
-  m.tile_size = p.tile_size();
-  if (Result<Method> meth = ParseMethod(p.method()); meth.ok()) m.method = *meth;
+  info.params = FromProto(r.params());
   info.params_yaml = r.params_yaml();
   info.tile_count = r.tile_count();
   info.known_cells = r.known_cells();
   info.known_cells_box = FromProto(r.known_cells_box());
-  info.known_bounds = {r.known_bounds().min_x(), r.known_bounds().min_y(), r.known_bounds().max_x(),
-                       r.known_bounds().max_y()};
+  info.known_bounds = FromProto(r.known_bounds());
   info.map_version = r.map_version();
   info.scans_applied = r.scans_applied();
   for (const v1::RobotInfo& ri : r.robots()) {
@@ -157,11 +167,49 @@ MapInfo FromProto(const v1::InfoResponse& r) {
   return info;
 }
 
-bool UnpackFloats(const std::string& bytes, std::vector<float>* out) {
-  if (bytes.size() % sizeof(float) != 0) return false;
-  out->resize(bytes.size() / sizeof(float));
-  if (!bytes.empty()) std::memcpy(out->data(), bytes.data(), bytes.size());
-  return true;
+PointValues FromProto(const v1::PointsResponse& response) {
+  PointValues out;
+  for (int l : response.layers()) out.layers.push_back(FromProto(static_cast<v1::Layer>(l)));
+  out.values.assign(response.values().begin(), response.values().end());
+  out.map_version = response.map_version();
+  return out;
+}
+
+PathCheck FromProto(const v1::PathCheckResponse& response) {
+  PathCheck out;
+  for (const v1::PoseCheck& pc : response.poses()) {
+    out.poses.push_back({pc.worst_traversability(), pc.worst_traversability_variance(),
+                         pc.unknown_fraction(), pc.cell_count(), pc.safe()});
+  }
+  out.safe = response.safe();
+  out.first_unsafe_index = response.first_unsafe_index();
+  out.map_version = response.map_version();
+  return out;
+}
+
+TileUpdate FromProto(const v1::TileUpdate& message) {
+  TileUpdate update;
+  update.key = FromProto(message.key());
+  update.tile_version = message.tile_version();
+  update.map_version = message.map_version();
+  update.raster = TileRasterFromProto(message);
+  return update;
+}
+
+ClearResult FromProto(const v1::ClearRegionResponse& response) {
+  ClearResult out;
+  for (const v1::TileKey& k : response.changed_tiles()) out.changed_tiles.push_back(FromProto(k));
+  out.map_version = response.map_version();
+  return out;
+}
+
+ImportResult FromProto(const v1::ImportResponse& response) {
+  ImportResult result;
+  result.tiles_added = response.tiles_added();
+  result.map_version = response.map_version();
+  result.known_cells = response.known_cells();
+  result.archive_map_version = response.archive_map_version();
+  return result;
 }
 
 }  // namespace client_codec

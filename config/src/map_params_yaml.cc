@@ -6,6 +6,8 @@
 #include <sstream>
 #include <system_error>
 
+#include "bgkmap/core/map_param_table.h"
+
 namespace bgkmap {
 namespace {
 
@@ -41,52 +43,38 @@ Status ReadInt(std::string_view key, const YAML::Node& node, int* out) {
   return Status::Ok();
 }
 
+Status ReadTriple(std::string_view key, const YAML::Node& node, std::array<double, 3>* out,
+                  std::string_view doc) {
+  if (!node.IsSequence() || node.size() != 3) {
+    return Status::InvalidArgument(std::string(key) + ": expected a list of 3 numbers " +
+                                   std::string(doc) + Where(node));
+  }
+  for (size_t i = 0; i < 3; ++i) {
+    if (Status s = ReadDouble(key, node[i], &(*out)[i]); !s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
 Status ReadKey(const std::string& key, const YAML::Node& v, MapParams& p) {
-  if (key == "resolution") return ReadDouble(key, v, &p.resolution);
-  if (key == "kernel_length") return ReadDouble(key, v, &p.kernel_length);
-  if (key == "lambda") return ReadDouble(key, v, &p.lambda);
-  if (key == "prior_mean") return ReadDouble(key, v, &p.prior_mean);
-  if (key == "sigma2") return ReadDouble(key, v, &p.sigma2);
-  if (key == "alpha0") return ReadDouble(key, v, &p.alpha0);
-  if (key == "beta0") return ReadDouble(key, v, &p.beta0);
-  if (key == "robot_radius") return ReadDouble(key, v, &p.robot_radius);
-  if (key == "step_crit") return ReadDouble(key, v, &p.step_crit);
-  if (key == "slope_crit_deg") return ReadDouble(key, v, &p.slope_crit_deg);
-  if (key == "roughness_crit") return ReadDouble(key, v, &p.roughness_crit);
-  if (key == "trav_threshold") return ReadDouble(key, v, &p.trav_threshold);
-  if (key == "variance_threshold") return ReadDouble(key, v, &p.variance_threshold);
-  if (key == "min_range") return ReadDouble(key, v, &p.min_range);
-  if (key == "max_range") return ReadDouble(key, v, &p.max_range);
-  if (key == "max_height_above_sensor") return ReadDouble(key, v, &p.max_height_above_sensor);
-  if (key == "tile_size") return ReadInt(key, v, &p.tile_size);
-  if (key == "weights") {
-    if (!v.IsSequence() || v.size() != 3) {
-      return Status::InvalidArgument(
-          "weights: expected a list of 3 numbers [w_step, w_slope, "
-          "w_rough]" +
-          Where(v));
-    }
-    for (size_t i = 0; i < 3; ++i) {
-      if (Status s = ReadDouble("weights", v[i], &p.weights[i]); !s.ok()) return s;
-    }
-    return Status::Ok();
+  const MapParamInfo* info = FindMapParam(key);
+  if (info == nullptr) {
+    std::string known;
+    for (std::string_view k : MapParamKeys()) known += (known.empty() ? "" : ", ") + std::string(k);
+    return Status::InvalidArgument("unknown key '" + key + "'" + Where(v) +
+                                   "; known keys: " + known);
   }
-  if (key == "observation" || key == "method") {
-    if (!v.IsScalar()) return TypeError(key, v, "a name");
-    if (key == "method") {
-      Result<Method> m = ParseMethod(v.Scalar());
-      if (!m.ok()) return m.status();
-      p.method = *m;
-    } else {
-      Result<Observation> o = ParseObservation(v.Scalar());
-      if (!o.ok()) return o.status();
-      p.observation = *o;
-    }
-    return Status::Ok();
+  switch (info->kind) {
+    case MapParamKind::kDouble:
+      return ReadDouble(key, v, &(p.*info->real));
+    case MapParamKind::kInt:
+      return ReadInt(key, v, &(p.*info->integer));
+    case MapParamKind::kDouble3:
+      return ReadTriple(key, v, &(p.*info->triple), info->doc);
+    case MapParamKind::kEnum:
+      if (!v.IsScalar()) return TypeError(key, v, "a name");
+      return info->enum_parse(v.Scalar(), p);
   }
-  std::string known;
-  for (std::string_view k : MapParamKeys()) known += (known.empty() ? "" : ", ") + std::string(k);
-  return Status::InvalidArgument("unknown key '" + key + "'" + Where(v) + "; known keys: " + known);
+  return Status::Ok();
 }
 
 }  // namespace
@@ -147,29 +135,27 @@ Result<MapParams> LoadMapParamsFileOrDefaults(const std::string& path) {
 
 YAML::Node MapParamsToYaml(const MapParams& p) {
   YAML::Node n;
-  n["resolution"] = Number(p.resolution);
-  n["kernel_length"] = Number(p.kernel_length);
-  n["lambda"] = Number(p.lambda);
-  n["prior_mean"] = Number(p.prior_mean);
-  n["sigma2"] = Number(p.sigma2);
-  n["alpha0"] = Number(p.alpha0);
-  n["beta0"] = Number(p.beta0);
-  n["robot_radius"] = Number(p.robot_radius);
-  n["step_crit"] = Number(p.step_crit);
-  n["slope_crit_deg"] = Number(p.slope_crit_deg);
-  n["roughness_crit"] = Number(p.roughness_crit);
-  YAML::Node w(YAML::NodeType::Sequence);
-  for (double x : p.weights) w.push_back(Number(x));
-  w.SetStyle(YAML::EmitterStyle::Flow);
-  n["weights"] = w;
-  n["trav_threshold"] = Number(p.trav_threshold);
-  n["variance_threshold"] = Number(p.variance_threshold);
-  n["min_range"] = Number(p.min_range);
-  n["max_range"] = Number(p.max_range);
-  n["max_height_above_sensor"] = Number(p.max_height_above_sensor);
-  n["observation"] = std::string(ObservationName(p.observation));
-  n["tile_size"] = p.tile_size;
-  n["method"] = std::string(MethodName(p.method));
+  for (const MapParamInfo& info : MapParamTable()) {
+    const std::string key(info.key);
+    switch (info.kind) {
+      case MapParamKind::kDouble:
+        n[key] = Number(p.*info.real);
+        break;
+      case MapParamKind::kInt:
+        n[key] = p.*info.integer;
+        break;
+      case MapParamKind::kDouble3: {
+        YAML::Node list(YAML::NodeType::Sequence);
+        for (double x : p.*info.triple) list.push_back(Number(x));
+        list.SetStyle(YAML::EmitterStyle::Flow);
+        n[key] = list;
+        break;
+      }
+      case MapParamKind::kEnum:
+        n[key] = std::string(info.enum_name(p));
+        break;
+    }
+  }
   return n;
 }
 

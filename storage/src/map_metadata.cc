@@ -2,6 +2,7 @@
 
 #include <charconv>
 
+#include "bgkmap/core/map_param_table.h"
 #include "byte_coding.h"
 
 namespace bgkmap::storage {
@@ -18,82 +19,75 @@ bool ParseDouble(std::string_view text, double* v) {
   return res.ec == std::errc() && res.ptr == text.data() + text.size();
 }
 
-// The scalar double parameters, in MapParamKeys() order, by key.
-std::vector<std::pair<std::string_view, double MapParams::*>> DoubleFields() {
-  return {{"resolution", &MapParams::resolution},
-          {"kernel_length", &MapParams::kernel_length},
-          {"lambda", &MapParams::lambda},
-          {"prior_mean", &MapParams::prior_mean},
-          {"sigma2", &MapParams::sigma2},
-          {"alpha0", &MapParams::alpha0},
-          {"beta0", &MapParams::beta0},
-          {"robot_radius", &MapParams::robot_radius},
-          {"step_crit", &MapParams::step_crit},
-          {"slope_crit_deg", &MapParams::slope_crit_deg},
-          {"roughness_crit", &MapParams::roughness_crit},
-          {"trav_threshold", &MapParams::trav_threshold},
-          {"variance_threshold", &MapParams::variance_threshold},
-          {"min_range", &MapParams::min_range},
-          {"max_range", &MapParams::max_range},
-          {"max_height_above_sensor", &MapParams::max_height_above_sensor}};
-}
-
 Status BadKey(std::string_view key, std::string_view why) {
   return Status::DataLoss("stored map parameter " + std::string(key) + " " + std::string(why));
+}
+
+// A parameter's stored text: doubles in shortest round-trip form, weights as "a,b,c".
+std::string ParamText(const MapParamInfo& info, const MapParams& p) {
+  switch (info.kind) {
+    case MapParamKind::kDouble:
+      return FormatDouble(p.*info.real);
+    case MapParamKind::kInt:
+      return std::to_string(p.*info.integer);
+    case MapParamKind::kDouble3: {
+      const std::array<double, 3>& v = p.*info.triple;
+      return FormatDouble(v[0]) + "," + FormatDouble(v[1]) + "," + FormatDouble(v[2]);
+    }
+    case MapParamKind::kEnum:
+      return std::string(info.enum_name(p));
+  }
+  return "";
+}
+
+Status ParseParamText(const MapParamInfo& info, const std::string& text, MapParams& p) {
+  switch (info.kind) {
+    case MapParamKind::kDouble:
+      if (!ParseDouble(text, &(p.*info.real))) return BadKey(info.key, "is not a number: " + text);
+      return Status::Ok();
+    case MapParamKind::kInt: {
+      const auto res = std::from_chars(text.data(), text.data() + text.size(), p.*info.integer);
+      if (res.ec != std::errc() || res.ptr != text.data() + text.size()) {
+        return BadKey(info.key, "is not an integer: " + text);
+      }
+      return Status::Ok();
+    }
+    case MapParamKind::kDouble3: {
+      std::string_view rest = text;
+      for (size_t i = 0; i < 3; ++i) {
+        const size_t comma = rest.find(',');
+        const std::string_view part = rest.substr(0, comma);
+        if ((i < 2) == (comma == std::string_view::npos) ||
+            !ParseDouble(part, &(p.*info.triple)[i])) {
+          return BadKey(info.key, "is not three numbers: " + text);
+        }
+        rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
+      }
+      return Status::Ok();
+    }
+    case MapParamKind::kEnum:
+      if (Status s = info.enum_parse(text, p); !s.ok()) return BadKey(info.key, s.message());
+      return Status::Ok();
+  }
+  return Status::Ok();
 }
 
 }  // namespace
 
 std::vector<std::pair<std::string, std::string>> ParamsToKeyValues(const MapParams& p) {
-  std::map<std::string_view, std::string> values;
-  for (const auto& [key, field] : DoubleFields()) values[key] = FormatDouble(p.*field);
-  values["weights"] = FormatDouble(p.weights[0]) + "," + FormatDouble(p.weights[1]) + "," +
-                      FormatDouble(p.weights[2]);
-  values["observation"] = std::string(ObservationName(p.observation));
-  values["tile_size"] = std::to_string(p.tile_size);
-  values["method"] = std::string(MethodName(p.method));
   std::vector<std::pair<std::string, std::string>> out;
-  for (std::string_view key : MapParamKeys()) out.emplace_back(key, values.at(key));
+  for (const MapParamInfo& info : MapParamTable()) out.emplace_back(info.key, ParamText(info, p));
   return out;
 }
 
 Result<MapParams> ParamsFromKeyValues(const std::map<std::string, std::string, std::less<>>& kv) {
-  auto get = [&](std::string_view key) -> const std::string* {
-    auto it = kv.find(key);
-    return it == kv.end() ? nullptr : &it->second;
-  };
   for (std::string_view key : MapParamKeys()) {
-    if (!get(key)) return BadKey(key, "is missing");
+    if (kv.find(key) == kv.end()) return BadKey(key, "is missing");
   }
   MapParams p;
-  for (const auto& [key, field] : DoubleFields()) {
-    if (!ParseDouble(*get(key), &(p.*field))) return BadKey(key, "is not a number: " + *get(key));
+  for (const MapParamInfo& info : MapParamTable()) {
+    if (Status s = ParseParamText(info, kv.find(info.key)->second, p); !s.ok()) return s;
   }
-  {
-    const std::string& text = *get("weights");
-    std::string_view rest = text;
-    for (int i = 0; i < 3; ++i) {
-      const size_t comma = rest.find(',');
-      const std::string_view part = rest.substr(0, comma);
-      if ((i < 2) == (comma == std::string_view::npos) || !ParseDouble(part, &p.weights[i])) {
-        return BadKey("weights", "is not three numbers: " + text);
-      }
-      rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
-    }
-  }
-  {
-    const std::string& text = *get("tile_size");
-    const auto res = std::from_chars(text.data(), text.data() + text.size(), p.tile_size);
-    if (res.ec != std::errc() || res.ptr != text.data() + text.size()) {
-      return BadKey("tile_size", "is not an integer: " + text);
-    }
-  }
-  Result<Observation> observation = ParseObservation(*get("observation"));
-  if (!observation.ok()) return BadKey("observation", observation.status().message());
-  p.observation = *observation;
-  Result<Method> method = ParseMethod(*get("method"));
-  if (!method.ok()) return BadKey("method", method.status().message());
-  p.method = *method;
   if (Status s = p.Validate(); !s.ok()) {
     return Status::DataLoss("stored map parameters are invalid: " + s.message());
   }

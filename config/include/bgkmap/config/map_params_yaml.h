@@ -1,5 +1,5 @@
-// YAML adapter for MapParams: the engine stays free of file formats; this is the only place that
-// knows the YAML spelling of the parameters (the key names are MapParamKeys()).
+// YAML adapter for MapParams: the engine stays free of file formats. Keys, kinds and order come
+// from MapParamTable(); this file only knows how each kind is spelled in YAML.
 #pragma once
 
 #include <yaml-cpp/yaml.h>
@@ -32,7 +32,7 @@ Result<MapParams> LoadMapParamsFile(const std::string& path,
 // empty, otherwise LoadMapParamsFile(path).
 Result<MapParams> LoadMapParamsFileOrDefaults(const std::string& path);
 
-// Every engine key with its value, in MapParamKeys() order.
+// Every engine key with its value, in MapParamTable() order (what --print-config shows).
 YAML::Node MapParamsToYaml(const MapParams& params);
 
 }  // namespace bgkmap

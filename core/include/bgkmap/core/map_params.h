@@ -1,5 +1,5 @@
-// Every parameter of a map, as data. The key names in comments are the YAML contract
-// (see docs/configuration.md); defaults are the values a field is initialised with.
+// Every parameter of a map, as data; defaults are the values a field is initialised with. The key
+// names (the YAML contract, docs/configuration.md) are in map_param_table.h.
 #pragma once
 
 #include <array>
@@ -33,33 +33,36 @@ bool InfersTraversability(Method m);
 // True for the methods whose elevation is BGK regression (bgk+, bgk-trav).
 bool InfersElevation(Method m);
 
+// Every parameter, with its default. What each means, its key and its rule are in
+// MapParamTable() (map_param_table.h), the one place that lists them.
 struct MapParams {
-  double resolution = 0.1;       // resolution: cell edge, metres.
-  double kernel_length = 0.3;    // kernel_length: sparse kernel support l, metres.
-  double lambda = 0.0;           // lambda: prior confidence in prior_mean (0 = none, as the paper).
-  double prior_mean = 0.0;       // prior_mean: mu0, metres.
-  double sigma2 = 0.01;          // sigma2: observation noise variance, m^2.
-  double alpha0 = 0.001;         // alpha0: Beta prior pseudo-count for "non-traversable".
-  double beta0 = 0.001;          // beta0: Beta prior pseudo-count for "traversable".
-  double robot_radius = 0.3;     // robot_radius: neighbourhood for step/slope/roughness, metres.
-  double step_crit = 0.15;       // step_crit: critical step height, metres.
-  double slope_crit_deg = 20.0;  // slope_crit_deg: critical slope, degrees.
-  double roughness_crit = 0.05;  // roughness_crit: critical roughness, metres.
-  std::array<double, 3> weights = {0.4, 0.4, 0.2};  // weights: [w_step, w_slope, w_rough], sum 1.
-  double trav_threshold = 0.5;                      // trav_threshold: v_th of Eq. 6.
-  double variance_threshold = 0.05;                 // variance_threshold: sigma_th^2 of Eq. 6.
-  double min_range = 1.0;    // min_range: drop closer points (the robot's own body), metres.
-  double max_range = 100.0;  // max_range: drop farther points, metres.
-  double max_height_above_sensor = 0.5;         // max_height_above_sensor: drop overhangs, metres.
-  Observation observation = Observation::kMax;  // observation: max | mean.
-  int tile_size = 64;                           // tile_size: cells per tile edge.
-  Method method = Method::kBgkPlus;             // method: bgk+ | bgk-trav | baseline | one-step.
+  double resolution = 0.1;
+  double kernel_length = 0.3;
+  double lambda = 0.0;  // 0: no prior, as the paper
+  double prior_mean = 0.0;
+  double sigma2 = 0.01;
+  double alpha0 = 0.001;
+  double beta0 = 0.001;
+  double robot_radius = 0.3;
+  double step_crit = 0.15;
+  double slope_crit_deg = 20.0;
+  double roughness_crit = 0.05;
+  std::array<double, 3> weights = {0.4, 0.4, 0.2};
+  double trav_threshold = 0.5;
+  double variance_threshold = 0.05;
+  double min_range = 1.0;
+  double max_range = 100.0;
+  double max_height_above_sensor = 0.5;
+  Observation observation = Observation::kMax;
+  int tile_size = 64;
+  Method method = Method::kBgkPlus;
 
-  // Checks every field; the message names the key, the value and the rule broken.
+  // Checks every field (MapParamInfo::check); the message names the key, the value and the rule
+  // broken.
   Status Validate() const;
 
-  // Parameters that shape the stored statistics (all but sigma2, alpha0, beta0 and the two
-  // thresholds, which only enter derived layers). Maps merge or reopen only if these are equal.
+  // Maps merge or reopen only if every parameter that shapes the stored statistics
+  // (MapParamInfo::shapes_statistics) is equal; `why` names the first that differs.
   bool StatisticsCompatibleWith(const MapParams& other, std::string* why) const;
 };
 
@@ -70,7 +73,7 @@ inline constexpr int kMaxStencilRadiusCells = 64;
 inline constexpr int kMinTileSize = 4;
 inline constexpr int kMaxTileSize = 1024;
 
-// All YAML key names, in documentation order.
+// All key names, in MapParamTable() order.
 const std::vector<std::string_view>& MapParamKeys();
 
 }  // namespace bgkmap

@@ -1,0 +1,273 @@
+#include "bgkmap/core/map_param_table.h"
+
+#include <cmath>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace bgkmap {
+namespace {
+
+std::string Num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+Status Bad(std::string_view key, double value, std::string_view rule) {
+  return Status::InvalidArgument(std::string(key) + " = " + Num(value) + ": " + std::string(rule));
+}
+
+// The rules of MapParamInfo::check.
+
+Status Positive(std::string_view key, double v, const MapParams&) {
+  if (!std::isfinite(v) || v <= 0) return Bad(key, v, "must be a finite number > 0");
+  return Status::Ok();
+}
+
+Status FiniteNonNegative(std::string_view key, double v, const MapParams&) {
+  if (!std::isfinite(v) || v < 0) return Bad(key, v, "must be finite and >= 0");
+  return Status::Ok();
+}
+
+Status Finite(std::string_view key, double v, const MapParams&) {
+  if (!std::isfinite(v)) return Bad(key, v, "must be finite");
+  return Status::Ok();
+}
+
+Status NotNaN(std::string_view key, double v, const MapParams&) {
+  if (std::isnan(v)) return Bad(key, v, "must be a number");
+  return Status::Ok();
+}
+
+Status Resolution(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Positive(key, v, p); !s.ok()) return s;
+  if (v < 1e-3 || v > 100) return Bad(key, v, "must lie in [0.001, 100] metres");
+  return Status::Ok();
+}
+
+// A stencil radius in cells, bounded so cell arithmetic stays exact.
+Status StencilRadius(std::string_view key, double v, const MapParams& p) {
+  if (v / p.resolution > kMaxStencilRadiusCells) {
+    return Bad(key, v, "must be <= " + std::to_string(kMaxStencilRadiusCells) + " * resolution");
+  }
+  return Status::Ok();
+}
+
+Status KernelLength(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Positive(key, v, p); !s.ok()) return s;
+  if (v < p.resolution) {
+    return Bad(
+        key, v,
+        "must be >= resolution (" + Num(p.resolution) + "), or no neighbour is ever inferred");
+  }
+  return StencilRadius(key, v, p);
+}
+
+Status RobotRadius(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Positive(key, v, p); !s.ok()) return s;
+  if (v < p.resolution) {
+    return Bad(
+        key, v,
+        "must be >= resolution (" + Num(p.resolution) + ") to span the 3 cells a plane needs");
+  }
+  return StencilRadius(key, v, p);
+}
+
+Status SlopeCrit(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Positive(key, v, p); !s.ok()) return s;
+  if (v > 90) return Bad(key, v, "must be <= 90 degrees");
+  return Status::Ok();
+}
+
+Status Weights(std::string_view key, double, const MapParams& p) {
+  double sum = 0;
+  for (double w : p.weights) {
+    if (!std::isfinite(w) || w < 0) return Bad(key, w, "every weight must be finite and >= 0");
+    sum += w;
+  }
+  if (std::abs(sum - 1.0) > 1e-6) {
+    return Bad(key, sum, "[w_step, w_slope, w_rough] must sum to 1 (paper Eq. 5)");
+  }
+  return Status::Ok();
+}
+
+Status TravThreshold(std::string_view key, double v, const MapParams&) {
+  if (!std::isfinite(v) || v <= 0 || v > 1) return Bad(key, v, "must lie in (0, 1]");
+  return Status::Ok();
+}
+
+Status MaxRange(std::string_view key, double v, const MapParams& p) {
+  if (!std::isfinite(v) || v <= p.min_range) {
+    return Bad(key, v, "must be finite and > min_range (" + Num(p.min_range) + ")");
+  }
+  return Status::Ok();
+}
+
+Status TileSize(std::string_view key, double v, const MapParams&) {
+  if (v < kMinTileSize || v > kMaxTileSize) {
+    return Bad(key, v,
+               "must lie in [" + std::to_string(kMinTileSize) + ", " +
+                   std::to_string(kMaxTileSize) + "] cells");
+  }
+  return Status::Ok();
+}
+
+// Entry builders, one per kind.
+constexpr bool kStats = true;     // shapes the stored statistics
+constexpr bool kDerived = false;  // enters derived layers only
+using Check = Status (*)(std::string_view, double, const MapParams&);
+
+MapParamInfo Real(std::string_view key, double MapParams::*field, bool shapes, Check check,
+                  std::string_view doc) {
+  MapParamInfo info{key, MapParamKind::kDouble, shapes, doc};
+  info.real = field;
+  info.check = check;
+  return info;
+}
+
+MapParamInfo Integer(std::string_view key, int MapParams::*field, bool shapes, Check check,
+                     std::string_view doc) {
+  MapParamInfo info{key, MapParamKind::kInt, shapes, doc};
+  info.integer = field;
+  info.check = check;
+  return info;
+}
+
+MapParamInfo Triple(std::string_view key, std::array<double, 3> MapParams::*field, bool shapes,
+                    Check check, std::string_view doc) {
+  MapParamInfo info{key, MapParamKind::kDouble3, shapes, doc};
+  info.triple = field;
+  info.check = check;
+  return info;
+}
+
+// An enum field with its Name(value) and Parse(name) functions.
+template <auto field, auto name_of, auto parse>
+MapParamInfo Enum(std::string_view key, bool shapes, std::string_view doc) {
+  MapParamInfo info{key, MapParamKind::kEnum, shapes, doc};
+  info.enum_name = [](const MapParams& p) { return name_of(p.*field); };
+  info.enum_parse = [](std::string_view text, MapParams& p) {
+    auto value = parse(text);
+    if (!value.ok()) return value.status();
+    p.*field = *value;
+    return Status::Ok();
+  };
+  return info;
+}
+
+using P = MapParams;
+
+const std::vector<MapParamInfo>& Table() {
+  static const std::vector<MapParamInfo> table = {
+      Real("resolution", &P::resolution, kStats, Resolution, "cell edge, metres"),
+      Real("kernel_length", &P::kernel_length, kStats, KernelLength,
+           "sparse kernel support l, metres"),
+      // The elevation a scan's v is computed from depends on the prior too.
+      Real("lambda", &P::lambda, kStats, FiniteNonNegative,
+           "prior confidence in prior_mean (0 = none, as the paper)"),
+      Real("prior_mean", &P::prior_mean, kStats, Finite, "prior elevation mu0, metres"),
+      Real("sigma2", &P::sigma2, kDerived, Positive, "observation noise variance, m^2"),
+      Real("alpha0", &P::alpha0, kDerived, Positive,
+           "Beta prior pseudo-count for \"non-traversable\""),
+      Real("beta0", &P::beta0, kDerived, Positive, "Beta prior pseudo-count for \"traversable\""),
+      Real("robot_radius", &P::robot_radius, kStats, RobotRadius,
+           "neighbourhood for step, slope and roughness, metres"),
+      Real("step_crit", &P::step_crit, kStats, Positive, "critical step height, metres"),
+      Real("slope_crit_deg", &P::slope_crit_deg, kStats, SlopeCrit, "critical slope, degrees"),
+      Real("roughness_crit", &P::roughness_crit, kStats, Positive, "critical roughness, metres"),
+      Triple("weights", &P::weights, kStats, Weights,
+             "[w_step, w_slope, w_rough] of v (Eq. 5), summing to 1"),
+      Real("trav_threshold", &P::trav_threshold, kDerived, TravThreshold, "v_th of Eq. 6"),
+      Real("variance_threshold", &P::variance_threshold, kDerived, Positive, "sigma_th^2 of Eq. 6"),
+      Real("min_range", &P::min_range, kStats, FiniteNonNegative,
+           "drop closer points (the robot's own body), metres"),
+      Real("max_range", &P::max_range, kStats, MaxRange, "drop farther points, metres"),
+      Real("max_height_above_sensor", &P::max_height_above_sensor, kStats, NotNaN,
+           "drop points higher above the sensor (overhangs), metres"),
+      Enum<&P::observation, ObservationName, ParseObservation>(
+          "observation", kStats, "max | mean of a scan's points in a cell, its training value"),
+      Integer("tile_size", &P::tile_size, kStats, TileSize, "cells per tile edge"),
+      Enum<&P::method, MethodName, ParseMethod>("method", kStats,
+                                                "bgk+ | bgk-trav | baseline | one-step"),
+  };
+  return table;
+}
+
+}  // namespace
+
+bool MapParamInfo::Equal(const MapParams& a, const MapParams& b) const {
+  switch (kind) {
+    case MapParamKind::kDouble:
+      return a.*real == b.*real;
+    case MapParamKind::kInt:
+      return a.*integer == b.*integer;
+    case MapParamKind::kDouble3:
+      return a.*triple == b.*triple;
+    case MapParamKind::kEnum:
+      return enum_name(a) == enum_name(b);
+  }
+  return false;
+}
+
+std::span<const MapParamInfo> MapParamTable() { return Table(); }
+
+const MapParamInfo* FindMapParam(std::string_view key) {
+  for (const MapParamInfo& info : Table()) {
+    if (info.key == key) return &info;
+  }
+  return nullptr;
+}
+
+const std::vector<std::string_view>& MapParamKeys() {
+  static const std::vector<std::string_view> keys = [] {
+    std::vector<std::string_view> k;
+    for (const MapParamInfo& info : Table()) k.push_back(info.key);
+    return k;
+  }();
+  return keys;
+}
+
+Status MapParams::Validate() const {
+  for (const MapParamInfo& info : Table()) {
+    if (info.check == nullptr) continue;
+    double value = 0;
+    if (info.kind == MapParamKind::kDouble) value = this->*info.real;
+    if (info.kind == MapParamKind::kInt) value = this->*info.integer;
+    if (Status s = info.check(info.key, value, *this); !s.ok()) return s;
+  }
+  return Status::Ok();
+}
+
+bool MapParams::StatisticsCompatibleWith(const MapParams& o, std::string* why) const {
+  for (const MapParamInfo& info : Table()) {
+    if (!info.shapes_statistics || info.Equal(*this, o)) continue;
+    if (why == nullptr) return false;
+    const auto differ = [&](std::string_view key, const std::string& a, const std::string& b) {
+      *why = std::string(key) + " differs (" + a + " vs " + b + ")";
+    };
+    switch (info.kind) {
+      case MapParamKind::kDouble:
+        differ(info.key, Num(this->*info.real), Num(o.*info.real));
+        break;
+      case MapParamKind::kInt:
+        differ(info.key, Num(this->*info.integer), Num(o.*info.integer));
+        break;
+      case MapParamKind::kDouble3:
+        for (size_t i = 0; i < 3; ++i) {
+          if ((this->*info.triple)[i] == (o.*info.triple)[i]) continue;
+          differ(std::string(info.key) + "[" + std::to_string(i) + "]",
+                 Num((this->*info.triple)[i]), Num((o.*info.triple)[i]));
+          break;
+        }
+        break;
+      case MapParamKind::kEnum:
+        differ(info.key, std::string(info.enum_name(*this)), std::string(info.enum_name(o)));
+        break;
+    }
+    return false;
+  }
+  return true;
+}
+
+}  // namespace bgkmap
