@@ -102,14 +102,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     if (!sent_header_) {
       sent_header_ = true;
       v1::RasterHeader* h = chunk_.mutable_header();
-      ToProto(raster_.box, h->mutable_cells());
-      h->set_stride(static_cast<uint32_t>(raster_.stride));
-      h->set_cols(static_cast<uint32_t>(raster_.cols));
-      h->set_rows(static_cast<uint32_t>(raster_.rows));
-      h->set_resolution(raster_.resolution);
-      h->set_x0(raster_.x0);
-      h->set_y1(raster_.y1);
-      for (Layer l : raster_.layers) h->add_layers(ToProto(l));
+      ToProto(raster_, h);
       h->set_map_version(version_);
     }
     const int64_t end = std::min(raster_.rows, next_row_ + rows_per_chunk_);
