@@ -20,18 +20,28 @@ Tile::Tile(const Tile& o) : Tile(o.size_) {
   std::copy_n(o.b_.get(), n(), b_.get());
 }
 
-int Tile::CountKnown() const {
-  int known = 0;
-  for (int i = 0; i < cell_count(); ++i) known += IsKnown(i) ? 1 : 0;
-  return known;
-}
-
-CellBox Tile::KnownLocalBox() const {
-  CellBox box;
-  for (int i = 0; i < cell_count(); ++i) {
-    if (IsKnown(i)) box.Extend({i % size_, i / size_});
+Tile::KnownCells Tile::Known() const {
+  KnownCells out;
+  const double* w = w_.get();
+  const float* a = a_.get();
+  const float* b = b_.get();
+  for (int y = 0; y < size_; ++y) {
+    const int row = y * size_;
+    // Branch-free count first; the row's ends are looked for only in rows that have any.
+    int in_row = 0;
+    for (int x = 0; x < size_; ++x) {
+      const int i = row + x;
+      in_row += static_cast<int>((w[i] > 0.0) | ((a[i] + b[i]) > 0.0f));
+    }
+    if (in_row == 0) continue;
+    out.count += in_row;
+    int first = 0, last = size_ - 1;
+    while (!IsKnown(row + first)) ++first;
+    while (!IsKnown(row + last)) --last;
+    out.local_box.Extend({first, y});
+    out.local_box.Extend({last, y});
   }
-  return box;
+  return out;
 }
 
 void Tile::Add(const Tile& o) {

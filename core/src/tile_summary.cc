@@ -5,9 +5,10 @@ namespace bgkmap {
 TileSummary SummarizeTile(const GridGeometry& geometry, TileKey key, const Tile* tile) {
   TileSummary s;
   if (tile == nullptr) return s;
-  const CellBox local = tile->KnownLocalBox();
+  const Tile::KnownCells known = tile->Known();
+  const CellBox& local = known.local_box;
   if (local.empty()) return s;
-  s.known_cells = static_cast<uint32_t>(tile->CountKnown());
+  s.known_cells = static_cast<uint32_t>(known.count);
   const CellIndex o = geometry.TileOrigin(key);
   s.known_box = {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}};
   return s;

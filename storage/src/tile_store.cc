@@ -22,9 +22,10 @@ std::string EncodeTileInfo(const Tile& tile, uint32_t bytes) {
   std::string out;
   ByteWriter w(&out);
   w.PutVarint(tile.version());
-  w.PutVarint(static_cast<uint64_t>(tile.CountKnown()));
+  const Tile::KnownCells known = tile.Known();
+  w.PutVarint(static_cast<uint64_t>(known.count));
   w.PutVarint(bytes);
-  const CellBox box = tile.KnownLocalBox();
+  const CellBox& box = known.local_box;
   for (int v : {box.min.x, box.min.y, box.max.x, box.max.y}) {
     w.PutVarint(static_cast<uint64_t>(v));
   }
@@ -52,7 +53,8 @@ bool DecodeTileInfo(std::string_view key, std::string_view value, int tile_size,
              {static_cast<int>(v[2]), static_cast<int>(v[3])}};
   }
   const CellIndex o{info->key.x * tile_size, info->key.y * tile_size};
-  info->known_box = {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}};
+  info->known_box = {{o.x + local.min.x, o.y + local.min.y},
+                     {o.x + local.max.x, o.y + local.max.y}};
   return true;
 }
 

@@ -37,9 +37,15 @@ class Tile {
 
   // A cell is known once it has elevation weight or traversability pseudo-counts.
   bool IsKnown(int local) const { return w_[local] > 0.0 || (a_[local] + b_[local]) > 0.0f; }
-  int CountKnown() const;
-  // The known cells' bounding box in tile-local cells (0..tile_size-1); empty if none.
-  CellBox KnownLocalBox() const;
+  // The known cells' count and bounding box in tile-local cells (0..tile_size-1; empty if
+  // none), in one pass: the served map summarises every tile a scan changes.
+  struct KnownCells {
+    int count = 0;
+    CellBox local_box;
+  };
+  KnownCells Known() const;
+  int CountKnown() const { return Known().count; }
+  CellBox KnownLocalBox() const { return Known().local_box; }
   bool Empty() const { return CountKnown() == 0; }
 
   // Adds another tile's statistics cell by cell (same size required).
