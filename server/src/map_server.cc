@@ -235,7 +235,7 @@ void MapServer::Shutdown() {
 }
 
 ServerReport MapServer::Report() const {
-  const ServedMap& map = impl_->map;
+  ServedMap& map = impl_->map;  // (Summary() recounts tiles changed since the last read)
   ServerReport r;
   r.map_version = map.applied_version();
   r.scans_applied = map.scans_applied();

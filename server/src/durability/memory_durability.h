@@ -29,6 +29,7 @@ class MemoryDurability final : public Durability {
   bool IsStored(TileKey) const override { return false; }
   void StoredIn(TileKey, TileKey, std::vector<TileKey>*) const override {}
   void ForEachStored(const std::function<void(TileKey, const TileSummary&)>&) const override {}
+  std::optional<TileSummary> StoredSummary(TileKey) const override { return std::nullopt; }
   Result<std::unique_ptr<Tile>> Load(TileKey) const override { return std::unique_ptr<Tile>(); }
   uint64_t durable_version() const override { return 0; }
 };

@@ -49,6 +49,7 @@ class StoreDurability final : public Durability {
   void ForEachStored(const std::function<void(TileKey, const TileSummary&)>& fn) const override {
     index_.ForEach(fn);
   }
+  std::optional<TileSummary> StoredSummary(TileKey key) const override { return index_.Find(key); }
   Result<std::unique_ptr<Tile>> Load(TileKey key) const override { return store_->LoadTile(key); }
   uint64_t durable_version() const override { return durable_version_.load(); }
 

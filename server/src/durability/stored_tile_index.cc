@@ -28,6 +28,13 @@ bool StoredTileIndex::Contains(TileKey key) const {
   return tiles_.contains(key);
 }
 
+std::optional<TileSummary> StoredTileIndex::Find(TileKey key) const {
+  std::shared_lock lock(mu_);
+  auto it = tiles_.find(key);
+  if (it == tiles_.end()) return std::nullopt;
+  return it->second;
+}
+
 void StoredTileIndex::KeysIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const {
   if (min.x > max.x || min.y > max.y) return;
   std::shared_lock lock(mu_);

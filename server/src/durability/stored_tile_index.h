@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <map>
+#include <optional>
 #include <shared_mutex>
 #include <span>
 #include <vector>
@@ -23,6 +24,7 @@ class StoredTileIndex {
               std::span<const std::unique_ptr<Tile>> tiles);
 
   bool Contains(TileKey key) const;
+  std::optional<TileSummary> Find(TileKey key) const;
   // Appends the keys with min <= key <= max coordinate-wise, in (x, y) order.
   void KeysIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const;
   std::vector<TileKey> Keys() const;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "bgkmap/core/grid.h"
@@ -21,6 +22,8 @@ class TileBacking {
   // Appends the stored keys with min <= key <= max coordinate-wise, in (x, y) order.
   virtual void StoredIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const = 0;
   virtual void ForEachStored(const std::function<void(TileKey, const TileSummary&)>& fn) const = 0;
+  // The stored tile's summary; nullopt if it is not stored.
+  virtual std::optional<TileSummary> StoredSummary(TileKey key) const = 0;
   // The stored tile (null if none); DataLoss for a tile that fails its checksum.
   virtual Result<std::unique_ptr<Tile>> Load(TileKey key) const = 0;
   // Every change up to this version is in the stored tiles: a tile in memory whose version is

@@ -1,5 +1,7 @@
 #include "serving/map_summary.h"
 
+#include <algorithm>
+
 namespace bgkmap {
 namespace {
 
@@ -45,7 +47,25 @@ void MapSummaryIndex::RecomputeBounds() {
   }
 }
 
-MapSummary MapSummaryIndex::Get() const {
+void MapSummaryIndex::MarkStale(std::span<const TileKey> keys) {
+  std::lock_guard lock(mu_);
+  stale_.insert(keys.begin(), keys.end());
+}
+
+MapSummary MapSummaryIndex::Get(const Recount& recount) {
+  std::lock_guard one(recount_mu_);
+  std::vector<TileKey> keys;
+  {
+    std::lock_guard lock(mu_);
+    keys.assign(stale_.begin(), stale_.end());
+    stale_.clear();
+  }
+  if (!keys.empty()) {
+    // A key marked again meanwhile stays stale and is recounted by the next read.
+    std::sort(keys.begin(), keys.end());
+    const std::vector<TileSummary> now = recount(keys);
+    Update(keys, now);
+  }
   std::lock_guard lock(mu_);
   return {tiles_.size(), known_cells_, bounds_};
 }

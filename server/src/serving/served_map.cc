@@ -32,19 +32,20 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
   scheduler_.Restore(durability.recovered_version());
   robots_.Restore(durability.LoggedRobotSequences());
   // The summary starts from the tiles in memory (recovered) and the store's index of the rest.
-  ChangedTiles initial;
+  std::vector<TileKey> keys;
+  std::vector<TileSummary> summaries;
   std::set<TileKey> resident;
   for (const auto& [key, summary] : table_.SummarizeResident()) {
-    initial.keys.push_back(key);
-    initial.summaries.push_back(summary);
+    keys.push_back(key);
+    summaries.push_back(summary);
     resident.insert(key);
   }
   durability.ForEachStored([&](TileKey key, const TileSummary& summary) {
     if (resident.contains(key)) return;
-    initial.keys.push_back(key);
-    initial.summaries.push_back(summary);
+    keys.push_back(key);
+    summaries.push_back(summary);
   });
-  UpdateSummary(initial);
+  summary_.Update(keys, summaries);
 }
 
 ServedMap::~ServedMap() { scheduler_.WaitIdle(); }
@@ -88,9 +89,8 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
     robots_.Withdraw(origin.robot_id, origin.sequence, previous_sequence, scan.counts.kept);
     return {{}, [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
   }
-  ChangedTiles changed;
-  outcome.report = table_.ApplyScan(scan, version, &changed);
-  UpdateSummary(changed);
+  outcome.report = table_.ApplyScan(scan, version);
+  summary_.MarkStale(outcome.report.changed_tiles);
   checkpointer_.MarkChanged(scan.write_tiles);
   scans_applied_.fetch_add(1);
   residency_.SignalIfOverLimit();
@@ -123,11 +123,9 @@ ChangeScheduler::Done ServedMap::RunClear(const CellBox& box, uint64_t version,
     outcome.status = durability_.Record(record);
   }
   if (outcome.status.ok()) {
-    ChangedTiles changed;
-    table_.ClearBox(box, version, &changed);
-    UpdateSummary(changed);
-    checkpointer_.MarkChanged(changed.keys);
-    outcome.changed_tiles = std::move(changed.keys);
+    outcome.changed_tiles = table_.ClearBox(box, version);
+    summary_.MarkStale(outcome.changed_tiles);
+    checkpointer_.MarkChanged(outcome.changed_tiles);
   }
   std::vector<TileKey> tiles = outcome.changed_tiles;
   return {std::move(tiles),
@@ -164,15 +162,14 @@ ChangeScheduler::Done ServedMap::RunImport(std::span<const TileKey> keys,
   std::vector<const Tile*> adding;
   adding.reserve(tiles.size());
   for (const auto& t : tiles) adding.push_back(t.get());
-  ChangedTiles changed;
-  table_.AddTiles(keys, adding, version, &changed);
+  table_.AddTiles(keys, adding, version);
   checkpointer_.MarkChanged(keys);
+  summary_.MarkStale(keys);  // (an undone import recounts to what it was)
   if (Status s = checkpointer_.CheckpointAt(version); !s.ok()) {
-    table_.ReplaceTiles(keys, before, &changed);
+    table_.ReplaceTiles(keys, before);
     outcome.status = Status::IoError("cannot persist it: " + s.message());
     return finish({});
   }
-  UpdateSummary(changed);
   residency_.SignalIfOverLimit();
   return finish(std::vector<TileKey>(keys.begin(), keys.end()));
 }
@@ -254,6 +251,22 @@ Result<TileContent> ServedMap::ReadTile(TileKey key, const std::vector<Layer>& l
   if (!pins.ok()) return pins.status();
   auto [raster, version] = table_.ReadTile(key, layers);
   return TileContent{std::move(raster), version};
+}
+
+MapSummary ServedMap::Summary() {
+  return summary_.Get([this](std::span<const TileKey> keys) {
+    // Under shared tile locks: no change is half applied to a tile being counted. A tile not in
+    // memory is clean (only clean tiles are evicted), so the store's summary of it is current.
+    TileLockTable::Guard locked = table_.LockShared(keys);
+    const std::vector<std::optional<TileSummary>> resident = table_.SummarizeIfResident(keys);
+    std::vector<TileSummary> out;
+    out.reserve(keys.size());
+    for (size_t i = 0; i < keys.size(); ++i) {
+      out.push_back(resident[i] ? *resident[i]
+                                : durability_.StoredSummary(keys[i]).value_or(TileSummary{}));
+    }
+    return out;
+  });
 }
 
 std::vector<TileKey> ServedMap::ListTiles(TileKey min, TileKey max) const {

@@ -7,7 +7,8 @@
 //   - export snapshots and checkpoints run at scheduler barriers through the Checkpointer;
 //   - reads pin and lock what they read, see whole changes only, and never answer from a tile
 //     the store found corrupt (DataLoss naming it);
-//   - counts and bounds are kept incrementally (MapSummaryIndex), so Summary() locks nothing.
+//   - counts and bounds are kept per tile (MapSummaryIndex): a change marks its tiles, and
+//     Summary() recounts only those, never locking or walking the whole map.
 #pragma once
 
 #include <atomic>
@@ -112,7 +113,7 @@ class ServedMap {
   // Keys of the tiles with min <= key <= max, in memory or stored, sorted.
   std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
 
-  MapSummary Summary() const { return summary_.Get(); }
+  MapSummary Summary();
   Durability::ScratchDirectory scratch_directory() const { return durability_.scratch_directory(); }
   // The store's state; nullopt for a map in memory.
   std::optional<StoreStatus> store_status(bool with_disk_usage = false) const {
@@ -148,9 +149,6 @@ class ServedMap {
   // DataLoss naming the first tile of the range (or of `keys`) the store found corrupt.
   Status RefuseCorrupt(TileKey min, TileKey max) const;
   Status RefuseCorrupt(std::span<const TileKey> keys) const;
-  void UpdateSummary(const ChangedTiles& changed) {
-    summary_.Update(changed.keys, changed.summaries);
-  }
 
   Durability& durability_;
   TileTable table_;

@@ -21,15 +21,7 @@ uint64_t TileTable::TileBytes() const {
   return sizeof(Tile) + t * t * Tile::kBytesPerCell;
 }
 
-void TileTable::Summarize(std::span<const TileKey> keys, ChangedTiles* changed) const {
-  changed->keys.assign(keys.begin(), keys.end());
-  changed->summaries.clear();
-  changed->summaries.reserve(keys.size());
-  for (TileKey k : keys)
-    changed->summaries.push_back(SummarizeTile(geometry(), k, map_->FindTile(k)));
-}
-
-ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version, ChangedTiles* changed) {
+ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version) {
   std::shared_lock gate(gate_);
   // Read tiles need no lock: the scheduler runs no writer of them now, and readers only read.
   TileLockTable::Guard tiles = tile_locks_.Lock(scan.write_tiles, {});
@@ -46,27 +38,22 @@ ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version, Chan
   }
   ScanReport report = map_->Integrate(scan, window, version);
   integrations_.fetch_sub(1);
-  {
-    // The write tiles are ours (locked exclusive): summarise them before readers see them.
-    std::shared_lock table(table_mu_);
-    Summarize(report.changed_tiles, changed);
-  }
   return report;
 }
 
-void TileTable::ClearBox(const CellBox& box, uint64_t version, ChangedTiles* changed) {
+std::vector<TileKey> TileTable::ClearBox(const CellBox& box, uint64_t version) {
   std::unique_lock gate(gate_);  // no scan runs, so no tile appears meanwhile
   const GridGeometry& g = geometry();
   const std::vector<TileKey> existing = ListTiles(g.TileOf(box.min), g.TileOf(box.max));
   TileLockTable::Guard tiles = tile_locks_.Lock(existing, {});
   std::unique_lock table(table_mu_);
-  const std::vector<TileKey> keys = map_->ClearBox(box, version, keep_cleared_);
+  std::vector<TileKey> keys = map_->ClearBox(box, version, keep_cleared_);
   NoteTileCount();
-  Summarize(keys, changed);
+  return keys;
 }
 
 void TileTable::AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,
-                         uint64_t version, ChangedTiles* changed) {
+                         uint64_t version) {
   std::unique_lock gate(gate_);
   TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
   std::unique_lock table(table_mu_);
@@ -75,11 +62,10 @@ void TileTable::AddTiles(std::span<const TileKey> keys, std::span<const Tile* co
     map_->FindMutableTile(keys[i])->set_version(version);
   }
   NoteTileCount();
-  Summarize(keys, changed);
 }
 
 void TileTable::ReplaceTiles(std::span<const TileKey> keys,
-                             std::span<const std::unique_ptr<Tile>> tiles, ChangedTiles* changed) {
+                             std::span<const std::unique_ptr<Tile>> tiles) {
   std::unique_lock gate(gate_);
   TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
   std::unique_lock table(table_mu_);
@@ -91,7 +77,6 @@ void TileTable::ReplaceTiles(std::span<const TileKey> keys,
     }
   }
   NoteTileCount();
-  Summarize(keys, changed);
 }
 
 TileLockTable::Guard TileTable::LockShared(std::span<const TileKey> keys) {
@@ -198,6 +183,18 @@ std::vector<std::pair<TileKey, TileSummary>> TileTable::SummarizeResident() cons
   out.reserve(map_->tile_count());
   map_->ForEachTile(
       [&](TileKey k, const Tile& t) { out.emplace_back(k, SummarizeTile(geometry(), k, &t)); });
+  return out;
+}
+
+std::vector<std::optional<TileSummary>> TileTable::SummarizeIfResident(
+    std::span<const TileKey> keys) const {
+  std::vector<std::optional<TileSummary>> out;
+  out.reserve(keys.size());
+  std::shared_lock table(table_mu_);
+  for (TileKey k : keys) {
+    const Tile* t = map_->FindTile(k);
+    out.push_back(t == nullptr ? std::nullopt : std::optional(SummarizeTile(geometry(), k, t)));
+  }
   return out;
 }
 

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <set>
 #include <shared_mutex>
 #include <span>
@@ -32,12 +33,6 @@
 
 namespace bgkmap {
 
-// The tiles a change touched and their summaries after it (same order).
-struct ChangedTiles {
-  std::vector<TileKey> keys;
-  std::vector<TileSummary> summaries;
-};
-
 class TileTable final : public TileCopier {
  public:
   // `keep_cleared`: a tile a clear empties stays (all zero, stamped) until a checkpoint deletes
@@ -52,15 +47,15 @@ class TileTable final : public TileCopier {
 
   // Changes, with their tiles pinned. A scan holds its write tiles exclusively; the others hold
   // the whole map exclusively (call them at a scheduler barrier).
-  ScanReport ApplyScan(const PreparedScan& scan, uint64_t version, ChangedTiles* changed);
-  void ClearBox(const CellBox& box, uint64_t version, ChangedTiles* changed);
+  ScanReport ApplyScan(const PreparedScan& scan, uint64_t version);
+  // Returns the tiles that changed.
+  std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version);
   // Adds each tile's statistics into the map (a merge: sums), stamped with `version`.
-  void AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles, uint64_t version,
-                ChangedTiles* changed);
+  void AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,
+                uint64_t version);
   // Sets the tiles at `keys` to bitwise copies of `tiles` (null: none, so a stored tile is
   // current again): the undo of an AddTiles() with copies taken before it.
-  void ReplaceTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
-                    ChangedTiles* changed);
+  void ReplaceTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles);
 
   // Read locks. A reader holds them while it pins and reads.
   TileLockTable::Guard LockShared(std::span<const TileKey> keys);
@@ -78,6 +73,8 @@ class TileTable final : public TileCopier {
   std::vector<TileKey> NotResident(std::span<const TileKey> keys) const;
   // Summaries of every tile in memory.
   std::vector<std::pair<TileKey, TileSummary>> SummarizeResident() const;
+  // Summaries of the tiles at `keys` (nullopt: not in memory), under the caller's tile locks.
+  std::vector<std::optional<TileSummary>> SummarizeIfResident(std::span<const TileKey> keys) const;
 
   // For TileResidency: inserts loaded tiles not in memory yet (another operation may have
   // loaded, even changed, one meanwhile: that one stays); erases tiles.
@@ -95,7 +92,6 @@ class TileTable final : public TileCopier {
  private:
   // Call with table_mu_ held after the tile table changed size.
   void NoteTileCount() { resident_.store(map_->tile_count()); }
-  void Summarize(std::span<const TileKey> keys, ChangedTiles* changed) const;
 
   std::unique_ptr<TerrainMap> map_;
   const bool keep_cleared_;

@@ -82,6 +82,12 @@ class FakeDurability final : public Durability {
     std::lock_guard lock(mu_);
     for (const auto& [k, t] : stored_) fn(k, SummarizeTile(geometry_, k, t.get()));
   }
+  std::optional<TileSummary> StoredSummary(TileKey key) const override {
+    std::lock_guard lock(mu_);
+    auto it = stored_.find(key);
+    if (it == stored_.end()) return std::nullopt;
+    return SummarizeTile(geometry_, key, it->second.get());
+  }
   Result<std::unique_ptr<Tile>> Load(TileKey key) const override {
     std::lock_guard lock(mu_);
     ++loads;

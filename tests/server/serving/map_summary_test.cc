@@ -37,7 +37,7 @@ void ExpectSummary(const MapSummary& got, const MapSummary& want) {
 class MapSummaryTest : public ServedMapFixture {};
 
 // Mutation checked: not recomputing the bounds after a shrink (MapSummaryIndex::Update) fails
-// the clear step below.
+// the clear step below; so does a scan that does not mark its tiles stale (RunScan).
 TEST_F(MapSummaryTest, FollowsScansClearsAndImportsExactly) {
   ExpectSummary(map_.Summary(), {});
   ASSERT_TRUE(Scan(1, 0, 0).status.ok());
@@ -87,18 +87,48 @@ TEST_F(MapSummaryTest, CountsTilesThatAreOnlyInTheStore) {
 
 TEST(MapSummaryIndexTest, BoundsShrinkOnlyWhenAnEdgeTileShrinks) {
   MapSummaryIndex index;
+  const MapSummaryIndex::Recount none = [](std::span<const TileKey> keys) {
+    EXPECT_TRUE(keys.empty());
+    return std::vector<TileSummary>(keys.size());
+  };
   const TileKey a{0, 0}, b{1, 0};
   const TileSummary sa{4, {{0, 0}, {1, 1}}}, sb{2, {{70, 0}, {71, 0}}};
   const TileKey keys[] = {a, b};
   const TileSummary both[] = {sa, sb};
   index.Update(keys, both);
-  EXPECT_EQ(index.Get().known_cells, 6u);
-  EXPECT_EQ(index.Get().known_bounds, (CellBox{{0, 0}, {71, 1}}));
+  EXPECT_EQ(index.Get(none).known_cells, 6u);
+  EXPECT_EQ(index.Get(none).known_bounds, (CellBox{{0, 0}, {71, 1}}));
   const TileSummary gone[] = {TileSummary{}};
   index.Update(std::span<const TileKey>(&b, 1), gone);
-  EXPECT_EQ(index.Get().tile_count, 1u);
-  EXPECT_EQ(index.Get().known_cells, 4u);
-  EXPECT_EQ(index.Get().known_bounds, (CellBox{{0, 0}, {1, 1}}));
+  EXPECT_EQ(index.Get(none).tile_count, 1u);
+  EXPECT_EQ(index.Get(none).known_cells, 4u);
+  EXPECT_EQ(index.Get(none).known_bounds, (CellBox{{0, 0}, {1, 1}}));
+}
+
+}  // namespace
+}  // namespace bgkmap
+
+namespace bgkmap {
+namespace {
+
+// A tile marked stale is recounted at the next read, and only then.
+TEST(MapSummaryIndexTest, RecountsOnlyStaleTilesAndOnlyWhenRead) {
+  MapSummaryIndex index;
+  std::vector<TileKey> asked;
+  const TileSummary s{3, {{0, 0}, {2, 0}}};
+  const MapSummaryIndex::Recount recount = [&](std::span<const TileKey> keys) {
+    asked.insert(asked.end(), keys.begin(), keys.end());
+    return std::vector<TileSummary>(keys.size(), s);
+  };
+  const TileKey a{0, 0}, b{4, 4};
+  index.MarkStale(std::span<const TileKey>(&a, 1));
+  index.MarkStale(std::span<const TileKey>(&a, 1));
+  index.MarkStale(std::span<const TileKey>(&b, 1));
+  EXPECT_TRUE(asked.empty());
+  EXPECT_EQ(index.Get(recount).known_cells, 6u);
+  EXPECT_EQ(asked, (std::vector<TileKey>{a, b}));
+  EXPECT_EQ(index.Get(recount).tile_count, 2u);
+  EXPECT_EQ(asked.size(), 2u);  // nothing stale: nothing recounted
 }
 
 }  // namespace
