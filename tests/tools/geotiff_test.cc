@@ -97,6 +97,39 @@ TEST(GeoTiffTest, FileFollowsTheGeoTiffContract) {
   GDALClose(GDALDataset::ToHandle(ds));
 }
 
+// A COG: GDAL reports LAYOUT=COG, it has overviews, carries the CRS, and reads back bitwise.
+TEST(GeoTiffTest, CloudOptimizedWithOverviewsAndCrs) {
+  TempDir dir;
+  Raster in = MakeTestRaster(1200, 900);
+  const std::string path = dir.Path("cog.tif");
+  GeoTiffOptions options;
+  options.cloud_optimized = true;
+  options.spatial_reference = "EPSG:32610";
+  ASSERT_TRUE(WriteGeoTiff(in, path, options).ok());
+  GDALDataset* ds = GDALDataset::FromHandle(GDALOpen(path.c_str(), GA_ReadOnly));
+  ASSERT_NE(ds, nullptr);
+  const char* layout = ds->GetMetadataItem("LAYOUT", "IMAGE_STRUCTURE");
+  EXPECT_STREQ(layout, "COG");
+  EXPECT_GT(ds->GetRasterBand(1)->GetOverviewCount(), 0);
+  const OGRSpatialReference* srs = ds->GetSpatialRef();
+  ASSERT_NE(srs, nullptr);
+  EXPECT_STREQ(srs->GetAuthorityCode(nullptr), "32610");
+  GDALClose(ds);
+  Result<Raster> out = ReadGeoTiff(path);
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_EQ(out->box, in.box);
+  EXPECT_EQ(out->layers, in.layers);
+  EXPECT_TRUE(SameData(*out, in));
+  // A plain GeoTIFF is not a COG.
+  ASSERT_TRUE(WriteGeoTiff(in, dir.Path("plain.tif")).ok());
+  ds = GDALDataset::FromHandle(GDALOpen(dir.Path("plain.tif").c_str(), GA_ReadOnly));
+  ASSERT_NE(ds, nullptr);
+  EXPECT_EQ(ds->GetMetadataItem("LAYOUT", "IMAGE_STRUCTURE"), nullptr);
+  GDALClose(ds);
+  options.spatial_reference = "EPSG:not-a-code";
+  EXPECT_EQ(WriteGeoTiff(in, dir.Path("bad.tif"), options).code(), Status::Code::kInvalidArgument);
+}
+
 TEST(GeoTiffTest, ConcurrentWritesAndReads) {
   TempDir dir;
   const Raster in = MakeTestRaster(64, 48);

@@ -36,6 +36,64 @@ TEST(LasReaderTest, ReadsRealHeader) {
   EXPECT_EQ(h->point_count, 73'403u);
   EXPECT_DOUBLE_EQ(h->scale[0], 0.00025);
   EXPECT_DOUBLE_EQ(h->offset[1], 5'270'000.0);
+  // Its one VLR is a GeoKeyDirectory with ProjectedCSTypeGeoKey 2949 (NAD83(CSRS) / MTM zone 7).
+  EXPECT_EQ(h->crs, "EPSG:2949");
+}
+
+// A LAS 1.2 header of 227 bytes followed by `vlrs` and no point.
+std::string LasWithVlrs(const std::string& vlrs, uint32_t vlr_count) {
+  std::string bytes(227, '\0');
+  std::memcpy(bytes.data(), "LASF", 4);
+  bytes[24] = 1;
+  bytes[25] = 2;
+  Put<uint16_t>(bytes, 94, 227);
+  Put<uint32_t>(bytes, 96, static_cast<uint32_t>(227 + vlrs.size()));
+  Put<uint32_t>(bytes, 100, vlr_count);
+  bytes[104] = 0;
+  Put<uint16_t>(bytes, 105, 20);
+  for (int a = 0; a < 3; ++a) Put<double>(bytes, 131 + 8 * a, 0.01);
+  return bytes + vlrs;
+}
+
+std::string Vlr(const std::string& user, uint16_t record, const std::string& data) {
+  std::string v(54, '\0');
+  std::memcpy(v.data() + 2, user.data(), std::min<size_t>(user.size(), 16));
+  Put<uint16_t>(v, 18, record);
+  Put<uint16_t>(v, 20, static_cast<uint16_t>(data.size()));
+  return v + data;
+}
+
+TEST(LasReaderTest, CrsFromWktRecordOrGeoKeysAndNoneFromDamagedRecords) {
+  TempDir dir;
+  const std::string wkt = "PROJCS[\"WGS 84 / UTM zone 10N\",AUTHORITY[\"EPSG\",\"32610\"]]";
+  std::string keys(16, '\0');  // version 1.1.0, one key: GeographicTypeGeoKey = 4326
+  Put<uint16_t>(keys, 0, 1);
+  Put<uint16_t>(keys, 2, 1);
+  Put<uint16_t>(keys, 6, 1);
+  Put<uint16_t>(keys, 8, 2048);
+  Put<uint16_t>(keys, 12, 1);
+  Put<uint16_t>(keys, 14, 4326);
+  struct Case {
+    std::string vlrs;
+    uint32_t count;
+    std::string crs;
+  };
+  const Case cases[] = {
+      {Vlr("LASF_Projection", 2112, wkt + std::string(1, '\0')), 1, wkt},
+      {Vlr("LASF_Projection", 34735, keys), 1, "EPSG:4326"},
+      // The WKT wins over the keys, whatever the order.
+      {Vlr("LASF_Projection", 34735, keys) + Vlr("LASF_Projection", 2112, wkt), 2, wkt},
+      {Vlr("other", 2112, wkt), 1, ""},
+      // A record longer than the space before the points is ignored, not read past.
+      {Vlr("LASF_Projection", 2112, wkt).substr(0, 60), 1, ""},
+  };
+  for (const Case& c : cases) {
+    const std::string path = dir.Path("crs.las");
+    WriteBytes(path, LasWithVlrs(c.vlrs, c.count));
+    Result<LasHeader> h = ReadLasHeader(path);
+    ASSERT_TRUE(h.ok()) << h.status().message();
+    EXPECT_EQ(h->crs, c.crs);
+  }
 }
 
 TEST(LasReaderTest, ReadsRealPointsWithClassesAndPlausibleBounds) {

@@ -13,6 +13,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <vector>
 
 namespace bgkmap::io {
 namespace {
@@ -78,15 +79,88 @@ bool ParseInts(const char* text, int* out, int n) {
 
 }  // namespace
 
+namespace {
+
+// Geotransform, CRS, BGKMAP_* metadata and every band of `raster` into `ds`.
+Status FillDataset(GDALDataset& ds, const Raster& raster, const std::string& path,
+                   const GeoTiffOptions& options) {
+  const auto& [easting, northing, height] = options.origin;
+  double gt[6] = {raster.x0 + easting, raster.resolution, 0.0, raster.y1 + northing, 0.0,
+                  -raster.resolution};
+  if (ds.SetGeoTransform(gt) != CE_None) return GdalError(path, "cannot set geotransform");
+  if (!options.spatial_reference.empty()) {
+    OGRSpatialReference srs;
+    if (srs.SetFromUserInput(options.spatial_reference.c_str()) != OGRERR_NONE) {
+      return Status::InvalidArgument(path + ": unknown spatial reference '" +
+                                     options.spatial_reference + "'");
+    }
+    if (ds.SetSpatialRef(&srs) != CE_None) return GdalError(path, "cannot set spatial reference");
+  }
+  ds.SetMetadataItem("BGKMAP_STRIDE", std::to_string(raster.stride).c_str());
+  ds.SetMetadataItem("BGKMAP_BOX", fmt::format("{} {} {} {}", raster.box.min.x, raster.box.min.y,
+                                               raster.box.max.x, raster.box.max.y)
+                                       .c_str());
+  const int cols = static_cast<int>(raster.cols), rows = static_cast<int>(raster.rows);
+  for (size_t b = 0; b < raster.layers.size(); ++b) {
+    GDALRasterBand* band = ds.GetRasterBand(static_cast<int>(b) + 1);
+    band->SetDescription(std::string(LayerName(raster.layers[b])).c_str());
+    band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
+    // RasterIO takes a non-const buffer even for writes.
+    float* values = const_cast<float*>(raster.data[b].data());
+    std::vector<float> shifted;
+    if (raster.layers[b] == Layer::kElevation && height != 0) {
+      shifted.assign(raster.data[b].begin(), raster.data[b].end());
+      for (float& v : shifted) v = static_cast<float>(v + height);  // NaN stays NaN
+      values = shifted.data();
+    }
+    if (band->RasterIO(GF_Write, 0, 0, cols, rows, values, cols, rows, GDT_Float32, 0, 0) !=
+        CE_None) {
+      return GdalError(path, fmt::format("cannot write band {}", b + 1));
+    }
+  }
+  return Status::Ok();
+}
+
+// Closing flushes the compressed tiles: a failure there is a failed write. GDALClose returns
+// void in GDAL 3.6, so check the error state it leaves.
+Status Close(DatasetPtr& ds, const std::string& path) {
+  CPLErrorReset();
+  ds.reset();
+  if (CPLGetLastErrorType() >= CE_Failure) return GdalError(path, "cannot finish file");
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status WriteGeoTiff(const Raster& raster, const std::string& path, const GeoTiffOptions& options) {
   if (Status s = CheckRaster(raster, path); !s.ok()) return s;
   InitGdal();
   CPLErrorReset();
-  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
-  if (!driver) return GdalError(path, "GDAL has no GTiff driver");
-
   const int cols = static_cast<int>(raster.cols), rows = static_cast<int>(raster.rows);
   const int bands = static_cast<int>(raster.layers.size());
+  if (options.cloud_optimized) {
+    // GDAL's COG driver only copies: fill an in-memory dataset, then write it with overviews.
+    GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
+    GDALDriver* cog = GetGDALDriverManager()->GetDriverByName("COG");
+    if (!mem || !cog) return GdalError(path, "GDAL has no MEM or COG driver");
+    DatasetPtr staged(mem->Create("", cols, rows, bands, GDT_Float32, nullptr));
+    if (!staged) return GdalError(path, "cannot stage the raster in memory");
+    if (Status s = FillDataset(*staged, raster, path, options); !s.ok()) return s;
+    CPLStringList cog_options;
+    cog_options.SetNameValue("COMPRESS", "DEFLATE");
+    cog_options.SetNameValue("PREDICTOR", "YES");
+    // Overviews pick cells rather than average them: state is a class, and averaging unknown
+    // (NaN) with known cells would invent values.
+    cog_options.SetNameValue("OVERVIEWS", "AUTO");
+    cog_options.SetNameValue("RESAMPLING", "NEAREST");
+    cog_options.SetNameValue("BIGTIFF", "IF_SAFER");
+    DatasetPtr ds(
+        cog->CreateCopy(path.c_str(), staged.get(), FALSE, cog_options.List(), nullptr, nullptr));
+    if (!ds) return GdalError(path, "cannot write Cloud-Optimized GeoTIFF");
+    return Close(ds, path);
+  }
+  GDALDriver* driver = GetGDALDriverManager()->GetDriverByName("GTiff");
+  if (!driver) return GdalError(path, "GDAL has no GTiff driver");
   CPLStringList create_options;
   create_options.SetNameValue("COMPRESS", "DEFLATE");
   create_options.SetNameValue("PREDICTOR", "3");  // floating-point predictor
@@ -96,39 +170,8 @@ Status WriteGeoTiff(const Raster& raster, const std::string& path, const GeoTiff
   DatasetPtr ds(
       driver->Create(path.c_str(), cols, rows, bands, GDT_Float32, create_options.List()));
   if (!ds) return GdalError(path, "cannot create GeoTIFF");
-
-  double gt[6] = {raster.x0, raster.resolution, 0.0, raster.y1, 0.0, -raster.resolution};
-  if (ds->SetGeoTransform(gt) != CE_None) return GdalError(path, "cannot set geotransform");
-  if (!options.spatial_reference.empty()) {
-    OGRSpatialReference srs;
-    if (srs.SetFromUserInput(options.spatial_reference.c_str()) != OGRERR_NONE) {
-      return Status::InvalidArgument(path + ": unknown spatial reference '" +
-                                     options.spatial_reference + "'");
-    }
-    if (ds->SetSpatialRef(&srs) != CE_None) return GdalError(path, "cannot set spatial reference");
-  }
-  ds->SetMetadataItem("BGKMAP_STRIDE", std::to_string(raster.stride).c_str());
-  ds->SetMetadataItem("BGKMAP_BOX", fmt::format("{} {} {} {}", raster.box.min.x, raster.box.min.y,
-                                                raster.box.max.x, raster.box.max.y)
-                                        .c_str());
-
-  for (int b = 0; b < bands; ++b) {
-    GDALRasterBand* band = ds->GetRasterBand(b + 1);
-    band->SetDescription(std::string(LayerName(raster.layers[b])).c_str());
-    band->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
-    // RasterIO takes a non-const buffer even for writes.
-    float* values = const_cast<float*>(raster.data[b].data());
-    if (band->RasterIO(GF_Write, 0, 0, cols, rows, values, cols, rows, GDT_Float32, 0, 0) !=
-        CE_None) {
-      return GdalError(path, fmt::format("cannot write band {}", b + 1));
-    }
-  }
-  // Closing flushes the compressed tiles: a failure here is a failed write.
-  // GDALClose returns void in GDAL 3.6, so check the error state it leaves.
-  CPLErrorReset();
-  ds.reset();
-  if (CPLGetLastErrorType() >= CE_Failure) return GdalError(path, "cannot finish file");
-  return Status::Ok();
+  if (Status s = FillDataset(*ds, raster, path, options); !s.ok()) return s;
+  return Close(ds, path);
 }
 
 Result<Raster> ReadGeoTiff(const std::string& path) {

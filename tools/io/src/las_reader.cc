@@ -18,7 +18,7 @@ static_assert(std::endian::native == std::endian::little, "LAS decoding assumes 
 // Header field offsets (ASPRS LAS 1.4 R15, Table 3; identical in 1.0-1.3 up to byte 227).
 constexpr size_t kVersionMajor = 24, kVersionMinor = 25, kHeaderSize = 94, kPointOffset = 96,
                  kPointFormat = 104, kRecordLength = 105, kLegacyCount = 107, kScale = 131,
-                 kOffset = 155, kMaxX = 179, kPointCount14 = 247;
+                 kVlrCount = 100, kOffset = 155, kMaxX = 179, kPointCount14 = 247;
 constexpr size_t kMinHeader = 227, kMinHeader14 = 375;
 
 // Minimum record length of point formats 0-10.
@@ -29,6 +29,42 @@ T Get(const char* bytes, size_t at) {
   T v;
   std::memcpy(&v, bytes + at, sizeof(T));
   return v;
+}
+
+// The CRS of the variable-length records between the header and the points (LAS 1.4 R15,
+// section 2.5 and 2.6): the OGC WKT record (LASF_Projection 2112) wins, else the GeoTIFF keys
+// (34735) ProjectedCSTypeGeoKey (3072), else GeographicTypeGeoKey (2048).
+std::string ReadCrs(std::ifstream& in, const LasHeader& h, uint32_t vlr_count) {
+  constexpr size_t kVlrHeader = 54;
+  std::string wkt, epsg;
+  uint64_t at = h.header_size;
+  for (uint32_t i = 0; i < vlr_count && at + kVlrHeader <= h.point_data_offset; ++i) {
+    char raw[kVlrHeader];
+    in.clear();
+    in.seekg(static_cast<std::streamoff>(at));
+    if (!in.read(raw, sizeof(raw))) break;
+    const std::string user(raw + 2, strnlen(raw + 2, 16));
+    const uint16_t record = Get<uint16_t>(raw, 18), length = Get<uint16_t>(raw, 20);
+    if (at + kVlrHeader + length > h.point_data_offset) break;
+    std::string data(length, '\0');
+    if (!in.read(data.data(), length)) break;
+    at += kVlrHeader + length;
+    if (user != "LASF_Projection") continue;
+    if (record == 2112) {
+      wkt.assign(data.c_str());  // NUL-terminated
+    } else if (record == 34735 && length >= 8) {
+      // Header {version, revision, minor, key count}, then keys {id, location, count, value}.
+      const uint16_t keys = Get<uint16_t>(data.data(), 6);
+      for (uint16_t k = 0; k < keys && 8 + 8 * (k + 1) <= length; ++k) {
+        const char* key = data.data() + 8 + 8 * k;
+        const uint16_t id = Get<uint16_t>(key, 0), location = Get<uint16_t>(key, 2);
+        const uint16_t value = Get<uint16_t>(key, 6);
+        if (location != 0 || value == 0 || value == 32767) continue;  // not an inline code
+        if (id == 3072 || (id == 2048 && epsg.empty())) epsg = "EPSG:" + std::to_string(value);
+      }
+    }
+  }
+  return !wkt.empty() ? wkt : epsg;
 }
 
 }  // namespace
@@ -111,6 +147,7 @@ Result<LasHeader> ReadLasHeader(const std::string& path) {
                     "offset {}, file has {} bytes",
                     path, h.point_count, h.point_record_length, h.point_data_offset, file_size));
   }
+  h.crs = ReadCrs(in, h, Get<uint32_t>(raw, kVlrCount));
   return h;
 }
 

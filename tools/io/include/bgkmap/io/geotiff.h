@@ -7,6 +7,7 @@
 // last error message becomes the Status.
 #pragma once
 
+#include <array>
 #include <string>
 
 #include "bgkmap/core/raster.h"
@@ -18,6 +19,13 @@ struct GeoTiffOptions {
   // Coordinate reference system in any form GDAL's SetFromUserInput accepts ("EPSG:32633",
   // WKT, PROJ). Empty writes none: the map frame is local unless the input was georeferenced.
   std::string spatial_reference;
+  // Cloud-Optimized GeoTIFF (GDAL's COG driver): tiled, DEFLATE, with overviews picked by
+  // nearest neighbour, readable by range requests; gdalinfo reports LAYOUT=COG.
+  bool cloud_optimized = false;
+  // Where the map frame's (0, 0, 0) sits in `spatial_reference`: [easting, northing, height].
+  // Added to the geotransform's origin and to the elevation band (its variance is unchanged).
+  // The BGKMAP_BOX metadata keeps the map-frame cells.
+  std::array<double, 3> origin{0, 0, 0};
 };
 
 // Fails (InvalidArgument) if the raster is empty or its data does not match rows x cols x layers.

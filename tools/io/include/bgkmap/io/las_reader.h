@@ -24,6 +24,10 @@ struct LasHeader {
   std::array<double, 3> offset{};
   std::array<double, 3> min{};  // bounds as stored in the header
   std::array<double, 3> max{};
+  // The coordinate reference system the variable-length records declare: "EPSG:<code>" from a
+  // GeoKeyDirectory (projected, else geographic), or the OGC WKT record's text; empty if none
+  // (or unreadable: the points are usable without it).
+  std::string crs;
 };
 
 struct LasCloud {
