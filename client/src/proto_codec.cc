@@ -164,6 +164,11 @@ MapInfo FromProto(const v1::InfoResponse& r) {
                                s.corrupt_tiles(),  s.memory_limit_bytes(), s.resident_tiles(),
                                s.resident_bytes(), s.tiles_loaded(),       s.tiles_evicted()};
   }
+  if (r.has_georeference()) {
+    const v1::Georeference& g = r.georeference();
+    info.georeference =
+        Georeference{g.crs(), {g.origin_easting(), g.origin_northing(), g.origin_height()}};
+  }
   return info;
 }
 

@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -156,6 +157,36 @@ const std::vector<ServerKey>& StorageKeys() {
   return keys;
 }
 
+const std::vector<ServerKey>& GeoreferenceKeys() {
+  static const std::vector<ServerKey> keys = [] {
+    std::vector<ServerKey> k = {Key<std::string>(
+        "crs", [](ServerConfig & c) -> auto& { return c.georeference.crs; }, "georeference")};
+    ServerKey origin;
+    origin.name = "origin";
+    origin.read = [](const YAML::Node& n, ServerConfig& c) {
+      const std::string key = "georeference.origin";
+      if (!n.IsSequence() || n.size() != 3) {
+        return Status::InvalidArgument(key + ": expected [easting, northing, height]");
+      }
+      std::array<double, 3> v{};
+      for (size_t i = 0; i < 3; ++i) {
+        if (Status s = ReadScalar(n[i], key, &v[i]); !s.ok()) return s;
+      }
+      c.georeference.origin = v;
+      return Status::Ok();
+    };
+    origin.write = [](const ServerConfig& c) {
+      YAML::Node n(YAML::NodeType::Sequence);
+      for (double v : c.georeference.origin) n.push_back(v);
+      n.SetStyle(YAML::EmitterStyle::Flow);
+      return n;
+    };
+    k.push_back(origin);
+    return k;
+  }();
+  return keys;
+}
+
 Status ReadSection(const YAML::Node& section, const std::string& section_name,
                    const std::vector<ServerKey>& keys, ServerConfig& config) {
   if (!section.IsMap()) {
@@ -199,7 +230,8 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
   ServerConfig config = base;
   if (!root || root.IsNull()) return config;
   if (!root.IsMap()) return Status::InvalidArgument("config: the document must be a mapping");
-  Result<MapParams> params = MapParamsFromYaml(root, {"server", "storage"}, base.map);
+  Result<MapParams> params =
+      MapParamsFromYaml(root, {"server", "storage", "georeference"}, base.map);
   if (!params.ok()) return params.status();
   config.map = *params;
   if (root["server"] && !root["server"].IsNull()) {  // "server:" alone means defaults
@@ -207,6 +239,12 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
   }
   if (root["storage"] && !root["storage"].IsNull()) {
     if (Status s = ReadSection(root["storage"], "storage", StorageKeys(), config); !s.ok()) {
+      return s;
+    }
+  }
+  if (root["georeference"] && !root["georeference"].IsNull()) {
+    if (Status s = ReadSection(root["georeference"], "georeference", GeoreferenceKeys(), config);
+        !s.ok()) {
       return s;
     }
   }
@@ -222,6 +260,9 @@ std::string ServerConfigToYaml(const ServerConfig& config) {
   YAML::Node storage(YAML::NodeType::Map);
   for (const ServerKey& k : StorageKeys()) storage[k.name] = k.write(config);
   root["storage"] = storage;
+  YAML::Node georeference(YAML::NodeType::Map);
+  for (const ServerKey& k : GeoreferenceKeys()) georeference[k.name] = k.write(config);
+  root["georeference"] = georeference;
   YAML::Emitter out;
   out << root;
   return std::string(out.c_str()) + "\n";
@@ -242,7 +283,7 @@ Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment) 
   YAML::Node root(YAML::NodeType::Map);
   const size_t dot = key.find('.');
   const std::string section = dot == std::string::npos ? "" : key.substr(0, dot);
-  if (section == "server" || section == "storage") {
+  if (section == "server" || section == "storage" || section == "georeference") {
     root[section][key.substr(dot + 1)] = value;
   } else {
     root[key] = value;
@@ -320,6 +361,14 @@ Status ValidateServerConfig(const ServerConfig& c) {
   }
   if (st.max_memory_mb > (uint64_t{1} << 30)) {
     return bad_storage("max_memory_mb", "must be at most 2^30 (1 PiB)");
+  }
+  const GeoreferenceConfig& geo = c.georeference;
+  for (double v : geo.origin) {
+    if (!std::isfinite(v)) return Status::InvalidArgument("georeference.origin: must be finite");
+  }
+  if (geo.crs.empty() && geo.origin != std::array<double, 3>{0, 0, 0}) {
+    return Status::InvalidArgument(
+        "georeference.origin: needs georeference.crs (the system the origin is given in)");
   }
   return Status::Ok();
 }

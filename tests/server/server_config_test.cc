@@ -120,3 +120,39 @@ TEST(ServerConfigTest, StorageSection) {
 }
 
 }  // namespace bgkmap
+
+namespace bgkmap {
+namespace {
+
+TEST(ServerConfigTest, GeoreferenceSection) {
+  Result<ServerConfig> c = ServerConfigFromYaml(
+      YAML::Load("georeference: {crs: 'EPSG:32610', origin: [551000.5, 4180000.25, 12.5]}\n"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->georeference.crs, "EPSG:32610");
+  EXPECT_EQ(c->georeference.origin, (std::array<double, 3>{551000.5, 4180000.25, 12.5}));
+  auto error = [](const char* text) {
+    Result<ServerConfig> r = ServerConfigFromYaml(YAML::Load(text));
+    return r.ok() ? std::string("ok") : r.status().message();
+  };
+  EXPECT_EQ(error("georeference: {origin: [1, 2, 3]}").rfind("georeference.origin: needs", 0), 0u);
+  EXPECT_EQ(error("georeference: {crs: 'EPSG:4326', origin: [1, 2]}")
+                .rfind("georeference.origin: expected", 0),
+            0u);
+  EXPECT_EQ(error("georeference: {crs: 'EPSG:4326', origin: [1, .nan, 3]}")
+                .rfind("georeference.origin", 0),
+            0u);
+  EXPECT_EQ(error("georeference: {zone: 10}").rfind("georeference.zone: unknown key", 0), 0u);
+  // --set and --print-config round trip.
+  ServerConfig o;
+  ASSERT_TRUE(ApplyConfigOverride(o, "georeference.crs=EPSG:2949").ok());
+  ASSERT_TRUE(ApplyConfigOverride(o, "georeference.origin=[300000, 5270000, 0]").ok());
+  Result<ServerConfig> back = ServerConfigFromYaml(YAML::Load(ServerConfigToYaml(o)));
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->georeference.crs, "EPSG:2949");
+  EXPECT_EQ(back->georeference.origin, (std::array<double, 3>{300000, 5270000, 0}));
+  // No section: a local frame.
+  EXPECT_TRUE(ServerConfigFromYaml(YAML::Load("server: {}\n"))->georeference.crs.empty());
+}
+
+}  // namespace
+}  // namespace bgkmap

@@ -183,6 +183,13 @@ struct StorageInfo {
   uint64_t tiles_evicted = 0;  // since the server started
 };
 
+// Where the map frame sits in a coordinate reference system (server config `georeference`):
+// map point (x, y, z) is origin + (x, y, z) in `crs`.
+struct Georeference {
+  std::string crs;  // "EPSG:<code>", WKT or PROJ
+  std::array<double, 3> origin{};
+};
+
 struct MapInfo {
   MapParams params;
   std::string params_yaml;
@@ -196,6 +203,7 @@ struct MapInfo {
   ServerLimitsInfo limits;
   std::string server_version;
   std::optional<StorageInfo> storage;
+  std::optional<Georeference> georeference;  // absent: the map frame is local
   const RobotInfo* FindRobot(const std::string& id) const;
 };
 

@@ -2,6 +2,7 @@
 // plus a `server:` section. Command-line flags override the file; --print-config shows the result.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -52,6 +53,13 @@ struct StorageConfig {
   bool verify_on_start = true;
 };
 
+// The `georeference:` section: where the robots' local map frame sits in a coordinate reference
+// system, so GeoTIFFs and GIS tools place the map (docs/configuration.md).
+struct GeoreferenceConfig {
+  std::string crs;                           // crs: "EPSG:<code>", WKT or PROJ ("" = local frame)
+  std::array<double, 3> origin = {0, 0, 0};  // origin: [easting, northing, height] of map (0,0,0)
+};
+
 struct ServerConfig {
   MapParams map;
   std::string listen_address = "127.0.0.1:50051";  // listen_address (host:port; port 0 = any)
@@ -67,6 +75,7 @@ struct ServerConfig {
   std::string metrics_address;
   ServerLimits limits;
   StorageConfig storage;
+  GeoreferenceConfig georeference;
 };
 
 // The keys of the `server:` section, in documentation order.

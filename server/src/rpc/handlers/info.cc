@@ -50,6 +50,13 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
   lim->set_max_message_bytes(l.max_message_bytes);
   lim->set_max_inflight_scans_per_stream(l.max_inflight_scans_per_stream);
   response->set_server_version(BGKMAP_VERSION);
+  if (const GeoreferenceConfig& geo = ctx.config.georeference; !geo.crs.empty()) {
+    v1::Georeference* g = response->mutable_georeference();
+    g->set_crs(geo.crs);
+    g->set_origin_easting(geo.origin[0]);
+    g->set_origin_northing(geo.origin[1]);
+    g->set_origin_height(geo.origin[2]);
+  }
   if (const std::optional<StoreStatus> store = ctx.map.store_status()) {
     v1::StorageInfo* st = response->mutable_storage();
     st->set_data_dir(store->directory);
