@@ -21,6 +21,7 @@ const std::string kStreet = std::string(BGKMAP_SHARED_DATA) + "/ouster_os1_128_s
 
 using testing::CliRun;
 using testing::RunCli;
+using testing::RunCommand;
 
 class BuildCommandTest : public ::testing::Test {
  protected:
@@ -133,6 +134,25 @@ TEST_F(BuildCommandTest, MapsTheAirborneLasGroundPointsAsOneCloud) {
                             "/als_topography/topography.las --classes 2 --out " + Path("als.tif"));
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_NE(run.output.find("8159 points"), std::string::npos) << run.output;
+  // The GeoTIFF is in the LAS file's CRS (its GeoKeyDirectory: EPSG:2949), as gdalinfo shows.
+  const CliRun info = RunCommand("gdalinfo " + Path("als.tif") + " 2>&1");
+  EXPECT_NE(info.output.find("ID[\"EPSG\",2949]"), std::string::npos) << info.output;
+  EXPECT_EQ(info.output.find("LAYOUT=COG"), std::string::npos);
+}
+
+TEST_F(BuildCommandTest, CogAndCrsOnRequest) {
+  const CliRun run = RunCli("build " + kStreet + " --cog --crs EPSG:32610 --out " + Path("s.tif"));
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const CliRun info = RunCommand("gdalinfo " + Path("s.tif") + " 2>&1");
+  EXPECT_NE(info.output.find("LAYOUT=COG"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("ID[\"EPSG\",32610]"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("Overviews"), std::string::npos) << info.output;
+  Result<Raster> r = io::ReadGeoTiff(Path("s.tif"));
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_EQ(r->layers.size(), 5u);
+  const CliRun bad = RunCli("build " + kStreet + " --crs EPSG:nonsense --out " + Path("b.tif"));
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("unknown spatial reference"), std::string::npos) << bad.output;
 }
 
 }  // namespace

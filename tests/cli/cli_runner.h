@@ -13,10 +13,8 @@ struct CliRun {
   std::string output;
 };
 
-// `bgkmap <args>`; `streams` is the shell redirection choosing what is captured, e.g. "2>&1"
-// (both), "2>/dev/null" (stdout only) or "2>&1 >/dev/null" (stderr only).
-inline CliRun RunCli(const std::string& args, const std::string& streams = "2>&1") {
-  const std::string cmd = std::string(BGKMAP_CLI) + " " + args + " " + streams;
+// A shell command line (with its own redirections), what it printed and its exit code.
+inline CliRun RunCommand(const std::string& cmd) {
   CliRun run{-1, ""};
   FILE* pipe = popen(cmd.c_str(), "r");
   char buf[4096];
@@ -24,6 +22,12 @@ inline CliRun RunCli(const std::string& args, const std::string& streams = "2>&1
   const int status = pclose(pipe);
   run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return run;
+}
+
+// `bgkmap <args>`; `streams` is the shell redirection choosing what is captured, e.g. "2>&1"
+// (both), "2>/dev/null" (stdout only) or "2>&1 >/dev/null" (stderr only).
+inline CliRun RunCli(const std::string& args, const std::string& streams = "2>&1") {
+  return RunCommand(std::string(BGKMAP_CLI) + " " + args + " " + streams);
 }
 
 }  // namespace bgkmap::testing

@@ -104,14 +104,58 @@ TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
 
 TEST_F(ServerCommandsTest, ErrorsAreOneLineAndNonZero) {
   for (const std::string& args :
-       {std::string("info --server unix:/nonexistent/bgkmapd.sock"), "query --bbox 1,1,0,0 --out x.tif" + S(),
-        "points 1" + S(), "check-path --poses 0,0,0" + S(),
+       {std::string("info --server unix:/nonexistent/bgkmapd.sock"),
+        "query --bbox 1,1,0,0 --out x.tif" + S(), "points 1" + S(),
+        "check-path --poses 0,0,0" + S(),
         "query --bbox -1e6,-1e6,1e6,1e6 --out " + Path("huge.tif") + S()}) {
     const testing::CliRun run = testing::RunCli(args, "2>&1 >/dev/null");
     const std::string& err = run.output;
     EXPECT_NE(run.exit_code, 0) << args;
     EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << args << "\n" << err;
   }
+}
+
+// A server tied to a CRS: `bgkmap query` writes its GeoTIFF in that CRS, shifted by the origin
+// (heights too), while the cells and other bands are the map's own.
+TEST(GeoreferencedQueryTest, QueryWritesTheServersCrsAndOrigin) {
+  const fs::path dir = fs::temp_directory_path() / ("bgkmap_geo_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  testing::BgkmapdProcess server(
+      std::vector<std::string>{"--set", "georeference.crs=EPSG:32610", "--set",
+                               "georeference.origin=[551000, 4180000, 12.5]"});
+  ASSERT_TRUE(server.started());
+  const std::string s = " --server " + server.target();
+  ASSERT_EQ(Cli("insert " + kStreet + " --robot r1" + s).exit_code, 0);
+  const std::string geo = (dir / "geo.tif").string(), local = (dir / "local.tif").string();
+  const std::string box = " --bbox -10,-10,10,10";
+  ASSERT_EQ(Cli("query --cog --out " + geo + box + s).exit_code, 0);
+  // --crs names the map frame's own system: no shift.
+  ASSERT_EQ(Cli("query --crs EPSG:32610 --out " + local + box + s).exit_code, 0);
+  const testing::CliRun info = testing::RunCommand("gdalinfo " + geo + " 2>&1");
+  EXPECT_NE(info.output.find("ID[\"EPSG\",32610]"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("LAYOUT=COG"), std::string::npos) << info.output;
+  Result<Raster> g = io::ReadGeoTiff(geo), l = io::ReadGeoTiff(local);
+  ASSERT_TRUE(g.ok() && l.ok());
+  EXPECT_EQ(g->box, l->box);
+  EXPECT_DOUBLE_EQ(g->x0, l->x0 + 551000);
+  EXPECT_DOUBLE_EQ(g->y1, l->y1 + 4180000);
+  size_t known = 0;
+  for (size_t b = 0; b < l->layers.size(); ++b) {
+    const bool elevation = l->layers[b] == Layer::kElevation;
+    for (size_t i = 0; i < l->data[b].size(); ++i) {
+      const float lv = l->data[b][i], gv = g->data[b][i];
+      if (std::isnan(lv)) {
+        EXPECT_TRUE(std::isnan(gv));
+        continue;
+      }
+      known += elevation;
+      EXPECT_FLOAT_EQ(gv, elevation ? static_cast<float>(lv + 12.5) : lv);
+    }
+  }
+  EXPECT_GT(known, 1000u);
+  server.Signal(SIGTERM);
+  EXPECT_EQ(server.Wait(), 0);
+  fs::remove_all(dir);
 }
 
 }  // namespace

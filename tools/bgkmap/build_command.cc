@@ -25,6 +25,8 @@ struct BuildOptions {
   std::string method;
   std::vector<double> bbox;
   std::vector<int> las_classes;
+  std::string crs;
+  bool cog = false;
 };
 
 // The GeoTIFF band contract shared with `bgkmap query`.
@@ -99,7 +101,10 @@ int RunBuild(const BuildOptions& o) {
                 " cells is too large; pass a smaller --bbox");
   }
   const Raster raster = ExtractRaster(map, box, kBands);
-  if (Status s = io::WriteGeoTiff(raster, o.out); !s.ok()) return Fail(s.message());
+  io::GeoTiffOptions tiff;
+  tiff.spatial_reference = !o.crs.empty() ? o.crs : (*source)->spatial_reference();
+  tiff.cloud_optimized = o.cog;
+  if (Status s = io::WriteGeoTiff(raster, o.out, tiff); !s.ok()) return Fail(s.message());
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(raster, o.png); !s.ok()) return Fail(s.message());
   }
@@ -147,6 +152,10 @@ void RegisterBuildCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--bbox", o->bbox, "xmin,ymin,xmax,ymax in metres (default: the known cells)")
       ->delimiter(',')
       ->expected(4);
+  cmd->add_option("--crs", o->crs,
+                  "Coordinate system of the GeoTIFF (EPSG:code, WKT or PROJ); default: the LAS "
+                  "file's, else none");
+  cmd->add_flag("--cog", o->cog, "Write a Cloud-Optimized GeoTIFF (with overviews)");
   cmd->add_option("--classes", o->las_classes, "LAS: keep only these classes, e.g. 2 for ground")
       ->delimiter(',');
   cmd->callback([o, &exit_code] { exit_code = RunBuild(*o); });

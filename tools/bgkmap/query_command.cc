@@ -15,14 +15,17 @@ struct QueryOptions {
   std::vector<double> bbox;
   std::vector<std::string> layers;
   int stride = 1;
+  std::string crs;
+  bool cog = false;
 };
 
 int RunQuery(const QueryOptions& o) {
   Client client(o.server);
+  // Info gives the known bounds and where the map frame sits (server config `georeference`).
+  RpcResult<MapInfo> info = client.Info();
+  if (!info.ok()) return Fail("query", info.status().ToString());
   MetricBox box;
   if (o.bbox.empty()) {  // default: everything the map knows
-    RpcResult<MapInfo> info = client.Info();
-    if (!info.ok()) return Fail("query", info.status().ToString());
     if (info->known_cells == 0) return Fail("query", "the map is empty");
     box = info->known_bounds;
   } else {
@@ -36,7 +39,15 @@ int RunQuery(const QueryOptions& o) {
   uint64_t version = 0;
   RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride}, &version);
   if (!r.ok()) return Fail("query", r.status().ToString());
-  if (Status s = io::WriteGeoTiff(*r, o.out); !s.ok()) return Fail("query", s.message());
+  io::GeoTiffOptions tiff;
+  tiff.cloud_optimized = o.cog;
+  if (!o.crs.empty()) {
+    tiff.spatial_reference = o.crs;  // the map frame is in this CRS as it is
+  } else if (info->georeference) {
+    tiff.spatial_reference = info->georeference->crs;
+    tiff.origin = info->georeference->origin;
+  }
+  if (Status s = io::WriteGeoTiff(*r, o.out, tiff); !s.ok()) return Fail("query", s.message());
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
   }
@@ -67,6 +78,10 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--layers", o->layers, "Layers (default: the five bands of bgkmap build)")
       ->delimiter(',');
   cmd->add_option("--stride", o->stride, "Map cells per output pixel edge")->capture_default_str();
+  cmd->add_option("--crs", o->crs,
+                  "Coordinate system of the map frame for the GeoTIFF (EPSG:code, WKT or PROJ); "
+                  "default: the server's georeference");
+  cmd->add_flag("--cog", o->cog, "Write a Cloud-Optimized GeoTIFF (with overviews)");
   cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });
 }
 

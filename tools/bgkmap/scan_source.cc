@@ -34,7 +34,8 @@ class KittiSource : public ScanSource {
 // pose translation, so float points keep millimetres even at UTM coordinates.
 class CloudSource : public ScanSource {
  public:
-  CloudSource(std::string path, const std::vector<io::Point3d>& points) : path_(std::move(path)) {
+  CloudSource(std::string path, const std::vector<io::Point3d>& points, std::string crs = {})
+      : path_(std::move(path)), crs_(std::move(crs)) {
     Eigen::Vector3d origin = Eigen::Vector3d::Zero();
     if (!points.empty()) {
       origin = {std::floor(points.front().x), std::floor(points.front().y), 0.0};
@@ -48,9 +49,11 @@ class CloudSource : public ScanSource {
   std::string Describe() const override {
     return "point cloud " + path_ + " (" + std::to_string(scan_.points.size()) + " points)";
   }
+  std::string spatial_reference() const override { return crs_; }
 
  private:
   std::string path_;
+  std::string crs_;
   SourceScan scan_;
 };
 
@@ -96,7 +99,7 @@ Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
     opt.classes = options.las_classes;
     Result<io::LasCloud> cloud = io::ReadLas(path, opt);
     if (!cloud.ok()) return cloud.status();
-    return std::unique_ptr<ScanSource>(new CloudSource(path, cloud->points));
+    return std::unique_ptr<ScanSource>(new CloudSource(path, cloud->points, cloud->header.crs));
   }
   if (ext == ".pcd") {
     Result<io::PcdCloud> cloud = io::ReadPcd(path);

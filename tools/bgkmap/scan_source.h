@@ -28,6 +28,8 @@ class ScanSource {
   virtual size_t size() const = 0;
   virtual Result<SourceScan> Read(size_t k) const = 0;
   virtual std::string Describe() const = 0;
+  // The coordinate reference system the input declares (a LAS file's), or empty.
+  virtual std::string spatial_reference() const { return {}; }
 };
 
 // Picks the reader from the path: a directory is KITTI-like, *.graph an OctoMap scan graph (one
