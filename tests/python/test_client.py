@@ -177,6 +177,12 @@ def test_points_equal_the_region_at_pixel_centres(client):
         assert_same(values[name][:300], region[name][rows[pick], cols[pick]])
     far = values[300]
     assert np.isnan(far["elevation"]) and far["state"] == 0  # unknown
+    # Points on cell edges (whole decimetres) fall in the pixel region.index names.
+    edges = np.array([[10.0, 0.0], [-3.5, 2.0], [7.0, -1.2], [0.3, 0.7], [-8.0, -2.0]])
+    r, c = region.index(edges[:, 0], edges[:, 1])
+    on_edges = client.points(edges, layers=LAYERS)
+    for name in LAYERS:
+        assert_same(on_edges[name], region[name][r, c])
     # One point as a pair; every layer when none are named.
     one = client.points((x[0], y[0]))
     assert one.shape == (1,) and one.dtype.names == ("x", "y", *bgkmap.LAYERS)

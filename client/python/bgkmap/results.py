@@ -99,12 +99,13 @@ class Region(Mapping):
         return (self.x0 + (col + 0.5) * self.resolution, self.y1 - (row + 0.5) * self.resolution)
 
     def index(self, x, y):
-        """(row, col) of the pixels holding map points (may lie outside the raster)."""
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        col = np.floor((x - self.x0) / self.resolution).astype(np.int64)
-        row = np.floor((self.y1 - y) / self.resolution).astype(np.int64)
-        return row, col
+        """(row, col) of the pixels holding map points (may lie outside the raster). A point on a
+        cell edge belongs to the cell above it, as in the server (cell i covers
+        [i * res, (i + 1) * res)), so region[layer][index(x, y)] is what points() answers."""
+        cell = self.resolution / self.stride  # the map's resolution
+        cx = np.floor(np.asarray(x, dtype=np.float64) / cell).astype(np.int64)
+        cy = np.floor(np.asarray(y, dtype=np.float64) / cell).astype(np.int64)
+        return (self.cells[3] - cy) // self.stride, (cx - self.cells[0]) // self.stride
 
     def to_xarray(self):
         """The region as an xarray.Dataset with x and y coordinates of pixel centres (needs Debian's
