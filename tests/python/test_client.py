@@ -80,6 +80,13 @@ def test_insert_acks_and_duplicates(fresh_server, street):
         with_nan[:10, 0] = np.nan
         ack = client.insert(with_nan, pose, robot="r1", seq=6)
         assert ack.status == "applied" and ack.counts["dropped_nonfinite"] == 10
+        assert client.wait_for_ready(10)
+        # Clear forgets a box: its cells become unknown, the rest stays.
+        assert client.points([(10.0, 0.0), (5.0, -3.0)], layers=["state"])["state"].all()
+        cleared = client.clear((9, -1, 11, 1))
+        assert cleared["map_version"] == 3 and (1, -1) in cleared["changed_tiles"]
+        state = client.points([(10.0, 0.0), (5.0, -3.0)], layers=["state"])["state"]
+        assert state[0] == 0 and state[1] != 0
 
 
 def test_insert_stream_acks_in_order_and_goes_on_after_a_rejected_scan(fresh_server, street):

@@ -2,7 +2,7 @@
 """A small path planner on a bgkmap server: query traversability around start and goal, run A* on
 it, then ask the server whether the robot's footprint is safe along the path.
 
-    PYTHONPATH=build/python python3 client/python/examples/astar_planner.py \\
+    PYTHONPATH=build/python /usr/bin/python3 client/python/examples/astar_planner.py \\
         --server 127.0.0.1:50051 --start -8 -2 --goal 8 2 --radius 0.3
 
 Prints the plan as JSON (metres) and exits 0 when a safe path was found, 1 when there is none
