@@ -14,6 +14,7 @@ PACKAGES=(
   librocksdb-dev
   liboctomap-dev
   gnuplot-nox
+  python3-grpcio python3-protobuf python3-numpy python3-pytest
 )
 
 missing=()

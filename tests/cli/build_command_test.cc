@@ -110,19 +110,20 @@ TEST_F(BuildCommandTest, BadInputsFailWithOneClearLine) {
   std::ofstream(Path("seq/poses.txt")) << "1 0 0 0 0 1 0 0 0 0 1 0\n";
   struct Case {
     std::string args, must_mention;
+    int exit_code;  // 1: failure (files, configuration), 2: a bad command line
   };
   const std::vector<Case> cases = {
-      {"build /nonexistent --out x.tif", "/nonexistent"},
-      {"build " + kStreet + " --config " + Path("bad.yaml") + " --out x.tif", "resolution"},
-      {"build " + kStreet + " --config " + Path("typo.yaml") + " --out x.tif", "kernel_lenght"},
-      {"build " + kStreet + " --method fancy --out x.tif", "method"},
-      {"build " + kStreet + " --bbox 5,5,1,1 --out x.tif", "--bbox"},
-      {"build " + Path("seq") + " --out " + Path("x.tif"), "000000.bin"},
-      {"build " + kStreet + " --out /nonexistent/dir/x.tif", "/nonexistent/dir/x.tif"},
+      {"build /nonexistent --out x.tif", "/nonexistent", 1},
+      {"build " + kStreet + " --config " + Path("bad.yaml") + " --out x.tif", "resolution", 1},
+      {"build " + kStreet + " --config " + Path("typo.yaml") + " --out x.tif", "kernel_lenght", 1},
+      {"build " + kStreet + " --method fancy --out x.tif", "method", 2},
+      {"build " + kStreet + " --bbox 5,5,1,1 --out x.tif", "--bbox", 2},
+      {"build " + Path("seq") + " --out " + Path("x.tif"), "000000.bin", 1},
+      {"build " + kStreet + " --out /nonexistent/dir/x.tif", "/nonexistent/dir/x.tif", 1},
   };
   for (const Case& c : cases) {
     const CliRun run = RunCli(c.args);
-    EXPECT_NE(run.exit_code, 0) << c.args;
+    EXPECT_EQ(run.exit_code, c.exit_code) << c.args;
     EXPECT_NE(run.output.find(c.must_mention), std::string::npos) << c.args << "\n" << run.output;
     // One line: the error, not a stack of GDAL chatter or a usage dump.
     EXPECT_LE(std::count(run.output.begin(), run.output.end(), '\n'), 4) << run.output;

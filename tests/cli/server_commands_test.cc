@@ -85,9 +85,9 @@ TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
   EXPECT_TRUE(pts["points"][1]["elevation"].is_null());  // far outside: unknown
   EXPECT_EQ(pts["points"][1]["state"], 0.0);
 
-  // A path into unknown space is unsafe (exit 2), with the first unsafe pose named.
+  // A path into unknown space is unsafe (exit 1), with the first unsafe pose named.
   testing::CliRun run = Cli("check-path --poses 10,0,0,0,500,0 --radius 0.3" + S());
-  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_EQ(run.exit_code, 1) << run.output;
   const nlohmann::json path = nlohmann::json::parse(run.output);
   EXPECT_EQ(path["safe"], false);
   EXPECT_EQ(path["poses"][1]["unknown_fraction"], 1.0);
@@ -96,7 +96,7 @@ TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
   ASSERT_EQ(run.exit_code, 0);
   EXPECT_EQ(std::count(run.output.begin(), run.output.end(), '\n'), 2) << run.output;
 
-  EXPECT_EQ(Cli("clear --bbox 9,-1,11,1" + S()).exit_code, 1);  // needs --yes
+  EXPECT_EQ(Cli("clear --bbox 9,-1,11,1" + S()).exit_code, 2);  // needs --yes: a usage error
   ASSERT_EQ(Cli("clear --bbox 9,-1,11,1 --yes" + S()).exit_code, 0);
   pts = nlohmann::json::parse(Cli("points 10,0" + S()).output);
   EXPECT_EQ(pts["points"][0]["state"], 0.0);

@@ -17,7 +17,7 @@ int RunExport(const ExportOptions& o) {
   std::optional<MetricBox> box;
   if (!o.bbox.empty()) {
     Result<MetricBox> b = ParseBox(o.bbox, "--bbox");
-    if (!b.ok()) return Fail("export", b.status().message());
+    if (!b.ok()) return Usage("export", b.status().message());
     box = *b;
   }
   Client client(o.server);

@@ -36,7 +36,13 @@ const std::vector<Layer> kBands = {Layer::kElevation, Layer::kElevationVariance,
 
 int Fail(const std::string& msg) {
   std::fprintf(stderr, "bgkmap build: %s\n", msg.c_str());
-  return 1;
+  return kExitFailure;
+}
+
+// A bad command line: the same line, exit code kExitUsage.
+int Usage(const std::string& msg) {
+  Fail(msg);
+  return kExitUsage;
 }
 
 int RunBuild(const BuildOptions& o) {
@@ -46,12 +52,12 @@ int RunBuild(const BuildOptions& o) {
   MapParams params = *loaded;
   if (!o.method.empty()) {
     Result<Method> m = ParseMethod(o.method);
-    if (!m.ok()) return Fail(m.status().message());
+    if (!m.ok()) return Usage(m.status().message());
     params.method = *m;
   }
   if (!o.bbox.empty() &&
       (o.bbox.size() != 4 || !(o.bbox[0] < o.bbox[2]) || !(o.bbox[1] < o.bbox[3]))) {
-    return Fail("--bbox: expected xmin,ymin,xmax,ymax with xmin < xmax and ymin < ymax");
+    return Usage("--bbox: expected xmin,ymin,xmax,ymax with xmin < xmax and ymin < ymax");
   }
   Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params);
   if (!created.ok()) return Fail(created.status().message());
@@ -59,7 +65,8 @@ int RunBuild(const BuildOptions& o) {
 
   SourceOptions source_options;
   for (int c : o.las_classes) {
-    if (c < 0 || c > 255) return Fail("--classes: a LAS class is 0..255, got " + std::to_string(c));
+    if (c < 0 || c > 255)
+      return Usage("--classes: a LAS class is 0..255, got " + std::to_string(c));
     source_options.las_classes.push_back(static_cast<uint8_t>(c));
   }
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, source_options);

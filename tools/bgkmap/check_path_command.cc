@@ -1,5 +1,5 @@
 // `bgkmap check-path`: is a path safe for a robot of this footprint? JSON per pose; exit code 0
-// when safe, 2 when not (so scripts can branch on it), 1 on error.
+// when safe, 1 when not, 2 on any error (like grep and diff, so scripts can branch on it).
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
@@ -18,15 +18,21 @@ struct CheckPathOptions {
   double max_trav = -1, max_var = -1, max_unknown = -1;
 };
 
+// Any error of check-path, usage or failure, exits kExitCheckError (2); 1 means unsafe.
+int Error(const std::string& message) {
+  Fail("check-path", message);
+  return kExitCheckError;
+}
+
 int RunCheckPath(const CheckPathOptions& o) {
   if (o.poses.empty() || o.poses.size() % 3 != 0) {
-    return Fail("check-path", "--poses: expected x,y,yaw triples");
+    return Error("--poses: expected x,y,yaw triples");
   }
   if (!o.polygon.empty() && o.polygon.size() % 2 != 0) {
-    return Fail("check-path", "--polygon: expected x,y pairs");
+    return Error("--polygon: expected x,y pairs");
   }
   if (o.polygon.empty() && !(o.radius > 0)) {
-    return Fail("check-path", "give a footprint: --radius R or --polygon x,y,...");
+    return Error("give a footprint: --radius R or --polygon x,y,...");
   }
   PathQuery q;
   for (size_t i = 0; i < o.poses.size(); i += 3) {
@@ -40,7 +46,7 @@ int RunCheckPath(const CheckPathOptions& o) {
   if (o.max_unknown >= 0) q.max_unknown_fraction = o.max_unknown;
   Client client(o.server);
   RpcResult<PathCheck> r = client.CheckPath(q);
-  if (!r.ok()) return Fail("check-path", r.status().ToString());
+  if (!r.ok()) return Error(r.status().ToString());
   nlohmann::json out = {{"safe", r->safe},
                         {"first_unsafe_index", r->first_unsafe_index},
                         {"map_version", r->map_version},
@@ -58,7 +64,7 @@ int RunCheckPath(const CheckPathOptions& o) {
          {"safe", c.safe}});
   }
   std::printf("%s\n", out.dump(2).c_str());
-  return r->safe ? 0 : 2;
+  return r->safe ? kExitOk : kExitUnsafe;
 }
 
 }  // namespace
@@ -66,7 +72,7 @@ int RunCheckPath(const CheckPathOptions& o) {
 void RegisterCheckPathCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<CheckPathOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "check-path", "Check a path against the map (JSON; exit 0 safe, 2 unsafe, 1 error)");
+      "check-path", "Check a path against the map (JSON; exit 0 safe, 1 unsafe, 2 error)");
   AddServerOption(cmd, o->server);
   cmd->add_option("--poses", o->poses, "x,y,yaw,x,y,yaw,... (metres, radians)")
       ->delimiter(',')

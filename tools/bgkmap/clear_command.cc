@@ -15,8 +15,8 @@ struct ClearOptions {
 
 int RunClear(const ClearOptions& o) {
   Result<MetricBox> box = ParseBox(o.bbox, "--bbox");
-  if (!box.ok()) return Fail("clear", box.status().message());
-  if (!o.yes) return Fail("clear", "this erases map data; pass --yes to confirm");
+  if (!box.ok()) return Usage("clear", box.status().message());
+  if (!o.yes) return Usage("clear", "this erases map data; pass --yes to confirm");
   Client client(o.server);
   RpcResult<ClearResult> r = client.ClearRegion(*box);
   if (!r.ok()) return Fail("clear", r.status().ToString());

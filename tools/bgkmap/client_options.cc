@@ -3,11 +3,15 @@
 #include <cmath>
 #include <cstdio>
 
+#include "commands.h"
+
 namespace bgkmap::cli {
 
 void AddServerOption(CLI::App* cmd, std::string& server) {
   server = kDefaultServer;
-  cmd->add_option("--server", server, "bgkmapd address host:port")->capture_default_str();
+  cmd->add_option("--server", server, "bgkmapd address host:port")
+      ->envname("BGKMAP_SERVER")
+      ->capture_default_str();
 }
 
 Result<MetricBox> ParseBox(const std::vector<double>& v, const std::string& option) {
@@ -35,7 +39,12 @@ Result<std::vector<Layer>> ParseLayers(const std::vector<std::string>& names,
 
 int Fail(const std::string& command, const std::string& message) {
   std::fprintf(stderr, "bgkmap %s: %s\n", command.c_str(), message.c_str());
-  return 1;
+  return kExitFailure;
+}
+
+int Usage(const std::string& command, const std::string& message) {
+  Fail(command, message);
+  return kExitUsage;
 }
 
 const std::vector<Layer>& GeoTiffBands() {

@@ -13,7 +13,7 @@ namespace bgkmap::cli {
 
 inline constexpr const char* kDefaultServer = "127.0.0.1:50051";
 
-// Adds --server (host:port of bgkmapd) to `cmd`.
+// Adds --server (host:port of bgkmapd) to `cmd`; default $BGKMAP_SERVER, else kDefaultServer.
 void AddServerOption(CLI::App* cmd, std::string& server);
 
 // "xmin,ymin,xmax,ymax" already split by CLI11 into 4 numbers.
@@ -23,8 +23,10 @@ Result<MetricBox> ParseBox(const std::vector<double>& v, const std::string& opti
 Result<std::vector<Layer>> ParseLayers(const std::vector<std::string>& names,
                                        const std::vector<Layer>& fallback);
 
-// Prints "bgkmap <command>: <message>" to stderr; returns the exit code 1.
+// Prints "bgkmap <command>: <message>" to stderr; returns kExitFailure (1).
 int Fail(const std::string& command, const std::string& message);
+// The same for a bad command line; returns kExitUsage (2).
+int Usage(const std::string& command, const std::string& message);
 
 // The GeoTIFF band contract shared by `bgkmap build` and `bgkmap query`.
 const std::vector<Layer>& GeoTiffBands();

@@ -1,10 +1,18 @@
 // The `bgkmap` subcommands. Each Register* adds one subcommand to the app; the subcommand's
-// callback sets `exit_code` (0 on success; on failure it has printed one line to stderr).
+// callback sets `exit_code` (below; on failure it has printed one line to stderr).
 #pragma once
 
 #include <CLI/CLI.hpp>
 
 namespace bgkmap::cli {
+
+// Exit codes, the same for every subcommand (README, "Exit codes").
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;  // the command ran and failed: server error, I/O, ...
+inline constexpr int kExitUsage = 2;    // a bad command line, found by CLI11 or by the command
+// `check-path`, like grep and diff: 0 safe, 1 unsafe, 2 error (usage or failure).
+inline constexpr int kExitUnsafe = 1;
+inline constexpr int kExitCheckError = 2;
 
 void RegisterBuildCommand(CLI::App& app, int& exit_code);
 void RegisterSimulateCommand(CLI::App& app, int& exit_code);

@@ -35,7 +35,13 @@ struct EvalOptions {
 
 int Fail(const std::string& msg) {
   std::fprintf(stderr, "bgkmap eval: %s\n", msg.c_str());
-  return 1;
+  return kExitFailure;
+}
+
+// A bad command line: the same line, exit code kExitUsage.
+int Usage(const std::string& msg) {
+  Fail(msg);
+  return kExitUsage;
 }
 
 struct Run {
@@ -83,11 +89,11 @@ int RunEval(const EvalOptions& o) {
   Result<MapParams> loaded = LoadMapParamsFileOrDefaults(o.config);
   if (!loaded.ok()) return Fail(loaded.status().message());
   MapParams params = *loaded;
-  if (!(o.rate_hz > 0)) return Fail("--rate must be > 0");
+  if (!(o.rate_hz > 0)) return Usage("--rate must be > 0");
   std::vector<Method> methods;
   for (const std::string& name : o.methods) {
     Result<Method> m = ParseMethod(name);
-    if (!m.ok()) return Fail(m.status().message());
+    if (!m.ok()) return Usage(m.status().message());
     methods.push_back(*m);
   }
   Result<Raster> truth = io::ReadGeoTiff(o.truth);

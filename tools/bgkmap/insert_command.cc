@@ -20,7 +20,7 @@ struct InsertOptions {
 };
 
 int RunInsert(const InsertOptions& o) {
-  if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Fail("insert", "--rate must be >= 0");
+  if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input);
   if (!source.ok()) return Fail("insert", source.status().message());
   Client client(o.server);

@@ -1,12 +1,16 @@
-// `bgkmap`: the command-line tool. One binary, one subcommand per job.
+// `bgkmap`: the command-line tool. One binary, one subcommand per job. Exit codes are the same
+// for every subcommand (commands.h): 0 success, 1 failure, 2 usage error; check-path 0 safe,
+// 1 unsafe, 2 error.
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <string>
 
 #include "commands.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"bgkmap: BGK terrain traversability maps for ground robots"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("bgkmap ") + BGKMAP_VERSION);
   int exit_code = 0;
   bgkmap::cli::RegisterBuildCommand(app, exit_code);
   bgkmap::cli::RegisterSimulateCommand(app, exit_code);
@@ -24,7 +28,8 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help and --version exit 0; every other parse error is a usage error.
+    return app.exit(e) == 0 ? bgkmap::cli::kExitOk : bgkmap::cli::kExitUsage;
   }
   return exit_code;
 }

@@ -17,12 +17,12 @@ struct PointsOptions {
 
 int RunPoints(const PointsOptions& o) {
   if (o.xy.empty() || o.xy.size() % 2 != 0) {
-    return Fail("points", "expected x,y pairs, e.g. `bgkmap points 1.5,2 -3,4`");
+    return Usage("points", "expected x,y pairs, e.g. `bgkmap points 1.5,2 -3,4`");
   }
   std::vector<std::array<double, 2>> pts;
   for (size_t i = 0; i < o.xy.size(); i += 2) pts.push_back({o.xy[i], o.xy[i + 1]});
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
-  if (!layers.ok()) return Fail("points", layers.status().message());
+  if (!layers.ok()) return Usage("points", layers.status().message());
   Client client(o.server);
   RpcResult<PointValues> r = client.QueryPoints(pts, *layers);
   if (!r.ok()) return Fail("points", r.status().ToString());

@@ -20,6 +20,10 @@ struct QueryOptions {
 };
 
 int RunQuery(const QueryOptions& o) {
+  // The command line first: a usage error is one whatever the server says.
+  Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
+  if (!layers.ok()) return Usage("query", layers.status().message());
+  if (o.stride < 1) return Usage("query", "--stride must be >= 1");
   Client client(o.server);
   // Info gives the known bounds and where the map frame sits (server config `georeference`).
   RpcResult<MapInfo> info = client.Info();
@@ -30,12 +34,9 @@ int RunQuery(const QueryOptions& o) {
     box = info->known_bounds;
   } else {
     Result<MetricBox> b = ParseBox(o.bbox, "--bbox");
-    if (!b.ok()) return Fail("query", b.status().message());
+    if (!b.ok()) return Usage("query", b.status().message());
     box = *b;
   }
-  Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
-  if (!layers.ok()) return Fail("query", layers.status().message());
-  if (o.stride < 1) return Fail("query", "--stride must be >= 1");
   uint64_t version = 0;
   RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride}, &version);
   if (!r.ok()) return Fail("query", r.status().ToString());

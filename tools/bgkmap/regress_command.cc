@@ -43,7 +43,13 @@ struct RegressOptions {
 
 int Fail(const std::string& msg) {
   std::fprintf(stderr, "bgkmap regress: %s\n", msg.c_str());
-  return 1;
+  return kExitFailure;
+}
+
+// A bad command line: the same line, exit code kExitUsage.
+int Usage(const std::string& msg) {
+  Fail(msg);
+  return kExitUsage;
 }
 
 double Seconds(Clock::time_point t0) {
@@ -170,19 +176,19 @@ struct Row {
 
 int RunRegress(const RegressOptions& o) {
   namespace fs = std::filesystem;
-  if (o.folds < 2) return Fail("--folds must be at least 2");
+  if (o.folds < 2) return Usage("--folds must be at least 2");
   if (o.resolutions.empty() || o.kernel_lengths.empty())
-    return Fail("--resolutions and --kernel-lengths need at least one value");
+    return Usage("--resolutions and --kernel-lengths need at least one value");
   for (double v : o.resolutions) {
-    if (!(v > 0)) return Fail("--resolutions: every value must be > 0");
+    if (!(v > 0)) return Usage("--resolutions: every value must be > 0");
   }
   for (const std::string& peer : o.peers) {
     if (peer != "invdist" && peer != "invdistnn" && peer != "linear" && peer != "none")
-      return Fail("--peers: unknown gdal_grid method '" + peer + "' (invdist, invdistnn, linear)");
+      return Usage("--peers: unknown gdal_grid method '" + peer + "' (invdist, invdistnn, linear)");
   }
   SourceOptions so;
   for (int c : o.classes) {
-    if (c < 0 || c > 255) return Fail("--classes: a LAS class is 0..255");
+    if (c < 0 || c > 255) return Usage("--classes: a LAS class is 0..255");
     so.las_classes.push_back(static_cast<uint8_t>(c));
   }
   Result<std::vector<P3>> read = ReadMapFramePoints(o.input, so);

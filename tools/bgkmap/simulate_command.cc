@@ -39,7 +39,13 @@ struct SimulateOptions {
 
 int Fail(const std::string& msg) {
   std::fprintf(stderr, "bgkmap simulate: %s\n", msg.c_str());
-  return 1;
+  return kExitFailure;
+}
+
+// A bad command line: the same line, exit code kExitUsage.
+int Usage(const std::string& msg) {
+  Fail(msg);
+  return kExitUsage;
 }
 
 // Runs fn(k) for k in [0, n) on `threads` workers; fn gets the worker index too.
@@ -64,16 +70,16 @@ int RunSimulate(const SimulateOptions& o) {
   Result<MapParams> loaded = LoadMapParamsFileOrDefaults(o.config);
   if (!loaded.ok()) return Fail(loaded.status().message());
   MapParams params = *loaded;
-  if (o.threads < 1) return Fail("--threads must be at least 1");
+  if (o.threads < 1) return Usage("--threads must be at least 1");
 
   sim::Scenario scenario;
   double origin_x = 0, origin_y = 0;  // world frame = georeferenced frame minus this
   if (o.world == "city") {
-    if (!(o.length > 0)) return Fail("--length must be > 0");
+    if (!(o.length > 0)) return Usage("--length must be > 0");
     scenario = sim::MakeCityScenario(o.length, 1.0, o.truth_spacing > 0 ? o.truth_spacing : 0.1);
   } else if (o.world == "aerial") {
-    if (o.dem.empty()) return Fail("aerial needs --dem (an ESRI ASCII grid)");
-    if (o.grid < 2) return Fail("--grid must be at least 2");
+    if (o.dem.empty()) return Usage("aerial needs --dem (an ESRI ASCII grid)");
+    if (o.grid < 2) return Usage("--grid must be at least 2");
     Result<io::EsriAsciiGrid> dem = io::ReadEsriAsciiGrid(o.dem);
     if (!dem.ok()) return Fail(dem.status().message());
     origin_x = dem->x0;
@@ -82,7 +88,7 @@ int RunSimulate(const SimulateOptions& o) {
     scenario = sim::MakeAerialScenario(std::move(grid), o.grid, 10.0,
                                        o.truth_spacing > 0 ? o.truth_spacing : 2.5);
   } else {
-    return Fail("unknown world '" + o.world + "' (expected city or aerial)");
+    return Usage("unknown world '" + o.world + "' (expected city or aerial)");
   }
 
   std::error_code ec;

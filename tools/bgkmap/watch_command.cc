@@ -25,7 +25,7 @@ struct WatchOptions {
 
 int RunWatch(const WatchOptions& o) {
   Result<MetricBox> box = ParseBox(o.bbox, "--bbox");
-  if (!box.ok()) return Fail("watch", box.status().message());
+  if (!box.ok()) return Usage("watch", box.status().message());
   Client client(o.server);
   std::mutex mu;
   std::condition_variable cv;

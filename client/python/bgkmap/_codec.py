@@ -1,0 +1,350 @@
+"""numpy <-> bgkmap.v1 messages, the same mapping as the C++ client (client/src/proto_codec.cc and
+proto/codec/): packed little-endian float32 layers, rows north to south, NaN = unknown."""
+
+from __future__ import annotations
+
+import datetime
+import math
+import time
+from typing import Iterable, Optional, Sequence
+
+import numpy as np
+
+from bgkmap.errors import invalid_argument, malformed, status_code
+from bgkmap.results import PathCheck, Region, ScanAck, TileUpdate
+from bgkmap.v1 import admin_pb2, ingest_pb2, query_pb2, types_pb2
+
+_LAYER_PREFIX = "LAYER_"
+
+# Layer names, in the API's numbering ("elevation", ..., "elevation_weight").
+LAYERS = tuple(
+    v.name[len(_LAYER_PREFIX):].lower()
+    for v in sorted(types_pb2.Layer.DESCRIPTOR.values, key=lambda v: v.number)
+    if v.number != 0)
+
+
+def _ack_status(value: int) -> str:
+    """AckStatus -> "applied", "duplicate" or "rejected" (by the value's name's last word)."""
+    try:
+        name = ingest_pb2.AckStatus.Name(value)
+    except ValueError:
+        return "rejected"
+    for status in ("applied", "duplicate"):
+        if name.endswith("_" + status.upper()):
+            return status
+    return "rejected"
+
+
+_F32 = np.dtype("<f4")
+
+# How far a pose's 3x3 block may be from orthonormal (max |R^T R - I|).
+ROTATION_TOLERANCE = 1e-3
+
+
+def layer_number(layer) -> int:
+    """A layer name ("traversability") or API number (3) -> the API number."""
+    if isinstance(layer, str):
+        try:
+            return types_pb2.Layer.Value(_LAYER_PREFIX + layer.upper())
+        except ValueError:
+            raise invalid_argument(
+                f"layer '{layer}': must be one of {', '.join(LAYERS)}") from None
+    if isinstance(layer, (int, np.integer)) and not isinstance(layer, bool):
+        return int(layer)
+    raise invalid_argument(f"layer {layer!r}: expected a layer name such as 'traversability'")
+
+
+def layer_name(number: int) -> str:
+    try:
+        return types_pb2.Layer.Name(number)[len(_LAYER_PREFIX):].lower()
+    except ValueError:
+        return f"layer_{number}"  # a layer this client is too old to name
+
+
+def layer_numbers(layers) -> list:
+    if layers is None:
+        return []
+    if isinstance(layers, (str, int)):
+        layers = [layers]
+    return [layer_number(l) for l in layers]
+
+
+def set_box(box, out: types_pb2.BoundingBox, what: str = "bbox") -> None:
+    """(xmin, ymin, xmax, ymax) -> BoundingBox; the server checks order and limits."""
+    try:
+        values = [float(v) for v in box]
+    except (TypeError, ValueError):
+        raise invalid_argument(f"{what}: expected (xmin, ymin, xmax, ymax), got {box!r}") from None
+    if len(values) != 4:
+        raise invalid_argument(f"{what}: expected (xmin, ymin, xmax, ymax), got {len(values)} numbers")
+    out.min_x, out.min_y, out.max_x, out.max_y = values
+
+
+# --- scans -----------------------------------------------------------------------------------
+
+
+def pack_points(points) -> bytes:
+    """Nx3 or Nx4 (x, y, z[, intensity]) -> packed little-endian float32 x, y, z."""
+    array = np.asarray(points)
+    if array.ndim != 2 or array.shape[1] not in (3, 4):
+        raise invalid_argument(f"points: expected an Nx3 or Nx4 array, got shape {array.shape}")
+    if not np.issubdtype(array.dtype, np.number):
+        raise invalid_argument(f"points: expected numbers, got dtype {array.dtype}")
+    return np.ascontiguousarray(array[:, :3], dtype=_F32).tobytes()
+
+
+def quaternion_from_matrix(r: np.ndarray) -> tuple:
+    """A 3x3 rotation matrix -> unit quaternion (w, x, y, z), as Eigen's conversion the C++ client
+    uses (ScanPose::FromPose)."""
+    trace = r[0, 0] + r[1, 1] + r[2, 2]
+    if trace > 0:
+        s = math.sqrt(trace + 1.0) * 2.0
+        w, x, y, z = 0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s
+    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
+        s = math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2.0
+        w, x, y, z = (r[2, 1] - r[1, 2]) / s, 0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s
+    elif r[1, 1] > r[2, 2]:
+        s = math.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2.0
+        w, x, y, z = (r[0, 2] - r[2, 0]) / s, (r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s
+    else:
+        s = math.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2.0
+        w, x, y, z = (r[1, 0] - r[0, 1]) / s, (r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if norm > 0 and math.isfinite(norm):
+        w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    return float(w), float(x), float(y), float(z)
+
+
+def set_pose(pose, out: types_pb2.Pose3) -> None:
+    """A 4x4 or 3x4 T_map_sensor -> Pose3 (translation and unit quaternion). A finite 3x3 block
+    must be a rotation; a non-finite pose is sent as it is and the server names the field."""
+    matrix = np.asarray(pose, dtype=np.float64)
+    if matrix.shape not in ((4, 4), (3, 4)):
+        raise invalid_argument(f"pose: expected a 4x4 (or 3x4) matrix, got shape {matrix.shape}")
+    rotation = matrix[:3, :3]
+    if np.all(np.isfinite(rotation)):
+        error = float(np.max(np.abs(rotation.T @ rotation - np.eye(3))))
+        if error > ROTATION_TOLERANCE or np.linalg.det(rotation) <= 0:
+            raise invalid_argument(
+                f"pose: the 3x3 block is not a rotation (max |R^T R - I| = {error:.3g}, "
+                f"det = {np.linalg.det(rotation):.3g})")
+        w, x, y, z = quaternion_from_matrix(rotation)
+    else:
+        w = x = y = z = math.nan
+    out.translation.x, out.translation.y, out.translation.z = (float(v) for v in matrix[:3, 3])
+    out.rotation.w, out.rotation.x, out.rotation.y, out.rotation.z = w, x, y, z
+
+
+def _stamp_ns(stamp) -> int:
+    if stamp is None:
+        return time.time_ns()
+    if isinstance(stamp, datetime.datetime):
+        if stamp.tzinfo is None:
+            raise invalid_argument("stamp: a naive datetime is ambiguous; give it a tzinfo")
+        return int(round(stamp.timestamp() * 1e9))
+    try:
+        seconds = float(stamp)
+    except (TypeError, ValueError):
+        raise invalid_argument(f"stamp: expected seconds since the epoch or a datetime, got {stamp!r}") from None
+    if not math.isfinite(seconds) or seconds < 0:
+        raise invalid_argument(f"stamp: {seconds} is not a time since the epoch")
+    return int(round(seconds * 1e9))
+
+
+def scan_message(points, pose, robot: str, seq: int, stamp=None) -> ingest_pb2.Scan:
+    scan = ingest_pb2.Scan()
+    if not isinstance(robot, str):
+        raise invalid_argument(f"robot: expected a string, got {type(robot).__name__}")
+    scan.robot_id = robot
+    try:
+        sequence = int(seq)
+    except (TypeError, ValueError):
+        raise invalid_argument(f"seq: expected an integer, got {seq!r}") from None
+    if sequence < 0:
+        raise invalid_argument(f"seq: {sequence} is negative")
+    scan.sequence = sequence
+    ns = _stamp_ns(stamp)
+    scan.stamp.seconds, scan.stamp.nanos = divmod(ns, 1_000_000_000)
+    set_pose(pose, scan.pose)
+    scan.points = pack_points(points)
+    return scan
+
+
+def ack_from_proto(a: ingest_pb2.ScanAck) -> ScanAck:
+    return ScanAck(
+        robot_id=a.robot_id,
+        sequence=a.sequence,
+        status=_ack_status(a.status),
+        code=status_code(a.code),
+        message=a.message,
+        changed_tiles=[(k.x, k.y) for k in a.changed_tiles],
+        map_version=a.map_version,
+        counts={f.name: getattr(a.counts, f.name) for f in a.counts.DESCRIPTOR.fields})
+
+
+# --- regions and tiles -----------------------------------------------------------------------
+
+
+class RegionAssembler:
+    """Assembles a region raster from its chunks, checking them as the C++ client does."""
+
+    def __init__(self):
+        self.header = None
+        self.arrays = None
+        self.next_row = 0
+
+    def add(self, chunk: query_pb2.RegionChunk) -> None:
+        if chunk.HasField("header"):
+            h = chunk.header
+            self.header = h
+            self.arrays = [np.empty((h.rows, h.cols), dtype=np.float32) for _ in h.layers]
+        h = self.header
+        if (h is None or chunk.row_start != self.next_row or len(chunk.layers) != len(h.layers)
+                or self.next_row + chunk.row_count > h.rows):
+            raise malformed("region chunk out of order")
+        expect = chunk.row_count * h.cols * 4
+        for array, values in zip(self.arrays, chunk.layers):
+            if len(values.values) != expect:
+                raise malformed("region chunk of the wrong size")
+            rows = np.frombuffer(values.values, dtype=_F32).reshape(chunk.row_count, h.cols)
+            array[self.next_row:self.next_row + chunk.row_count] = rows
+        self.next_row += chunk.row_count
+
+    def region(self) -> Region:
+        h = self.header
+        if h is None or self.next_row != h.rows:
+            raise malformed("region stream incomplete")
+        layers = {layer_name(l): a for l, a in zip(h.layers, self.arrays)}
+        return Region(layers, x0=h.x0, y1=h.y1, resolution=h.resolution, stride=h.stride,
+                      cells=(h.cells.min_x, h.cells.min_y, h.cells.max_x, h.cells.max_y),
+                      map_version=h.map_version)
+
+
+def tile_update_from_proto(m: admin_pb2.TileUpdate) -> TileUpdate:
+    cols = m.cells.max_x - m.cells.min_x + 1
+    rows = m.cells.max_y - m.cells.min_y + 1
+    layers = {}
+    for lv in m.layers:
+        if len(lv.values) != rows * cols * 4:
+            raise malformed(f"tile ({m.key.x}, {m.key.y}): layer of the wrong size")
+        layers[layer_name(lv.layer)] = np.frombuffer(lv.values, dtype=_F32).reshape(rows, cols).copy()
+    return TileUpdate(key=(m.key.x, m.key.y), tile_version=m.tile_version,
+                      map_version=m.map_version,
+                      cells=(m.cells.min_x, m.cells.min_y, m.cells.max_x, m.cells.max_y),
+                      resolution=m.resolution, layers=layers)
+
+
+# --- points and paths ------------------------------------------------------------------------
+
+
+def xy_array(xy, what: str, columns: Sequence[int] = (2,)) -> np.ndarray:
+    array = np.asarray(xy, dtype=np.float64)
+    if array.ndim == 1 and array.shape[0] in columns:
+        array = array[np.newaxis, :]
+    if array.ndim != 2 or array.shape[1] not in columns:
+        shapes = " or ".join(f"Nx{c}" for c in columns)
+        raise invalid_argument(f"{what}: expected an {shapes} array, got shape {np.shape(xy)}")
+    return array
+
+
+def points_request(xy: np.ndarray, layers) -> query_pb2.PointsRequest:
+    request = query_pb2.PointsRequest()
+    for x, y in xy:
+        p = request.points.add()
+        p.x, p.y = float(x), float(y)
+    request.layers.extend(layer_numbers(layers))
+    return request
+
+
+def points_from_proto(xy: np.ndarray, r: query_pb2.PointsResponse) -> np.ndarray:
+    names = [layer_name(l) for l in r.layers]
+    if len(r.values) != len(xy) * len(names):
+        raise malformed("point values do not match the request")
+    out = np.zeros(len(xy), dtype=[("x", "f8"), ("y", "f8")] + [(n, "f4") for n in names])
+    out["x"] = xy[:, 0]
+    out["y"] = xy[:, 1]
+    values = np.array(r.values, dtype=np.float32).reshape(len(xy), len(names))
+    for j, n in enumerate(names):
+        out[n] = values[:, j]
+    return out
+
+
+def path_request(poses: np.ndarray, radius, polygon, max_traversability,
+                 max_traversability_variance, max_unknown_fraction) -> query_pb2.PathCheckRequest:
+    request = query_pb2.PathCheckRequest()
+    for pose in poses:
+        p = request.poses.add()
+        p.x, p.y = float(pose[0]), float(pose[1])
+        p.yaw = float(pose[2]) if len(pose) > 2 else 0.0
+    if (radius is None) == (polygon is None):
+        raise invalid_argument("give one footprint: radius=R or polygon=[(x, y), ...]")
+    if polygon is not None:
+        for x, y in xy_array(polygon, "polygon"):
+            v = request.polygon.vertices.add()
+            v.x, v.y = float(x), float(y)
+    else:
+        request.radius = float(radius)
+    if max_traversability is not None:
+        request.max_traversability = float(max_traversability)
+    if max_traversability_variance is not None:
+        request.max_traversability_variance = float(max_traversability_variance)
+    if max_unknown_fraction is not None:
+        request.max_unknown_fraction = float(max_unknown_fraction)
+    return request
+
+
+_POSE_CHECK_DTYPE = np.dtype([
+    ("x", "f8"), ("y", "f8"), ("yaw", "f8"), ("worst_traversability", "f4"),
+    ("worst_traversability_variance", "f4"), ("unknown_fraction", "f4"), ("cell_count", "u4"),
+    ("safe", "?")])
+
+
+def path_from_proto(poses: np.ndarray, r: query_pb2.PathCheckResponse) -> PathCheck:
+    if len(r.poses) != len(poses):
+        raise malformed("path check does not match the request")
+    out = np.zeros(len(poses), dtype=_POSE_CHECK_DTYPE)
+    out["x"] = poses[:, 0]
+    out["y"] = poses[:, 1]
+    out["yaw"] = poses[:, 2] if poses.shape[1] > 2 else 0.0
+    for name in ("worst_traversability", "worst_traversability_variance", "unknown_fraction",
+                 "cell_count", "safe"):
+        out[name] = [getattr(c, name) for c in r.poses]
+    first = None if r.safe else int(r.first_unsafe_index)
+    return PathCheck(safe=r.safe, first_unsafe_index=first, poses=out, map_version=r.map_version)
+
+
+# --- info ------------------------------------------------------------------------------------
+
+
+def message_to_dict(message) -> dict:
+    """A message as plain Python values: numbers stay numbers (64-bit ones too), enums become their
+    names, a Timestamp seconds since the epoch (float), an unset message None."""
+    out = {}
+    for field in message.DESCRIPTOR.fields:
+        value = getattr(message, field.name)
+        if field.label == field.LABEL_REPEATED:
+            out[field.name] = [_value(field, v) for v in value]
+        elif field.message_type is not None and not message.HasField(field.name):
+            out[field.name] = None
+        else:
+            out[field.name] = _value(field, value)
+    return out
+
+
+def _value(field, value):
+    if field.message_type is not None:
+        if field.message_type.full_name == "google.protobuf.Timestamp":
+            return value.seconds + value.nanos * 1e-9
+        return message_to_dict(value)
+    if field.enum_type is not None:
+        number = field.enum_type.values_by_number.get(value)
+        return number.name if number is not None else value
+    return value
+
+
+def info_from_proto(r: admin_pb2.InfoResponse) -> dict:
+    info = message_to_dict(r)
+    if r.known_cells == 0:  # the box is empty and the bounds are zero: say "nothing" instead
+        info["known_cells_box"] = None
+        info["known_bounds"] = None
+    return info

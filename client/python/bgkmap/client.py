@@ -1,0 +1,382 @@
+"""bgkmap.Client: the Python client of bgkmapd (bgkmap.v1.MapService). Numpy in, numpy out.
+
+    import bgkmap
+    client = bgkmap.Client("127.0.0.1:50051")
+    ack = client.insert(points, pose, robot="r1", seq=1)          # Nx3|Nx4, 4x4
+    region = client.query((-20, -20, 20, 20), layers=["traversability"])
+    region["traversability"], region.geotransform
+
+Synchronous calls; a Client may be used from several threads at once. Every failure raises
+bgkmap.BgkmapError with the gRPC status code and the server's message.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from typing import Callable, Iterable, Iterator, Optional
+
+import grpc
+import numpy as np
+
+from bgkmap import _codec
+from bgkmap.errors import BgkmapError, invalid_argument, malformed
+from bgkmap.results import ExportResult, ImportResult, PathCheck, Region, Scan, ScanAck, TileUpdate
+from bgkmap.v1 import admin_pb2, archive_pb2, map_service_pb2_grpc, query_pb2
+
+DEFAULT_SERVER = "127.0.0.1:50051"
+_ARCHIVE_CHUNK_BYTES = 1 << 20
+
+
+def _rpc(call, *args, **kwargs):
+    try:
+        return call(*args, **kwargs)
+    except grpc.RpcError as e:
+        raise BgkmapError.from_rpc_error(e) from None
+
+
+class Client:
+    """A connection to bgkmapd.
+
+    address: "host:port" (any gRPC target); None takes $BGKMAP_SERVER, else 127.0.0.1:50051.
+    timeout: deadline in seconds of each call except the long-lived streams (insert_stream, watch);
+        None for none.
+    credentials: grpc.ChannelCredentials for a TLS channel (grpc.ssl_channel_credentials(...),
+        composed with call credentials for a token); None: plaintext.
+    max_message_bytes: largest message sent or accepted (the server's default limit is 64 MiB).
+    options: further gRPC channel arguments, [(name, value), ...].
+    """
+
+    def __init__(self, address: Optional[str] = None, *, timeout: Optional[float] = 60.0,
+                 credentials: Optional[grpc.ChannelCredentials] = None,
+                 max_message_bytes: int = 64 << 20, options: Iterable = ()):
+        self.address = address or os.environ.get("BGKMAP_SERVER") or DEFAULT_SERVER
+        self.timeout = timeout
+        channel_options = [("grpc.max_receive_message_length", max_message_bytes),
+                           ("grpc.max_send_message_length", max_message_bytes)]
+        channel_options += list(options)
+        if credentials is None:
+            self._channel = grpc.insecure_channel(self.address, options=channel_options)
+        else:
+            self._channel = grpc.secure_channel(self.address, credentials, options=channel_options)
+        self._stub = map_service_pb2_grpc.MapServiceStub(self._channel)
+
+    # --- lifetime ----------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Closes the channel; running streams end with CANCELLED."""
+        self._channel.close()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"bgkmap.Client({self.address!r})"
+
+    def wait_for_ready(self, timeout: float = 10.0) -> bool:
+        """True once the server is reachable (waits at most `timeout` seconds)."""
+        ready = grpc.channel_ready_future(self._channel)
+        try:
+            ready.result(timeout=timeout)
+            return True
+        except grpc.FutureTimeoutError:
+            ready.cancel()
+            return False
+
+    # --- scans -------------------------------------------------------------------------------
+
+    def insert(self, points, pose, robot: str, seq: int, stamp=None) -> ScanAck:
+        """One scan (unary IngestScan).
+
+        points: Nx3 or Nx4 (x, y, z[, intensity]) in the sensor frame, sent as float32 x, y, z;
+        NaN or infinite points are dropped by the server and counted in ack.counts.
+        pose: T_map_sensor, 4x4 (or 3x4) matrix. robot, seq: robot id and its increasing
+        sequence number (an old number is acked "duplicate" and not applied again).
+        stamp: seconds since the epoch or an aware datetime; None: now.
+        A rejected scan raises BgkmapError (INVALID_ARGUMENT or RESOURCE_EXHAUSTED)."""
+        request = _codec.scan_message(points, pose, robot, seq, stamp)
+        return _codec.ack_from_proto(_rpc(self._stub.IngestScan, request, timeout=self.timeout))
+
+    def insert_stream(self, scans: Iterable,
+                      on_ack: Optional[Callable[[ScanAck], None]] = None) -> list:
+        """Many scans on one Ingest stream, sent as fast as the server's read-ahead allows while
+        acks are read concurrently; returns every ack, in send order.
+
+        scans: an iterable (read lazily, may be a generator) of bgkmap.Scan, of dicts with the
+        same keys, or of (points, pose, robot, seq[, stamp]) tuples. on_ack is called with each
+        ack as it arrives. A bad scan is acked with status "rejected" (code and message say why)
+        and the stream goes on. A scan the client cannot encode ends the stream after the scans
+        before it: their acks are read, then BgkmapError is raised naming the scan."""
+        acks = []
+        for ack in self.iter_insert_stream(scans):
+            if on_ack is not None:
+                on_ack(ack)
+            acks.append(ack)
+        return acks
+
+    def iter_insert_stream(self, scans: Iterable) -> Iterator[ScanAck]:
+        """Like insert_stream, as an iterator of acks in send order (for endless scan sources).
+        Scans are sent while the iterator is consumed; leaving it early cancels the stream."""
+        problem: list = []
+        iterator = iter(scans)
+
+        def requests():  # runs on gRPC's sending thread: keep exceptions for the caller
+            index = 0
+            while True:
+                try:
+                    message = _scan_to_message(next(iterator))
+                except StopIteration:
+                    return
+                except BgkmapError as e:
+                    problem.append(BgkmapError(e.code, f"scan {index}: {e.message}"))
+                    return
+                except Exception as e:  # raised by the caller's iterable
+                    problem.append(e)
+                    return
+                yield message
+                index += 1
+
+        call = self._stub.Ingest(requests())
+        try:
+            for message in call:
+                yield _codec.ack_from_proto(message)
+        except grpc.RpcError as e:
+            raise BgkmapError.from_rpc_error(e) from None
+        finally:
+            call.cancel()  # no-op once the stream ended; stops it if the caller stopped iterating
+        if problem:
+            raise problem[0]
+
+    def last_sequence(self, robot: str) -> Optional[int]:
+        """The last sequence number the server admitted for `robot` (None: none yet), to resume."""
+        for r in self.info()["robots"]:
+            if r["robot_id"] == robot:
+                return r["last_sequence"]
+        return None
+
+    # --- queries -----------------------------------------------------------------------------
+
+    def query(self, bbox, layers=None, stride: int = 1) -> Region:
+        """Layers over the cells meeting the half-open box (xmin, ymin, xmax, ymax), metres.
+
+        layers: names ("elevation", "elevation_variance", "traversability",
+        "traversability_variance", "state", "elevation_weight") or None for every layer.
+        stride: map cells per pixel edge. Returns a Region: a mapping from layer name to a float32
+        (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform."""
+        if int(stride) < 1:
+            raise invalid_argument(f"stride: {stride} must be >= 1")
+        request = query_pb2.RegionRequest(stride=int(stride))
+        _codec.set_box(bbox, request.box)
+        request.layers.extend(_codec.layer_numbers(layers))
+        call = self._stub.QueryRegion(request, timeout=self.timeout)
+        assembler = _codec.RegionAssembler()
+        try:
+            for chunk in call:
+                assembler.add(chunk)
+        except grpc.RpcError as e:
+            raise BgkmapError.from_rpc_error(e) from None
+        except BgkmapError:
+            call.cancel()
+            raise
+        return assembler.region()
+
+    def points(self, xy, layers=None) -> np.ndarray:
+        """Layers at map points: xy is Nx2 (or one (x, y)). Returns a structured array with fields
+        x, y and one float32 field per layer (NaN = unknown; state 0)."""
+        xy = _codec.xy_array(xy, "xy")
+        request = _codec.points_request(xy, layers)
+        response = _rpc(self._stub.QueryPoints, request, timeout=self.timeout)
+        return _codec.points_from_proto(xy, response)
+
+    def check_path(self, poses, radius: Optional[float] = None, *, polygon=None,
+                   max_traversability: Optional[float] = None,
+                   max_traversability_variance: Optional[float] = None,
+                   max_unknown_fraction: Optional[float] = None) -> PathCheck:
+        """Footprint safety along a path. poses: Nx3 (x, y, yaw) or Nx2 (yaw 0); footprint: a disk
+        of `radius` or a `polygon` [(x, y), ...] in the robot frame (x forward, y left). Unset
+        thresholds take the map's trav_threshold, variance_threshold and 0. A pose is safe when
+        its worst traversability and variance are below them and its unknown fraction at most
+        max_unknown_fraction, so a footprint on unknown ground is unsafe."""
+        poses = _codec.xy_array(poses, "poses", columns=(2, 3))
+        request = _codec.path_request(poses, radius, polygon, max_traversability,
+                                      max_traversability_variance, max_unknown_fraction)
+        response = _rpc(self._stub.CheckPath, request, timeout=self.timeout)
+        return _codec.path_from_proto(poses, response)
+
+    def watch(self, bbox, layers=None, initial_snapshot: bool = False) -> "Watch":
+        """Changed tiles of the tiles meeting the box, as they change: an iterator of TileUpdate
+        (coalesced per tile). initial_snapshot sends every existing tile of the region first.
+        Ends when cancelled (watch.cancel(), from any thread, or leaving a `with` block); other
+        ends raise BgkmapError (UNAVAILABLE on server shutdown)."""
+        request = admin_pb2.WatchRequest(initial_snapshot=bool(initial_snapshot))
+        _codec.set_box(bbox, request.box)
+        request.layers.extend(_codec.layer_numbers(layers))
+        return Watch(self._stub.Watch(request))
+
+    def info(self) -> dict:
+        """Parameters, tile and known-cell counts, bounds, map version, robots, limits, storage, as
+        a dict named like the InfoResponse fields (known_bounds None when the map is empty;
+        storage None for a map in memory)."""
+        response = _rpc(self._stub.Info, admin_pb2.InfoRequest(), timeout=self.timeout)
+        return _codec.info_from_proto(response)
+
+    # --- administration ----------------------------------------------------------------------
+
+    def clear(self, bbox) -> dict:
+        """Admin: forgets every cell of the box. Returns changed_tiles and the clear's map_version."""
+        request = admin_pb2.ClearRegionRequest()
+        _codec.set_box(bbox, request.box)
+        r = _rpc(self._stub.ClearRegion, request, timeout=self.timeout)
+        return {"changed_tiles": [(k.x, k.y) for k in r.changed_tiles],
+                "map_version": r.map_version}
+
+    def export_map(self, path, bbox=None) -> ExportResult:
+        """Admin: the map, or the cells meeting `bbox`, as one archive file at `path` (a consistent
+        snapshot at one map version). Written to path + ".partial", synced, then renamed: `path`
+        is either the complete archive or untouched."""
+        path = os.fspath(path)
+        request = archive_pb2.ExportRequest()
+        if bbox is not None:
+            _codec.set_box(bbox, request.box)
+        partial = path + ".partial"
+        try:
+            out = open(partial, "wb")
+        except OSError as e:
+            raise invalid_argument(f"cannot create {partial}: {e.strerror}") from None
+        done = False
+        try:
+            with out:
+                result = self._receive_archive(request, out, partial)
+                out.flush()
+                os.fsync(out.fileno())
+            try:
+                os.replace(partial, path)
+            except OSError as e:
+                raise invalid_argument(f"cannot rename to {path}: {e.strerror}") from None
+            done = True
+            return result
+        finally:
+            if not done:
+                try:
+                    os.remove(partial)
+                except OSError:
+                    pass
+
+    def _receive_archive(self, request, out, partial: str) -> ExportResult:
+        call = self._stub.ExportMap(request, timeout=self.timeout)
+        result = ExportResult(bytes=0, tiles=0, map_version=0)
+        first, last = True, False
+        try:
+            for chunk in call:
+                if first:
+                    result.map_version = chunk.map_version
+                    first = False
+                if last:
+                    call.cancel()
+                    raise malformed("archive chunk after the last one")
+                try:
+                    out.write(chunk.data)
+                except OSError as e:
+                    call.cancel()
+                    raise invalid_argument(f"writing {partial}: {e.strerror}") from None
+                result.bytes += len(chunk.data)
+                if chunk.last:
+                    last = True
+                    result.tiles = chunk.tiles
+        except grpc.RpcError as e:
+            raise BgkmapError.from_rpc_error(e) from None
+        if not last:
+            raise malformed("archive stream ended before its last chunk")
+        return result
+
+    def import_map(self, path) -> ImportResult:
+        """Admin: adds the archive at `path` into the served map (statistics are summed, so importing
+        two robots' archives gives exactly their sum). Nothing changes unless the whole archive
+        verifies: INVALID_ARGUMENT (not an archive), DATA_LOSS (damaged), FAILED_PRECONDITION
+        (incompatible parameters), RESOURCE_EXHAUSTED (too large, or another import running)."""
+        path = os.fspath(path)
+        try:
+            f = open(path, "rb")
+        except OSError as e:
+            raise invalid_argument(f"cannot open {path}: {e.strerror}") from None
+        problem: list = []
+
+        def chunks():
+            with f:
+                while True:
+                    try:
+                        data = f.read(_ARCHIVE_CHUNK_BYTES)
+                    except OSError as e:
+                        problem.append(invalid_argument(f"reading {path}: {e.strerror}"))
+                        return
+                    if not data:
+                        return
+                    yield archive_pb2.ArchiveChunk(data=data)
+
+        try:
+            r = self._stub.ImportMap(chunks(), timeout=self.timeout)
+        except grpc.RpcError as e:
+            if problem:
+                raise problem[0] from None
+            raise BgkmapError.from_rpc_error(e) from None
+        if problem:  # a short read ended the upload early; the server may have taken it as whole
+            raise problem[0]
+        return ImportResult(tiles_added=r.tiles_added, map_version=r.map_version,
+                            known_cells=r.known_cells, archive_map_version=r.archive_map_version)
+
+    # Short names: export is not a keyword, import is.
+    export = export_map
+    import_ = import_map
+
+
+def _scan_to_message(scan):
+    if isinstance(scan, Scan):
+        return _codec.scan_message(scan.points, scan.pose, scan.robot, scan.seq, scan.stamp)
+    if isinstance(scan, dict):
+        try:
+            return _codec.scan_message(scan["points"], scan["pose"], scan["robot"], scan["seq"],
+                                       scan.get("stamp"))
+        except KeyError as e:
+            raise invalid_argument(f"missing key {e.args[0]!r} (points, pose, robot, seq)") from None
+    if isinstance(scan, (tuple, list)) and len(scan) in (4, 5):
+        return _codec.scan_message(*scan)
+    raise invalid_argument(
+        f"expected a bgkmap.Scan, a dict or a (points, pose, robot, seq[, stamp]) tuple, "
+        f"got {type(scan).__name__}")
+
+
+class Watch:
+    """A running Watch: iterate it for TileUpdates; cancel() (any thread) ends the iteration."""
+
+    def __init__(self, call):
+        self._call = call
+        self._cancelled = threading.Event()
+
+    def __iter__(self) -> "Watch":
+        return self
+
+    def __next__(self) -> TileUpdate:
+        if self._cancelled.is_set():
+            raise StopIteration
+        try:
+            message = next(self._call)
+        except StopIteration:
+            raise
+        except grpc.RpcError as e:
+            if self._cancelled.is_set() and e.code() == grpc.StatusCode.CANCELLED:
+                raise StopIteration from None
+            raise BgkmapError.from_rpc_error(e) from None
+        return _codec.tile_update_from_proto(message)
+
+    def cancel(self) -> None:
+        self._cancelled.set()
+        self._call.cancel()
+
+    def __enter__(self) -> "Watch":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.cancel()

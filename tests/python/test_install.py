@@ -1,0 +1,25 @@
+"""`cmake --install --component python` gives a package that imports from the prefix alone."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+
+def test_installed_package_imports_from_the_prefix(tmp_path):
+    prefix = tmp_path / "prefix"
+    subprocess.run([os.environ["CMAKE_COMMAND"], "--install", os.environ["BGKMAP_BINARY_DIR"],
+                    "--component", "python", "--prefix", str(prefix)],
+                   check=True, capture_output=True, text=True, timeout=120)
+    site = prefix / os.environ["BGKMAP_PYTHON_INSTALL_DIR"]
+    assert (site / "bgkmap" / "v1" / "map_service_pb2_grpc.py").is_file()
+    env = dict(os.environ, PYTHONPATH=str(site))
+    probe = ("import bgkmap, bgkmap.v1.map_service_pb2_grpc as s; "
+             "print(bgkmap.__file__); print(bgkmap.__version__); print(s.MapServiceStub.__name__)")
+    out = subprocess.run([sys.executable, "-c", probe], env=env, cwd=tmp_path,
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    path, version, stub = out.stdout.split()
+    assert path.startswith(str(site)) and stub == "MapServiceStub"
+    assert version == os.environ["BGKMAP_VERSION"]
