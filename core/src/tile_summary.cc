@@ -9,8 +9,7 @@ TileSummary SummarizeTile(const GridGeometry& geometry, TileKey key, const Tile*
   const CellBox& local = known.local_box;
   if (local.empty()) return s;
   s.known_cells = static_cast<uint32_t>(known.count);
-  const CellIndex o = geometry.TileOrigin(key);
-  s.known_box = {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}};
+  s.known_box = geometry.LocalToMap(key, local);
   return s;
 }
 

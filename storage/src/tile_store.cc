@@ -52,9 +52,8 @@ bool DecodeTileInfo(std::string_view key, std::string_view value, int tile_size,
     local = {{static_cast<int>(v[0]), static_cast<int>(v[1])},
              {static_cast<int>(v[2]), static_cast<int>(v[3])}};
   }
-  const CellIndex o{info->key.x * tile_size, info->key.y * tile_size};
-  info->known_box = {{o.x + local.min.x, o.y + local.min.y},
-                     {o.x + local.max.x, o.y + local.max.y}};
+  // (The resolution plays no part in cell arithmetic.)
+  info->known_box = GridGeometry(1.0, tile_size).LocalToMap(info->key, local);
   return true;
 }
 

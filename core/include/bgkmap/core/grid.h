@@ -89,6 +89,12 @@ class GridGeometry {
     CellIndex o = TileOrigin(t);
     return {o, {o.x + tile_size_ - 1, o.y + tile_size_ - 1}};
   }
+  // A box of tile-local cells (0..tile_size-1) of tile `t` in map cells.
+  CellBox LocalToMap(TileKey t, const CellBox& local) const {
+    if (local.empty()) return {};
+    const CellIndex o = TileOrigin(t);
+    return {{o.x + local.min.x, o.y + local.min.y}, {o.x + local.max.x, o.y + local.max.y}};
+  }
   // Row-major index of a cell inside its tile.
   int LocalIndex(CellIndex c) const {
     return FloorMod(c.y, tile_size_) * tile_size_ + FloorMod(c.x, tile_size_);
