@@ -4,6 +4,9 @@
 
 #include <grpcpp/support/server_callback.h>
 
+#include <chrono>
+#include <functional>
+
 #include "bgkmap/v1/map_service.grpc.pb.h"
 #include "rpc/service_context.h"
 
@@ -33,9 +36,26 @@ grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
 grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
                                                           v1::ImportResponse* response);
 
+// What a query's work checks between steps, so that no call outlives its purpose: the client
+// cancelled (or the server's shutdown cancelled it), the client's deadline passed, or it ran
+// longer than server.max_query_seconds.
+class QueryControl {
+ public:
+  QueryControl(grpc::CallbackServerContext* call, double max_seconds);
+  // OK, or the status to stop with (CANCELLED, DEADLINE_EXCEEDED).
+  grpc::Status Check() const;
+
+ private:
+  grpc::CallbackServerContext* call_;
+  std::chrono::system_clock::time_point deadline_;  // the earlier of the two
+  bool server_limit_ = false;                       // deadline_ is max_query_seconds'
+  double max_seconds_;
+};
+
 // Runs `work` on the query pool under the concurrent-query limit and finishes `reactor` with its
-// status (RESOURCE_EXHAUSTED without running it when the limit is reached).
+// status (RESOURCE_EXHAUSTED without running it when the limit is reached; CANCELLED or
+// DEADLINE_EXCEEDED without running it when the call ended while it waited for a thread).
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                        std::function<grpc::Status()> work);
+                                        std::function<grpc::Status(const QueryControl&)> work);
 
 }  // namespace bgkmap

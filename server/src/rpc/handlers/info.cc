@@ -70,7 +70,8 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
 
 grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                     v1::InfoResponse* response) {
-  return RunUnaryQuery(ctx, call, [&ctx, response] { return Info(ctx, response); });
+  return RunUnaryQuery(ctx, call,
+                       [&ctx, response](const QueryControl&) { return Info(ctx, response); });
 }
 
 }  // namespace bgkmap
