@@ -90,6 +90,7 @@ struct MapServer::Impl {
   ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
     ServedMapOptions o;
     o.max_robots = cfg.limits.max_robots;
+    o.max_sequence_jump = cfg.limits.max_sequence_jump;
     o.tile_memory_limit_bytes = TileMemoryLimit(cfg.storage);
     o.on_over_memory = [this] { maintenance.RequestEviction(); };
     o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
