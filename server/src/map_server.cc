@@ -66,6 +66,17 @@ void LowerPriority(boost::asio::thread_pool& pool, size_t threads, int nice) {
   started->wait();
 }
 
+// How often idle and stalled streams are looked for: a quarter of the shortest timeout, within
+// [20 ms, 1 s].
+std::chrono::milliseconds WatchdogPeriod(const ServerLimits& l) {
+  double shortest = 4.0;
+  for (double t : {l.ingest_idle_timeout_s, l.stalled_write_timeout_s, l.import_idle_timeout_s}) {
+    if (t > 0) shortest = std::min(shortest, t);
+  }
+  return std::chrono::milliseconds(
+      std::clamp(static_cast<int64_t>(shortest * 1000 / 4), int64_t{20}, int64_t{1000}));
+}
+
 size_t ThreadCount(int configured) {
   if (configured > 0) return static_cast<size_t>(configured);
   return std::max(1u, std::thread::hardware_concurrency());
@@ -182,6 +193,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     health->SetServingStatus(kMapServiceName, true);
     health->SetServingStatus("", true);
   }
+  impl->ctx.sessions.StartWatchdog(WatchdogPeriod(config.limits));
   spdlog::info("event=listening address={} port={} worker_threads={} query_threads={}",
                config.listen_address, impl->port, ThreadCount(config.worker_threads),
                ThreadCount(config.query_threads));
@@ -214,6 +226,7 @@ void MapServer::Shutdown() {
   const auto grace = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
   impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
+  impl_->ctx.sessions.StopWatchdog();
   impl_->map.WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
   if (impl_->metrics != nullptr) impl_->metrics->Stop();

@@ -12,11 +12,12 @@
 
 namespace bgkmap {
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
-                                                                  std::string peer);
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(
+    ServiceContext& ctx, grpc::CallbackServerContext* call);
 grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                           const v1::Scan* request, v1::ScanAck* response);
 grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
+                                                            grpc::CallbackServerContext* call,
                                                             const v1::RegionRequest* request);
 grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            const v1::PointsRequest* request,
@@ -25,6 +26,7 @@ grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServ
                                          const v1::PathCheckRequest* request,
                                          v1::PathCheckResponse* response);
 grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
+                                                     grpc::CallbackServerContext* call,
                                                      const v1::WatchRequest* request);
 grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                     v1::InfoResponse* response);
@@ -32,8 +34,10 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
                                            const v1::ClearRegionRequest* request,
                                            v1::ClearRegionResponse* response);
 grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
+                                                           grpc::CallbackServerContext* call,
                                                            const v1::ExportRequest* request);
 grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
+                                                          grpc::CallbackServerContext* call,
                                                           v1::ImportResponse* response);
 
 // What a query's work checks between steps, so that no call outlives its purpose: the client
