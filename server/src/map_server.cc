@@ -26,6 +26,7 @@
 #include "durability/store_durability.h"
 #include "http/metrics.h"
 #include "http/metrics_http.h"
+#include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
@@ -179,6 +180,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   grpc::ServerBuilder builder;
   builder.AddListeningPort(config.listen_address, grpc::InsecureServerCredentials(), &impl->port);
   builder.RegisterService(&impl->service);
+  // A request that does not parse answers INVALID_ARGUMENT naming its type, not UNIMPLEMENTED.
+  builder.experimental().SetInterceptorCreators(MapServiceInterceptors());
   const int max_bytes = static_cast<int>(config.limits.max_message_bytes);
   builder.SetMaxReceiveMessageSize(max_bytes);
   builder.SetMaxSendMessageSize(max_bytes);
