@@ -58,4 +58,10 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(grpc::CallbackS
   return StartImportMap(ctx_, call, response);
 }
 
+grpc::ServerUnaryReactor* MapService::RetireRobot(grpc::CallbackServerContext* call,
+                                                  const v1::RetireRobotRequest* request,
+                                                  v1::RetireRobotResponse* response) {
+  return StartRetireRobot(ctx_, call, request, response);
+}
+
 }  // namespace bgkmap

@@ -40,6 +40,10 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
                                                           grpc::CallbackServerContext* call,
                                                           v1::ImportResponse* response);
 
+grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           const v1::RetireRobotRequest* request,
+                                           v1::RetireRobotResponse* response);
+
 // What a query's work checks between steps, so that no call outlives its purpose: the client
 // cancelled (or the server's shutdown cancelled it), the client's deadline passed, or it ran
 // longer than server.max_query_seconds.
