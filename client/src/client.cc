@@ -285,6 +285,17 @@ RpcResult<ClearResult> Client::ClearRegion(const MetricBox& box) {
   return FromProto(response);
 }
 
+RpcResult<RetiredRobot> Client::RetireRobot(const std::string& robot_id) {
+  v1::RetireRobotRequest request;
+  request.set_robot_id(robot_id);
+  v1::RetireRobotResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->RetireRobot(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  return RetiredRobot{response.last_sequence(), response.robots()};
+}
+
 namespace {
 
 constexpr size_t kArchiveChunkBytes = 1 << 20;

@@ -13,6 +13,7 @@
 #include "bgkmap/config/map_params_yaml.h"
 #include "bgkmap/server/map_server.h"
 #include "bgkmap/server/server_config.h"
+#include "log_safe.h"
 
 namespace {
 
@@ -25,7 +26,8 @@ std::string RobotsLine(const bgkmap::ServerReport& report) {
   std::ostringstream s;
   for (size_t i = 0; i < report.robots.size(); ++i) {
     if (i > 0) s << ",";
-    s << report.robots[i].robot_id << ":" << report.robots[i].last_sequence;
+    // Ids recovered from a store written before ids were checked may hold control characters.
+    s << bgkmap::LogSafe(report.robots[i].robot_id, 128) << ":" << report.robots[i].last_sequence;
   }
   return s.str();
 }

@@ -26,6 +26,7 @@
 #include "durability/store_durability.h"
 #include "http/metrics.h"
 #include "http/metrics_http.h"
+#include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
@@ -66,6 +67,17 @@ void LowerPriority(boost::asio::thread_pool& pool, size_t threads, int nice) {
   started->wait();
 }
 
+// How often idle and stalled streams are looked for: a quarter of the shortest timeout, within
+// [20 ms, 1 s].
+std::chrono::milliseconds WatchdogPeriod(const ServerLimits& l) {
+  double shortest = 4.0;
+  for (double t : {l.ingest_idle_timeout_s, l.stalled_write_timeout_s, l.import_idle_timeout_s}) {
+    if (t > 0) shortest = std::min(shortest, t);
+  }
+  return std::chrono::milliseconds(
+      std::clamp(static_cast<int64_t>(shortest * 1000 / 4), int64_t{20}, int64_t{1000}));
+}
+
 size_t ThreadCount(int configured) {
   if (configured > 0) return static_cast<size_t>(configured);
   return std::max(1u, std::thread::hardware_concurrency());
@@ -90,6 +102,7 @@ struct MapServer::Impl {
   ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
     ServedMapOptions o;
     o.max_robots = cfg.limits.max_robots;
+    o.max_sequence_jump = cfg.limits.max_sequence_jump;
     o.tile_memory_limit_bytes = TileMemoryLimit(cfg.storage);
     o.on_over_memory = [this] { maintenance.RequestEviction(); };
     o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
@@ -167,6 +180,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   grpc::ServerBuilder builder;
   builder.AddListeningPort(config.listen_address, grpc::InsecureServerCredentials(), &impl->port);
   builder.RegisterService(&impl->service);
+  // A request that does not parse answers INVALID_ARGUMENT naming its type, not UNIMPLEMENTED.
+  builder.experimental().SetInterceptorCreators(MapServiceInterceptors());
   const int max_bytes = static_cast<int>(config.limits.max_message_bytes);
   builder.SetMaxReceiveMessageSize(max_bytes);
   builder.SetMaxSendMessageSize(max_bytes);
@@ -181,6 +196,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     health->SetServingStatus(kMapServiceName, true);
     health->SetServingStatus("", true);
   }
+  impl->ctx.sessions.StartWatchdog(WatchdogPeriod(config.limits));
   spdlog::info("event=listening address={} port={} worker_threads={} query_threads={}",
                config.listen_address, impl->port, ThreadCount(config.worker_threads),
                ThreadCount(config.query_threads));
@@ -213,6 +229,7 @@ void MapServer::Shutdown() {
   const auto grace = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
   impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
+  impl_->ctx.sessions.StopWatchdog();
   impl_->map.WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
   if (impl_->metrics != nullptr) impl_->metrics->Stop();

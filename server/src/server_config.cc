@@ -97,6 +97,9 @@ const std::vector<ServerKey>& Keys() {
       Key<uint64_t>(
           "max_footprint_cells",
           [](ServerConfig & c) -> auto& { return c.limits.max_footprint_cells; }),
+      Key<uint64_t>(
+          "max_path_check_cells",
+          [](ServerConfig & c) -> auto& { return c.limits.max_path_check_cells; }),
       Key<double>(
           "max_coordinate", [](ServerConfig & c) -> auto& { return c.limits.max_coordinate; }),
       Key<double>(
@@ -131,6 +134,21 @@ const std::vector<ServerKey>& Keys() {
           [](ServerConfig & c) -> auto& { return c.limits.region_chunk_bytes; }),
       Key<uint64_t>(
           "max_import_bytes", [](ServerConfig & c) -> auto& { return c.limits.max_import_bytes; }),
+      Key<uint64_t>(
+          "max_sequence_jump",
+          [](ServerConfig & c) -> auto& { return c.limits.max_sequence_jump; }),
+      Key<double>(
+          "ingest_idle_timeout_s",
+          [](ServerConfig & c) -> auto& { return c.limits.ingest_idle_timeout_s; }),
+      Key<double>(
+          "stalled_write_timeout_s",
+          [](ServerConfig & c) -> auto& { return c.limits.stalled_write_timeout_s; }),
+      Key<double>(
+          "import_idle_timeout_s",
+          [](ServerConfig & c) -> auto& { return c.limits.import_idle_timeout_s; }),
+      Key<double>(
+          "max_query_seconds",
+          [](ServerConfig & c) -> auto& { return c.limits.max_query_seconds; }),
   };
   return keys;
 }
@@ -343,6 +361,15 @@ Status ValidateServerConfig(const ServerConfig& c) {
     return bad("region_chunk_bytes", "must be in [4096, max_message_bytes / 2]");
   }
   if (l.max_import_bytes == 0) return bad("max_import_bytes", "must be > 0");
+  if (l.max_footprint_cells == 0) return bad("max_footprint_cells", "must be > 0");
+  if (l.max_path_check_cells == 0) return bad("max_path_check_cells", "must be > 0");
+  for (const auto& [key, value] :
+       {std::pair<const char*, double>{"ingest_idle_timeout_s", l.ingest_idle_timeout_s},
+        {"stalled_write_timeout_s", l.stalled_write_timeout_s},
+        {"import_idle_timeout_s", l.import_idle_timeout_s},
+        {"max_query_seconds", l.max_query_seconds}}) {
+    if (!(value >= 0) || value > 86'400) return bad(key, "must be in [0, 86400] (0 = never)");
+  }
   const StorageConfig& st = c.storage;
   auto bad_storage = [](const std::string& key, const std::string& why) {
     return Status::InvalidArgument("storage." + key + ": " + why);

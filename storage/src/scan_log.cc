@@ -175,6 +175,26 @@ std::map<std::string, uint64_t> ScanLog::RobotSequences() const {
   return {robots_.begin(), robots_.end()};
 }
 
+Status ScanLog::RetireRobot(std::string_view robot_id) {
+  if (Status failed = write_failure(); !failed.ok()) {
+    return Status::IoError("the store refuses writes since an earlier failure (" +
+                           failed.message() + "); TileStore::Resume() once it is fixed");
+  }
+  rocksdb::WriteBatch batch;
+  rocksdb::Status s = batch.Delete(db_->meta, std::string(kRobotPrefix) + std::string(robot_id));
+  rocksdb::WriteOptions write;
+  write.sync = true;  // an administrator's action: durable when answered, in either mode
+  if (s.ok()) s = db_->db->Write(write, &batch);
+  if (!s.ok()) {
+    Status failed = FromRocks(s, "retiring robot " + std::string(robot_id));
+    LatchFailure(failed);
+    return failed;
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  if (auto it = robots_.find(robot_id); it != robots_.end()) robots_.erase(it);
+  return Status::Ok();
+}
+
 void ScanLog::AddTruncation(rocksdb::WriteBatch* batch, uint64_t through) {
   batch->DeleteRange(db_->log, VersionKeyBytes(0),
                      through == UINT64_MAX ? std::string(9, '\xff') : VersionKeyBytes(through + 1));

@@ -119,6 +119,29 @@ TEST(ServerConfigTest, StorageSection) {
   EXPECT_EQ(back->storage.data_dir, "/tmp/m");
 }
 
+// The limits and timeouts of the hostile-client fixes (issue 12): read, checked, named.
+TEST(ServerConfigTest, TimeoutsAndCostLimits) {
+  Result<ServerConfig> c = ServerConfigFromYaml(YAML::Load(
+      "server: {ingest_idle_timeout_s: 2.5, stalled_write_timeout_s: 0, import_idle_timeout_s: 9, "
+      "max_query_seconds: 1, max_sequence_jump: 1000, max_path_check_cells: 77}\n"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->limits.ingest_idle_timeout_s, 2.5);
+  EXPECT_EQ(c->limits.stalled_write_timeout_s, 0.0);
+  EXPECT_EQ(c->limits.import_idle_timeout_s, 9.0);
+  EXPECT_EQ(c->limits.max_query_seconds, 1.0);
+  EXPECT_EQ(c->limits.max_sequence_jump, 1000u);
+  EXPECT_EQ(c->limits.max_path_check_cells, 77u);
+  auto error = [](const char* text) {
+    Result<ServerConfig> r = ServerConfigFromYaml(YAML::Load(text));
+    return r.ok() ? std::string("ok") : r.status().message();
+  };
+  EXPECT_EQ(
+      error("server: {stalled_write_timeout_s: -1}").rfind("server.stalled_write_timeout_s", 0),
+      0u);
+  EXPECT_EQ(error("server: {max_query_seconds: .nan}").rfind("server.max_query_seconds", 0), 0u);
+  EXPECT_EQ(error("server: {max_path_check_cells: 0}").rfind("server.max_path_check_cells", 0), 0u);
+}
+
 }  // namespace bgkmap
 
 namespace bgkmap {

@@ -25,6 +25,8 @@ void RegisterCheckPathCommand(CLI::App& app, int& exit_code);
 void RegisterWatchCommand(CLI::App& app, int& exit_code);
 void RegisterInfoCommand(CLI::App& app, int& exit_code);
 void RegisterClearCommand(CLI::App& app, int& exit_code);
+void RegisterRobotsCommand(CLI::App& app, int& exit_code);
+void RegisterRetireRobotCommand(CLI::App& app, int& exit_code);
 void RegisterExportCommand(CLI::App& app, int& exit_code);
 void RegisterImportCommand(CLI::App& app, int& exit_code);
 

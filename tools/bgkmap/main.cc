@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   bgkmap::cli::RegisterWatchCommand(app, exit_code);
   bgkmap::cli::RegisterInfoCommand(app, exit_code);
   bgkmap::cli::RegisterClearCommand(app, exit_code);
+  bgkmap::cli::RegisterRobotsCommand(app, exit_code);
+  bgkmap::cli::RegisterRetireRobotCommand(app, exit_code);
   bgkmap::cli::RegisterExportCommand(app, exit_code);
   bgkmap::cli::RegisterImportCommand(app, exit_code);
   try {

@@ -90,6 +90,10 @@ class Durability : public TileBacking {
   virtual uint64_t recovered_version() const = 0;
   virtual std::map<std::string, uint64_t> LoggedRobotSequences() const = 0;
 
+  // Forgets a robot's logged sequence number for good (it survives a restart as forgotten).
+  // Called at a scheduler barrier: no scan of the robot is being journaled.
+  virtual Status RetireRobot(const std::string& robot_id) = 0;
+
   // Journals a change before it is applied (durable as configured); not OK: skip the change.
   // Changes that do not conflict call it concurrently.
   virtual Status Record(const ChangeRecord& change) = 0;

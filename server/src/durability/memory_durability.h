@@ -11,6 +11,7 @@ class MemoryDurability final : public Durability {
   bool persists() const override { return false; }
   uint64_t recovered_version() const override { return 0; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override { return {}; }
+  Status RetireRobot(const std::string&) override { return Status::Ok(); }
   Status Record(const ChangeRecord&) override { return Status::Ok(); }
   Status WriteCheckpoint(uint64_t, std::span<const TileKey>,
                          std::span<const std::unique_ptr<Tile>>) override {

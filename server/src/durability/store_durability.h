@@ -30,6 +30,9 @@ class StoreDurability final : public Durability {
   bool persists() const override { return true; }
   uint64_t recovered_version() const override { return recovery_.map_version; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override;
+  Status RetireRobot(const std::string& robot_id) override {
+    return store_->log().RetireRobot(robot_id);
+  }
   Status Record(const ChangeRecord& change) override;
   Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                          std::span<const std::unique_ptr<Tile>> tiles) override;

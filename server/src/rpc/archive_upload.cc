@@ -21,10 +21,17 @@ std::string TileName(TileKey k) {
   return "tile (" + std::to_string(k.x) + ", " + std::to_string(k.y) + ")";
 }
 
-// Storage messages about the spool file start with its path, which means nothing to the client.
-std::string WithoutPath(const std::string& message, const std::string& path) {
+// Storage messages about the spool file name its path, which means nothing to the client and
+// tells it about the server's file system: "<path>: " goes, any other mention becomes "the
+// upload".
+std::string WithoutPath(std::string message, const std::string& path) {
   const std::string prefix = path + ": ";
-  return message.starts_with(prefix) ? message.substr(prefix.size()) : message;
+  if (message.starts_with(prefix)) message.erase(0, prefix.size());
+  for (size_t at = message.find(path); !path.empty() && at != std::string::npos;
+       at = message.find(path, at)) {
+    message.replace(at, path.size(), "the upload");
+  }
+  return message;
 }
 
 // The first bytes of the file are the archive magic.
@@ -63,13 +70,14 @@ int FirstImpossibleCell(const Tile& t) {
 }  // namespace
 
 Result<std::unique_ptr<SpoolFile>> SpoolFile::Create(const std::string& dir) {
+  // Messages name no path: they go to the client (the handler logs the directory).
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (ec) return Status::IoError("cannot create " + dir + ": " + ec.message());
+  if (ec) return Status::IoError("cannot create the spool directory: " + ec.message());
   std::string name = dir + "/" + std::string(kSpoolPrefix) + "XXXXXX";
   const int fd = ::mkostemp(name.data(), O_CLOEXEC);
   if (fd < 0)
-    return Status::IoError("cannot create a file in " + dir + ": " + std::strerror(errno));
+    return Status::IoError(std::string("cannot create a spool file: ") + std::strerror(errno));
   return std::unique_ptr<SpoolFile>(new SpoolFile(name, fd));
 }
 

@@ -20,7 +20,8 @@ namespace bgkmap {
 // A temporary file that is removed when the object goes away, whatever the outcome.
 class SpoolFile {
  public:
-  // A new, empty file "import-XXXXXX" in `dir` (created if missing). IoError if it cannot be.
+  // A new, empty file "import-XXXXXX" in `dir` (created if missing). IoError if it cannot be;
+  // the message names no path (it is meant for the client).
   static Result<std::unique_ptr<SpoolFile>> Create(const std::string& dir);
   ~SpoolFile();  // closes and removes the file
   SpoolFile(const SpoolFile&) = delete;

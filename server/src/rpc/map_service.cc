@@ -6,7 +6,7 @@ namespace bgkmap {
 
 grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* MapService::Ingest(
     grpc::CallbackServerContext* call) {
-  return StartIngestStream(ctx_, call->peer());
+  return StartIngestStream(ctx_, call);
 }
 
 grpc::ServerUnaryReactor* MapService::IngestScan(grpc::CallbackServerContext* call,
@@ -15,8 +15,8 @@ grpc::ServerUnaryReactor* MapService::IngestScan(grpc::CallbackServerContext* ca
 }
 
 grpc::ServerWriteReactor<v1::RegionChunk>* MapService::QueryRegion(
-    grpc::CallbackServerContext* /*call*/, const v1::RegionRequest* request) {
-  return StartQueryRegion(ctx_, request);
+    grpc::CallbackServerContext* call, const v1::RegionRequest* request) {
+  return StartQueryRegion(ctx_, call, request);
 }
 
 grpc::ServerUnaryReactor* MapService::QueryPoints(grpc::CallbackServerContext* call,
@@ -31,9 +31,9 @@ grpc::ServerUnaryReactor* MapService::CheckPath(grpc::CallbackServerContext* cal
   return StartCheckPath(ctx_, call, request, response);
 }
 
-grpc::ServerWriteReactor<v1::TileUpdate>* MapService::Watch(grpc::CallbackServerContext* /*call*/,
+grpc::ServerWriteReactor<v1::TileUpdate>* MapService::Watch(grpc::CallbackServerContext* call,
                                                             const v1::WatchRequest* request) {
-  return StartWatch(ctx_, request);
+  return StartWatch(ctx_, call, request);
 }
 
 grpc::ServerUnaryReactor* MapService::Info(grpc::CallbackServerContext* call,
@@ -49,13 +49,19 @@ grpc::ServerUnaryReactor* MapService::ClearRegion(grpc::CallbackServerContext* c
 }
 
 grpc::ServerWriteReactor<v1::ArchiveChunk>* MapService::ExportMap(
-    grpc::CallbackServerContext* /*call*/, const v1::ExportRequest* request) {
-  return StartExportMap(ctx_, request);
+    grpc::CallbackServerContext* call, const v1::ExportRequest* request) {
+  return StartExportMap(ctx_, call, request);
 }
 
-grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(
-    grpc::CallbackServerContext* /*call*/, v1::ImportResponse* response) {
-  return StartImportMap(ctx_, response);
+grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(grpc::CallbackServerContext* call,
+                                                                 v1::ImportResponse* response) {
+  return StartImportMap(ctx_, call, response);
+}
+
+grpc::ServerUnaryReactor* MapService::RetireRobot(grpc::CallbackServerContext* call,
+                                                  const v1::RetireRobotRequest* request,
+                                                  v1::RetireRobotResponse* response) {
+  return StartRetireRobot(ctx_, call, request, response);
 }
 
 }  // namespace bgkmap

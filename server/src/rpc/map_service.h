@@ -33,6 +33,9 @@ class MapService final : public v1::MapService::CallbackService {
                                                         const v1::ExportRequest* request) override;
   grpc::ServerReadReactor<v1::ArchiveChunk>* ImportMap(grpc::CallbackServerContext* call,
                                                        v1::ImportResponse* response) override;
+  grpc::ServerUnaryReactor* RetireRobot(grpc::CallbackServerContext* call,
+                                        const v1::RetireRobotRequest* request,
+                                        v1::RetireRobotResponse* response) override;
 
  private:
   ServiceContext& ctx_;

@@ -22,7 +22,25 @@ grpc::Status ToGrpcStatus(const Status& status) {
 
 grpc::Status LayersFromProto(const google::protobuf::RepeatedField<int>& layers,
                              const std::string& field, std::vector<Layer>* out) {
-  return ToGrpcStatus(LayerListFromProto(layers, field, out));
+  // A layer listed twice would only multiply the answer (a request of a few kB could ask for
+  // gigabytes): refused before anything else is looked at, so at most kLayerCount remain.
+  if (layers.size() > kLayerCount) {
+    return {grpc::StatusCode::INVALID_ARGUMENT,
+            field + ": " + std::to_string(layers.size()) + " layers listed, but there are only " +
+                std::to_string(kLayerCount) + " and each may be listed once"};
+  }
+  if (grpc::Status s = ToGrpcStatus(LayerListFromProto(layers, field, out)); !s.ok()) return s;
+  for (size_t i = 0; i < out->size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if ((*out)[i] == (*out)[j]) {
+        return {grpc::StatusCode::INVALID_ARGUMENT,
+                field + "[" + std::to_string(i) + "]: layer " +
+                    std::to_string(layers.Get(static_cast<int>(i))) + " is already listed at " +
+                    field + "[" + std::to_string(j) + "]; each layer may be listed once"};
+      }
+    }
+  }
+  return grpc::Status::OK;
 }
 
 }  // namespace bgkmap

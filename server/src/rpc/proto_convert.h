@@ -20,8 +20,8 @@ namespace bgkmap {
 
 grpc::Status ToGrpcStatus(const Status& status);
 
-// Fails (INVALID_ARGUMENT naming `field`) on LAYER_UNSPECIFIED or an unknown value. An empty list
-// means every layer.
+// Fails (INVALID_ARGUMENT naming `field`) on LAYER_UNSPECIFIED, an unknown value or a layer
+// listed twice (so at most kLayerCount layers come out). An empty list means every layer.
 grpc::Status LayersFromProto(const google::protobuf::RepeatedField<int>& layers,
                              const std::string& field, std::vector<Layer>* out);
 

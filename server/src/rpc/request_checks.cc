@@ -65,6 +65,17 @@ grpc::Status CheckRobotId(const std::string& robot_id) {
     return Invalid("robot_id: " + std::to_string(robot_id.size()) + " bytes exceed the limit of " +
                    std::to_string(kMaxRobotIdBytes));
   }
+  // Ids are written into logs, metrics labels and the store: no control characters (a newline
+  // or NUL could forge a log line).
+  for (size_t i = 0; i < robot_id.size(); ++i) {
+    const auto c = static_cast<unsigned char>(robot_id[i]);
+    if (c < 0x20 || c == 0x7f) {
+      static constexpr char kHex[] = "0123456789abcdef";
+      return Invalid(std::string("robot_id: byte ") + std::to_string(i) +
+                     " is the control character 0x" + kHex[c >> 4] + kHex[c & 15] +
+                     "; robot ids must be printable text");
+    }
+  }
   return grpc::Status::OK;
 }
 

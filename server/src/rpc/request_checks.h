@@ -19,7 +19,8 @@ namespace bgkmap {
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
                                 const ServerLimits& limits, PreparedScan* out);
 
-// Cheap checks done before anything else (robot id), so even duplicates are well-formed.
+// Cheap checks done before anything else (robot id: 1..128 bytes, no control characters), so
+// even duplicates are well-formed.
 grpc::Status CheckRobotId(const std::string& robot_id);
 
 // The cells covered by a metric box (half-open), widened to multiples of `stride` aligned with

@@ -1,5 +1,10 @@
 #include "rpc/service_context.h"
 
+#include <grpcpp/server_context.h>
+
+#include <algorithm>
+#include <sstream>
+
 namespace bgkmap {
 
 SessionRegistry::Admit SessionRegistry::Add(DrainListener* session, Kind kind, uint32_t limit) {
@@ -35,6 +40,69 @@ size_t SessionRegistry::count(Kind kind) const {
   size_t n = 0;
   for (const auto& [_, k] : sessions_) n += (k == kind);
   return n;
+}
+
+void SessionRegistry::TickAll() {
+  const auto now = std::chrono::steady_clock::now();
+  std::lock_guard lock(mu_);
+  for (const auto& [session, _] : sessions_) session->Tick(now);
+}
+
+void SessionRegistry::StartWatchdog(std::chrono::milliseconds period) {
+  std::lock_guard lock(watchdog_mu_);
+  if (watchdog_.joinable()) return;
+  watchdog_stop_ = false;
+  watchdog_ = std::thread([this, period] {
+    std::unique_lock wait(watchdog_mu_);
+    while (!watchdog_cv_.wait_for(wait, period, [this] { return watchdog_stop_; })) {
+      wait.unlock();
+      TickAll();
+      wait.lock();
+    }
+  });
+}
+
+void SessionRegistry::StopWatchdog() {
+  std::thread thread;
+  {
+    std::lock_guard lock(watchdog_mu_);
+    watchdog_stop_ = true;
+    thread = std::move(watchdog_);
+  }
+  watchdog_cv_.notify_all();
+  if (thread.joinable()) thread.join();
+}
+
+std::chrono::steady_clock::duration TimeoutOf(double seconds) {
+  return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(seconds));
+}
+
+std::string SecondsText(double seconds) {
+  std::ostringstream s;
+  s << seconds;
+  return s.str();
+}
+
+StalledWriteWatch::StalledWriteWatch(grpc::CallbackServerContext* call, double timeout_s)
+    : call_(call), timeout_(TimeoutOf(timeout_s)) {}
+
+void StalledWriteWatch::WriteStarted() {
+  write_since_.store(
+      std::max<int64_t>(1, std::chrono::steady_clock::now().time_since_epoch().count()));
+}
+
+void StalledWriteWatch::WriteDone() { write_since_.store(0); }
+
+void StalledWriteWatch::Tick(std::chrono::steady_clock::time_point now) {
+  const int64_t since = write_since_.load();
+  if (since == 0 || timeout_ == std::chrono::steady_clock::duration::zero() || cancelled_.load()) {
+    return;
+  }
+  if (now.time_since_epoch().count() - since > timeout_.count()) {
+    cancelled_.store(true);
+    call_->TryCancel();  // the outstanding write fails; the reactor ends the call
+  }
 }
 
 bool ByteBudget::TryAcquire(uint64_t bytes) {

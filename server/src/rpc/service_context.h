@@ -2,10 +2,16 @@
 // and the registry of long-lived streams that a shutdown has to drain.
 #pragma once
 
+#include <grpcpp/support/server_callback.h>
+
 #include <atomic>
 #include <boost/asio/thread_pool.hpp>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <mutex>
+#include <string>
+#include <thread>
 #include <unordered_map>
 
 #include "bgkmap/server/server_config.h"
@@ -14,11 +20,15 @@
 
 namespace bgkmap {
 
-// A long-lived stream that must wind down when the server stops.
+// A long-lived stream that must wind down when the server stops, and that gives its slot back
+// when its client goes idle or stops reading (server.*_timeout_s).
 class DrainListener {
  public:
   // Stop taking new work, finish and answer what was taken, then end the call.
   virtual void BeginDrain() = 0;
+  // Called every watchdog period with the time: end the call if it has been idle or stalled
+  // for too long. Must not block; called with the registry's lock held (like BeginDrain).
+  virtual void Tick(std::chrono::steady_clock::time_point /*now*/) {}
 
  protected:
   ~DrainListener() = default;
@@ -26,8 +36,14 @@ class DrainListener {
 
 class SessionRegistry {
  public:
-  enum class Kind { kIngest, kWatch };
+  // kStream: region, export and watch streams watched for stalled writes (not counted).
+  enum class Kind { kIngest, kWatch, kStream };
   enum class Admit { kOk, kDraining, kFull };
+
+  SessionRegistry() = default;
+  ~SessionRegistry() { StopWatchdog(); }
+  SessionRegistry(const SessionRegistry&) = delete;
+  SessionRegistry& operator=(const SessionRegistry&) = delete;
 
   Admit Add(DrainListener* session, Kind kind, uint32_t limit);
   void Remove(DrainListener* session);
@@ -36,11 +52,46 @@ class SessionRegistry {
   bool draining() const;
   size_t count(Kind kind) const;
 
+  // Calls Tick() on every open session now, and then every `period` on a thread of its own
+  // until StopWatchdog().
+  void TickAll();
+  void StartWatchdog(std::chrono::milliseconds period);
+  void StopWatchdog();
+
  private:
   mutable std::mutex mu_;
   bool draining_ = false;
   std::unordered_map<DrainListener*, Kind> sessions_;
+
+  std::mutex watchdog_mu_;
+  std::condition_variable watchdog_cv_;
+  bool watchdog_stop_ = false;
+  std::thread watchdog_;
 };
+
+// Cancels a streaming call whose client has stopped taking its messages: a write outstanding for
+// longer than server.stalled_write_timeout_s. Without it, a client that never reads its region
+// (or export, or watch) holds its query slot, its raster and its snapshot forever. A reactor
+// owns one, registers it (Kind::kStream) and removes it in OnDone.
+class StalledWriteWatch final : public DrainListener {
+ public:
+  StalledWriteWatch(grpc::CallbackServerContext* call, double timeout_s);
+  void WriteStarted();                                  // just before StartWrite()
+  void WriteDone();                                     // first thing in OnWriteDone()
+  bool cancelled() const { return cancelled_.load(); }  // by this watch
+  void BeginDrain() override {}
+  void Tick(std::chrono::steady_clock::time_point now) override;
+
+ private:
+  grpc::CallbackServerContext* const call_;
+  const std::chrono::steady_clock::duration timeout_;  // zero: never
+  std::atomic<int64_t> write_since_{0};  // steady_clock ticks of the outstanding write; 0: none
+  std::atomic<bool> cancelled_{false};
+};
+
+// server.*_timeout_s as a steady_clock duration (0: never), and as text for messages ("0.5").
+std::chrono::steady_clock::duration TimeoutOf(double seconds);
+std::string SecondsText(double seconds);
 
 // Bounds a counter of concurrent operations; released on destruction.
 class Permit {

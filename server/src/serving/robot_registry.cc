@@ -15,13 +15,20 @@ RobotRegistry::Admission RobotRegistry::Admit(const std::string& robot_id, uint6
                                               Stamp stamp, uint64_t points, uint64_t* previous) {
   std::lock_guard lock(mu_);
   auto it = robots_.find(robot_id);
+  const uint64_t last = it == robots_.end() ? 0 : it->second.last_sequence;
+  *previous = last;
+  if (it != robots_.end() && sequence <= last) {
+    ++it->second.scans_duplicate;
+    return Admission::kDuplicate;
+  }
+  if (max_sequence_jump_ != 0 && sequence - last > max_sequence_jump_) {  // sequence > last here
+    if (it != robots_.end()) ++it->second.scans_rejected;
+    return Admission::kSequenceJump;
+  }
   if (it == robots_.end()) {
     if (robots_.size() >= max_robots_) return Admission::kTooManyRobots;
     it = robots_.emplace(robot_id, RobotProgress{}).first;
     it->second.robot_id = robot_id;
-  } else if (sequence <= it->second.last_sequence) {
-    ++it->second.scans_duplicate;
-    return Admission::kDuplicate;
   }
   RobotProgress& r = it->second;
   *previous = r.last_sequence;
@@ -43,10 +50,13 @@ void RobotRegistry::Withdraw(const std::string& robot_id, uint64_t sequence, uin
   if (r.last_sequence == sequence) r.last_sequence = previous;
 }
 
-bool RobotRegistry::IsDuplicate(const std::string& robot_id, uint64_t sequence) const {
+bool RobotRegistry::IsDuplicate(const std::string& robot_id, uint64_t sequence,
+                                uint64_t* last) const {
   std::lock_guard lock(mu_);
   auto it = robots_.find(robot_id);
-  return it != robots_.end() && sequence <= it->second.last_sequence;
+  if (it == robots_.end() || sequence > it->second.last_sequence) return false;
+  if (last != nullptr) *last = it->second.last_sequence;
+  return true;
 }
 
 void RobotRegistry::CountRejected(const std::string& robot_id) {
@@ -57,6 +67,20 @@ void RobotRegistry::CountRejected(const std::string& robot_id) {
 void RobotRegistry::CountDuplicate(const std::string& robot_id) {
   std::lock_guard lock(mu_);
   if (auto it = robots_.find(robot_id); it != robots_.end()) ++it->second.scans_duplicate;
+}
+
+std::optional<RobotProgress> RobotRegistry::Retire(const std::string& robot_id) {
+  std::lock_guard lock(mu_);
+  auto it = robots_.find(robot_id);
+  if (it == robots_.end()) return std::nullopt;
+  RobotProgress gone = std::move(it->second);
+  robots_.erase(it);
+  return gone;
+}
+
+void RobotRegistry::Unretire(const RobotProgress& robot) {
+  std::lock_guard lock(mu_);
+  robots_.try_emplace(robot.robot_id, robot);
 }
 
 std::optional<uint64_t> RobotRegistry::LastSequence(const std::string& robot_id) const {

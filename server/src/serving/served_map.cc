@@ -27,7 +27,7 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
       residency_(table_, durability, durability.persists(), options.tile_memory_limit_bytes,
                  std::move(options.on_over_memory)),
       checkpointer_(durability, table_),
-      robots_(options.max_robots),
+      robots_(options.max_robots, options.max_sequence_jump),
       scheduler_(workers, std::move(options.on_tiles_changed)) {
   scheduler_.Restore(durability.recovered_version());
   robots_.Restore(durability.LoggedRobotSequences());
@@ -52,11 +52,13 @@ ServedMap::~ServedMap() { scheduler_.WaitIdle(); }
 
 ServedMap::Admission ServedMap::SubmitScan(ScanOrigin origin,
                                            std::shared_ptr<const PreparedScan> scan,
-                                           std::function<void(ScanOutcome)> done) {
+                                           std::function<void(ScanOutcome)> done,
+                                           uint64_t* last_sequence) {
   std::lock_guard admission(admission_mu_);
   uint64_t previous = 0;
   const Admission a =
       robots_.Admit(origin.robot_id, origin.sequence, origin.stamp, scan->counts.kept, &previous);
+  if (last_sequence != nullptr) *last_sequence = previous;
   if (a != Admission::kAdmitted) return a;
   ChangeScheduler::TileChange kind{scan->write_tiles, scan->read_tiles};
   scheduler_.Submit(std::move(kind), [this, origin = std::move(origin), scan = std::move(scan),
@@ -158,10 +160,16 @@ ChangeScheduler::Done ServedMap::RunImport(std::span<const TileKey> keys,
   }
   // Not journaled (an archive can be huge): durable by a checkpoint at its own version, which
   // holds every earlier change too; undone from these copies if that fails.
-  const std::vector<std::unique_ptr<Tile>> before = table_.CopyTiles(keys);
   std::vector<const Tile*> adding;
   adding.reserve(tiles.size());
   for (const auto& t : tiles) adding.push_back(t.get());
+  // Sums that overflow would leave a map answering NaN whose own export is not importable:
+  // refused as a whole, before anything is added.
+  if (Status s = table_.CheckSumsFinite(keys, adding); !s.ok()) {
+    outcome.status = s;
+    return finish({});
+  }
+  const std::vector<std::unique_ptr<Tile>> before = table_.CopyTiles(keys);
   table_.AddTiles(keys, adding, version);
   checkpointer_.MarkChanged(keys);
   summary_.MarkStale(keys);  // (an undone import recounts to what it was)
@@ -172,6 +180,29 @@ ChangeScheduler::Done ServedMap::RunImport(std::span<const TileKey> keys,
   }
   residency_.SignalIfOverLimit();
   return finish(std::vector<TileKey>(keys.begin(), keys.end()));
+}
+
+void ServedMap::RetireRobot(const std::string& robot_id,
+                            std::function<void(Result<RobotProgress>)> done) {
+  std::lock_guard admission(admission_mu_);  // ordered with the admission of scans
+  std::optional<RobotProgress> gone = robots_.Retire(robot_id);
+  if (!gone) {
+    done(Status::FailedPrecondition("robot_id: '" + robot_id + "' is not a known robot"));
+    return;
+  }
+  // At the barrier every scan admitted before the retirement is journaled; those admitted after
+  // it journal their robot again, as a new one.
+  scheduler_.Submit(ChangeScheduler::Barrier{},
+                    [this, robot = std::move(*gone),
+                     done = std::move(done)](uint64_t) mutable -> ChangeScheduler::Done {
+                      Result<RobotProgress> result = robot;
+                      if (Status s = durability_.RetireRobot(robot.robot_id); !s.ok()) {
+                        robots_.Unretire(robot);
+                        result = Status::IoError("cannot persist it: " + s.message());
+                      }
+                      auto shared = std::make_shared<Result<RobotProgress>>(std::move(result));
+                      return {{}, [done = std::move(done), shared] { done(std::move(*shared)); }};
+                    });
 }
 
 void ServedMap::SubmitSnapshot(TileKey min, TileKey max,

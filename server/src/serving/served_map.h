@@ -73,6 +73,7 @@ struct TileContent {
 
 struct ServedMapOptions {
   uint32_t max_robots = 0;
+  uint64_t max_sequence_jump = 0;        // 0: no limit (RobotRegistry)
   uint64_t tile_memory_limit_bytes = 0;  // 0: unbounded
   // Called (from a worker, without locks held) when tiles in memory exceed the limit.
   std::function<void()> on_over_memory;
@@ -92,15 +93,24 @@ class ServedMap {
 
   // Changes. Each `done` runs on a worker once the change counts as applied (or was refused).
   using Admission = RobotRegistry::Admission;
-  // A robot's scans must be submitted in the order they were sent.
+  // A robot's scans must be submitted in the order they were sent. `last_sequence` (optional)
+  // receives the robot's last sequence number before this scan (what a duplicate or a refused
+  // jump is measured against).
   Admission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,
-                       std::function<void(ScanOutcome)> done);
+                       std::function<void(ScanOutcome)> done, uint64_t* last_sequence = nullptr);
   void SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done);
   // Adds the tiles' statistics (a merge) as one exclusive change, checkpointed at once: if that
   // fails the tiles are put back and the outcome is IoError; a stored tile that fails its
-  // checksum is DataLoss. `keys` (sorted, distinct) and `tiles` must outlive `done`.
+  // checksum is DataLoss; a sum that would not be finite (overflow) is OutOfRange naming the
+  // tile and cell, and nothing is added. `keys` (sorted, distinct) and `tiles` must outlive `done`.
   void SubmitImport(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
                     std::function<void(ImportOutcome)> done);
+  // Forgets a robot: scans admitted after this call see it as new (its next scan starts a new
+  // sequence, and it no longer counts against max_robots), and at the next barrier the store
+  // forgets it too, so it stays forgotten after a restart. `done` gets what the robot was;
+  // FailedPrecondition if it is not known, IoError (and the robot kept) if the store cannot
+  // write.
+  void RetireRobot(const std::string& robot_id, std::function<void(Result<RobotProgress>)> done);
   // At a barrier, checkpoints the map and opens its tiles in [min, max] as of that version.
   void SubmitSnapshot(TileKey min, TileKey max, std::function<void(Result<MapSnapshot>)> done);
   // Captures the changed tiles at a barrier and writes them outside it.

@@ -1,7 +1,9 @@
 #include "serving/tile_table.h"
 
 #include <algorithm>
+#include <cmath>
 #include <mutex>
+#include <sstream>
 
 namespace bgkmap {
 namespace {
@@ -50,6 +52,31 @@ std::vector<TileKey> TileTable::ClearBox(const CellBox& box, uint64_t version) {
   std::vector<TileKey> keys = map_->ClearBox(box, version, keep_cleared_);
   NoteTileCount();
   return keys;
+}
+
+Status TileTable::CheckSumsFinite(std::span<const TileKey> keys,
+                                  std::span<const Tile* const> tiles) const {
+  std::shared_lock table(table_mu_);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const Tile* have = map_->FindTile(keys[i]);
+    if (have == nullptr) continue;  // the sum is the (verified, finite) tile itself
+    const Tile& add = *tiles[i];
+    for (int c = 0; c < add.cell_count(); ++c) {
+      const double w = have->w()[c] + add.w()[c], s = have->s()[c] + add.s()[c];
+      const float a = have->a()[c] + add.a()[c], b = have->b()[c] + add.b()[c];
+      if (std::isfinite(w) && std::isfinite(s) && std::isfinite(a) && std::isfinite(b)) continue;
+      const CellIndex origin = geometry().TileOrigin(keys[i]);
+      const int ts = params().tile_size;
+      std::ostringstream m;
+      m << "tile (" << keys[i].x << ", " << keys[i].y << ") cell (" << origin.x + c % ts << ", "
+        << origin.y + c / ts << "): the merged statistics would not be finite (W " << have->w()[c]
+        << " + " << add.w()[c] << ", S " << have->s()[c] << " + " << add.s()[c] << ", A "
+        << have->a()[c] << " + " << add.a()[c] << ", B " << have->b()[c] << " + " << add.b()[c]
+        << ")";
+      return Status::OutOfRange(m.str());
+    }
+  }
+  return Status::Ok();
 }
 
 void TileTable::AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,

@@ -50,6 +50,11 @@ class TileTable final : public TileCopier {
   ScanReport ApplyScan(const PreparedScan& scan, uint64_t version);
   // Returns the tiles that changed.
   std::vector<TileKey> ClearBox(const CellBox& box, uint64_t version);
+  // OutOfRange naming the first tile and cell where adding `tiles` to the map's tiles would
+  // give a statistic that is not finite (an overflow: the map would then answer NaN, and its
+  // own archive would be refused as impossible); OK if every sum stays finite. Call at a
+  // barrier (no change in flight) before AddTiles().
+  Status CheckSumsFinite(std::span<const TileKey> keys, std::span<const Tile* const> tiles) const;
   // Adds each tile's statistics into the map (a merge: sums), stamped with `version`.
   void AddTiles(std::span<const TileKey> keys, std::span<const Tile* const> tiles,
                 uint64_t version);

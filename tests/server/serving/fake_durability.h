@@ -19,6 +19,7 @@ class FakeDurability final : public Durability {
   bool persists() const override { return true; }
   uint64_t recovered_version() const override { return 0; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override { return {}; }
+  Status RetireRobot(const std::string&) override { return Status::Ok(); }
 
   Status Record(const ChangeRecord& change) override {
     std::lock_guard lock(mu_);

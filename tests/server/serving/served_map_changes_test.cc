@@ -134,5 +134,28 @@ TEST_F(ServedMapChangesTest, DuplicateAndTooManyRobotsAreRefusedAtAdmission) {
   EXPECT_EQ(map_.scans_applied(), 16u);
 }
 
+// Issue 12: one scan with sequence 2^64-1 must not make every later scan of the robot a
+// duplicate; a retired robot starts afresh and frees its slot.
+TEST(RobotRegistryTest, JumpsAreRefusedAndRetiredRobotsStartAfresh) {
+  RobotRegistry robots(/*max_robots=*/2, /*max_sequence_jump=*/1000);
+  uint64_t previous = 0;
+  EXPECT_EQ(robots.Admit("a", 5, {}, 1, &previous), RobotRegistry::Admission::kAdmitted);
+  EXPECT_EQ(robots.Admit("a", UINT64_MAX, {}, 1, &previous),
+            RobotRegistry::Admission::kSequenceJump);
+  EXPECT_EQ(previous, 5u);
+  EXPECT_EQ(robots.Admit("a", 1005, {}, 1, &previous), RobotRegistry::Admission::kAdmitted);
+  EXPECT_EQ(robots.Admit("a", 3, {}, 1, &previous), RobotRegistry::Admission::kDuplicate);
+  EXPECT_EQ(previous, 1005u);
+  EXPECT_EQ(robots.Admit("new", 1001, {}, 1, &previous), RobotRegistry::Admission::kSequenceJump);
+  EXPECT_EQ(robots.Admit("b", 1, {}, 1, &previous), RobotRegistry::Admission::kAdmitted);
+  EXPECT_EQ(robots.Admit("c", 1, {}, 1, &previous), RobotRegistry::Admission::kTooManyRobots);
+  const std::optional<RobotProgress> gone = robots.Retire("a");
+  ASSERT_TRUE(gone.has_value());
+  EXPECT_EQ(gone->last_sequence, 1005u);
+  EXPECT_FALSE(robots.Retire("a").has_value());
+  EXPECT_EQ(robots.Admit("c", 1, {}, 1, &previous), RobotRegistry::Admission::kAdmitted);
+  EXPECT_EQ(robots.Admit("a", 1, {}, 1, &previous), RobotRegistry::Admission::kTooManyRobots);
+}
+
 }  // namespace
 }  // namespace bgkmap

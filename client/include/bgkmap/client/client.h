@@ -212,6 +212,11 @@ struct ClearResult {
   uint64_t map_version = 0;
 };
 
+struct RetiredRobot {
+  uint64_t last_sequence = 0;  // the robot's last admitted sequence number
+  uint64_t robots = 0;         // robots the server knows after the retirement
+};
+
 struct ExportResult {
   uint64_t bytes = 0;        // of the archive file
   uint64_t tiles = 0;        // in the archive
@@ -254,6 +259,9 @@ class Client {
                                            std::function<void(const TileUpdate&)> on_update);
   RpcResult<MapInfo> Info();
   RpcResult<ClearResult> ClearRegion(const MetricBox& box);
+  // Admin: forgets a robot (Info() lists them); its next scan starts a new sequence. NOT_FOUND
+  // if the server does not know it.
+  RpcResult<RetiredRobot> RetireRobot(const std::string& robot_id);
 
   // Admin: the whole map, or the cells meeting `box`, as one map archive at `path` (a
   // consistent snapshot at one map version). Written to path + ".partial", synced, then renamed:

@@ -18,24 +18,43 @@ namespace bgkmap {
 
 // Limits that protect the server; every violation is reported with the key name and its value.
 struct ServerLimits {
-  uint64_t max_points_per_scan = 2'000'000;    // max_points_per_scan
-  uint64_t max_region_cells = 4'000'000;       // max_region_cells: map cells per region query
-  uint64_t max_query_points = 100'000;         // max_query_points: points per point query
-  uint64_t max_path_poses = 10'000;            // max_path_poses: poses per path check
-  uint64_t max_footprint_cells = 100'000;      // max_footprint_cells: cells under one footprint
-  double max_coordinate = 1e6;                 // max_coordinate: |x|, |y|, |z| bound, metres
-  double quaternion_tolerance = 1e-3;          // quaternion_tolerance: allowed | |q| - 1 |
-  uint32_t max_inflight_scans_per_stream = 8;  // max_inflight_scans_per_stream: read-ahead
-  uint32_t max_inflight_unary_scans = 64;      // max_inflight_unary_scans: IngestScan calls
-  uint32_t max_ingest_streams = 256;           // max_ingest_streams
-  uint32_t max_robots = 4096;                  // max_robots: distinct robot ids
-  uint32_t max_watchers = 64;                  // max_watchers
-  uint64_t max_watch_tiles = 65'536;           // max_watch_tiles: tiles per watched region
-  uint32_t max_concurrent_queries = 64;        // max_concurrent_queries
+  uint64_t max_points_per_scan = 2'000'000;  // max_points_per_scan
+  uint64_t max_region_cells = 4'000'000;     // max_region_cells: map cells per region query
+  uint64_t max_query_points = 100'000;       // max_query_points: points per point query
+  uint64_t max_path_poses = 10'000;          // max_path_poses: poses per path check
+  uint64_t max_footprint_cells = 100'000;    // max_footprint_cells: cells under one footprint
+  // max_path_check_cells: footprint bounding-box cells summed over a path check's poses (the
+  // work a CheckPath costs), checked before any cell is visited.
+  uint64_t max_path_check_cells = 20'000'000;
+  double max_coordinate = 1e6;                       // max_coordinate: |x|, |y|, |z| bound, metres
+  double quaternion_tolerance = 1e-3;                // quaternion_tolerance: allowed | |q| - 1 |
+  uint32_t max_inflight_scans_per_stream = 8;        // max_inflight_scans_per_stream: read-ahead
+  uint32_t max_inflight_unary_scans = 64;            // max_inflight_unary_scans: IngestScan calls
+  uint32_t max_ingest_streams = 256;                 // max_ingest_streams
+  uint32_t max_robots = 4096;                        // max_robots: distinct robot ids
+  uint32_t max_watchers = 64;                        // max_watchers
+  uint64_t max_watch_tiles = 65'536;                 // max_watch_tiles: tiles per watched region
+  uint32_t max_concurrent_queries = 64;              // max_concurrent_queries
   uint64_t max_region_bytes_in_flight = 1ull << 30;  // max_region_bytes_in_flight: rasters held
   uint64_t max_message_bytes = 64ull << 20;          // max_message_bytes: largest gRPC message
   uint64_t region_chunk_bytes = 1ull << 20;          // region_chunk_bytes: target chunk size
   uint64_t max_import_bytes = 1ull << 30;  // max_import_bytes: largest archive ImportMap takes
+  // max_sequence_jump: a scan whose sequence number exceeds the robot's last one (0 for a new
+  // robot) by more than this is refused (OUT_OF_RANGE), so one bad scan cannot make every later
+  // scan of the robot a duplicate. 0 = no limit.
+  uint64_t max_sequence_jump = uint64_t{1} << 32;
+  // Idle and stalled peers give their slot back (0 = never):
+  //   ingest_idle_timeout_s: an Ingest stream with nothing in flight that sends no scan for this
+  //     long is ended (DEADLINE_EXCEEDED);
+  //   stalled_write_timeout_s: a stream whose client does not take a message (an ack, a region
+  //     chunk, a tile update, an export chunk) for this long is cancelled;
+  //   import_idle_timeout_s: an ImportMap upload that sends no chunk for this long is ended;
+  //   max_query_seconds: a unary query (points, path, info) still running after this long stops
+  //     and answers DEADLINE_EXCEEDED (a client deadline, if shorter, is honoured too).
+  double ingest_idle_timeout_s = 300;
+  double stalled_write_timeout_s = 60;
+  double import_idle_timeout_s = 60;
+  double max_query_seconds = 30;
 };
 
 // The `storage:` section: where and how the map is persisted (docs/storage.md).

@@ -3,6 +3,7 @@
 // traversability under the footprint, its variance and the unknown fraction; all poses are read
 // in one atomic read.
 #include <cmath>
+#include <sstream>
 
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
@@ -26,25 +27,67 @@ bool InsidePolygon(const std::vector<Vec2>& poly, double x, double y) {
   return inside;
 }
 
-// Cells whose centres lie in the footprint at `pose` (at least the cell under the pose).
-grpc::Status FootprintCells(const v1::PathCheckRequest& req, const v1::Pose2& pose,
+std::string Num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// Largest distance from the pose to the footprint's edge, metres.
+double FootprintReach(const v1::PathCheckRequest& req) {
+  if (!req.has_polygon()) return req.radius();
+  double reach = 0;
+  for (const v1::Point2& v : req.polygon().vertices()) {
+    reach = std::max(reach, std::hypot(v.x(), v.y()));
+  }
+  return reach;
+}
+
+// The cost of a path check, bounded before a single cell is visited. In doubles: a radius of
+// 2e8 m is 2e9 cells, which int32 cell indices would wrap (the box then looked small and the
+// server spent minutes, then memory, on it).
+grpc::Status CheckFootprintCost(const v1::PathCheckRequest& req, size_t poses, double reach,
+                                double resolution, const ServerLimits& limits) {
+  const std::string field = req.has_polygon() ? "polygon" : "radius";
+  // Cells of the footprint's bounding box around any pose (the pose need not be on a cell
+  // centre, hence + 2).
+  const double side = 2 * std::ceil(reach / resolution) + 2;
+  const double box = side * side;
+  if (!(box <= static_cast<double>(limits.max_footprint_cells))) {
+    return {
+        grpc::StatusCode::RESOURCE_EXHAUSTED,
+        field + ": a reach of " + Num(reach) + " m is a footprint box of about " + Num(box) +
+            " cells at resolution " + Num(resolution) +
+            " m, over server.max_footprint_cells = " + std::to_string(limits.max_footprint_cells)};
+  }
+  const double total = box * static_cast<double>(poses);
+  if (!(total <= static_cast<double>(limits.max_path_check_cells))) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "poses: " + std::to_string(poses) + " poses x about " + Num(box) +
+                " footprint box cells = " + Num(total) +
+                " cells exceed server.max_path_check_cells = " +
+                std::to_string(limits.max_path_check_cells)};
+  }
+  return grpc::Status::OK;
+}
+
+// Cells whose centres lie in the footprint at `pose` (at least the cell under the pose). The
+// pose and the reach have been bounded (CheckCoordinate, CheckFootprintCost), so every cell
+// index fits.
+grpc::Status FootprintCells(const v1::PathCheckRequest& req, const v1::Pose2& pose, double reach,
                             const GridGeometry& g, const ServerLimits& limits,
                             std::vector<CellIndex>* out) {
   const double c = std::cos(pose.yaw()), s = std::sin(pose.yaw());
   std::vector<Vec2> poly;
-  double reach = 0;
   if (req.has_polygon()) {
     for (const v1::Point2& v : req.polygon().vertices()) {
       poly.push_back({pose.x() + c * v.x() - s * v.y(), pose.y() + s * v.x() + c * v.y()});
-      reach = std::max(reach, std::hypot(v.x(), v.y()));
     }
-  } else {
-    reach = req.radius();
   }
   const CellIndex lo = g.CellAt(pose.x() - reach, pose.y() - reach);
   const CellIndex hi = g.CellAt(pose.x() + reach, pose.y() + reach);
-  const uint64_t box_cells =
-      static_cast<uint64_t>(hi.x - lo.x + 1) * static_cast<uint64_t>(hi.y - lo.y + 1);
+  const uint64_t box_cells = static_cast<uint64_t>(int64_t{hi.x} - lo.x + 1) *
+                             static_cast<uint64_t>(int64_t{hi.y} - lo.y + 1);
   if (box_cells > limits.max_footprint_cells) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED,
             "footprint: about " + std::to_string(box_cells) +
@@ -66,8 +109,8 @@ grpc::Status FootprintCells(const v1::PathCheckRequest& req, const v1::Pose2& po
   return grpc::Status::OK;
 }
 
-grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
-                       v1::PathCheckResponse* response) {
+grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
+                       const v1::PathCheckRequest& req, v1::PathCheckResponse* response) {
   const ServerLimits& limits = ctx.limits;
   const MapParams& params = ctx.map.params();
   auto invalid = [](const std::string& m) {
@@ -95,6 +138,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
     if (!(req.radius() >= 0) || !std::isfinite(req.radius())) {
       return invalid("radius: must be a finite number >= 0");
     }
+    if (grpc::Status s = CheckCoordinate(req.radius(), "radius", limits); !s.ok()) return s;
   } else {
     return invalid("footprint: set radius or polygon");
   }
@@ -112,11 +156,17 @@ grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
   const double max_unknown = req.has_max_unknown_fraction() ? req.max_unknown_fraction() : 0.0;
 
   const GridGeometry& g = ctx.map.geometry();
+  const double reach = FootprintReach(req);
+  if (grpc::Status s = CheckFootprintCost(req, n, reach, g.resolution(), limits); !s.ok()) {
+    return s;
+  }
   std::vector<CellIndex> cells;
   std::vector<size_t> first(n + 1, 0);
   for (size_t i = 0; i < n; ++i) {
+    if (grpc::Status s = control.Check(); !s.ok()) return s;
     first[i] = cells.size();
-    if (grpc::Status s = FootprintCells(req, req.poses(static_cast<int>(i)), g, limits, &cells);
+    if (grpc::Status s =
+            FootprintCells(req, req.poses(static_cast<int>(i)), reach, g, limits, &cells);
         !s.ok()) {
       return s;
     }
@@ -128,6 +178,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
   }
   first[n] = cells.size();
 
+  if (grpc::Status s = control.Check(); !s.ok()) return s;
   const uint64_t version = ctx.map.applied_version();
   const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
@@ -174,8 +225,9 @@ grpc::Status CheckPath(ServiceContext& ctx, const v1::PathCheckRequest& req,
 grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                          const v1::PathCheckRequest* request,
                                          v1::PathCheckResponse* response) {
-  return RunUnaryQuery(ctx, call,
-                       [&ctx, request, response] { return CheckPath(ctx, *request, response); });
+  return RunUnaryQuery(ctx, call, [&ctx, request, response](const QueryControl& control) {
+    return CheckPath(ctx, control, *request, response);
+  });
 }
 
 }  // namespace bgkmap

@@ -8,6 +8,7 @@
 #include <boost/asio/post.hpp>
 #include <chrono>
 #include <climits>
+#include <cstdint>
 
 #include "bgkmap/storage/map_archive.h"
 #include "bgkmap/storage/tile_codec.h"
@@ -43,8 +44,11 @@ bool CropToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Ti
 
 class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
  public:
-  ExportStream(ServiceContext& ctx, const v1::ExportRequest& request)
-      : ctx_(ctx), permit_(ctx.queries, ctx.limits.max_concurrent_queries) {
+  ExportStream(ServiceContext& ctx, grpc::CallbackServerContext* call,
+               const v1::ExportRequest& request)
+      : ctx_(ctx),
+        permit_(ctx.queries, ctx.limits.max_concurrent_queries),
+        stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (!permit_) {
       Finish(
           {grpc::StatusCode::RESOURCE_EXHAUSTED,
@@ -68,6 +72,9 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
       max_tile_ = ctx.map.geometry().TileOf(box_.max);
     }
     start_ = std::chrono::steady_clock::now();
+    // A client that stops reading gives its slot and the store's snapshot back.
+    registered_ = ctx_.sessions.Add(&stalled_, SessionRegistry::Kind::kStream, UINT32_MAX) ==
+                  SessionRegistry::Admit::kOk;
     ctx_.map.SubmitSnapshot(min_tile_, max_tile_, [this](Result<MapSnapshot> snapshot) {
       auto shared = std::make_shared<Result<MapSnapshot>>(std::move(snapshot));
       boost::asio::post(ctx_.query_pool, [this, shared] { Start(std::move(*shared)); });
@@ -75,14 +82,19 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
   }
 
   void OnWriteDone(bool ok) override {
+    stalled_.WriteDone();
     if (!ok) {
+      tiles_.reset();  // the store's snapshot goes now, not when the call is done
       Finish({grpc::StatusCode::CANCELLED, "export stream cancelled"});
       return;
     }
     boost::asio::post(ctx_.query_pool, [this] { SendNext(); });
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    if (registered_) ctx_.sessions.Remove(&stalled_);
+    delete this;
+  }
 
  private:
   // After the snapshot: stream the archive from it.
@@ -164,11 +176,14 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
           metadata_.map_version, region_, writer_->tiles(), writer_->bytes(),
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
     }
+    stalled_.WriteStarted();
     StartWrite(&chunk_);
   }
 
   ServiceContext& ctx_;
   Permit permit_;
+  StalledWriteWatch stalled_;
+  bool registered_ = false;
   bool region_ = false;
   CellBox box_;
   TileKey min_tile_{INT_MIN, INT_MIN}, max_tile_{INT_MAX, INT_MAX};
@@ -186,8 +201,9 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
 }  // namespace
 
 grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
+                                                           grpc::CallbackServerContext* call,
                                                            const v1::ExportRequest* request) {
-  return new ExportStream(ctx, *request);
+  return new ExportStream(ctx, call, *request);
 }
 
 }  // namespace bgkmap

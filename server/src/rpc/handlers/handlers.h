@@ -4,16 +4,20 @@
 
 #include <grpcpp/support/server_callback.h>
 
+#include <chrono>
+#include <functional>
+
 #include "bgkmap/v1/map_service.grpc.pb.h"
 #include "rpc/service_context.h"
 
 namespace bgkmap {
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
-                                                                  std::string peer);
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(
+    ServiceContext& ctx, grpc::CallbackServerContext* call);
 grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                           const v1::Scan* request, v1::ScanAck* response);
 grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
+                                                            grpc::CallbackServerContext* call,
                                                             const v1::RegionRequest* request);
 grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            const v1::PointsRequest* request,
@@ -22,6 +26,7 @@ grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServ
                                          const v1::PathCheckRequest* request,
                                          v1::PathCheckResponse* response);
 grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
+                                                     grpc::CallbackServerContext* call,
                                                      const v1::WatchRequest* request);
 grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                     v1::InfoResponse* response);
@@ -29,13 +34,36 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
                                            const v1::ClearRegionRequest* request,
                                            v1::ClearRegionResponse* response);
 grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
+                                                           grpc::CallbackServerContext* call,
                                                            const v1::ExportRequest* request);
 grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
+                                                          grpc::CallbackServerContext* call,
                                                           v1::ImportResponse* response);
 
+grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           const v1::RetireRobotRequest* request,
+                                           v1::RetireRobotResponse* response);
+
+// What a query's work checks between steps, so that no call outlives its purpose: the client
+// cancelled (or the server's shutdown cancelled it), the client's deadline passed, or it ran
+// longer than server.max_query_seconds.
+class QueryControl {
+ public:
+  QueryControl(grpc::CallbackServerContext* call, double max_seconds);
+  // OK, or the status to stop with (CANCELLED, DEADLINE_EXCEEDED).
+  grpc::Status Check() const;
+
+ private:
+  grpc::CallbackServerContext* call_;
+  std::chrono::system_clock::time_point deadline_;  // the earlier of the two
+  bool server_limit_ = false;                       // deadline_ is max_query_seconds'
+  double max_seconds_;
+};
+
 // Runs `work` on the query pool under the concurrent-query limit and finishes `reactor` with its
-// status (RESOURCE_EXHAUSTED without running it when the limit is reached).
+// status (RESOURCE_EXHAUSTED without running it when the limit is reached; CANCELLED or
+// DEADLINE_EXCEEDED without running it when the call ended while it waited for a thread).
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                        std::function<grpc::Status()> work);
+                                        std::function<grpc::Status(const QueryControl&)> work);
 
 }  // namespace bgkmap

@@ -11,18 +11,22 @@
 
 #include <boost/asio/post.hpp>
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 
+#include "log_safe.h"
 #include "rpc/archive_upload.h"
 #include "rpc/handlers/handlers.h"
 
 namespace bgkmap {
 namespace {
 
-class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
+class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, public DrainListener {
  public:
-  ImportStream(ServiceContext& ctx, v1::ImportResponse* response) : ctx_(ctx), response_(response) {
+  ImportStream(ServiceContext& ctx, v1::ImportResponse* response)
+      : ctx_(ctx), response_(response), idle_timeout_(TimeoutOf(ctx.limits.import_idle_timeout_s)) {
     permit_.emplace(ctx.imports, 1);
     if (!*permit_) {
       End({grpc::StatusCode::RESOURCE_EXHAUSTED, "an import is already running; retry later"});
@@ -37,17 +41,32 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
     if (dir.exclusive) RemoveStaleSpoolFiles(dir.path);
     Result<std::unique_ptr<SpoolFile>> spool = SpoolFile::Create(dir.path);
     if (!spool.ok()) {
+      // The directory is the operator's business, not the client's.
+      spdlog::error("event=import_spool_failed dir=\"{}\" reason=\"{}\"", LogSafe(dir.path),
+                    LogSafe(spool.status().message()));
       End({grpc::StatusCode::UNAVAILABLE,
            "archive not imported: cannot spool it: " + spool.status().message()});
       return;
     }
     spool_ = std::move(*spool);
     start_ = std::chrono::steady_clock::now();
-    StartRead(&chunk_);
+    // An upload that stops sending gives the import slot back (server.import_idle_timeout_s).
+    registered_ = ctx_.sessions.Add(this, SessionRegistry::Kind::kStream, UINT32_MAX) ==
+                  SessionRegistry::Admit::kOk;
+    ReadNext();
   }
 
   void OnReadDone(bool ok) override {
+    {
+      std::lock_guard lock(mu_);
+      reading_ = false;
+      if (finished_) return;  // a read that was pending when the call ended
+    }
     if (!ok) {  // the client finished sending (or the call ended)
+      if (cancelled_.load()) {
+        End({grpc::StatusCode::CANCELLED, "import cancelled; nothing imported"});
+        return;
+      }
       boost::asio::post(ctx_.query_pool, [this] { VerifyAndSubmit(); });
       return;
     }
@@ -62,18 +81,60 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
         End({grpc::StatusCode::UNAVAILABLE, "archive not imported: " + s.message()});
         return;
       }
-      StartRead(&chunk_);
+      ReadNext();
     });
   }
 
   void OnCancel() override { cancelled_.store(true); }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    if (registered_) ctx_.sessions.Remove(this);
+    delete this;
+  }
+
+  // The drain lets an upload finish (bounded by the shutdown grace).
+  void BeginDrain() override {}
+
+  void Tick(std::chrono::steady_clock::time_point now) override {
+    {
+      // Decided and marked under the lock: a chunk arriving now finds the call finished and
+      // leaves the spool file alone.
+      std::lock_guard lock(mu_);
+      if (finished_ || !reading_ || idle_timeout_ == std::chrono::steady_clock::duration::zero() ||
+          now - last_chunk_ <= idle_timeout_) {
+        return;
+      }
+      finished_ = true;
+    }
+    spdlog::warn("event=import_idle bytes={}", spool_bytes_.load());
+    Conclude({grpc::StatusCode::DEADLINE_EXCEEDED,
+              "archive: no chunk for server.import_idle_timeout_s = " +
+                  SecondsText(ctx_.limits.import_idle_timeout_s) + " s; nothing imported"});
+  }
 
  private:
+  void ReadNext() {
+    {
+      std::lock_guard lock(mu_);
+      if (finished_) return;
+      reading_ = true;
+      last_chunk_ = std::chrono::steady_clock::now();
+      spool_bytes_.store(spool_->size());
+    }
+    StartRead(&chunk_);
+  }
+
   // Frees the import slot and the spool file before the client hears the outcome, so that its
-  // next import is not refused as concurrent with this one.
+  // next import is not refused as concurrent with this one. Only the first call counts.
   void End(const grpc::Status& status) {
+    {
+      std::lock_guard lock(mu_);
+      if (finished_) return;
+      finished_ = true;
+    }
+    Conclude(status);
+  }
+  void Conclude(const grpc::Status& status) {
     spool_.reset();
     permit_.reset();
     Finish(status);
@@ -88,7 +149,8 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
     grpc::Status verified = ReadVerifiedArchive(spool_->path(), ctx_.map.params(), &archive_);
     spool_.reset();  // the tiles are in memory now
     if (!verified.ok()) {
-      spdlog::warn("event=import_refused bytes={} reason=\"{}\"", bytes, verified.error_message());
+      spdlog::warn("event=import_refused bytes={} reason=\"{}\"", bytes,
+                   LogSafe(verified.error_message()));
       End(verified);
       return;
     }
@@ -101,14 +163,23 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
                           [this](const ImportOutcome& outcome) { Done(outcome); });
   }
 
+  static grpc::StatusCode CodeOf(const Status& status) {
+    switch (status.code()) {
+      case Status::Code::kDataLoss:
+        return grpc::StatusCode::DATA_LOSS;
+      case Status::Code::kOutOfRange:  // the sums would overflow
+        return grpc::StatusCode::OUT_OF_RANGE;
+      default:
+        return grpc::StatusCode::UNAVAILABLE;
+    }
+  }
+
   void Done(const ImportOutcome& outcome) {
     const Status& status = outcome.status;
     if (!status.ok()) {
       spdlog::error("event=import_not_applied version={} reason=\"{}\"", outcome.version,
-                    status.message());
-      End({status.code() == Status::Code::kDataLoss ? grpc::StatusCode::DATA_LOSS
-                                                    : grpc::StatusCode::UNAVAILABLE,
-           "archive not imported: " + status.message()});
+                    LogSafe(status.message()));
+      End({CodeOf(status), "archive not imported: " + status.message() + "; nothing imported"});
       return;
     }
     response_->set_tiles_added(archive_.keys.size());
@@ -127,18 +198,27 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk> {
 
   ServiceContext& ctx_;
   v1::ImportResponse* response_;
+  const std::chrono::steady_clock::duration idle_timeout_;
+  bool registered_ = false;
   std::optional<Permit> permit_;  // one import at a time
   std::unique_ptr<SpoolFile> spool_;
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> cancelled_{false};
+  std::atomic<uint64_t> spool_bytes_{0};  // for the log
   v1::ArchiveChunk chunk_;
   VerifiedArchive archive_;
   uint64_t bytes_ = 0;
+
+  std::mutex mu_;
+  bool reading_ = false;   // a read is outstanding
+  bool finished_ = false;  // End() was called
+  std::chrono::steady_clock::time_point last_chunk_;
 };
 
 }  // namespace
 
 grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
+                                                          grpc::CallbackServerContext* /*call*/,
                                                           v1::ImportResponse* response) {
   return new ImportStream(ctx, response);
 }

@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include "log_safe.h"
 #include "rpc/proto_convert.h"
 #include "rpc/request_checks.h"
 
@@ -17,19 +18,32 @@ v1::ScanAck BaseAck(const v1::Scan& scan) {
   return ack;
 }
 
-v1::ScanAck DuplicateAck(ServiceContext& ctx, const v1::Scan& scan) {
+// Code 0, but the message tells the robot where it stands: a robot whose scans all come back
+// as duplicates learns the number to continue after (or that someone else used its id).
+v1::ScanAck DuplicateAck(ServiceContext& ctx, const v1::Scan& scan, uint64_t last_sequence) {
   v1::ScanAck ack = BaseAck(scan);
   ack.set_status(v1::ACK_DUPLICATE);
+  ack.set_message("duplicate: sequence " + std::to_string(scan.sequence()) +
+                  " is not above the robot's last admitted sequence " +
+                  std::to_string(last_sequence) + "; not applied again");
   ack.set_map_version(ctx.map.applied_version());
   return ack;
+}
+
+grpc::Status SequenceJump(const ServiceContext& ctx, const v1::Scan& scan, uint64_t last) {
+  return {grpc::StatusCode::OUT_OF_RANGE,
+          "sequence: " + std::to_string(scan.sequence()) +
+              " is more than server.max_sequence_jump = " +
+              std::to_string(ctx.limits.max_sequence_jump) + " above the robot's last sequence " +
+              std::to_string(last) + " (a robot's sequence numbers increase by small steps)"};
 }
 
 }  // namespace
 
 v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::Status& status) {
-  spdlog::warn("event=scan_rejected robot={} sequence={} code={} reason=\"{}\"",
-               scan.robot_id().substr(0, 128), scan.sequence(),
-               static_cast<int>(status.error_code()), status.error_message());
+  spdlog::warn("event=scan_rejected robot=\"{}\" sequence={} code={} reason=\"{}\"",
+               LogSafe(scan.robot_id(), 128), scan.sequence(),
+               static_cast<int>(status.error_code()), LogSafe(status.error_message()));
   v1::ScanAck ack = BaseAck(scan);
   ack.set_status(v1::ACK_REJECTED);
   ack.set_code(status.error_code());
@@ -44,9 +58,9 @@ void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback do
     return;
   }
   // Retries after a lost ack are common: answer them before paying for preparation.
-  if (ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence())) {
+  if (uint64_t last = 0; ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence(), &last)) {
     ctx.map.robots().CountDuplicate(scan.robot_id());
-    done(DuplicateAck(ctx, scan), grpc::Status::OK);
+    done(DuplicateAck(ctx, scan, last), grpc::Status::OK);
     return;
   }
   auto prepared = std::make_shared<PreparedScan>();
@@ -58,6 +72,7 @@ void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback do
   }
   const Stamp stamp{scan.stamp().seconds(), scan.stamp().nanos()};
   v1::ScanAck applied = BaseAck(scan);
+  uint64_t last_sequence = 0;
   const ServedMap::Admission admission = ctx.map.SubmitScan(
       {scan.robot_id(), scan.sequence(), stamp}, prepared,
       [applied, done, counts = prepared->counts](ScanOutcome outcome) mutable {
@@ -65,9 +80,9 @@ void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback do
           // Not in the log, so not in the map: the robot may send it again.
           grpc::Status s(grpc::StatusCode::UNAVAILABLE,
                          "scan not applied: cannot persist it: " + outcome.status.message());
-          spdlog::error("event=scan_not_persisted robot={} sequence={} reason=\"{}\"",
-                        applied.robot_id().substr(0, 128), applied.sequence(),
-                        outcome.status.message());
+          spdlog::error("event=scan_not_persisted robot=\"{}\" sequence={} reason=\"{}\"",
+                        LogSafe(applied.robot_id(), 128), applied.sequence(),
+                        LogSafe(outcome.status.message()));
           applied.set_status(v1::ACK_REJECTED);
           applied.set_code(s.error_code());
           applied.set_message(s.error_message());
@@ -80,13 +95,19 @@ void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback do
         ToProto(counts, applied.mutable_counts());
         for (TileKey k : outcome.report.changed_tiles) ToProto(k, applied.add_changed_tiles());
         done(std::move(applied), grpc::Status::OK);
-      });
+      },
+      &last_sequence);
   switch (admission) {
     case ServedMap::Admission::kAdmitted:
       return;
     case ServedMap::Admission::kDuplicate:
-      done(DuplicateAck(ctx, scan), grpc::Status::OK);
+      done(DuplicateAck(ctx, scan, last_sequence), grpc::Status::OK);
       return;
+    case ServedMap::Admission::kSequenceJump: {
+      const grpc::Status s = SequenceJump(ctx, scan, last_sequence);
+      done(RejectedAck(ctx, scan, s), s);
+      return;
+    }
     case ServedMap::Admission::kTooManyRobots: {
       grpc::Status s(grpc::StatusCode::RESOURCE_EXHAUSTED,
                      "robot_id: '" + scan.robot_id() + "' would exceed server.max_robots = " +

@@ -7,9 +7,11 @@
 #include <spdlog/spdlog.h>
 
 #include <boost/asio/post.hpp>
+#include <chrono>
 #include <deque>
 #include <mutex>
 
+#include "log_safe.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/handlers/ingest_pipeline.h"
 
@@ -19,8 +21,14 @@ namespace {
 class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>,
                            public DrainListener {
  public:
-  IngestStream(ServiceContext& ctx, std::string peer)
-      : ctx_(ctx), peer_(std::move(peer)), window_(ctx.limits.max_inflight_scans_per_stream) {
+  IngestStream(ServiceContext& ctx, grpc::CallbackServerContext* call)
+      : ctx_(ctx),
+        call_(call),
+        peer_(call->peer()),
+        window_(ctx.limits.max_inflight_scans_per_stream),
+        idle_timeout_(TimeoutOf(ctx.limits.ingest_idle_timeout_s)),
+        stalled_timeout_(TimeoutOf(ctx.limits.stalled_write_timeout_s)),
+        last_activity_(std::chrono::steady_clock::now()) {
     const SessionRegistry::Admit admit =
         ctx_.sessions.Add(this, SessionRegistry::Kind::kIngest, ctx_.limits.max_ingest_streams);
     if (admit != SessionRegistry::Admit::kOk) {
@@ -34,7 +42,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
       return;
     }
     registered_ = true;
-    spdlog::debug("event=ingest_open peer={}", peer_);
+    spdlog::debug("event=ingest_open peer=\"{}\"", LogSafe(peer_));
     std::unique_lock lock(mu_);
     Step(lock);
   }
@@ -42,6 +50,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   void OnReadDone(bool ok) override {
     std::unique_lock lock(mu_);
     reading_ = false;
+    last_activity_ = std::chrono::steady_clock::now();
     if (finished_) return;  // a read that was pending when the call ended
     if (!ok) {
       read_closed_ = true;
@@ -68,6 +77,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   void OnWriteDone(bool ok) override {
     std::unique_lock lock(mu_);
     writing_ = false;
+    last_activity_ = std::chrono::steady_clock::now();
     slots_.pop_front();
     if (!ok) broken_ = true;
     Step(lock);
@@ -88,6 +98,29 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
     std::unique_lock lock(mu_);
     draining_ = true;
     Step(lock);
+  }
+
+  // An idle stream (waiting for a scan, nothing in flight) ends with DEADLINE_EXCEEDED after
+  // server.ingest_idle_timeout_s; a client that takes no ack for server.stalled_write_timeout_s
+  // is cancelled (its scans still apply). Either way the stream's slot is free again.
+  void Tick(std::chrono::steady_clock::time_point now) override {
+    std::unique_lock lock(mu_);
+    if (finished_) return;
+    const auto zero = std::chrono::steady_clock::duration::zero();
+    if (writing_ && !broken_ && stalled_timeout_ != zero &&
+        now - last_activity_ > stalled_timeout_) {
+      broken_ = true;
+      stalled_ = true;
+      lock.unlock();
+      call_->TryCancel();  // the outstanding write fails: OnWriteDone ends the call
+      return;
+    }
+    const bool idle = reading_ && !writing_ && slots_.empty() && to_prepare_.empty() &&
+                      !preparing_ && !draining_ && !broken_ && !idle_;
+    if (idle && idle_timeout_ != zero && now - last_activity_ > idle_timeout_) {
+      idle_ = true;
+      Step(lock);
+    }
   }
 
  private:
@@ -139,18 +172,27 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
     }
     if (!writing_ && !broken_ && !slots_.empty() && slots_.front().ready) {
       writing_ = true;
+      last_activity_ = std::chrono::steady_clock::now();  // the stalled-write clock starts
       write = &slots_.front().ack;
     }
-    if (!reading_ && !read_closed_ && !draining_ && !broken_ && slots_.size() < window_) {
+    if (!reading_ && !read_closed_ && !draining_ && !broken_ && !idle_ && slots_.size() < window_) {
       reading_ = true;
       read = true;
     }
-    const bool no_more_input = read_closed_ || draining_ || broken_;
+    const bool no_more_input = read_closed_ || draining_ || broken_ || idle_;
     if (no_more_input && slots_.empty() && !preparing_ && !writing_) {
       finished_ = true;
       finish = true;
       if (broken_) {
-        status = grpc::Status(grpc::StatusCode::CANCELLED, "stream cancelled");
+        status = grpc::Status(grpc::StatusCode::CANCELLED,
+                              stalled_ ? "stream cancelled: the client took no ack for "
+                                         "server.stalled_write_timeout_s"
+                                       : "stream cancelled");
+      } else if (idle_ && !read_closed_) {
+        status = grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED,
+                              "no scan for server.ingest_idle_timeout_s = " +
+                                  SecondsText(ctx_.limits.ingest_idle_timeout_s) +
+                                  " s: the idle stream is closed; open a new one to send more");
       } else if (draining_ && !read_closed_) {
         status = grpc::Status(grpc::StatusCode::UNAVAILABLE,
                               "server is shutting down: every scan read was acknowledged");
@@ -158,9 +200,11 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
     }
     if (finish) {
       spdlog::info(
-          "event=ingest_closed peer={} applied={} duplicate={} rejected={} code={} reason=\"{}\"",
-          peer_, counts_[v1::ACK_APPLIED], counts_[v1::ACK_DUPLICATE], counts_[v1::ACK_REJECTED],
-          static_cast<int>(status.error_code()), status.error_message());
+          "event=ingest_closed peer=\"{}\" applied={} duplicate={} rejected={} code={} "
+          "reason=\"{}\"",
+          LogSafe(peer_), counts_[v1::ACK_APPLIED], counts_[v1::ACK_DUPLICATE],
+          counts_[v1::ACK_REJECTED], static_cast<int>(status.error_code()),
+          LogSafe(status.error_message()));
     }
     lock.unlock();
     if (write != nullptr) StartWrite(write);
@@ -169,8 +213,11 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   }
 
   ServiceContext& ctx_;
+  grpc::CallbackServerContext* const call_;
   const std::string peer_;
   const size_t window_;
+  const std::chrono::steady_clock::duration idle_timeout_;
+  const std::chrono::steady_clock::duration stalled_timeout_;
   bool registered_ = false;
 
   std::mutex mu_;
@@ -184,14 +231,17 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   bool draining_ = false;
   bool broken_ = false;
   bool finished_ = false;
-  uint64_t counts_[4] = {0, 0, 0, 0};  // acks by AckStatus
+  bool idle_ = false;     // closed for idling (server.ingest_idle_timeout_s)
+  bool stalled_ = false;  // cancelled: the client took no ack (server.stalled_write_timeout_s)
+  std::chrono::steady_clock::time_point last_activity_;  // last read or write completed
+  uint64_t counts_[4] = {0, 0, 0, 0};                    // acks by AckStatus
 };
 
 }  // namespace
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
-                                                                  std::string peer) {
-  return new IngestStream(ctx, std::move(peer));
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(
+    ServiceContext& ctx, grpc::CallbackServerContext* call) {
+  return new IngestStream(ctx, call);
 }
 
 }  // namespace bgkmap

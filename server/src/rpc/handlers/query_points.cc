@@ -8,8 +8,8 @@
 namespace bgkmap {
 namespace {
 
-grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
-                         v1::PointsResponse* response) {
+grpc::Status QueryPoints(ServiceContext& ctx, const QueryControl& control,
+                         const v1::PointsRequest& request, v1::PointsResponse* response) {
   const size_t n = static_cast<size_t>(request.points_size());
   if (n > ctx.limits.max_query_points) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED, "points: " + std::to_string(n) +
@@ -18,6 +18,15 @@ grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
   }
   std::vector<Layer> layers;
   if (grpc::Status s = LayersFromProto(request.layers(), "layers", &layers); !s.ok()) return s;
+  // The answer's size is known now: refuse it before building it.
+  const uint64_t answer_bytes = static_cast<uint64_t>(n) * layers.size() * sizeof(float) + 4096;
+  if (answer_bytes > ctx.limits.max_message_bytes) {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "points: " + std::to_string(n) + " points x " + std::to_string(layers.size()) +
+                " layers take " + std::to_string(answer_bytes) +
+                " bytes, over server.max_message_bytes = " +
+                std::to_string(ctx.limits.max_message_bytes)};
+  }
   const GridGeometry& g = ctx.map.geometry();
   std::vector<CellIndex> cells;
   cells.reserve(n);
@@ -28,6 +37,7 @@ grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
     if (grpc::Status s = CheckCoordinate(p.y(), field + ".y", ctx.limits); !s.ok()) return s;
     cells.push_back(g.CellAt(p.x(), p.y()));
   }
+  if (grpc::Status s = control.Check(); !s.ok()) return s;
   const uint64_t version = ctx.map.applied_version();
   const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
@@ -47,8 +57,9 @@ grpc::Status QueryPoints(ServiceContext& ctx, const v1::PointsRequest& request,
 grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            const v1::PointsRequest* request,
                                            v1::PointsResponse* response) {
-  return RunUnaryQuery(ctx, call,
-                       [&ctx, request, response] { return QueryPoints(ctx, *request, response); });
+  return RunUnaryQuery(ctx, call, [&ctx, request, response](const QueryControl& control) {
+    return QueryPoints(ctx, control, *request, response);
+  });
 }
 
 }  // namespace bgkmap

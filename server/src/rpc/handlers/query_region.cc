@@ -2,6 +2,7 @@
 // message limit. The region is read atomically first (tiles held shared, in short table-lock
 // bands), then streamed without holding any lock, so a slow reader never blocks ingestion.
 #include <boost/asio/post.hpp>
+#include <cstdint>
 
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
@@ -14,8 +15,11 @@ constexpr uint32_t kMaxStride = 4096;
 
 class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
  public:
-  RegionStream(ServiceContext& ctx, const v1::RegionRequest& request)
-      : ctx_(ctx), permit_(ctx.queries, ctx.limits.max_concurrent_queries) {
+  RegionStream(ServiceContext& ctx, grpc::CallbackServerContext* call,
+               const v1::RegionRequest& request)
+      : ctx_(ctx),
+        permit_(ctx.queries, ctx.limits.max_concurrent_queries),
+        stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (!permit_) {
       Finish(
           {grpc::StatusCode::RESOURCE_EXHAUSTED,
@@ -40,6 +44,9 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
                   " with the regions being served now; retry later"});
       return;
     }
+    // A client that stops reading gives its slot and its raster back.
+    registered_ = ctx_.sessions.Add(&stalled_, SessionRegistry::Kind::kStream, UINT32_MAX) ==
+                  SessionRegistry::Admit::kOk;
     boost::asio::post(ctx_.query_pool, [this] {
       version_ = ctx_.map.applied_version();
       Result<Raster> read = ctx_.map.ReadRegion(box_, layers_, stride_);
@@ -57,14 +64,19 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
   }
 
   void OnWriteDone(bool ok) override {
+    stalled_.WriteDone();
     if (!ok) {
-      Finish({grpc::StatusCode::CANCELLED, "region stream cancelled"});
+      Finish({grpc::StatusCode::CANCELLED,
+              stalled_.cancelled() ? "region stream cancelled: the client took no chunk for "
+                                     "server.stalled_write_timeout_s"
+                                   : "region stream cancelled"});
       return;
     }
     WriteNext();
   }
 
   void OnDone() override {
+    if (registered_) ctx_.sessions.Remove(&stalled_);
     ctx_.region_bytes.Release(reserved_bytes_);
     delete this;
   }
@@ -110,11 +122,14 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     chunk_.set_row_count(static_cast<uint32_t>(end - next_row_));
     AppendRows(raster_, next_row_, end, chunk_.mutable_layers());
     next_row_ = end;
+    stalled_.WriteStarted();
     StartWrite(&chunk_);
   }
 
   ServiceContext& ctx_;
   Permit permit_;
+  StalledWriteWatch stalled_;
+  bool registered_ = false;
   std::vector<Layer> layers_;
   int stride_ = 1;
   CellBox box_;
@@ -130,8 +145,9 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
 }  // namespace
 
 grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
+                                                            grpc::CallbackServerContext* call,
                                                             const v1::RegionRequest* request) {
-  return new RegionStream(ctx, *request);
+  return new RegionStream(ctx, call, *request);
 }
 
 }  // namespace bgkmap

@@ -1,12 +1,39 @@
 #include <boost/asio/post.hpp>
 #include <memory>
+#include <sstream>
 
 #include "rpc/handlers/handlers.h"
 
 namespace bgkmap {
 
+QueryControl::QueryControl(grpc::CallbackServerContext* call, double max_seconds)
+    : call_(call), deadline_(call->deadline()), max_seconds_(max_seconds) {
+  if (max_seconds > 0) {
+    const auto limit = std::chrono::system_clock::now() +
+                       std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                           std::chrono::duration<double>(max_seconds));
+    if (limit < deadline_) {
+      deadline_ = limit;
+      server_limit_ = true;
+    }
+  }
+}
+
+grpc::Status QueryControl::Check() const {
+  if (call_->IsCancelled()) return {grpc::StatusCode::CANCELLED, "query cancelled"};
+  if (std::chrono::system_clock::now() >= deadline_) {
+    if (!server_limit_) {
+      return {grpc::StatusCode::DEADLINE_EXCEEDED, "the client's deadline passed; query stopped"};
+    }
+    std::ostringstream s;
+    s << "query stopped after server.max_query_seconds = " << max_seconds_ << " s";
+    return {grpc::StatusCode::DEADLINE_EXCEEDED, s.str()};
+  }
+  return grpc::Status::OK;
+}
+
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                        std::function<grpc::Status()> work) {
+                                        std::function<grpc::Status(const QueryControl&)> work) {
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
   auto permit = std::make_shared<Permit>(ctx.queries, ctx.limits.max_concurrent_queries);
   if (!*permit) {
@@ -16,8 +43,11 @@ grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServe
              " queries are already running; retry later"});
     return reactor;
   }
-  boost::asio::post(ctx.query_pool, [reactor, permit, work = std::move(work)] {
-    grpc::Status status = work();
+  auto control = std::make_shared<QueryControl>(call, ctx.limits.max_query_seconds);
+  boost::asio::post(ctx.query_pool, [reactor, permit, control, work = std::move(work)] {
+    // A call that ended while it waited for a thread is not worked on.
+    grpc::Status status = control->Check();
+    if (status.ok()) status = work(*control);
     reactor->Finish(std::move(status));
   });
   return reactor;

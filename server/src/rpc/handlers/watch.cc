@@ -3,6 +3,7 @@
 // backlog of a slow watcher is a set of tile keys and never a queue of messages.
 #include <atomic>
 #include <boost/asio/post.hpp>
+#include <cstdint>
 #include <mutex>
 
 #include "rpc/handlers/handlers.h"
@@ -14,7 +15,9 @@ namespace {
 
 class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, public DrainListener {
  public:
-  WatchStream(ServiceContext& ctx, const v1::WatchRequest& request) : ctx_(ctx) {
+  WatchStream(ServiceContext& ctx, grpc::CallbackServerContext* call,
+              const v1::WatchRequest& request)
+      : ctx_(ctx), stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (grpc::Status s = Parse(request); !s.ok()) {
       Finish(s);
       return;
@@ -31,6 +34,9 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
       return;
     }
     registered_ = true;
+    // A watcher that stops reading gives its slot back.
+    stalled_registered_ = ctx_.sessions.Add(&stalled_, SessionRegistry::Kind::kStream,
+                                            UINT32_MAX) == SessionRegistry::Admit::kOk;
     std::vector<TileKey> initial;
     if (request.initial_snapshot()) initial = ctx_.map.ListTiles(min_, max_);
     id_ = ctx_.hub.Subscribe(
@@ -40,8 +46,13 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
   }
 
   void OnWriteDone(bool ok) override {
+    stalled_.WriteDone();
     if (!ok) {
-      Stop(grpc::Status(grpc::StatusCode::CANCELLED, "watch cancelled"), /*was_active=*/true);
+      Stop(grpc::Status(grpc::StatusCode::CANCELLED,
+                        stalled_.cancelled() ? "watch cancelled: the client took no update for "
+                                               "server.stalled_write_timeout_s"
+                                             : "watch cancelled"),
+           /*was_active=*/true);
       return;
     }
     boost::asio::post(ctx_.query_pool, [this] { SendNext(); });
@@ -62,6 +73,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
   }
 
   void OnDone() override {
+    if (stalled_registered_) ctx_.sessions.Remove(&stalled_);
     if (registered_) ctx_.sessions.Remove(this);
     delete this;
   }
@@ -138,6 +150,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     update_.set_resolution(content.raster.resolution);
     update_.set_map_version(std::max(version, content.version));
     AppendRows(content.raster, 0, content.raster.rows, update_.mutable_layers());
+    stalled_.WriteStarted();
     StartWrite(&update_);
   }
 
@@ -159,7 +172,9 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
   }
 
   ServiceContext& ctx_;
+  StalledWriteWatch stalled_;
   bool registered_ = false;
+  bool stalled_registered_ = false;
   std::vector<Layer> layers_;
   TileKey min_, max_;
   std::atomic<uint64_t> id_{0};  // read by pool threads woken during Subscribe()
@@ -176,8 +191,9 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
 }  // namespace
 
 grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
+                                                     grpc::CallbackServerContext* call,
                                                      const v1::WatchRequest* request) {
-  return new WatchStream(ctx, *request);
+  return new WatchStream(ctx, call, *request);
 }
 
 }  // namespace bgkmap

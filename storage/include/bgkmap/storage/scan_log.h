@@ -70,6 +70,10 @@ class ScanLog {
   // Last sequence number logged for `robot_id`; nullopt if the robot never logged a scan.
   std::optional<uint64_t> LastSequence(std::string_view robot_id) const;
   std::map<std::string, uint64_t> RobotSequences() const;
+  // Forgets `robot_id` (its last sequence number), durably (fsync'ed): its next scan starts a
+  // new sequence. Records already logged stay (they replay as map changes). Call when no scan of
+  // the robot is being appended. IoError if the write fails (latched like a failed append).
+  Status RetireRobot(std::string_view robot_id);
 
   // Makes every appended record durable now (fsync of the write-ahead log). After a failed
   // write, returns that failure without touching the log file again (RocksDB must not sync a

@@ -1,0 +1,69 @@
+// `bgkmap robots`: the robots the server knows, as JSON; `bgkmap retire-robot ID --yes`: forget
+// one (admin), e.g. an id a client invented or a robot whose sequence numbers went wrong.
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "client_options.h"
+#include "commands.h"
+
+namespace bgkmap::cli {
+namespace {
+
+int RunRobots(const std::string& server) {
+  Client client(server);
+  RpcResult<MapInfo> r = client.Info();
+  if (!r.ok()) return Fail("robots", r.status().ToString());
+  nlohmann::json robots = nlohmann::json::array();
+  for (const RobotInfo& ri : r->robots) {
+    robots.push_back({{"robot_id", ri.robot_id},
+                      {"last_sequence", ri.last_sequence},
+                      {"scans_applied", ri.scans_applied},
+                      {"scans_duplicate", ri.scans_duplicate},
+                      {"scans_rejected", ri.scans_rejected},
+                      {"points_kept", ri.points_kept}});
+  }
+  std::printf("%s\n", robots.dump(2, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
+  return 0;
+}
+
+struct RetireOptions {
+  std::string server;
+  std::string robot_id;
+  bool yes = false;
+};
+
+int RunRetire(const RetireOptions& o) {
+  if (!o.yes) {
+    return Fail("retire-robot",
+                "the robot's sequence number is forgotten (its next scan starts afresh); pass "
+                "--yes to confirm");
+  }
+  Client client(o.server);
+  RpcResult<RetiredRobot> r = client.RetireRobot(o.robot_id);
+  if (!r.ok()) return Fail("retire-robot", r.status().ToString());
+  std::printf("bgkmap retire-robot: retired at sequence %llu; %llu robots left\n",
+              static_cast<unsigned long long>(r->last_sequence),
+              static_cast<unsigned long long>(r->robots));
+  return 0;
+}
+
+}  // namespace
+
+void RegisterRobotsCommand(CLI::App& app, int& exit_code) {
+  auto server = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand("robots", "List the robots the server knows (JSON)");
+  AddServerOption(cmd, *server);
+  cmd->callback([server, &exit_code] { exit_code = RunRobots(*server); });
+}
+
+void RegisterRetireRobotCommand(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<RetireOptions>();
+  CLI::App* cmd = app.add_subcommand("retire-robot",
+                                     "Forget a robot: its next scan starts a new sequence (admin)");
+  AddServerOption(cmd, o->server);
+  cmd->add_option("robot_id", o->robot_id, "The robot's id (bgkmap robots lists them)")->required();
+  cmd->add_flag("--yes", o->yes, "Confirm");
+  cmd->callback([o, &exit_code] { exit_code = RunRetire(*o); });
+}
+
+}  // namespace bgkmap::cli
