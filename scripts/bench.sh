@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+bash scripts/configure.sh build  # the configuration of scripts/test.sh and demo.sh
 cmake --build build -j"$(nproc)" --target scan_update_benchmark server_load bgkmapd
 mkdir -p out/bench
 build/bench/scan_update_benchmark --benchmark_counters_tabular=true --benchmark_min_time=2 \

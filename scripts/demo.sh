@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+bash scripts/configure.sh build  # as scripts/test.sh: after it, nothing to build
 cmake --build build -j"$(nproc)" --target bgkmap bgkmapd
 
 DATA="${BGKMAP_DATA:-../shared/data}/ouster_os1_128_street"

@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 rounds="${1:-10}"
 trials="${2:-30}"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+bash scripts/configure.sh build  # the configuration of scripts/test.sh and demo.sh
 cmake --build build -j"$(nproc)" --target persistence_test crash_test bgkmapd
 for ((round = 1; round <= rounds; ++round)); do
   seed=$((20261121 + round))

@@ -1,6 +1,7 @@
 #include "store_db.h"
 
 #include <rocksdb/cache.h>
+#include <rocksdb/env.h>
 #include <rocksdb/filter_policy.h>
 #include <rocksdb/table.h>
 #include <rocksdb/write_buffer_manager.h>
@@ -61,6 +62,12 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
   db_options.paranoid_checks = true;
   db_options.max_background_jobs = 2;
 
+  auto store = std::make_unique<StoreDb>();
+  if (options.file_system) {
+    store->env = rocksdb::NewCompositeEnv(options.file_system);
+    db_options.env = store->env.get();
+  }
+
   auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);
   // One budget for the memory tables of all families: the log alone would otherwise hold up to
   // 2 x 64 MiB of records between checkpoints, and the tiles as much again.
@@ -79,7 +86,6 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
       {kLogFamily, log},
   };
 
-  auto store = std::make_unique<StoreDb>();
   rocksdb::DB* db = nullptr;
   const rocksdb::Status s = rocksdb::DB::Open(db_options, dir, families, &store->handles, &db);
   if (!s.ok()) {

@@ -17,6 +17,9 @@ namespace bgkmap::storage {
 struct StoreDb {
   ~StoreDb();  // releases the family handles, then closes the database
 
+  // The environment over StoreOptions::file_system (null: RocksDB's default one). Declared
+  // before `db`, so it outlives the database.
+  std::unique_ptr<rocksdb::Env> env;
   std::unique_ptr<rocksdb::DB> db;
   std::vector<rocksdb::ColumnFamilyHandle*> handles;
   rocksdb::ColumnFamilyHandle* meta = nullptr;

@@ -102,6 +102,16 @@ int BgkmapdProcess::Wait(int timeout_s) {
   return -1;
 }
 
+int BgkmapdProcess::Poll() {
+  if (exit_code_ >= 0 || pid_ <= 0) return exit_code_;
+  int status = 0;
+  if (waitpid(pid_, &status, WNOHANG) == pid_) {
+    exit_code_ = DecodeStatus(status);
+    if (reader_.joinable()) reader_.join();
+  }
+  return exit_code_;
+}
+
 std::vector<std::string> BgkmapdProcess::Log() {
   std::lock_guard lock(mu_);
   return lines_;

@@ -20,11 +20,14 @@ class BgkmapdProcess {
 
   bool started() const { return port_ > 0; }
   int port() const { return port_; }
+  pid_t pid() const { return pid_; }
   std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
 
   void Signal(int signal);
   // Exit code (128 + signal if killed by one); -1 on timeout.
   int Wait(int timeout_s = 60);
+  // The exit code if the process has exited, -1 while it runs; does not wait.
+  int Poll();
   // Every log line so far.
   std::vector<std::string> Log();
   // The first log line containing `needle` ("" if none).

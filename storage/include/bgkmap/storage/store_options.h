@@ -3,10 +3,15 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string_view>
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/storage/tile_codec.h"
+
+namespace rocksdb {
+class FileSystem;
+}
 
 namespace bgkmap::storage {
 
@@ -37,6 +42,10 @@ struct StoreOptions {
   TileCompression tile_compression = TileCompression::kZstd;
   int zstd_level = 3;  // higher levels buy ~3% on real tiles for several times the CPU
   TileEncodeOptions tile_encoding;
+  // Every file of the store is read and written through this file system; null: the
+  // operating system's (RocksDB's default). For fault injection in tests only, e.g.
+  // tests/storage/power_cut_file_system.h, which forgets what was not fsync'ed.
+  std::shared_ptr<rocksdb::FileSystem> file_system;
 };
 
 }  // namespace bgkmap::storage
