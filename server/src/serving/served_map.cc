@@ -77,10 +77,7 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
   outcome.version = version;
   // The tiles are brought into memory before the scan is journaled: a store that cannot be read
   // refuses the scan like a journal that cannot be written.
-  std::vector<TileKey> keys = scan.write_tiles;
-  keys.insert(keys.end(), scan.read_tiles.begin(), scan.read_tiles.end());
-  SortUnique(&keys);
-  Result<TileResidency::Pins> pins = residency_.Pin(std::move(keys), /*strict=*/false);
+  Result<TileResidency::Pins> pins = residency_.PinScan(scan);
   outcome.status = pins.status();
   if (outcome.status.ok()) {
     ChangeRecord record{version, shared_scan, origin.robot_id, origin.sequence, origin.stamp, {}};

@@ -86,6 +86,14 @@ Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool s
   return pins;
 }
 
+Result<TileResidency::Pins> TileResidency::PinScan(const PreparedScan& scan) {
+  if (!persists_) return Pins();  // (the merged key list costs a sort per scan)
+  std::vector<TileKey> keys = scan.write_tiles;
+  keys.insert(keys.end(), scan.read_tiles.begin(), scan.read_tiles.end());
+  SortUnique(&keys);
+  return Pin(std::move(keys), /*strict=*/false);
+}
+
 Result<TileResidency::Pins> TileResidency::PinRange(TileKey min, TileKey max, bool strict) {
   if (!persists_) return Pins();
   return Pin(KeysIn(min, max), strict);

@@ -54,6 +54,8 @@ class TileResidency {
   // cannot be read. `strict`: a stored tile failing its checksum is DataLoss naming it (readers);
   // otherwise it is left out, and the change starts it afresh (the store keeps it listed).
   Result<Pins> Pin(std::vector<TileKey> keys, bool strict);
+  // Pin() of a scan's write and read tiles, non-strict (a change starts a corrupt tile afresh).
+  Result<Pins> PinScan(const PreparedScan& scan);
   // Pin() of every tile in memory or stored in [min, max].
   Result<Pins> PinRange(TileKey min, TileKey max, bool strict);
   // The keys in [min, max] in memory or stored (sorted, unique).
