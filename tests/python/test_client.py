@@ -314,18 +314,21 @@ def test_watch_snapshot_equals_the_region_and_changes_arrive(fresh_server, stree
         assert all(u.layers["state"].shape == (tile, tile) for u in updates)
 
 
-def test_watch_ends_with_unavailable_when_the_server_stops():
+def test_watch_ends_with_unavailable_when_the_server_stops(street):
     server = BgkmapdProcess()
     client = server.client()
-    watch = client.watch((0, 0, 10, 10))
+    points, pose = street[0]
+    client.insert(points, pose, robot="w", seq=1)
+    # With a snapshot, the first update proves the server holds the watch: a SIGTERM sent before
+    # that would meet a call the server had not started, which ends CANCELLED, not drained.
+    watch = client.watch((0.05, 0.05, 0.15, 0.15), initial_snapshot=True)
     ready = threading.Event()
     errors = []
 
     def consume():
         try:
-            ready.set()
             for _ in watch:
-                pass
+                ready.set()
         except bgkmap.BgkmapError as e:
             errors.append(e)
 
