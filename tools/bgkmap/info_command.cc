@@ -7,6 +7,7 @@
 #include "bgkmap/config/map_params_yaml.h"
 #include "client_options.h"
 #include "commands.h"
+#include "json_output.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -34,15 +35,7 @@ int RunInfo(const std::string& server) {
   Client client(server);
   RpcResult<MapInfo> r = client.Info();
   if (!r.ok()) return Fail("info", r.status().ToString());
-  nlohmann::json robots = nlohmann::json::array();
-  for (const RobotInfo& ri : r->robots) {
-    robots.push_back({{"robot_id", ri.robot_id},
-                      {"last_sequence", ri.last_sequence},
-                      {"scans_applied", ri.scans_applied},
-                      {"scans_duplicate", ri.scans_duplicate},
-                      {"scans_rejected", ri.scans_rejected},
-                      {"points_kept", ri.points_kept}});
-  }
+  const nlohmann::json robots = RobotsJson(r->robots);
   nlohmann::json out = {
       {"server_version", r->server_version},
       {"map_version", r->map_version},

@@ -5,6 +5,7 @@
 
 #include "client_options.h"
 #include "commands.h"
+#include "json_output.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -13,15 +14,7 @@ int RunRobots(const std::string& server) {
   Client client(server);
   RpcResult<MapInfo> r = client.Info();
   if (!r.ok()) return Fail("robots", r.status().ToString());
-  nlohmann::json robots = nlohmann::json::array();
-  for (const RobotInfo& ri : r->robots) {
-    robots.push_back({{"robot_id", ri.robot_id},
-                      {"last_sequence", ri.last_sequence},
-                      {"scans_applied", ri.scans_applied},
-                      {"scans_duplicate", ri.scans_duplicate},
-                      {"scans_rejected", ri.scans_rejected},
-                      {"points_kept", ri.points_kept}});
-  }
+  const nlohmann::json robots = RobotsJson(r->robots);
   std::printf("%s\n", robots.dump(2, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
   return 0;
 }

@@ -124,4 +124,10 @@ Permit::~Permit() {
   if (counter_ != nullptr) counter_->fetch_sub(1);
 }
 
+grpc::Status QueriesBusy(const ServiceContext& ctx) {
+  return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+          "server.max_concurrent_queries = " + std::to_string(ctx.limits.max_concurrent_queries) +
+              " queries are already running; retry later"};
+}
+
 }  // namespace bgkmap

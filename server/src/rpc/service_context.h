@@ -93,6 +93,10 @@ class StalledWriteWatch final : public DrainListener {
 std::chrono::steady_clock::duration TimeoutOf(double seconds);
 std::string SecondsText(double seconds);
 
+struct ServiceContext;
+// RESOURCE_EXHAUSTED: server.max_concurrent_queries queries are running (a retry can succeed).
+grpc::Status QueriesBusy(const ServiceContext& ctx);
+
 // Bounds a counter of concurrent operations; released on destruction.
 class Permit {
  public:

@@ -21,10 +21,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
         permit_(ctx.queries, ctx.limits.max_concurrent_queries),
         stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (!permit_) {
-      Finish(
-          {grpc::StatusCode::RESOURCE_EXHAUSTED,
-           "server.max_concurrent_queries = " + std::to_string(ctx.limits.max_concurrent_queries) +
-               " queries are already running; retry later"});
+      Finish(QueriesBusy(ctx));
       return;
     }
     if (grpc::Status s = Parse(request); !s.ok()) {

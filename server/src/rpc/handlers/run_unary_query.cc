@@ -37,10 +37,7 @@ grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServe
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
   auto permit = std::make_shared<Permit>(ctx.queries, ctx.limits.max_concurrent_queries);
   if (!*permit) {
-    reactor->Finish(
-        {grpc::StatusCode::RESOURCE_EXHAUSTED,
-         "server.max_concurrent_queries = " + std::to_string(ctx.limits.max_concurrent_queries) +
-             " queries are already running; retry later"});
+    reactor->Finish(QueriesBusy(ctx));
     return reactor;
   }
   auto control = std::make_shared<QueryControl>(call, ctx.limits.max_query_seconds);
