@@ -7,7 +7,7 @@
 #include "bgkmap/config/map_params_yaml.h"
 #include "client_options.h"
 #include "commands.h"
-#include "json_output.h"
+#include "robots_json.h"
 
 namespace bgkmap::cli {
 namespace {

@@ -6,9 +6,6 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <vector>
-
-#include "bgkmap/client/client.h"
 
 namespace bgkmap::cli {
 
@@ -23,20 +20,6 @@ Json JsonNumber(double v) {
 template <typename Json>
 std::string JsonText(const Json& j) {
   return j.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
-}
-
-// The robots of an Info answer, as `bgkmap info` and `bgkmap robots` print them.
-inline nlohmann::json RobotsJson(const std::vector<RobotInfo>& robots) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const RobotInfo& ri : robots) {
-    out.push_back({{"robot_id", ri.robot_id},
-                   {"last_sequence", ri.last_sequence},
-                   {"scans_applied", ri.scans_applied},
-                   {"scans_duplicate", ri.scans_duplicate},
-                   {"scans_rejected", ri.scans_rejected},
-                   {"points_kept", ri.points_kept}});
-  }
-  return out;
 }
 
 }  // namespace bgkmap::cli

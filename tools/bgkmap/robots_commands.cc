@@ -5,7 +5,7 @@
 
 #include "client_options.h"
 #include "commands.h"
-#include "json_output.h"
+#include "robots_json.h"
 
 namespace bgkmap::cli {
 namespace {
