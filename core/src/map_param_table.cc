@@ -54,24 +54,20 @@ Status StencilRadius(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
-Status KernelLength(std::string_view key, double v, const MapParams& p) {
+// A length in cells: positive, at least one cell (else `why`), and within the stencil limit.
+Status CellLength(std::string_view key, double v, const MapParams& p, const std::string& why) {
   if (Status s = Positive(key, v, p); !s.ok()) return s;
-  if (v < p.resolution) {
-    return Bad(
-        key, v,
-        "must be >= resolution (" + Num(p.resolution) + "), or no neighbour is ever inferred");
-  }
+  if (v < p.resolution)
+    return Bad(key, v, "must be >= resolution (" + Num(p.resolution) + ")" + why);
   return StencilRadius(key, v, p);
 }
 
+Status KernelLength(std::string_view key, double v, const MapParams& p) {
+  return CellLength(key, v, p, ", or no neighbour is ever inferred");
+}
+
 Status RobotRadius(std::string_view key, double v, const MapParams& p) {
-  if (Status s = Positive(key, v, p); !s.ok()) return s;
-  if (v < p.resolution) {
-    return Bad(
-        key, v,
-        "must be >= resolution (" + Num(p.resolution) + ") to span the 3 cells a plane needs");
-  }
-  return StencilRadius(key, v, p);
+  return CellLength(key, v, p, " to span the 3 cells a plane needs");
 }
 
 Status SlopeCrit(std::string_view key, double v, const MapParams& p) {

@@ -94,8 +94,10 @@ class Checkpointer {
   std::set<TileKey> dirty_;
 };
 
-// Bitwise equality of statistics and tile versions; a missing tile equals an all-zero one.
-inline ::testing::AssertionResult MapsIdentical(const TerrainMap& a, const TerrainMap& b) {
+// Tiles of `a` and `b` whose statistics differ (bitwise; a missing tile equals an all-zero one),
+// or, with `versions`, whose tile versions differ where both have the tile.
+inline ::testing::AssertionResult CompareTiles(const TerrainMap& a, const TerrainMap& b,
+                                               bool versions) {
   std::set<TileKey> keys;
   a.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
   b.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
@@ -105,18 +107,10 @@ inline ::testing::AssertionResult MapsIdentical(const TerrainMap& a, const Terra
   for (const TileKey& k : keys) {
     const Tile* ta = a.FindTile(k);
     const Tile* tb = b.FindTile(k);
-    const Tile& x = ta ? *ta : zero;
-    const Tile& y = tb ? *tb : zero;
-    const bool same_version = !ta || !tb || ta->version() == tb->version();
-    if (!(x == y) || !same_version) {
-      if (differing++ == 0) {
-        first = std::to_string(k.x) + ", " + std::to_string(k.y);
-      }
+    const bool same_version = !versions || !ta || !tb || ta->version() == tb->version();
+    if ((!((ta ? *ta : zero) == (tb ? *tb : zero)) || !same_version) && differing++ == 0) {
+      first = std::to_string(k.x) + ", " + std::to_string(k.y);
     }
-  }
-  if (a.version() != b.version()) {
-    return ::testing::AssertionFailure()
-           << "map versions differ: " << a.version() << " vs " << b.version();
   }
   if (differing > 0) {
     return ::testing::AssertionFailure()
@@ -125,28 +119,20 @@ inline ::testing::AssertionResult MapsIdentical(const TerrainMap& a, const Terra
   return ::testing::AssertionSuccess() << keys.size() << " tiles identical";
 }
 
+// Bitwise equality of statistics and tile versions; a missing tile equals an all-zero one.
+inline ::testing::AssertionResult MapsIdentical(const TerrainMap& a, const TerrainMap& b) {
+  if (a.version() != b.version()) {
+    return ::testing::AssertionFailure()
+           << "map versions differ: " << a.version() << " vs " << b.version();
+  }
+  return CompareTiles(a, b, /*versions=*/true);
+}
+
 // Bitwise equality of the statistics (W, S, A, B) alone: tile and map versions are ignored, so
 // two maps built from the same changes at other version numbers compare equal. A missing tile
 // equals an all-zero one.
 inline ::testing::AssertionResult StatisticsIdentical(const TerrainMap& a, const TerrainMap& b) {
-  std::set<TileKey> keys;
-  a.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
-  b.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
-  const Tile zero(a.params().tile_size);
-  int differing = 0;
-  std::string first;
-  for (const TileKey& k : keys) {
-    const Tile* ta = a.FindTile(k);
-    const Tile* tb = b.FindTile(k);
-    if (!((ta ? *ta : zero) == (tb ? *tb : zero)) && differing++ == 0) {
-      first = std::to_string(k.x) + ", " + std::to_string(k.y);
-    }
-  }
-  if (differing > 0) {
-    return ::testing::AssertionFailure() << "statistics of " << differing << " of " << keys.size()
-                                         << " tiles differ, first " << first;
-  }
-  return ::testing::AssertionSuccess() << "statistics of " << keys.size() << " tiles identical";
+  return CompareTiles(a, b, /*versions=*/false);
 }
 
 inline std::unique_ptr<TerrainMap> NewMap(const MapParams& params) {
