@@ -24,8 +24,10 @@
 #include "bgkmap/v1/map_service.pb.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
+#include "host_port.h"
 #include "http/metrics.h"
 #include "http/metrics_http.h"
+#include "http/web_routes.h"
 #include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
 #include "rpc/service_context.h"
@@ -78,6 +80,13 @@ std::chrono::milliseconds WatchdogPeriod(const ServerLimits& l) {
       std::clamp(static_cast<int64_t>(shortest * 1000 / 4), int64_t{20}, int64_t{1000}));
 }
 
+// The host of "host:port" as a URL writes it ("[::1]" for IPv6).
+std::string HostOf(const std::string& address) {
+  Result<HostPort> hp = ParseHostPort(address);
+  if (!hp.ok()) return address;
+  return hp->host.find(':') != std::string::npos ? "[" + hp->host + "]" : hp->host;
+}
+
 size_t ThreadCount(int configured) {
   if (configured > 0) return static_cast<size_t>(configured);
   return std::max(1u, std::thread::hardware_concurrency());
@@ -124,6 +133,8 @@ struct MapServer::Impl {
   std::mutex shutdown_mu;
   bool stopped = false;
 
+  // The web map's routes on the same address; null when off.
+  std::unique_ptr<WebRoutes> web;
   // GET /metrics (server.metrics_address); null when off. Last: it reads everything above.
   std::unique_ptr<MetricsHttpServer> metrics;
   int metrics_port = 0;
@@ -165,8 +176,16 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served
     // once the map service is up.
+    impl->web = std::make_unique<WebRoutes>(impl->map, impl->hub, impl->query_pool, config.limits,
+                                            WebRoutesOptions{});
+    MetricsHttpServer::Options http_options;
+    http_options.routes = [web = impl->web.get()](const HttpRequest& request,
+                                                  std::shared_ptr<HttpExchange> exchange) {
+      web->Handle(request, std::move(exchange));
+    };
     Result<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Listen(
-        config.metrics_address, [p = impl.get()] { return FormatMetrics(CollectMetrics(p->ctx)); });
+        config.metrics_address, [p = impl.get()] { return FormatMetrics(CollectMetrics(p->ctx)); },
+        http_options);
     if (!metrics.ok()) {
       return Status::FailedPrecondition("server.metrics_address: " + metrics.status().message());
     }
@@ -204,6 +223,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     impl->metrics->Start();
     spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
                  impl->metrics_port);
+    spdlog::info("event=web_map_listening url=http://{}:{}/", HostOf(config.metrics_address),
+                 impl->metrics_port);
   }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
 }
@@ -232,6 +253,7 @@ void MapServer::Shutdown() {
   impl_->ctx.sessions.StopWatchdog();
   impl_->map.WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
+  if (impl_->web != nullptr) impl_->web->Stop();  // event streams end before their server
   if (impl_->metrics != nullptr) impl_->metrics->Stop();
   impl_->maintenance.Stop();
   if (std::optional<StoreStatus> store = impl_->map.store_status()) {

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
+#include <atomic>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -10,12 +11,14 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <exception>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <set>
 #include <thread>
 
 #include "host_port.h"
+#include "http/http_exchange.h"
 
 namespace bgkmap {
 namespace {
@@ -31,6 +34,8 @@ constexpr const char* kMetricsContentType = "text/plain; version=0.0.4; charset=
 // response.
 constexpr std::chrono::seconds kLingerTime{1};
 constexpr size_t kMaxLingerBytes = 1 << 20;
+// Bytes an event stream may hold for a client that reads too slowly.
+constexpr size_t kMaxStreamBacklog = 1 << 20;
 
 class Connection;
 
@@ -52,6 +57,7 @@ struct MetricsHttpServer::State {
   // destruction destroys the handlers still pending, and with them connections, which remove
   // themselves from here.
   std::set<Connection*> connections;
+  uint64_t read_sequence = 0;  // orders the connections waiting for a request
   asio::io_context io;
   tcp::acceptor acceptor{io};
   asio::steady_timer retry{io};
@@ -64,7 +70,10 @@ struct MetricsHttpServer::State {
 
 namespace {
 
-// One client connection: read one request (bounded in time and size), answer it, close.
+// One client connection: reads a request (bounded in time and size), answers it, then reads the
+// next one (keep-alive, web routes) or closes (/metrics, errors); or streams events (/events).
+// Lives on the io thread; the HttpExchange it hands to the web routes may be called from any
+// thread and posts there.
 class Connection : public std::enable_shared_from_this<Connection> {
  public:
   using State = MetricsHttpServer::State;
@@ -72,27 +81,82 @@ class Connection : public std::enable_shared_from_this<Connection> {
   Connection(tcp::socket socket, State& state)
       : stream_(std::move(socket)), buffer_(state.options.max_request_bytes), state_(state) {
     state_.connections.insert(this);
-    parser_.header_limit(static_cast<uint32_t>(state.options.max_request_bytes));
-    parser_.body_limit(state.options.max_request_bytes);
   }
-  ~Connection() { state_.connections.erase(this); }
+  ~Connection() {
+    state_.connections.erase(this);
+    if (on_close_) on_close_();
+  }
 
   void Read() {
+    reading_since_ = ++state_.read_sequence;
+    parser_.emplace();
+    parser_->header_limit(static_cast<uint32_t>(state_.options.max_request_bytes));
+    parser_->body_limit(state_.options.max_request_bytes);
+    // The whole request must arrive within the timeout, however it trickles in.
     stream_.expires_after(state_.options.read_timeout);
     http::async_read(
-        stream_, buffer_, parser_,
+        stream_, buffer_, *parser_,
         [self = shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
   }
 
+  // Waiting for (or receiving) a request: the connection a full server evicts first, oldest
+  // first. 0 while a request is being answered or a stream is open.
+  uint64_t reading_since() const { return reading_since_; }
+
   // Aborts whatever is pending; the handlers then release the connection.
-  void Close() { stream_.close(); }
+  void Close() {
+    state_.connections.erase(this);  // its slot is free now
+    closed_->store(true);
+    hold_.reset();
+    beast::error_code ignored;
+    stream_.socket().close(ignored);
+  }
+
+  // What a route answers through: posts to this connection's thread.
+  class Exchange final : public HttpExchange {
+   public:
+    explicit Exchange(const std::shared_ptr<Connection>& c)
+        : connection_(c), executor_(c->stream_.get_executor()), closed_(c->closed_) {}
+    void Reply(HttpResponse response) override {
+      asio::post(executor_, [c = connection_, r = std::move(response)]() mutable {
+        if (auto self = c.lock()) self->Write(std::move(r));
+      });
+    }
+    void StartStream(std::string head, std::function<void()> on_close) override {
+      asio::post(executor_, [c = connection_, h = std::move(head), f = std::move(on_close)] {
+        if (auto self = c.lock()) {
+          self->StartStream(std::move(h), std::move(f));
+        } else {
+          f();
+        }
+      });
+    }
+    bool Send(std::string bytes) override {
+      if (closed_->load()) return false;
+      asio::post(executor_, [c = connection_, b = std::move(bytes)]() mutable {
+        if (auto self = c.lock()) self->Queue(std::move(b));
+      });
+      return true;
+    }
+    void Close() override {
+      asio::post(executor_, [c = connection_] {
+        if (auto self = c.lock()) self->Close();
+      });
+    }
+
+   private:
+    const std::weak_ptr<Connection> connection_;
+    const asio::any_io_executor executor_;
+    const std::shared_ptr<std::atomic<bool>> closed_;
+  };
 
  private:
   void OnRead(beast::error_code ec) {
+    reading_since_ = 0;
     if (ec == beast::error::timeout || ec == http::error::end_of_stream ||
         ec == http::error::partial_message || ec == asio::error::operation_aborted ||
-        ec == asio::error::eof || ec == asio::error::connection_reset) {
-      return;  // closed or too slow: nothing to answer
+        ec == asio::error::eof || ec == asio::error::connection_reset || closed_->load()) {
+      return;  // closed, evicted or too slow: nothing to answer
     }
     if (ec) {
       http::status status = http::status::bad_request;
@@ -105,28 +169,80 @@ class Connection : public std::enable_shared_from_this<Connection> {
       http::response<http::string_body> response{status, 11};
       const auto reason = http::obsolete_reason(status);
       response.body() = std::string(reason.data(), reason.size()) + "\n";
+      keep_alive_ = false;
       Write(std::move(response));
       return;
     }
-    Write(state_.Answer(parser_.get()));
+    const http::request<http::string_body>& request = parser_->get();
+    const std::string_view target(request.target().data(), request.target().size());
+    if (!state_.options.routes || target.substr(0, target.find('?')) == kMetricsPath) {
+      keep_alive_ = false;  // a scrape per connection, as before
+      Write(state_.Answer(request));
+      return;
+    }
+    // A web route answers later (or on another thread): the connection holds itself meanwhile.
+    keep_alive_ = request.keep_alive();
+    hold_ = shared_from_this();
+    state_.options.routes(request, std::make_shared<Exchange>(shared_from_this()));
   }
 
   void Write(http::response<http::string_body> response) {
+    hold_.reset();
+    if (closed_->load()) return;
     response.set(http::field::server, "bgkmapd");
     if (response[http::field::content_type].empty()) {
       response.set(http::field::content_type, "text/plain; charset=utf-8");
     }
-    response.keep_alive(false);
+    response.keep_alive(keep_alive_);
     response.prepare_payload();
     response_ = std::move(response);
     stream_.expires_after(state_.options.read_timeout);
     http::async_write(stream_, *response_,
                       [self = shared_from_this()](beast::error_code write_ec, size_t) {
                         if (write_ec) return;
+                        if (self->keep_alive_) {
+                          self->Read();
+                          return;
+                        }
                         beast::error_code ignored;
                         self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
                         self->stream_.expires_after(kLingerTime);
                         self->Drain();
+                      });
+  }
+
+  void StartStream(std::string head, std::function<void()> on_close) {
+    hold_.reset();
+    on_close_ = std::move(on_close);
+    if (closed_->load()) return;
+    hold_ = shared_from_this();  // until Close(): between writes nothing else holds it
+    Queue(std::move(head));
+  }
+
+  // A stream's bytes: written in order; a client that lets kMaxStreamBacklog bytes pile up, or
+  // takes nothing for the write timeout, is disconnected.
+  void Queue(std::string bytes) {
+    if (closed_->load()) return;
+    pending_ += bytes;
+    if (pending_.size() > kMaxStreamBacklog) {
+      spdlog::info("event=web_slow_client_dropped backlog_bytes={}", pending_.size());
+      Close();
+      return;
+    }
+    if (writing_) return;
+    writing_ = true;
+    out_.swap(pending_);
+    pending_.clear();
+    stream_.expires_after(state_.options.read_timeout);
+    asio::async_write(stream_, asio::buffer(out_),
+                      [self = shared_from_this()](beast::error_code ec, size_t) {
+                        self->writing_ = false;
+                        self->out_.clear();
+                        if (ec) {
+                          self->Close();
+                        } else if (!self->pending_.empty()) {
+                          self->Queue(std::string());
+                        }
                       });
   }
 
@@ -144,11 +260,18 @@ class Connection : public std::enable_shared_from_this<Connection> {
 
   beast::tcp_stream stream_;
   beast::flat_buffer buffer_;
-  http::request_parser<http::string_body> parser_;
+  std::optional<http::request_parser<http::string_body>> parser_;
   std::optional<http::response<http::string_body>> response_;
   std::array<char, 4096> discard_;
   size_t drained_ = 0;
   State& state_;
+  uint64_t reading_since_ = 0;
+  bool keep_alive_ = false;
+  std::shared_ptr<Connection> hold_;  // while a route answers, and while a stream is open
+  std::shared_ptr<std::atomic<bool>> closed_ = std::make_shared<std::atomic<bool>>(false);
+  std::function<void()> on_close_;
+  bool writing_ = false;
+  std::string pending_, out_;
 };
 
 }  // namespace
@@ -166,8 +289,20 @@ void MetricsHttpServer::State::Accept() {
       return;
     }
     if (connections.size() >= options.max_connections) {
+      // Full: the connection that has waited longest for its request goes (a slow or idle
+      // client), so trickling clients cannot hold every slot against a scraper.
+      Connection* oldest = nullptr;
+      for (Connection* c : connections) {
+        if (c->reading_since() != 0 &&
+            (oldest == nullptr || c->reading_since() < oldest->reading_since())) {
+          oldest = c;
+        }
+      }
+      if (oldest != nullptr) oldest->Close();
+    }
+    if (connections.size() >= options.max_connections) {
       beast::error_code ignored;
-      socket.close(ignored);  // a scraper retries at its next interval
+      socket.close(ignored);  // every slot answers a request: a scraper retries
     } else {
       std::make_shared<Connection>(std::move(socket), *this)->Read();
     }
@@ -180,7 +315,7 @@ void MetricsHttpServer::State::CloseAll() {
   acceptor.close(ignored);
   retry.cancel();
   // Close() only aborts operations; the connections go when their handlers have run.
-  for (Connection* c : connections) c->Close();
+  for (Connection* c : std::set<Connection*>(connections)) c->Close();
   io.stop();
 }
 
