@@ -44,7 +44,9 @@
   });
   const layer = (name, options) => {
     const l = new LiveTiles('/tiles/' + name + '/{z}/{x}/{y}.png',
-      Object.assign({ tileSize: info.tile_pixels, noWrap: true, keepBuffer: 1 }, options));
+      Object.assign({
+        tileSize: info.tile_pixels, minZoom: info.min_zoom, maxZoom: info.max_zoom, noWrap: true, keepBuffer: 1,
+      }, options));
     hook.layers[name] = l;
     return l;
   };

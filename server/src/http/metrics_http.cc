@@ -193,6 +193,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
     if (response[http::field::content_type].empty()) {
       response.set(http::field::content_type, "text/plain; charset=utf-8");
     }
+    // An error closes the connection: a confused client starts afresh.
+    if (response.result_int() >= 400) keep_alive_ = false;
     response.keep_alive(keep_alive_);
     response.prepare_payload();
     response_ = std::move(response);
@@ -217,6 +219,20 @@ class Connection : public std::enable_shared_from_this<Connection> {
     if (closed_->load()) return;
     hold_ = shared_from_this();  // until Close(): between writes nothing else holds it
     Queue(std::move(head));
+    WatchForClose();
+  }
+
+  // A stream's client sends nothing more: a read that ends tells that it has gone (without
+  // waiting for a write to fail). On the socket itself, outside the stream's write timeout.
+  void WatchForClose() {
+    stream_.socket().async_read_some(asio::buffer(discard_),
+                                     [self = shared_from_this()](beast::error_code ec, size_t) {
+                                       if (ec) {
+                                         self->Close();
+                                       } else {
+                                         self->WatchForClose();
+                                       }
+                                     });
   }
 
   // A stream's bytes: written in order; a client that lets kMaxStreamBacklog bytes pile up, or
