@@ -108,8 +108,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     state_.connections.erase(this);  // its slot is free now
     closed_->store(true);
     hold_.reset();
-    beast::error_code ignored;
-    stream_.socket().close(ignored);
+    stream_.close();
   }
 
   // What a route answers through: posts to this connection's thread.
