@@ -176,8 +176,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served
     // once the map service is up.
-    impl->web = std::make_unique<WebRoutes>(impl->map, impl->hub, impl->query_pool, config.limits,
-                                            WebRoutesOptions{});
+    impl->web = std::make_unique<WebRoutes>(impl->map, impl->hub, impl->query_pool,
+                                            impl->ctx.queries, config.limits, WebRoutesOptions{});
     MetricsHttpServer::Options http_options;
     http_options.routes = [web = impl->web.get()](const HttpRequest& request,
                                                   std::shared_ptr<HttpExchange> exchange) {

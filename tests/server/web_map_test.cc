@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "stored_tile_damage.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -126,9 +127,10 @@ std::optional<Image> DecodePng(const std::string& bytes) {
   return out;
 }
 
-ServerConfig WebConfig() {
+ServerConfig WebConfig(const std::string& data_dir = "") {
   ServerConfig c = TestConfig();
   c.metrics_address = "127.0.0.1:0";
+  c.storage.data_dir = data_dir;
   return c;
 }
 
@@ -393,6 +395,44 @@ TEST_F(WebMapTest, EventStreamsAreBounded) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   EXPECT_EQ(status, 200);
+}
+
+// The served map never answers from a tile the store found corrupt: neither does the web map.
+TEST(WebMapStoreTest, CorruptStoredTileIsRefusedNamingIt) {
+  TempDir dir("bgkmap_web");
+  {
+    ServerFixture fixture(WebConfig(dir.str()));
+    for (const OwnedScan& s : StreetScans()) ASSERT_TRUE(fixture.client().Insert(s.Data()).ok());
+  }  // the last checkpoint writes every tile
+  const TileKey k = CorruptStoredTile(dir.str(), StoredTilePick::kMiddle);
+  ServerFixture fixture(WebConfig(dir.str()));
+  const int port = fixture.server().metrics_port();
+  // The zoom 0 tile holding map tile k (64 cells: 4 x 4 of them per web tile).
+  const int64_t cx = int64_t{k.x} * 64, cy = int64_t{k.y} * 64;
+  const std::string tile =
+      "/tiles/elevation/0/" + std::to_string(cx >= 0 ? cx / 256 : -((-cx + 255) / 256)) + "/" +
+      std::to_string(-(cy >= 0 ? cy / 256 : -((-cy + 255) / 256)) - 1) + ".png";
+  const std::string named = "tile (" + std::to_string(k.x) + ", " + std::to_string(k.y) + ")";
+  const Reply r = Get(port, tile);
+  EXPECT_EQ(r.status, 500) << tile;
+  EXPECT_NE(r.body.find(named), std::string::npos) << r.body;
+  const Reply p = Get(port, "/points?x=" + std::to_string((cx + 32) * 0.1) +
+                                "&y=" + std::to_string((cy + 32) * 0.1));
+  EXPECT_EQ(p.status, 500);
+  EXPECT_NE(p.body.find(named), std::string::npos) << p.body;
+  // The rest of the map still draws.
+  EXPECT_EQ(Get(port, "/tiles/elevation/0/100/100.png").status, 200);
+}
+
+// Web map reads count against server.max_concurrent_queries with the RPCs' queries.
+TEST(WebMapLimitsTest, ReadsShareTheQueryLimit) {
+  ServerConfig c = WebConfig();
+  c.limits.max_concurrent_queries = 0;
+  ServerFixture fixture(c);
+  const Reply r = Get(fixture.server().metrics_port(), "/points?x=1&y=2");
+  EXPECT_EQ(r.status, 503);
+  EXPECT_NE(r.body.find("server.max_concurrent_queries = 0"), std::string::npos) << r.body;
+  EXPECT_NE(r.headers.find("Retry-After: 1"), std::string::npos);
 }
 
 // Issue 12's row: connections trickling a byte every 0.5 s held every slot, and 16 of 18 real

@@ -89,9 +89,11 @@ nlohmann::json PointJson(double x, double y, const CellEstimate& e) {
 }  // namespace
 
 WebRoutes::WebRoutes(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
-                     const ServerLimits& limits, WebRoutesOptions options)
+                     std::atomic<uint32_t>& queries, const ServerLimits& limits,
+                     WebRoutesOptions options)
     : map_(map),
       pool_(pool),
+      queries_(queries),
       limits_(limits),
       options_(options),
       min_zoom_(WebMinZoom(limits.max_region_cells)),
@@ -133,13 +135,21 @@ void WebRoutes::Handle(const HttpRequest& request, std::shared_ptr<HttpExchange>
 
 void WebRoutes::OffThread(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange,
                           std::function<HttpResponse()> work) {
-  if (running_.fetch_add(1) >= options_.max_renders) {
-    running_.fetch_sub(1);
-    HttpResponse r =
-        Text(request, http::status::service_unavailable,
-             "busy: " + std::to_string(options_.max_renders) + " map reads running; retry later");
+  auto busy = [&](const std::string& why) {
+    HttpResponse r = Text(request, http::status::service_unavailable, why + "; retry later");
     r.set(http::field::retry_after, "1");
     exchange->Reply(std::move(r));
+  };
+  if (running_.fetch_add(1) >= options_.max_renders) {
+    running_.fetch_sub(1);
+    busy("busy: " + std::to_string(options_.max_renders) + " web map reads running");
+    return;
+  }
+  if (queries_.fetch_add(1) >= limits_.max_concurrent_queries) {
+    queries_.fetch_sub(1);
+    running_.fetch_sub(1);
+    busy("server.max_concurrent_queries = " + std::to_string(limits_.max_concurrent_queries) +
+         " queries are already running");
     return;
   }
   boost::asio::post(pool_, [this, exchange = std::move(exchange), work = std::move(work),
@@ -152,6 +162,7 @@ void WebRoutes::OffThread(const HttpRequest& request, std::shared_ptr<HttpExchan
       r = HttpResponse{http::status::internal_server_error, version};
       r.body() = "cannot answer\n";
     }
+    queries_.fetch_sub(1);
     running_.fetch_sub(1);
     exchange->Reply(std::move(r));
   });

@@ -6,7 +6,8 @@
 //   GET /points?x=X&y=Y                     a cell's values, as `bgkmap points` prints them
 //   GET /events                             Server-Sent Events: changed tiles (sse.h)
 // Reads go through the served map like the RPCs' (pinned, locked, never from a corrupt tile) and
-// run on the query pool, never on the HTTP thread; at most `max_renders` at once (more: 503).
+// run on the query pool, never on the HTTP thread; at most `max_renders` at once, and each counts
+// against server.max_concurrent_queries with the RPCs' queries (beyond either: 503).
 #pragma once
 
 #include <atomic>
@@ -28,8 +29,9 @@ struct WebRoutesOptions {
 
 class WebRoutes {
  public:
+  // `queries` counts the queries running (the RPC handlers' counter).
   WebRoutes(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
-            const ServerLimits& limits, WebRoutesOptions options);
+            std::atomic<uint32_t>& queries, const ServerLimits& limits, WebRoutesOptions options);
 
   // Answers `request` (any path but /metrics). Called on the HTTP thread: it only parses and
   // hands the work to the pool.
@@ -51,6 +53,7 @@ class WebRoutes {
 
   ServedMap& map_;
   boost::asio::thread_pool& pool_;
+  std::atomic<uint32_t>& queries_;
   const ServerLimits limits_;
   const WebRoutesOptions options_;
   const int min_zoom_;
