@@ -52,6 +52,8 @@ function scanDir(name, indices, dx) {
 // bgkmapd on loopback ports chosen by the system, read from its log.
 const server = spawn(bgkmapd, ['--listen', '127.0.0.1:0', '--http', '127.0.0.1:0'],
   { stdio: ['ignore', 'pipe', 'pipe'] });
+// However this script ends (a broken stdout pipe, say), bgkmapd does not outlive it.
+process.on('exit', () => { if (server.exitCode === null) server.kill('SIGKILL'); });
 let serverLog = '';
 const ports = await new Promise((resolve, reject) => {
   const timer = setTimeout(() => reject(new Error('bgkmapd did not start:\n' + serverLog)), 20000);
