@@ -14,6 +14,7 @@
 #include <mutex>
 #include <set>
 
+#include "info_log.h"
 #include "max_merge_operator.h"
 #include "store_keys.h"
 
@@ -125,6 +126,11 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
   if (options.file_system) {
     store->env = rocksdb::NewCompositeEnv(options.file_system);
     db_options.env = store->env.get();
+  } else {
+    std::error_code ec;
+    if (options.create_if_missing && !read_only) std::filesystem::create_directories(dir, ec);
+    // Not RocksDB's own log file, which aborts the process on a full disk (info_log.h).
+    if (std::filesystem::is_directory(dir, ec)) db_options.info_log = InfoLog::Open(dir);
   }
 
   auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);

@@ -36,8 +36,11 @@ class StoreDurability final : public Durability {
   Status Record(const ChangeRecord& change) override;
   Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                          std::span<const std::unique_ptr<Tile>> tiles) override;
-  bool write_failed() const override { return write_failed_.load(); }
+  bool write_failed() const override { return write_failed_.load() || writes_paused_for_space(); }
   Status Resume() override;
+  bool writes_paused_for_space() const override;
+  std::vector<TileKey> DeferredTiles() const override { return deferred_; }
+  Status AdmitScratch(uint64_t bytes) override;
   Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
                                                      const TileCopier& map) override;
   std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
@@ -64,10 +67,14 @@ class StoreDurability final : public Durability {
 
  private:
   explicit StoreDurability(std::unique_ptr<storage::TileStore> store) : store_(std::move(store)) {}
+  // After a write (or a refusal): logs the start and the end of a pause for space, once each.
+  void NotePause(const Status& outcome);
 
   std::unique_ptr<storage::TileStore> store_;
   storage::RecoveryReport recovery_;
-  std::atomic<bool> write_failed_{false};
+  std::atomic<bool> write_failed_{false};  // the store latched a failed write
+  std::atomic<bool> pause_logged_{false};  // event=storage_full logged, resumption not yet
+  std::vector<TileKey> deferred_;          // set at Open()
   StoredTileIndex index_;
   // Moves past a checkpoint's version only after the index holds its tiles.
   std::atomic<uint64_t> durable_version_{0};

@@ -160,6 +160,13 @@ class TileStore {
 
   // Opened on a disk below the free-space reserve: every write is refused until Resume().
   bool read_only() const { return read_only_.load(); }
+  // OK if `bytes` may be written next to the store now (the reserve stays free and the store
+  // is writable); the refusal otherwise. For files the server keeps in the store's directory
+  // (an import's spool); the store checks its own writes itself.
+  Status AdmitWrite(uint64_t bytes) { return log_->AdmitWrite(bytes); }
+  // Probes the free space now: OK if the reserve is free (whether or not the store is
+  // read-only; Resume() reopens it).
+  Status CheckFreeSpace() { return guard_->Check(); }
   // The reserve and the free space as last probed (reserve_bytes() 0: no reserve).
   const FreeSpaceGuard& free_space() const { return *guard_; }
 
