@@ -117,10 +117,6 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
   db_options.wal_recovery_mode = rocksdb::WALRecoveryMode::kPointInTimeRecovery;
   db_options.paranoid_checks = true;
   db_options.max_background_jobs = 2;
-  // No preallocation: RocksDB would otherwise reserve 1.1 x the write buffer size (70 MB) for
-  // every new log file and more for table files, so a store of a few MB would need hundreds of
-  // MB free and the free-space reserve (free_space.h) would measure reservations, not data.
-  db_options.allow_fallocate = false;
 
   auto store = std::make_unique<StoreDb>();
   if (options.file_system) {

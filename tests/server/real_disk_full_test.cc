@@ -25,6 +25,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -32,6 +33,7 @@
 #include <fstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "bgkmapd_process.h"
@@ -364,6 +366,74 @@ TEST(RealDiskFullTest, ARestartOnTheFullDiskOpensTheStoreReadOnly) {
   EXPECT_TRUE(BitwiseEqual(*region, Reference(base, kScans + 1)));
   again.Signal(SIGTERM);
   EXPECT_EQ(again.Wait(60), 0);
+}
+
+uint64_t DirectoryBytes(const std::string& dir) {
+  uint64_t total = 0;
+  std::error_code ec;
+  for (const auto& e : fs::recursive_directory_iterator(dir, ec)) {
+    if (e.is_regular_file(ec)) total += e.file_size(ec);
+  }
+  return total;
+}
+
+// Measurement, not a check (run with --gtest_also_run_disabled_tests; docs/storage.md,
+// "Free-space reserve"): the bytes a scan adds to the store before a checkpoint, and the free
+// space a restart needs at most to replay a log of N scans and checkpoint it (lowest free space
+// seen by a thread polling statvfs every 0.2 ms while bgkmapd starts).
+TEST(RealDiskFullTest, DISABLED_MeasureTheSpaceRecoveryNeeds) {
+  for (const auto& [name, base] : {std::pair{std::string("street"), StreetScans()},
+                                   std::pair{std::string("street/4"), SubScans("alpha", 4)}}) {
+    for (uint64_t n : {35, 150}) {
+      SmallFileSystem disk(2048);
+      if (!disk.mounted()) GTEST_SKIP() << disk.error();
+      const std::vector<std::string> args = {"--data-dir",
+                                             disk.Sub("store"),
+                                             "--worker-threads",
+                                             "2",
+                                             "--set",
+                                             "storage.checkpoint_interval_s=3600",
+                                             "--set",
+                                             "storage.min_free_space_mb=0"};
+      OwnedScan owned;
+      uint64_t empty = 0, logged = 0;
+      {
+        BgkmapdProcess server(args);
+        ASSERT_TRUE(server.started());
+        empty = DirectoryBytes(disk.Sub("store"));
+        Client client(server.target());
+        for (uint64_t s = 1; s <= n; ++s) {
+          ASSERT_TRUE(client.Insert(Scan(base, s, &owned)).ok());
+        }
+        logged = DirectoryBytes(disk.Sub("store"));
+        server.Signal(SIGKILL);
+        server.Wait();
+      }
+      const uint64_t free_before = FreeBytes(disk.Sub(""));
+      std::atomic<bool> stop{false};
+      std::atomic<uint64_t> lowest{free_before};
+      std::thread sampler([&] {
+        while (!stop.load()) {
+          lowest.store(std::min(lowest.load(), FreeBytes(disk.Sub(""))));
+          std::this_thread::sleep_for(std::chrono::microseconds(200));
+        }
+      });
+      BgkmapdProcess server(args);
+      const bool started = server.started();
+      stop.store(true);
+      sampler.join();
+      ASSERT_TRUE(started);
+      const uint64_t after = DirectoryBytes(disk.Sub("store"));
+      server.Signal(SIGTERM);
+      EXPECT_EQ(server.Wait(60), 0);
+      std::printf(
+          "%s, %3lu scans: store %.1f MB (empty %.2f MB), %.0f KB per scan; restart needed "
+          "%.1f MB free at its peak; store after recovery %.1f MB\n",
+          name.c_str(), static_cast<unsigned long>(n), logged / 1e6, empty / 1e6,
+          (logged - empty) / 1e3 / static_cast<double>(n), (free_before - lowest.load()) / 1e6,
+          after / 1e6);
+    }
+  }
 }
 
 }  // namespace
