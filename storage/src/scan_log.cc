@@ -65,10 +65,9 @@ Status ScanLog::write_failure() const {
 Status ScanLog::AdmitWrite(uint64_t bytes) {
   Status s = guard_->Admit(read_only_ ? 0 : bytes);
   if (read_only_) {
-    s = Status::IoError(
-        s.ok() ? "the store is read-only (it was opened on a full disk) until it is reopened; "
-                 "there is room again, so that comes shortly"
-               : "the store is read-only (it was opened on a full disk): " + s.message());
+    // Opened on a full disk (or a reopen for writing failed): TileStore::Resume() reopens it.
+    s = Status::IoError("the store is read-only until it can be reopened for writing" +
+                        (s.ok() ? std::string(" (there is room again)") : ": " + s.message()));
   }
   if (!s.ok()) space_refusals_.fetch_add(1);
   return s;

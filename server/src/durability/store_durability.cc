@@ -88,10 +88,12 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
 }
 
 std::map<std::string, uint64_t> StoreDurability::LoggedRobotSequences() const {
+  std::shared_lock lock(reopen_mu_);
   return store_->log().RobotSequences();
 }
 
 Status StoreDurability::Record(const ChangeRecord& change) {
+  std::shared_lock lock(reopen_mu_);
   // The stamp is informational; a sender's absurd seconds must not overflow.
   int64_t stamp_ns = 0;
   if (__builtin_mul_overflow(change.stamp.seconds, int64_t{1'000'000'000}, &stamp_ns) ||
@@ -124,6 +126,7 @@ void StoreDurability::NotePause(const Status& outcome) {
 }
 
 Status StoreDurability::AdmitScratch(uint64_t bytes) {
+  std::shared_lock lock(reopen_mu_);
   Status s = store_->AdmitWrite(bytes);
   NotePause(s);
   return s;
@@ -131,6 +134,7 @@ Status StoreDurability::AdmitScratch(uint64_t bytes) {
 
 Status StoreDurability::WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                                         std::span<const std::unique_ptr<Tile>> tiles) {
+  std::shared_lock lock(reopen_mu_);
   if (version <= store_->checkpoint_version() && keys.empty()) return Status::Ok();
   std::vector<storage::TileUpdate> updates;
   updates.reserve(keys.size());
@@ -145,6 +149,7 @@ Status StoreDurability::WriteCheckpoint(uint64_t version, std::span<const TileKe
 }
 
 Status StoreDurability::Resume() {
+  std::unique_lock lock(reopen_mu_);
   if (!write_failed() && store_->log().write_failure().ok()) return Status::Ok();
   // Reopens a read-only store or one that latched a failure; either way only with the reserve
   // free, which is what writes paused for space wait for too.
@@ -157,6 +162,7 @@ Status StoreDurability::Resume() {
 
 Result<std::unique_ptr<TileSource>> StoreDurability::OpenTileSource(TileKey min, TileKey max,
                                                                     const TileCopier&) {
+  std::shared_lock lock(reopen_mu_);
   // Called right after a checkpoint at the applied version: the store holds the map exactly.
   std::unique_ptr<storage::TileSnapshot> snapshot = store_->NewSnapshot();
   Result<std::vector<storage::StoredTileInfo>> listed = snapshot->ListTiles(min, max);
@@ -172,6 +178,7 @@ Durability::ScratchDirectory StoreDurability::scratch_directory() const {
 }
 
 std::optional<StoreStatus> StoreDurability::store_status(bool with_disk_usage) const {
+  std::shared_lock lock(reopen_mu_);
   StoreStatus s;
   s.directory = store_->directory();
   s.durability = durability_name();
@@ -205,7 +212,7 @@ Durability::VerifyReport StoreDurability::VerifyStoredTiles(const std::atomic<bo
       r.stopped = true;
       break;
     }
-    Result<std::unique_ptr<Tile>> tile = store_->LoadTile(k);  // marks a corrupt tile
+    Result<std::unique_ptr<Tile>> tile = Load(k);  // marks a corrupt tile
     ++r.tiles;
     if (tile.ok()) continue;
     if (tile.status().code() == Status::Code::kDataLoss) {

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,7 @@ class StoreDurability final : public Durability {
   uint64_t recovered_version() const override { return recovery_.map_version; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override;
   Status RetireRobot(const std::string& robot_id) override {
+    std::shared_lock lock(reopen_mu_);
     return store_->log().RetireRobot(robot_id);
   }
   Status Record(const ChangeRecord& change) override;
@@ -56,7 +58,10 @@ class StoreDurability final : public Durability {
     index_.ForEach(fn);
   }
   std::optional<TileSummary> StoredSummary(TileKey key) const override { return index_.Find(key); }
-  Result<std::unique_ptr<Tile>> Load(TileKey key) const override { return store_->LoadTile(key); }
+  Result<std::unique_ptr<Tile>> Load(TileKey key) const override {
+    std::shared_lock lock(reopen_mu_);
+    return store_->LoadTile(key);
+  }
   uint64_t durable_version() const override { return durable_version_.load(); }
 
   VerifyReport VerifyStoredTiles(const std::atomic<bool>& stop) const override;
@@ -71,6 +76,9 @@ class StoreDurability final : public Durability {
   void NotePause(const Status& outcome);
 
   std::unique_ptr<storage::TileStore> store_;
+  // Resume() may reopen the database (a read-only start, a failed write): exclusive then; every
+  // other use of the database, queries' tile loads included, holds it shared.
+  mutable std::shared_mutex reopen_mu_;
   storage::RecoveryReport recovery_;
   std::atomic<bool> write_failed_{false};  // the store latched a failed write
   std::atomic<bool> pause_logged_{false};  // event=storage_full logged, resumption not yet
