@@ -31,6 +31,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -244,6 +245,27 @@ void FillRefuseAndResume(const std::string& reserve_mb) {
   RpcResult<ClearResult> clear = client.ClearRegion({0, 0, 1, 1});
   ASSERT_FALSE(clear.ok());
   EXPECT_EQ(clear.status().code(), RpcCode::kUnavailable) << clear.status().ToString();
+  if (reserve) {
+    // An import: its spool file would eat the reserve, its checkpoint cannot be written.
+    TempDir scratch("bgkmap_disk_full");
+    const std::string archive = scratch.Sub("map.bgkmap");
+    {
+      BgkmapdProcess other({"--worker-threads", "1"});
+      ASSERT_TRUE(other.started());
+      Client to_export(other.target());
+      OwnedScan one;
+      ASSERT_TRUE(to_export.Insert(Scan(SubScans("beta", 4), 1, &one)).ok());
+      ASSERT_TRUE(to_export.ExportMap(std::nullopt, archive).ok());
+      other.Signal(SIGTERM);
+      ASSERT_EQ(other.Wait(60), 0);
+    }
+    RpcResult<ImportResult> imported = client.ImportMap(archive);
+    ASSERT_FALSE(imported.ok());
+    EXPECT_EQ(imported.status().code(), RpcCode::kUnavailable) << imported.status().ToString();
+    EXPECT_NE(imported.status().message().find("below the reserve"), std::string::npos)
+        << imported.status().message();
+    EXPECT_TRUE(BitwiseEqual(*client.QueryRegion({kBox, {}, 1}), Reference(base, last_acked)));
+  }
 
   // Room again: the server sees it within a second and takes the retry.
   ASSERT_TRUE(fs::remove(ballast));
