@@ -214,6 +214,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   if (auto* health = impl->server->GetHealthCheckService()) {
     health->SetServingStatus(kMapServiceName, true);
     health->SetServingStatus("", true);
+    impl->maintenance.WatchWritable(
+        [health](bool writable) { health->SetServingStatus(kWritesHealthName, writable); });
   }
   impl->ctx.sessions.StartWatchdog(WatchdogPeriod(config.limits));
   spdlog::info("event=listening address={} port={} worker_threads={} query_threads={}",
@@ -242,7 +244,9 @@ void MapServer::Shutdown() {
                impl_->ctx.sessions.count(SessionRegistry::Kind::kIngest),
                impl_->ctx.sessions.count(SessionRegistry::Kind::kWatch));
   if (auto* health = impl_->server->GetHealthCheckService()) {
+    impl_->maintenance.WatchWritable(nullptr);
     health->SetServingStatus(kMapServiceName, false);
+    health->SetServingStatus(kWritesHealthName, false);
   }
   // Ingest streams stop reading and ack what they have; watches end.
   impl_->ctx.sessions.DrainAll();
