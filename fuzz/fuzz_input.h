@@ -17,11 +17,13 @@
 namespace bgkmap::fuzz {
 
 // A file of this process that holds the current input (one per target process: libFuzzer runs
-// the inputs of one process one after the other).
+// the inputs of one process one after the other), in /dev/shm when there is one (memory: a
+// disk-backed /tmp costs several times the executions).
 class InputFile {
  public:
   explicit InputFile(const char* extension)
-      : path_("/tmp/bgkmap-fuzz-" + std::to_string(getpid()) + extension) {}
+      : path_(std::string(access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp") + "/bgkmap-fuzz-" +
+              std::to_string(getpid()) + extension) {}
   ~InputFile() { std::remove(path_.c_str()); }
 
   // Replaces the file's contents with `bytes`; returns its path.
