@@ -88,15 +88,19 @@ TEST(LogRecordTest, EveryFlippedByteIsDataLoss) {
 // previous coordinate (UBSan: signed integer overflow; the result was refused anyway, so only the
 // sanitizers see the difference). A delta beyond +-2^32 is malformed.
 TEST(LogRecordTest, CoordinateDeltaBeyondInt32StepsIsMalformed) {
-  for (const std::string& delta : {std::string("\xff\xff\xff\xff\xff\xff\xff\xff\xff\x01"),
-                                   std::string("\xfe\xff\xff\xff\xff\xff\xff\xff\xff\x01"),
-                                   std::string("\x82\x80\x80\x80\x20")}) {  // -2^63, 2^63-1, 2^32+1
+  // A first tile at x = -1 or +1 (zigzag varints 1, 2), then a step of -2^63, 2^63 - 1 or
+  // 2^32 + 1 from there: the first two overflowed int64 before the fix.
+  const std::pair<char, std::string> cases[] = {
+      {'\x01', std::string("\xff\xff\xff\xff\xff\xff\xff\xff\xff\x01")},
+      {'\x02', std::string("\xfe\xff\xff\xff\xff\xff\xff\xff\xff\x01")},
+      {'\x02', std::string("\x82\x80\x80\x80\x20")}};
+  for (const auto& [first_x, delta] : cases) {
     std::string bytes("\x01\x01\x07\x01r\x03\x00", 7);  // format, scan, version, "r", seq, stamp
     bytes += std::string(6, '\0');                      // point counts
     bytes += std::string(8, '\0');                      // sensor_z
-    bytes += '\x01';                                    // one write tile
-    bytes += delta + std::string(1, '\0');              // its x and y deltas
-    bytes += std::string(3, '\0');                      // no read tiles, no cells
+    bytes += '\x02';                                    // two write tiles: x and y deltas
+    bytes += std::string(1, first_x) + '\0' + delta + '\0';
+    bytes += std::string(3, '\0');  // no read tiles, no cells
     const uint32_t crc = Crc32c(bytes);
     bytes.append(reinterpret_cast<const char*>(&crc), 4);
     const auto decoded = DecodeLogRecord(bytes);
