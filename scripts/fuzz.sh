@@ -11,6 +11,7 @@ cd "$(dirname "$0")/.."
 ROOT=$PWD
 TARGETS=(scan_request tile_codec log_record map_archive las_reader pcd_reader scan_graph)
 DIR=build-fuzz
+bash scripts/install-deps.sh
 CXX_CLANG=$(command -v clang++-14 || command -v clang++ || true)
 [ -n "$CXX_CLANG" ] || { echo "fuzz: clang++ not found (apt-get install clang-14)" >&2; exit 2; }
 
