@@ -23,7 +23,11 @@ void PutTileKeys(ByteWriter& w, const std::vector<TileKey>& keys) {
 // Reads one delta-coded int32 coordinate; false if it leaves the int32 range.
 bool GetDelta(ByteReader& r, int* coordinate) {
   int64_t delta;
-  if (!r.GetSignedVarint(&delta)) return false;
+  // Any step between two int32 values is within +-2^32; a larger one is damage, and would
+  // overflow the sum below.
+  if (!r.GetSignedVarint(&delta) || delta < -(int64_t{1} << 32) || delta > (int64_t{1} << 32)) {
+    return false;
+  }
   const int64_t v = int64_t{*coordinate} + delta;
   if (v < INT32_MIN || v > INT32_MAX) return false;
   *coordinate = static_cast<int>(v);

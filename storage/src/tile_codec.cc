@@ -49,7 +49,8 @@ bool GetArray(ByteReader& r, std::span<Value> values, const std::vector<int>& ce
   } else {
     std::string_view raw;
     if (!r.GetBytes(bits.size() * sizeof(Bits), &raw)) return false;
-    std::memcpy(bits.data(), raw.data(), raw.size());
+    // memcpy with a null pointer is undefined even for 0 bytes (an empty tile: no cells).
+    if (!raw.empty()) std::memcpy(bits.data(), raw.data(), raw.size());
   }
   Bits previous = 0;
   for (size_t k = 0; k < cells.size(); ++k) {

@@ -267,8 +267,9 @@ TEST(HostileInfo, InfoInALoopDoesNotStarveIngestion) {
   stop.store(true);
   for (std::thread& t : hammers) t.join();
   EXPECT_GT(infos.load(), 50u) << "the clients did hammer Info";
-  // Generous: acks take milliseconds; starvation took the whole 10 s deadline.
-  EXPECT_LT(worst, 2.0) << "worst probe ack " << worst << " s while " << infos.load()
+  // Generous: acks take milliseconds; starvation took the whole 10 s deadline. Half of it, as
+  // under ASan on 2 loaded cores a probe took 2.02 s (scripts/sanitize.sh asan, 2026-11-23).
+  EXPECT_LT(worst, 5.0) << "worst probe ack " << worst << " s while " << infos.load()
                         << " Info calls ran";
 }
 

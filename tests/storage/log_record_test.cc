@@ -5,6 +5,8 @@
 #include <bit>
 #include <random>
 
+#include "bgkmap/storage/crc32c.h"
+
 namespace bgkmap::storage {
 namespace {
 
@@ -80,6 +82,37 @@ TEST(LogRecordTest, EveryFlippedByteIsDataLoss) {
     EXPECT_EQ(decoded.status().code(), Status::Code::kDataLoss);
   }
   EXPECT_FALSE(DecodeLogRecord(good.substr(0, good.size() - 1)).ok());
+}
+
+// Found by log_record_fuzzer: a tile key delta of -2^63 overflowed int64 when added to the
+// previous coordinate (UBSan: signed integer overflow; the result was refused anyway, so only the
+// sanitizers see the difference). A delta beyond +-2^32 is malformed.
+TEST(LogRecordTest, CoordinateDeltaBeyondInt32StepsIsMalformed) {
+  // A first tile at x = -1 or +1 (zigzag varints 1, 2), then a step of -2^63, 2^63 - 1 or
+  // 2^32 + 1 from there: the first two overflowed int64 before the fix.
+  const std::pair<char, std::string> cases[] = {
+      {'\x01', std::string("\xff\xff\xff\xff\xff\xff\xff\xff\xff\x01")},
+      {'\x02', std::string("\xfe\xff\xff\xff\xff\xff\xff\xff\xff\x01")},
+      {'\x02', std::string("\x82\x80\x80\x80\x20")}};
+  for (const auto& [first_x, delta] : cases) {
+    std::string bytes("\x01\x01\x07\x01r\x03\x00", 7);  // format, scan, version, "r", seq, stamp
+    bytes += std::string(6, '\0');                      // point counts
+    bytes += std::string(8, '\0');                      // sensor_z
+    bytes += '\x02';                                    // two write tiles: x and y deltas
+    bytes += std::string(1, first_x) + '\0' + delta + '\0';
+    bytes += std::string(3, '\0');  // no read tiles, no cells
+    const uint32_t crc = Crc32c(bytes);
+    bytes.append(reinterpret_cast<const char*>(&crc), 4);
+    const auto decoded = DecodeLogRecord(bytes);
+    ASSERT_FALSE(decoded.ok());
+    EXPECT_EQ(decoded.status().code(), Status::Code::kDataLoss);
+  }
+  // The largest real step, INT32_MIN to INT32_MAX, still decodes.
+  auto scan = std::make_shared<PreparedScan>();
+  scan->write_tiles = {{INT32_MIN, INT32_MAX}, {INT32_MAX, INT32_MIN}};
+  const auto decoded = DecodeLogRecord(EncodeLogRecord(LogRecord::Scan(1, "r", 1, scan)));
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_EQ(decoded->scan->write_tiles, scan->write_tiles);
 }
 
 }  // namespace

@@ -102,6 +102,21 @@ TEST(PcdReaderTest, PointsDefaultsToWidthTimesHeight) {
   EXPECT_EQ(cloud->points.size(), 2u);
 }
 
+// Found with pcd_reader_fuzzer: the ASCII reader reserved POINTS points before reading any, so
+// a header promising 10^11 points threw std::length_error (or bad_alloc) out of ReadPcd.
+TEST(PcdReaderTest, HugePointCountInAsciiIsTruncationNotAnAllocation) {
+  TempDir dir;
+  const std::string path = dir.Path("huge.pcd");
+  WriteBytes(path,
+             "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 99999999999\nDATA ascii\n"
+             "1 2 3\n");
+  Result<PcdCloud> cloud = ReadPcd(path);
+  ASSERT_FALSE(cloud.ok());
+  EXPECT_NE(cloud.status().message().find("truncated: 1 of 99999999999 points present"),
+            std::string::npos)
+      << cloud.status().message();
+}
+
 TEST(PcdReaderTest, ClearErrors) {
   TempDir dir;
   const std::string xyz = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nHEIGHT 1\nPOINTS 2\n";

@@ -180,7 +180,8 @@ Result<PcdCloud> ReadPcd(const std::string& path) {
     const size_t tokens = last.token_offset + last.count;
     std::string_view rest(text);
     rest.remove_prefix(h.data_start);
-    cloud.points.reserve(h.points);
+    // POINTS is not trusted for the allocation: a line takes at least 2 bytes per value.
+    cloud.points.reserve(std::min<uint64_t>(h.points, rest.size() / (2 * tokens) + 1));
     size_t line_no = 0;
     while (cloud.points.size() < h.points && !rest.empty()) {
       const size_t nl = rest.find('\n');
