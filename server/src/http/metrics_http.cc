@@ -6,9 +6,11 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl/context.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl/ssl_stream.hpp>
 #include <exception>
 #include <mutex>
 #include <optional>
@@ -32,7 +34,13 @@ constexpr const char* kMetricsContentType = "text/plain; version=0.0.4; charset=
 constexpr std::chrono::seconds kLingerTime{1};
 constexpr size_t kMaxLingerBytes = 1 << 20;
 
-class Connection;
+class ConnectionBase {
+ public:
+  virtual void Close() = 0;
+
+ protected:
+  ~ConnectionBase() = default;
+};
 
 }  // namespace
 
@@ -51,7 +59,7 @@ struct MetricsHttpServer::State {
   // The open connections, touched on the io thread only. Declared before the io_context: its
   // destruction destroys the handlers still pending, and with them connections, which remove
   // themselves from here.
-  std::set<Connection*> connections;
+  std::set<ConnectionBase*> connections;
   asio::io_context io;
   tcp::acceptor acceptor{io};
   asio::steady_timer retry{io};
@@ -65,27 +73,50 @@ struct MetricsHttpServer::State {
 namespace {
 
 // One client connection: read one request (bounded in time and size), answer it, close.
-class Connection : public std::enable_shared_from_this<Connection> {
+// `Stream` is beast::tcp_stream, or beast::ssl_stream of one (then the TLS handshake first).
+template <typename Stream>
+class Connection final : public ConnectionBase,
+                         public std::enable_shared_from_this<Connection<Stream>> {
  public:
   using State = MetricsHttpServer::State;
+  static constexpr bool kTls = !std::is_same_v<Stream, beast::tcp_stream>;
 
-  Connection(tcp::socket socket, State& state)
-      : stream_(std::move(socket)), buffer_(state.options.max_request_bytes), state_(state) {
+  template <typename... StreamArgs>
+  Connection(State& state, StreamArgs&&... stream_args)
+      : stream_(std::forward<StreamArgs>(stream_args)...),
+        buffer_(state.options.max_request_bytes),
+        state_(state) {
     state_.connections.insert(this);
     parser_.header_limit(static_cast<uint32_t>(state.options.max_request_bytes));
     parser_.body_limit(state.options.max_request_bytes);
   }
   ~Connection() { state_.connections.erase(this); }
 
+  void Open() {
+    if constexpr (kTls) {
+      Tcp().expires_after(state_.options.read_timeout);
+      stream_.async_handshake(
+          asio::ssl::stream_base::server, [self = this->shared_from_this()](beast::error_code ec) {
+            if (ec) {
+              spdlog::debug("event=metrics_tls_failed reason=\"{}\"", ec.message());
+              return;
+            }
+            self->Read();
+          });
+    } else {
+      Read();
+    }
+  }
+
   void Read() {
-    stream_.expires_after(state_.options.read_timeout);
+    Tcp().expires_after(state_.options.read_timeout);
     http::async_read(
         stream_, buffer_, parser_,
-        [self = shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
+        [self = this->shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
   }
 
   // Aborts whatever is pending; the handlers then release the connection.
-  void Close() { stream_.close(); }
+  void Close() override { Tcp().close(); }
 
  private:
   void OnRead(beast::error_code ec) {
@@ -119,16 +150,31 @@ class Connection : public std::enable_shared_from_this<Connection> {
     response.keep_alive(false);
     response.prepare_payload();
     response_ = std::move(response);
-    stream_.expires_after(state_.options.read_timeout);
+    Tcp().expires_after(state_.options.read_timeout);
     http::async_write(stream_, *response_,
-                      [self = shared_from_this()](beast::error_code write_ec, size_t) {
+                      [self = this->shared_from_this()](beast::error_code write_ec, size_t) {
                         if (write_ec) return;
-                        beast::error_code ignored;
-                        self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
-                        self->stream_.expires_after(kLingerTime);
-                        self->Drain();
+                        self->CloseSend();
                       });
   }
+
+  void CloseSend() {
+    if constexpr (kTls) {
+      // close_notify, so the client knows the response is whole; then the TCP close.
+      Tcp().expires_after(kLingerTime);
+      stream_.async_shutdown([self = this->shared_from_this()](beast::error_code) {
+        beast::error_code ignored;
+        self->Tcp().socket().shutdown(tcp::socket::shutdown_both, ignored);
+      });
+    } else {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      stream_.expires_after(kLingerTime);
+      Drain();
+    }
+  }
+
+  beast::tcp_stream& Tcp() { return beast::get_lowest_layer(stream_); }
 
   // After the response: reads and drops what the client still sends until it closes (or the
   // linger time or byte budget runs out). Closing with unread bytes would reset the connection,
@@ -136,13 +182,13 @@ class Connection : public std::enable_shared_from_this<Connection> {
   // before the whole request was read).
   void Drain() {
     stream_.async_read_some(asio::buffer(discard_),
-                            [self = shared_from_this()](beast::error_code ec, size_t n) {
+                            [self = this->shared_from_this()](beast::error_code ec, size_t n) {
                               self->drained_ += n;
                               if (!ec && self->drained_ < kMaxLingerBytes) self->Drain();
                             });
   }
 
-  beast::tcp_stream stream_;
+  Stream stream_;
   beast::flat_buffer buffer_;
   http::request_parser<http::string_body> parser_;
   std::optional<http::response<http::string_body>> response_;
@@ -168,8 +214,12 @@ void MetricsHttpServer::State::Accept() {
     if (connections.size() >= options.max_connections) {
       beast::error_code ignored;
       socket.close(ignored);  // a scraper retries at its next interval
+    } else if (options.tls != nullptr) {
+      std::make_shared<Connection<beast::ssl_stream<beast::tcp_stream>>>(*this, std::move(socket),
+                                                                         *options.tls)
+          ->Open();
     } else {
-      std::make_shared<Connection>(std::move(socket), *this)->Read();
+      std::make_shared<Connection<beast::tcp_stream>>(*this, std::move(socket))->Open();
     }
     Accept();
   });
@@ -180,7 +230,7 @@ void MetricsHttpServer::State::CloseAll() {
   acceptor.close(ignored);
   retry.cancel();
   // Close() only aborts operations; the connections go when their handlers have run.
-  for (Connection* c : connections) c->Close();
+  for (ConnectionBase* c : connections) c->Close();
   io.stop();
 }
 
@@ -196,6 +246,15 @@ http::response<http::string_body> MetricsHttpServer::State::Answer(
     response.body() = std::move(body);
     return response;
   };
+  if (options.authorize != nullptr) {
+    const auto header = request[http::field::authorization];
+    if (!options.authorize(std::string_view(header.data(), header.size()))) {
+      http::response<http::string_body> response =
+          plain(http::status::unauthorized, "unauthorized: send 'Authorization: Bearer <token>'\n");
+      response.set(http::field::www_authenticate, "Bearer");
+      return response;
+    }
+  }
   if (path != kMetricsPath) {
     return plain(http::status::not_found, "not found: bgkmapd serves GET /metrics only\n");
   }

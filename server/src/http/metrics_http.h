@@ -6,7 +6,8 @@
 // (the response closes it). A request must arrive whole within Options::read_timeout and fit in
 // Options::max_request_bytes: a malformed or oversized request is answered 400/413/431, a slow
 // or idle client is disconnected at the timeout. A client holds nothing but its own connection,
-// and at most Options::max_connections are open at once (more are closed at once).
+// and at most Options::max_connections are open at once (more are closed at once). With
+// Options::tls the same is served over TLS; with Options::authorize every request needs a token.
 #pragma once
 
 #include <chrono>
@@ -14,8 +15,13 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "bgkmap/core/status.h"
+
+namespace boost::asio::ssl {
+class context;
+}
 
 namespace bgkmap {
 
@@ -28,6 +34,11 @@ class MetricsHttpServer {
     std::chrono::milliseconds read_timeout{5000};  // to receive a request, and to send a reply
     size_t max_request_bytes = 8192;               // request line, headers and body
     size_t max_connections = 8;                    // open at the same time
+    // HTTPS with this context (http/https_context.h); null = plain HTTP. The TLS handshake
+    // counts against read_timeout.
+    std::shared_ptr<boost::asio::ssl::context> tls;
+    // Given each request's Authorization header; false answers 401 (null: no check).
+    std::function<bool(std::string_view authorization)> authorize;
   };
 
   // Resolves and binds `address` ("host:port", port 0 = any free port) and listens. Requests
