@@ -12,7 +12,8 @@ bash scripts/configure.sh build
 cmake --build build -j2 --target server_load bgkmapd
 mkdir -p out/bench
 pki="$(mktemp -d)"
-trap 'rm -rf "$pki"' EXIT
+server_pid=""
+trap 'if [ -n "$server_pid" ]; then kill -TERM "$server_pid" 2>/dev/null || true; fi; rm -rf "$pki"' EXIT
 (
   cd "$pki"
   q() { "$@" >/dev/null 2>&1; }
@@ -26,19 +27,21 @@ trap 'rm -rf "$pki"' EXIT
     "$(tr -d '\n' <token | sha256sum | cut -d' ' -f1)" >tokens.yaml
 )
 port=50571
-run() {  # run MODE ROUND
+run() {  # run MODE ROUND [server_load args...]
   local mode="$1" round="$2" addr="127.0.0.1:$port" server_args=() client_args=()
+  shift 2
   if [ "$mode" = tls ]; then
     server_args=(--set "server.tls.cert_file=$pki/server.pem" --set "server.tls.key_file=$pki/server.key"
                  --set "server.auth.tokens_file=$pki/tokens.yaml")
     client_args=(--tls-ca "$pki/ca.pem" --token-file "$pki/token")
   fi
   build/server/bgkmapd --listen "$addr" "${server_args[@]}" >"out/bench/tls_bgkmapd_$mode$round.log" 2>&1 &
-  local pid=$!
+  server_pid=$!
   sleep 1
   echo "### $mode, round $round ($(date -u +%H:%M:%S), load $(cut -d' ' -f1-3 /proc/loadavg))"
   build/bench/server_load --server "$addr" "${client_args[@]}" "$@" | tee "out/bench/tls_$mode$round.md"
-  kill -TERM "$pid" && wait "$pid" || true
+  kill -TERM "$server_pid" && wait "$server_pid" || true
+  server_pid=""
   port=$((port + 1))
 }
 for r in $(seq 1 "$rounds"); do

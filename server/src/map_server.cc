@@ -268,6 +268,7 @@ int MapServer::metrics_port() const { return impl_->metrics_port; }
 
 Status MapServer::ReloadTokens() {
   if (impl_->tokens == nullptr) {
+    spdlog::info("event=tokens_reload_skipped reason=\"server.auth.tokens_file is not set\"");
     return Status::FailedPrecondition("server.auth.tokens_file is not set; nothing to reload");
   }
   if (Status s = impl_->tokens->Reload(); !s.ok()) {

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "auth/token_table.h"
+#include "bgkmap/v1/map_service.grpc.pb.h"
 #include "bgkmap/v1/map_service.pb.h"
 #include "bgkmapd_process.h"
 #include "rpc/access_control.h"
@@ -386,12 +387,61 @@ TEST_F(Security, PerTokenIngestStreamQuota) {
   std::vector<ScanData> data = {scans[0].Data()};
   EXPECT_TRUE(other.IngestAll(data).ok());
 
-  // The slot comes back when the first stream ends.
+  // The slot comes back when the first stream is done (the server releases it just after the
+  // client has its status, like the global max_ingest_streams slot).
   EXPECT_TRUE(first->Finish().ok());
   std::vector<OwnedScan> again = {ScanAs("r2", 1)};
   std::vector<ScanData> again_data = {again[0].Data()};
   RpcResult<std::vector<ScanAck>> acks = fleet.IngestAll(again_data);
+  for (int i = 0; i < 100 && acks.status().code() == RpcCode::kResourceExhausted; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    acks = fleet.IngestAll(again_data);
+  }
   EXPECT_TRUE(acks.ok()) << acks.status().ToString();
+}
+
+// A region stream the client stops reading holds its query slot (until
+// server.stalled_write_timeout_s): with max_queries 1, the token's next query is refused, another
+// token's is not.
+TEST_F(Security, PerTokenQueryQuota) {
+  const std::string tokens = Path("query_quota_tokens.yaml");
+  WriteTokens(tokens, {{"greedy", "greedy-secret", "planner", "max_queries: 1"},
+                       {"other", "other-secret", "planner", ""}});
+  BgkmapdProcess server({"--set", "server.auth.tokens_file=" + tokens});
+  ASSERT_TRUE(server.started());
+  auto channel = grpc::CreateChannel(server.target(), grpc::InsecureChannelCredentials());
+  auto stub = v1::MapService::NewStub(channel);
+  grpc::ClientContext held;
+  held.AddMetadata("authorization", "Bearer greedy-secret");
+  v1::RegionRequest big;  // ~2.25 M cells x 6 layers: far more than the transport buffers
+  big.mutable_box()->set_min_x(0);
+  big.mutable_box()->set_min_y(0);
+  big.mutable_box()->set_max_x(150);
+  big.mutable_box()->set_max_y(150);
+  big.set_stride(1);
+  std::unique_ptr<grpc::ClientReader<v1::RegionChunk>> reader = stub->QueryRegion(&held, big);
+  v1::RegionChunk first;
+  ASSERT_TRUE(reader->Read(&first));  // the query runs and holds the slot; no more reads
+
+  const std::array<double, 2> p{0, 0};
+  Client greedy(server.target(), Options("greedy-secret"));
+  RpcResult<PointValues> refused = greedy.QueryPoints(std::span(&p, 1));
+  ASSERT_EQ(refused.status().code(), RpcCode::kResourceExhausted);
+  EXPECT_NE(refused.status().message().find(
+                "token 'greedy' already holds its limit of 1 concurrent queries"),
+            std::string::npos)
+      << refused.status().message();
+  Client other(server.target(), Options("other-secret"));
+  EXPECT_TRUE(other.QueryPoints(std::span(&p, 1)).ok());
+
+  held.TryCancel();  // the slot comes back
+  (void)reader->Finish();
+  bool answered = false;
+  for (int i = 0; i < 100 && !answered; ++i) {
+    answered = greedy.QueryPoints(std::span(&p, 1)).ok();
+    if (!answered) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_TRUE(answered);
 }
 
 TEST(SecurityConfig, PerTokenLimitsDefaultToAQuarterOfTheGlobalOnes) {
