@@ -17,6 +17,7 @@
 #include "bgkmap/v1/map_service.pb.h"
 #include "bgkmapd_process.h"
 #include "rpc/access_control.h"
+#include "test_pki.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -51,25 +52,7 @@ class Security : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new TempDir("bgkmap_security");
-    const std::string d = dir_->str();
-    const std::string script =
-        "set -e; cd '" + d +
-        "'; q() { \"$@\" >/dev/null 2>&1; }\n"
-        "q openssl req -x509 -newkey rsa:2048 -nodes -keyout ca.key -out ca.pem -days 2 "
-        "-subj '/CN=bgkmap test CA'\n"
-        "q openssl req -x509 -newkey rsa:2048 -nodes -keyout other_ca.key -out other_ca.pem "
-        "-days 2 -subj '/CN=another CA'\n"
-        "q openssl req -newkey rsa:2048 -nodes -keyout server.key -out server.csr "
-        "-subj '/CN=localhost'\n"
-        "printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\\n' > san.ext\n"
-        "q openssl x509 -req -in server.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
-        "-out server.pem -days 2 -extfile san.ext\n"
-        "q openssl req -newkey rsa:2048 -nodes -keyout client.key -out client.csr "
-        "-subj '/CN=robot-1'\n"
-        "q openssl x509 -req -in client.csr -CA ca.pem -CAkey ca.key -CAcreateserial "
-        "-out client.pem -days 2\n";
-    ASSERT_EQ(std::system(("bash -c \"$(cat <<'EOS'\n" + script + "EOS\n)\"").c_str()), 0)
-        << "the openssl CLI could not make the test certificates";
+    ASSERT_TRUE(MakeTestPki(dir_->str())) << "the openssl CLI could not make the test certificates";
   }
   static void TearDownTestSuite() {
     delete dir_;
