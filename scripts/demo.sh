@@ -12,6 +12,7 @@ cmake --build build -j"$(nproc)" --target bgkmap bgkmapd
 
 DATA="${BGKMAP_DATA:-../shared/data}/ouster_os1_128_street"
 ADDR="127.0.0.1:${BGKMAP_PORT:-50551}"
+HTTP_ADDR="127.0.0.1:${BGKMAP_HTTP_PORT:-50552}"  # /metrics and the live web map (docs/webmap.md)
 BIN=build/tools/bgkmap/bgkmap
 STORE=out/street-store
 mkdir -p out
@@ -20,7 +21,7 @@ rm -rf "$STORE"
 SERVER=
 start_server() {
   build/server/bgkmapd --config config/default.yaml --listen "$ADDR" --data-dir "$STORE" \
-    >>out/bgkmapd.log 2>&1 &
+    --http "$HTTP_ADDR" >>out/bgkmapd.log 2>&1 &
   SERVER=$!
   for _ in $(seq 200); do
     "$BIN" info --server "$ADDR" >/dev/null 2>&1 && return 0
@@ -38,6 +39,8 @@ trap '[ -n "$SERVER" ] && kill -TERM $SERVER 2>/dev/null; wait 2>/dev/null || tr
 : >out/bgkmapd.log
 
 start_server
+echo "demo: live web map at http://$HTTP_ADDR/ while the demo runs (afterwards:" \
+     "build/server/bgkmapd --data-dir $STORE --http $HTTP_ADDR)"
 "$BIN" insert "$DATA" --server "$ADDR" --robot ouster
 "$BIN" query --server "$ADDR" --out out/street.tif --png out/street.png
 "$BIN" points --server "$ADDR" 8,0 -8,0 0,20 | tee out/points.json
@@ -55,4 +58,6 @@ if ! cmp -s out/points.json out/points-reloaded.json; then
 fi
 echo "demo: wrote out/street.tif (bands elevation, elevation_variance, traversability," \
      "traversability_variance, state), out/street.png and the archive out/street.bgkmap;" \
-     "the map persisted in $STORE answered the same after a restart; server log in out/bgkmapd.log"
+     "the map persisted in $STORE answered the same after a restart; server log in out/bgkmapd.log;" \
+     "see it in a browser: build/server/bgkmapd --data-dir $STORE --http $HTTP_ADDR, then" \
+     "open http://$HTTP_ADDR/"

@@ -16,21 +16,41 @@ PACKAGES=(
   liboctomap-dev
   gnuplot-nox
   python3-grpcio python3-protobuf python3-numpy python3-pytest
+  chromium chromium-driver
 )
+
+# The web map's npm packages (web/package-lock.json): Leaflet, embedded in bgkmapd, and
+# playwright-core, which drives Debian's chromium in the browser test. Needs npm (Debian's
+# `npm` package, or a Node.js that brings it).
+install_web() {
+  if ! command -v npm >/dev/null; then
+    ${SUDO:-} apt-get install -y -qq --no-install-recommends npm >/dev/null
+  fi
+  local dir
+  dir="$(cd "$(dirname "$0")/.." && pwd)/web"
+  # The lock file as last installed: npm ci runs again only when it changed.
+  if ! cmp -s "$dir/package-lock.json" "$dir/node_modules/.bgkmap-installed-lock" 2>/dev/null; then
+    echo "install-deps: npm ci in web/"
+    (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error &&
+      cp package-lock.json node_modules/.bgkmap-installed-lock)
+  fi
+}
 
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "ok installed" || missing+=("$p")
 done
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#PACKAGES[@]} packages present"
+  install_web
   exit 0
 fi
 
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 echo "install-deps: installing ${missing[*]}"
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 echo "install-deps: done"
+install_web

@@ -160,9 +160,20 @@ MapInfo FromProto(const v1::InfoResponse& r) {
   info.server_version = r.server_version();
   if (r.has_storage()) {
     const v1::StorageInfo& s = r.storage();
-    info.storage = StorageInfo{s.data_dir(),       s.durability(),         s.checkpoint_version(),
-                               s.corrupt_tiles(),  s.memory_limit_bytes(), s.resident_tiles(),
-                               s.resident_bytes(), s.tiles_loaded(),       s.tiles_evicted()};
+    info.storage = StorageInfo{s.data_dir(),
+                               s.durability(),
+                               s.checkpoint_version(),
+                               s.corrupt_tiles(),
+                               s.memory_limit_bytes(),
+                               s.resident_tiles(),
+                               s.resident_bytes(),
+                               s.tiles_loaded(),
+                               s.tiles_evicted(),
+                               s.writes_paused_for_space(),
+                               s.read_only(),
+                               s.free_bytes(),
+                               s.free_space_reserve_bytes(),
+                               s.writes_paused_reason()};
   }
   if (r.has_georeference()) {
     const v1::Georeference& g = r.georeference();

@@ -51,9 +51,10 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("-l,--listen", listen,
                  "Listen address host:port (overrides server.listen_address)");
-  CLI::Option* metrics_flag = app.add_option("--metrics", metrics,
-                                             "Serve GET /metrics (Prometheus) on host:port; \"\" = "
-                                             "off (overrides server.metrics_address)");
+  CLI::Option* metrics_flag =
+      app.add_option("--metrics,--http", metrics,
+                     "Serve HTTP on host:port: GET /metrics (Prometheus) and the live web map at "
+                     "/; \"\" = off (overrides server.metrics_address)");
   app.add_option("--worker-threads", worker_threads, "Ingest worker threads (0 = all cores)");
   app.add_option("--query-threads", query_threads, "Query worker threads (0 = all cores)");
   app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off");

@@ -27,9 +27,11 @@
 #include "bgkmap/v1/map_service.pb.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
+#include "host_port.h"
 #include "http/https_context.h"
 #include "http/metrics.h"
 #include "http/metrics_http.h"
+#include "http/web_routes.h"
 #include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
 #include "rpc/service_context.h"
@@ -95,6 +97,13 @@ std::shared_ptr<grpc::ServerCredentials> GrpcCredentials(const std::optional<Tls
   return grpc::SslServerCredentials(options);
 }
 
+// The host of "host:port" as a URL writes it ("[::1]" for IPv6).
+std::string HostOf(const std::string& address) {
+  Result<HostPort> hp = ParseHostPort(address);
+  if (!hp.ok()) return address;
+  return hp->host.find(':') != std::string::npos ? "[" + hp->host + "]" : hp->host;
+}
+
 size_t ThreadCount(int configured) {
   if (configured > 0) return static_cast<size_t>(configured);
   return std::max(1u, std::thread::hardware_concurrency());
@@ -143,6 +152,8 @@ struct MapServer::Impl {
   std::mutex shutdown_mu;
   bool stopped = false;
 
+  // The web map's routes on the same address; null when off.
+  std::unique_ptr<WebRoutes> web;
   // GET /metrics (server.metrics_address); null when off. Last: it reads everything above.
   std::unique_ptr<MetricsHttpServer> metrics;
   int metrics_port = 0;
@@ -202,22 +213,29 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served
     // once the map service is up.
-    MetricsHttpServer::Options options;
+    impl->web = std::make_unique<WebRoutes>(impl->map, impl->hub, impl->query_pool,
+                                            impl->ctx.queries, config.limits, WebRoutesOptions{});
+    MetricsHttpServer::Options http_options;
+    http_options.routes = [web = impl->web.get()](const HttpRequest& request,
+                                                  std::shared_ptr<HttpExchange> exchange) {
+      web->Handle(request, std::move(exchange));
+    };
     if (tls.has_value()) {
       Result<std::shared_ptr<boost::asio::ssl::context>> https = MakeHttpsContext(*tls);
       if (!https.ok()) return https.status();
-      options.tls = std::move(https).value();
+      http_options.tls = std::move(https).value();
     }
     if (const TokenTable* t = impl->tokens.get()) {
-      // Any role's token: the counts are no secret from a client of the map.
-      options.authorize = [t](std::string_view authorization) {
+      // Any role's token, for /metrics and the web map alike: what they show (counts, the
+      // map's cells) is no secret from a client of the map.
+      http_options.authorize = [t](std::string_view authorization) {
         std::string why;
         return t->Authenticate(authorization, &why) != nullptr;
       };
     }
     Result<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Listen(
         config.metrics_address, [p = impl.get()] { return FormatMetrics(CollectMetrics(p->ctx)); },
-        options);
+        http_options);
     if (!metrics.ok()) {
       return Status::FailedPrecondition("server.metrics_address: " + metrics.status().message());
     }
@@ -246,6 +264,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   if (auto* health = impl->server->GetHealthCheckService()) {
     health->SetServingStatus(kMapServiceName, true);
     health->SetServingStatus("", true);
+    impl->maintenance.WatchWritable(
+        [health](bool writable) { health->SetServingStatus(kWritesHealthName, writable); });
   }
   impl->ctx.sessions.StartWatchdog(WatchdogPeriod(config.limits));
   spdlog::info(
@@ -258,6 +278,9 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     impl->metrics->Start();
     spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
                  impl->metrics_port);
+    spdlog::info("event=web_map_listening url={}://{}:{}/{}", tls.has_value() ? "https" : "http",
+                 HostOf(config.metrics_address), impl->metrics_port,
+                 impl->tokens == nullptr ? "" : "login?token=<token>");
   }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
 }
@@ -290,7 +313,9 @@ void MapServer::Shutdown() {
                impl_->ctx.sessions.count(SessionRegistry::Kind::kIngest),
                impl_->ctx.sessions.count(SessionRegistry::Kind::kWatch));
   if (auto* health = impl_->server->GetHealthCheckService()) {
+    impl_->maintenance.WatchWritable(nullptr);
     health->SetServingStatus(kMapServiceName, false);
+    health->SetServingStatus(kWritesHealthName, false);
   }
   // Ingest streams stop reading and ack what they have; watches end.
   impl_->ctx.sessions.DrainAll();
@@ -301,6 +326,7 @@ void MapServer::Shutdown() {
   impl_->ctx.sessions.StopWatchdog();
   impl_->map.WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
+  if (impl_->web != nullptr) impl_->web->Stop();  // event streams end before their server
   if (impl_->metrics != nullptr) impl_->metrics->Stop();
   impl_->maintenance.Stop();
   if (std::optional<StoreStatus> store = impl_->map.store_status()) {

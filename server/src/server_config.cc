@@ -187,6 +187,9 @@ const std::vector<ServerKey>& StorageKeys() {
       Key<bool>(
           "verify_on_start", [](ServerConfig & c) -> auto& { return c.storage.verify_on_start; },
           "storage"),
+      Key<uint64_t>(
+          "min_free_space_mb",
+          [](ServerConfig & c) -> auto& { return c.storage.min_free_space_mb; }, "storage"),
   };
   return keys;
 }
@@ -428,6 +431,9 @@ Status ValidateServerConfig(const ServerConfig& c) {
   }
   if (st.max_memory_mb > (uint64_t{1} << 30)) {
     return bad_storage("max_memory_mb", "must be at most 2^30 (1 PiB)");
+  }
+  if (st.min_free_space_mb > (uint64_t{1} << 30)) {
+    return bad_storage("min_free_space_mb", "must be at most 2^30 (1 PiB)");
   }
   const GeoreferenceConfig& geo = c.georeference;
   for (double v : geo.origin) {

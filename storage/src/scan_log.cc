@@ -12,14 +12,18 @@
 namespace bgkmap::storage {
 
 ScanLog::ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
-                 std::map<std::string, uint64_t> robots, uint64_t checkpoint_version)
+                 std::map<std::string, uint64_t> robots, uint64_t checkpoint_version,
+                 FreeSpaceGuard* guard, bool read_only)
     : db_(db),
+      guard_(guard),
+      read_only_(read_only),
       durability_(options.durability),
       periodic_sync_ms_(std::max<uint32_t>(1, options.periodic_sync_ms)),
       checkpoint_version_(checkpoint_version),
       last_version_(map_version),
       robots_(robots.begin(), robots.end()) {
-  if (durability_ == Durability::kPeriodic) syncer_ = std::thread([this] { SyncLoop(); });
+  if (durability_ == Durability::kPeriodic && !read_only_)
+    syncer_ = std::thread([this] { SyncLoop(); });
 }
 
 ScanLog::~ScanLog() {
@@ -46,6 +50,7 @@ void ScanLog::SyncLoop() {
 }
 
 Status ScanLog::Sync() {
+  if (read_only_) return Status::Ok();  // nothing was written
   if (Status failed = write_failure(); !failed.ok()) return failed;
   Status s = FromRocks(db_->db->FlushWAL(/*sync=*/true), "syncing the log");
   if (!s.ok()) LatchFailure(s);
@@ -55,6 +60,17 @@ Status ScanLog::Sync() {
 Status ScanLog::write_failure() const {
   std::lock_guard<std::mutex> lock(mu_);
   return failure_;
+}
+
+Status ScanLog::AdmitWrite(uint64_t bytes) {
+  Status s = guard_->Admit(read_only_ ? 0 : bytes);
+  if (read_only_) {
+    // Opened on a full disk (or a reopen for writing failed): TileStore::Resume() reopens it.
+    s = Status::IoError("the store is read-only until it can be reopened for writing" +
+                        (s.ok() ? std::string(" (there is room again)") : ": " + s.message()));
+  }
+  if (!s.ok()) space_refusals_.fetch_add(1);
+  return s;
 }
 
 void ScanLog::LatchFailure(const Status& s) {
@@ -90,9 +106,15 @@ Status ScanLog::Append(const LogRecord& record) {
     s = batch.Merge(db_->meta, std::string(kRobotPrefix) + record.robot_id,
                     U64Bytes(record.sequence));
   }
+  if (!s.ok()) {
+    append_errors_.fetch_add(1);
+    return FromRocks(s, "appending log record " + std::to_string(record.version));
+  }
+  // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h).
+  if (Status refused = AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
   rocksdb::WriteOptions write;
   write.sync = durability_ == Durability::kSync;
-  if (s.ok()) s = db_->db->Write(write, &batch);
+  s = db_->db->Write(write, &batch);
   if (!s.ok()) {
     append_errors_.fetch_add(1);
     Status failed = FromRocks(s, "appending log record " + std::to_string(record.version));
@@ -182,6 +204,7 @@ Status ScanLog::RetireRobot(std::string_view robot_id) {
   }
   rocksdb::WriteBatch batch;
   rocksdb::Status s = batch.Delete(db_->meta, std::string(kRobotPrefix) + std::string(robot_id));
+  if (Status refused = AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
   rocksdb::WriteOptions write;
   write.sync = true;  // an administrator's action: durable when answered, in either mode
   if (s.ok()) s = db_->db->Write(write, &batch);

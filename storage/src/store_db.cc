@@ -1,11 +1,20 @@
 #include "store_db.h"
 
+#include <fcntl.h>
 #include <rocksdb/cache.h>
 #include <rocksdb/env.h>
 #include <rocksdb/filter_policy.h>
 #include <rocksdb/table.h>
 #include <rocksdb/write_buffer_manager.h>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <mutex>
+#include <set>
+
+#include "info_log.h"
 #include "max_merge_operator.h"
 #include "store_keys.h"
 
@@ -45,15 +54,62 @@ rocksdb::ColumnFamilyOptions TileFamilyOptions(const StoreOptions& options,
 
 }  // namespace
 
+// POSIX record locks do not exclude the process holding them, so, like RocksDB, the
+// directories locked in this process are kept here too.
+std::mutex locked_mu;
+std::set<std::string>& LockedReadOnly() {
+  static std::set<std::string> dirs;
+  return dirs;
+}
+std::string LockKey(const std::string& dir) {
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::weakly_canonical(dir, ec);
+  return ec ? dir : p.string();
+}
+
+// The lock RocksDB takes on <dir>/LOCK (a POSIX record lock on the whole file), taken by the
+// store for a read-only database, which takes none.
+Result<int> LockLikeRocksDb(const std::string& dir) {
+  std::lock_guard guard(locked_mu);
+  if (LockedReadOnly().contains(LockKey(dir))) {
+    return Status::IoError("opening the map store in " + dir +
+                           ": it is already open (read-only) in this process");
+  }
+  const std::string path = dir + "/LOCK";
+  const int fd = open(path.c_str(), O_RDWR | O_CLOEXEC);
+  if (fd < 0) {
+    return Status::IoError("opening the map store in " + dir + " read-only: cannot open " + path +
+                           ": " + std::strerror(errno));
+  }
+  struct flock lock = {};
+  lock.l_type = F_WRLCK;
+  lock.l_whence = SEEK_SET;
+  if (fcntl(fd, F_SETLK, &lock) != 0) {
+    const int err = errno;
+    close(fd);
+    return Status::IoError("opening the map store in " + dir + " read-only: lock " + path + ": " +
+                           std::strerror(err) + " (is another server using it?)");
+  }
+  LockedReadOnly().insert(LockKey(dir));
+  return fd;
+}
+
+void UnlockReadOnly(const std::string& dir, int fd) {
+  std::lock_guard guard(locked_mu);
+  LockedReadOnly().erase(LockKey(dir));
+  close(fd);
+}
+
 StoreDb::~StoreDb() {
   if (db) {
     for (rocksdb::ColumnFamilyHandle* h : handles) db->DestroyColumnFamilyHandle(h);
     db->Close();
   }
+  if (read_only_lock_fd >= 0) UnlockReadOnly(dir, read_only_lock_fd);
 }
 
-Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
-                                               const StoreOptions& options) {
+Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const StoreOptions& options,
+                                               bool read_only) {
   rocksdb::DBOptions db_options;
   db_options.create_if_missing = options.create_if_missing;
   db_options.create_missing_column_families = options.create_if_missing;
@@ -66,6 +122,11 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
   if (options.file_system) {
     store->env = rocksdb::NewCompositeEnv(options.file_system);
     db_options.env = store->env.get();
+  } else {
+    std::error_code ec;
+    if (options.create_if_missing && !read_only) std::filesystem::create_directories(dir, ec);
+    // Not RocksDB's own log file, which aborts the process on a full disk (info_log.h).
+    if (std::filesystem::is_directory(dir, ec)) db_options.info_log = InfoLog::Open(dir);
   }
 
   auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);
@@ -86,8 +147,22 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir,
       {kLogFamily, log},
   };
 
+  store->dir = dir;
+  if (read_only) {
+    Result<int> fd = LockLikeRocksDb(dir);
+    if (!fd.ok()) return fd.status();
+    store->read_only_lock_fd = *fd;
+  } else {
+    std::lock_guard guard(locked_mu);
+    if (LockedReadOnly().contains(LockKey(dir))) {
+      return Status::IoError("opening the map store in " + dir +
+                             ": it is already open (read-only) in this process");
+    }
+  }
   rocksdb::DB* db = nullptr;
-  const rocksdb::Status s = rocksdb::DB::Open(db_options, dir, families, &store->handles, &db);
+  const rocksdb::Status s =
+      read_only ? rocksdb::DB::OpenForReadOnly(db_options, dir, families, &store->handles, &db)
+                : rocksdb::DB::Open(db_options, dir, families, &store->handles, &db);
   if (!s.ok()) {
     if (s.IsInvalidArgument() && !options.create_if_missing) {
       return Status::FailedPrecondition("no map store in " + dir + ": " + s.ToString());

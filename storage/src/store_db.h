@@ -26,9 +26,16 @@ struct StoreDb {
   rocksdb::ColumnFamilyHandle* tiles = nullptr;
   rocksdb::ColumnFamilyHandle* tile_index = nullptr;
   rocksdb::ColumnFamilyHandle* log = nullptr;
+  // Read-only: the database writes nothing (no log, no flush, no compaction, no lock file), so
+  // the store holds its own lock on <dir>/LOCK instead, as RocksDB does, against a second
+  // server; -1 when RocksDB holds it.
+  int read_only_lock_fd = -1;
+  std::string dir;
 
-  // Opens (creating if allowed) the database in `dir` with every column family.
-  static Result<std::unique_ptr<StoreDb>> Open(const std::string& dir, const StoreOptions& options);
+  // Opens (creating if allowed) the database in `dir` with every column family. `read_only`:
+  // an existing database, for reads only (a full disk: nothing may be written).
+  static Result<std::unique_ptr<StoreDb>> Open(const std::string& dir, const StoreOptions& options,
+                                               bool read_only = false);
 };
 
 // Corruption -> DataLoss; I/O errors (disk full included) -> IoError; anything else ->

@@ -114,7 +114,18 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenExisting(const std::string& di
 Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
                                                        const StoreOptions& options,
                                                        const MapParams* params) {
-  Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir, options);
+  auto guard = std::make_unique<FreeSpaceGuard>(dir, options.free_space);
+  bool read_only = false;
+  std::error_code ec;
+  if (guard->enabled() && std::filesystem::is_directory(dir, ec)) {
+    if (Status space = guard->Check(); !space.ok()) {
+      if (!std::filesystem::exists(dir + "/CURRENT", ec)) {
+        return Status::IoError("cannot create a map store in " + dir + ": " + space.message());
+      }
+      read_only = true;  // serve what is stored; write nothing, not even RocksDB's own files
+    }
+  }
+  Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir, options, read_only);
   if (!db.ok()) return db.status();
   StoreDb& sdb = **db;
   Result<std::map<std::string, std::string, std::less<>>> meta = ReadMeta(sdb);
@@ -155,7 +166,8 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
       if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
     }
   }
-  if (batch.Count() > 0) {
+  if (batch.Count() > 0 &&
+      !read_only) {  // (read-only: the parameters are updated at the next open)
     rocksdb::WriteOptions write;
     write.sync = true;
     if (Status s = FromRocks(sdb.db->Write(write, &batch), "writing the map metadata"); !s.ok()) {
@@ -164,6 +176,8 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
   }
 
   std::unique_ptr<TileStore> store(new TileStore(dir, options, effective, nullptr));
+  store->guard_ = std::move(guard);
+  store->read_only_.store(read_only);
   if (Status s = store->Attach(std::move(*db)); !s.ok()) return s;
   return store;
 }
@@ -187,7 +201,7 @@ Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
   db_ = std::move(db);
   checkpoint_version_.store(*checkpoint);
   log_.reset(new ScanLog(db_.get(), options_, std::max(*map_version, *checkpoint),
-                         std::move(robots), *checkpoint));
+                         std::move(robots), *checkpoint, guard_.get(), read_only_.load()));
   return Status::Ok();
 }
 
@@ -275,6 +289,8 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
   batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));
   batch.Merge(db_->meta, kMapVersionKey, U64Bytes(version));
   log_->AddTruncation(&batch, version);
+  // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h).
+  if (Status refused = log_->AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
   rocksdb::WriteOptions write;
   write.sync = true;  // rare and large: always durable before it counts
   if (Status s =
@@ -354,8 +370,12 @@ Status TileStore::Compact() {
 }
 
 Status TileStore::Resume() {
-  if (log_->write_failure().ok()) return Status::Ok();
-  if (db_->db->Resume().ok()) {
+  const bool read_only = read_only_.load();
+  if (!read_only && log_->write_failure().ok()) return Status::Ok();
+  // Reopening (or RocksDB's own resume, which retries its flush) writes: not onto a disk that is
+  // still below the reserve.
+  if (Status space = guard_->Check(); !space.ok()) return space;
+  if (!read_only && db_->db->Resume().ok()) {
     log_->ClearFailure();
     return Status::Ok();
   }
@@ -368,7 +388,16 @@ Status TileStore::Resume() {
   log_.reset();
   db_.reset();
   Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir_, options_);
-  if (!db.ok()) return db.status();
+  if (!db.ok()) {
+    // Keep serving what is stored (as before, read-only or refusing writes) and retry later.
+    const Status failed = db.status();
+    db = StoreDb::Open(dir_, options_, /*read_only=*/true);
+    if (!db.ok()) return failed;
+    read_only_.store(true);
+    if (Status s = Attach(std::move(*db)); !s.ok()) return s;
+    return failed;
+  }
+  read_only_.store(false);
   return Attach(std::move(*db));
 }
 
@@ -383,6 +412,7 @@ StoreCounters TileStore::counters() const {
   c.log_records_appended = log_->records_appended();
   c.log_bytes_appended = log_->bytes_appended();
   c.write_errors = log_->append_errors() + checkpoint_errors_.load();
+  c.writes_refused_for_space = log_->space_refusals();
   return c;
 }
 

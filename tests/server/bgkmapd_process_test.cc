@@ -1,5 +1,6 @@
-// The bgkmapd binary: health checking and reflection answer, --print-config, and SIGTERM while
-// robots stream keeps every acknowledged scan (and nothing else) in the final map it reports.
+// The bgkmapd binary: health checking and reflection answer, --print-config, SIGTERM while
+// robots stream keeps every acknowledged scan (and nothing else) in the final map it reports, and
+// a start with less free space than storage.min_free_space_mb (read-only, writes' health).
 #include "bgkmapd_process.h"
 
 #include <grpcpp/grpcpp.h>
@@ -7,6 +8,7 @@
 #include <signal.h>
 
 #include <atomic>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <regex>
@@ -194,6 +196,78 @@ TEST(BgkmapdProcessTest, SigtermWhileRobotsStreamKeepsEveryAcknowledgedScan) {
   // Every acknowledged scan is in the final map, and no unacknowledged one.
   EXPECT_EQ(server_applied, acked_applied);
   EXPECT_FALSE(server.FindLine("event=shutdown_done").empty());
+}
+
+grpc::health::v1::HealthCheckResponse::ServingStatus Health(const std::string& target,
+                                                            const std::string& service) {
+  auto channel = grpc::CreateChannel(target, grpc::InsecureChannelCredentials());
+  auto health = grpc::health::v1::Health::NewStub(channel);
+  grpc::ClientContext ctx;
+  grpc::health::v1::HealthCheckRequest request;
+  request.set_service(service);
+  grpc::health::v1::HealthCheckResponse response;
+  const grpc::Status s = health->Check(&ctx, request, &response);
+  EXPECT_TRUE(s.ok()) << service << ": " << s.error_message();
+  return response.status();
+}
+
+// No small file system needed: a reserve larger than any disk (2^30 MB) is a full disk to the
+// server. (RealDiskFullTest does it on a real full tmpfs.)
+TEST(BgkmapdProcessTest, AStartBelowTheFreeSpaceReserveServesReadsOnly) {
+  const std::string dir = ::testing::TempDir() + "/bgkmapd_reserve_" + std::to_string(getpid());
+  std::filesystem::remove_all(dir);
+  Result<io::KittiSequence> seq =
+      io::KittiSequence::Open(std::string(BGKMAP_SHARED_DATA) + "/ouster_os1_128_street");
+  ASSERT_TRUE(seq.ok());
+  Result<io::Scan> scan = seq->Read(0);
+  ASSERT_TRUE(scan.ok());
+  ScanData d;
+  d.robot_id = "alpha";
+  d.sequence = 1;
+  d.pose = ScanPose::FromPose(scan->pose);
+  d.points = scan->points;
+  {
+    BgkmapdProcess server({"--data-dir", dir, "--set", "storage.min_free_space_mb=0"});
+    ASSERT_TRUE(server.started());
+    EXPECT_EQ(Health(server.target(), "bgkmap.v1.MapService/writes"),
+              grpc::health::v1::HealthCheckResponse::SERVING);
+    Client client(server.target());
+    ASSERT_TRUE(client.Insert(d).ok());
+    server.Signal(SIGKILL);  // the scan is in the log only: the next start replays it
+    server.Wait();
+  }
+  BgkmapdProcess server({"--data-dir", dir, "--set", "storage.min_free_space_mb=1073741824"});
+  ASSERT_TRUE(server.started());
+  const std::string why = server.FindLine("event=storage_read_only");
+  EXPECT_NE(why.find("below the reserve of 1073741824.0 MB"), std::string::npos) << why;
+  for (const std::string service : {"", "bgkmap.v1.MapService"}) {
+    EXPECT_EQ(Health(server.target(), service), grpc::health::v1::HealthCheckResponse::SERVING)
+        << service;
+  }
+  EXPECT_EQ(Health(server.target(), "bgkmap.v1.MapService/writes"),
+            grpc::health::v1::HealthCheckResponse::NOT_SERVING);
+  Client client(server.target());
+  RpcResult<MapInfo> info = client.Info();
+  ASSERT_TRUE(info.ok());
+  ASSERT_TRUE(info->storage.has_value());
+  EXPECT_TRUE(info->storage->read_only);
+  EXPECT_TRUE(info->storage->writes_paused_for_space);
+  EXPECT_EQ(info->map_version, 1u);
+  EXPECT_GT(info->known_cells, 0u);  // the replayed scan, from memory
+  ASSERT_NE(info->FindRobot("alpha"), nullptr);
+  EXPECT_EQ(info->FindRobot("alpha")->last_sequence, 1u);
+  const std::vector<std::array<double, 2>> points = {{2, 0}};
+  RpcResult<PointValues> values = client.QueryPoints(points, {Layer::kElevation});
+  ASSERT_TRUE(values.ok()) << values.status().ToString();
+  d.sequence = 2;
+  RpcResult<ScanAck> refused = client.Insert(d);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), RpcCode::kUnavailable);
+  EXPECT_NE(refused.status().message().find("read-only"), std::string::npos)
+      << refused.status().message();
+  server.Signal(SIGTERM);
+  EXPECT_EQ(server.Wait(), 0);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

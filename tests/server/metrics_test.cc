@@ -258,6 +258,16 @@ TEST(MetricsTest, ScrapeEqualsInfo) {
   EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles_found_total"), 0u);
   EXPECT_EQ(Value(e, "bgkmap_store_corrupt_log_records_total"), 0u);
   EXPECT_EQ(Value(e, "bgkmap_store_write_failed"), 0u);
+  // The free-space reserve (default 64 MB): not reached, and what Info says.
+  EXPECT_EQ(Value(e, "bgkmap_store_writes_paused_for_space"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_read_only"), 0u);
+  EXPECT_EQ(Value(e, "bgkmap_store_free_space_reserve_bytes"), uint64_t{64} << 20);
+  EXPECT_EQ(Value(e, "bgkmap_store_free_space_reserve_bytes"),
+            info->storage->free_space_reserve_bytes);
+  EXPECT_GT(Value(e, "bgkmap_store_free_bytes"), uint64_t{64} << 20);
+  EXPECT_EQ(Value(e, "bgkmap_store_writes_refused_for_space_total"), 0u);
+  EXPECT_FALSE(info->storage->writes_paused_for_space);
+  EXPECT_EQ(info->storage->writes_paused_reason, "");
   EXPECT_EQ(Value(e, "bgkmap_store_write_errors_total"), 0u);
   EXPECT_EQ(Value(e, "bgkmap_store_log_records_appended_total"), alpha.size() + odd.size());
   EXPECT_GT(Value(e, "bgkmap_store_log_appended_bytes_total"), 0u);
@@ -350,7 +360,9 @@ TEST(MetricsTest, CorruptStoredTileIsCounted) {
 TEST(MetricsTest, OnlyGetMetricsIsServed) {
   ServerFixture fixture(MetricsConfig());
   const int port = fixture.server().metrics_port();
-  EXPECT_EQ(Get(port, "/").status, 404);
+  // "/" is the web map's page (web_map_test.cc); a web route keeps the connection unless told.
+  EXPECT_EQ(Exchange(port, "GET / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").status, 200);
+  EXPECT_EQ(Get(port, "/nothing").status, 404);
   EXPECT_EQ(Get(port, "/metricsx").status, 404);
   EXPECT_EQ(Get(port, "/metrics/").status, 404);
   EXPECT_EQ(Get(port, "/metrics?name[]=x").status, 200);

@@ -136,11 +136,13 @@ TEST_F(Security, MutualTlsRefusesAClientWithoutACertificate) {
   EXPECT_TRUE(with.Info().ok()) << with.Info().status().ToString();
 }
 
-// GET over TLS with `openssl s_client`; the raw HTTP answer.
-std::string HttpsGet(int port, const std::string& ca, const std::string& header) {
+// Requests over one TLS connection with `openssl s_client` (it sends `requests` and reads until
+// the server closes); the raw HTTP answers.
+std::string HttpsExchange(int port, const std::string& ca, const std::string& requests) {
+  // %b: backslash escapes (\\r\\n) are read, percent signs are not.
   const std::string cmd =
-      "printf 'GET /metrics HTTP/1.0\\r\\n" + header +
-      "\\r\\n' | timeout 10 openssl s_client -quiet -connect 127.0.0.1:" + std::to_string(port) +
+      "printf '%b' '" + requests +
+      "' | timeout 10 openssl s_client -quiet -connect 127.0.0.1:" + std::to_string(port) +
       " -CAfile " + ca + " -verify_return_error 2>/dev/null";
   std::string out;
   FILE* p = popen(cmd.c_str(), "r");
@@ -150,6 +152,12 @@ std::string HttpsGet(int port, const std::string& ca, const std::string& header)
   while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
   pclose(p);
   return out;
+}
+
+// GET `path` over TLS (HTTP/1.0: the server closes after the answer); the raw HTTP answer.
+std::string HttpsGet(int port, const std::string& ca, const std::string& header,
+                     const std::string& path = "/metrics") {
+  return HttpsExchange(port, ca, "GET " + path + " HTTP/1.0\\r\\n" + header + "\\r\\n");
 }
 
 TEST_F(Security, MetricsOverHttpsNeedAToken) {
@@ -175,6 +183,71 @@ TEST_F(Security, MetricsOverHttpsNeedAToken) {
   EXPECT_EQ(HttpsGet(port, Path("other_ca.pem"), "Authorization: Bearer planner-secret\\r\\n")
                 .find("200 OK"),
             std::string::npos);
+}
+
+// The web map shares the HTTPS port and its tokens: every route needs one, from the
+// Authorization header or from the cookie /login?token= sets for a browser.
+TEST_F(Security, WebMapOverHttpsNeedsATokenOrTheLoginCookie) {
+  const std::string tokens = Path("web_tokens.yaml");
+  // A token with characters a cookie cannot hold as they are.
+  WriteTokens(tokens, {{"planner", "planner-secret", "planner", ""},
+                       {"odd", "\"odd;tok en=%\"", "robot", "robots: [r1]"}});
+  BgkmapdProcess server(
+      Concat(TlsArgs(), {"--http", "127.0.0.1:0", "--set", "server.auth.tokens_file=" + tokens}));
+  ASSERT_TRUE(server.started());
+  std::smatch m;
+  const std::string line = server.WaitForLine("event=web_map_listening", 10);
+  EXPECT_NE(line.find("url=https://127.0.0.1:"), std::string::npos) << line;
+  EXPECT_NE(line.find("/login?token=<token>"), std::string::npos) << line;
+  ASSERT_TRUE(std::regex_search(line, m, std::regex(":([0-9]+)/"))) << line;
+  const int port = std::stoi(m[1]);
+  const std::string ca = Path("ca.pem");
+
+  for (const std::string path : {"/", "/static/webmap.js", "/map.json",
+                                 "/tiles/elevation/0/0/0.png", "/points?x=1&y=1", "/events"}) {
+    const std::string anonymous = HttpsGet(port, ca, "", path);
+    EXPECT_NE(anonymous.find("401 Unauthorized"), std::string::npos) << path << anonymous;
+    EXPECT_NE(anonymous.find("/login?token="), std::string::npos) << path << anonymous;
+    const std::string wrong = HttpsGet(port, ca, "Cookie: bgkmap_token=nope\\r\\n", path);
+    EXPECT_NE(wrong.find("401 Unauthorized"), std::string::npos) << path << wrong;
+  }
+  const std::string bearer =
+      HttpsGet(port, ca, "Authorization: Bearer planner-secret\\r\\n", "/map.json");
+  EXPECT_NE(bearer.find("200 OK"), std::string::npos) << bearer;
+  EXPECT_NE(bearer.find("\"tile_pixels\""), std::string::npos) << bearer;
+
+  const std::string refused = HttpsGet(port, ca, "", "/login?token=nope");
+  EXPECT_NE(refused.find("401 Unauthorized"), std::string::npos) << refused;
+  EXPECT_EQ(refused.find("Set-Cookie"), std::string::npos) << refused;
+  const std::string login = HttpsGet(port, ca, "", "/login?token=planner-secret");
+  EXPECT_NE(login.find("303 See Other"), std::string::npos) << login;
+  EXPECT_NE(login.find("Location: /\r\n"), std::string::npos) << login;
+  EXPECT_NE(login.find("Set-Cookie: bgkmap_token=planner-secret; Path=/; HttpOnly; "
+                       "SameSite=Strict; Secure\r\n"),
+            std::string::npos)
+      << login;
+
+  // The browser's next requests carry the cookie: the page, then (keep-alive, on the same TLS
+  // connection) its map.json.
+  const std::string cookie = "Cookie: theme=dark; bgkmap_token=planner-secret\\r\\n";
+  const std::string page =
+      HttpsExchange(port, ca,
+                    "GET / HTTP/1.1\\r\\nHost: a\\r\\n" + cookie +
+                        "\\r\\nGET /map.json HTTP/1.1\\r\\nHost: a\\r\\nConnection: close\\r\\n" +
+                        cookie + "\\r\\n");
+  EXPECT_NE(page.find("HTTP/1.1 200 OK"), std::string::npos) << page;
+  EXPECT_NE(page.find("text/html"), std::string::npos) << page;
+  EXPECT_NE(page.find("\"tile_pixels\""), std::string::npos) << page;
+
+  // A token percent-encoded in the address and in the cookie.
+  const std::string odd = HttpsGet(port, ca, "", "/login?token=%22odd%3Btok+en%3D%25%22");
+  std::smatch c;
+  ASSERT_TRUE(std::regex_search(odd, c, std::regex("Set-Cookie: (bgkmap_token=[^;]*);"))) << odd;
+  EXPECT_EQ(c[1], "bgkmap_token=%22odd%3Btok%20en%3D%25%22");
+  const std::string tile =
+      HttpsGet(port, ca, "Cookie: " + std::string(c[1]) + "\\r\\n", "/tiles/elevation/0/0/0.png");
+  EXPECT_NE(tile.find("200 OK"), std::string::npos) << tile.substr(0, 300);
+  EXPECT_NE(tile.find("image/png"), std::string::npos) << tile.substr(0, 300);
 }
 
 class Roles : public Security {

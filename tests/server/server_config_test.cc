@@ -102,6 +102,10 @@ TEST(ServerConfigTest, StorageSection) {
       << "a bound without a data_dir";
   EXPECT_EQ(error("storage: {data_dir: /x, max_memory_mb: -5}").rfind("storage.max_memory_mb", 0),
             0u);
+  EXPECT_EQ(error("storage: {min_free_space_mb: -1}").rfind("storage.min_free_space_mb", 0), 0u);
+  EXPECT_EQ(error("storage: {min_free_space_mb: 2000000000}").rfind("storage.min_free_space_mb", 0),
+            0u);
+  EXPECT_EQ(ServerConfig{}.storage.min_free_space_mb, 64u);
   EXPECT_EQ(error("server: {worker_nice: 20}").rfind("server.worker_nice", 0), 0u);
   Result<ServerConfig> bounded = ServerConfigFromYaml(
       YAML::Load("server: {worker_nice: 0}\n"

@@ -68,7 +68,12 @@ int RunInfo(const ServerTarget& server) {
                       {"resident_tiles", st.resident_tiles},
                       {"resident_bytes", st.resident_bytes},
                       {"tiles_loaded", st.tiles_loaded},
-                      {"tiles_evicted", st.tiles_evicted}};
+                      {"tiles_evicted", st.tiles_evicted},
+                      {"writes_paused_for_space", st.writes_paused_for_space},
+                      {"read_only", st.read_only},
+                      {"free_bytes", st.free_bytes},
+                      {"free_space_reserve_bytes", st.free_space_reserve_bytes},
+                      {"writes_paused_reason", st.writes_paused_reason}};
   }
   std::printf("%s\n", out.dump(2).c_str());
   return 0;

@@ -41,9 +41,13 @@ CapturedCheckpoint Checkpointer::Capture(uint64_t version) {
   c.order = std::shared_ptr<std::binary_semaphore>(
       order_.get(), [keep = order_](auto* slot) { slot->release(); });
   if (durability_.write_failed()) {
+    const bool paused = durability_.writes_paused_for_space();
     const Status resumed = durability_.Resume();
     if (resumed.ok()) {
-      spdlog::info("event=storage_resumed");
+      if (!paused) spdlog::info("event=storage_resumed");  // (a pause for space logs its own)
+    } else if (durability_.writes_paused_for_space()) {
+      // A full disk is retried every second: logged once when it began (event=storage_full).
+      spdlog::debug("event=storage_resume_failed reason=\"{}\"", resumed.message());
     } else {
       spdlog::warn("event=storage_resume_failed reason=\"{}\"", resumed.message());
     }
@@ -65,8 +69,8 @@ Status Checkpointer::Write(CapturedCheckpoint captured) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!s.ok()) {
-    spdlog::error("event=checkpoint_failed version={} reason=\"{}\"", captured.version,
-                  s.message());
+    spdlog::log(durability_.writes_paused_for_space() ? spdlog::level::debug : spdlog::level::err,
+                "event=checkpoint_failed version={} reason=\"{}\"", captured.version, s.message());
     std::lock_guard lock(dirty_mu_);
     dirty_.insert(captured.keys.begin(), captured.keys.end());
     return s;

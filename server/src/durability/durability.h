@@ -73,6 +73,13 @@ struct StoreStatus {
   uint64_t checkpoint_version = 0;
   uint64_t corrupt_tiles = 0;
   bool write_failed = false;
+  // Writes are refused for lack of space: below storage.min_free_space_mb, or opened read-only
+  // on a full disk (then `read_only` too). Reads are served; writes resume when there is room.
+  bool writes_paused_for_space = false;
+  bool read_only = false;
+  uint64_t free_bytes = 0;     // on the data dir's file system, as last probed
+  uint64_t reserve_bytes = 0;  // storage.min_free_space_mb
+  std::string paused_reason;   // why writes are paused ("" when they are not)
   storage::StoreCounters counters;
   storage::DiskUsage usage;  // only when asked for: it lists the store's directory
 };
@@ -102,10 +109,19 @@ class Durability : public TileBacking {
   // order they were captured (Checkpointer).
   virtual Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                                  std::span<const std::unique_ptr<Tile>> tiles) = 0;
-  // After a failed write the store refuses writes until resumed. Call at a barrier; OK if
-  // nothing had failed or writes are accepted again.
+  // After a failed write, or while writes are paused for lack of space, the store refuses
+  // writes until resumed. Call at a barrier; OK if nothing had failed or writes are accepted
+  // again.
   virtual bool write_failed() const = 0;
   virtual Status Resume() = 0;
+  // Writes are refused for lack of free space (a full disk): logged quietly, retried each second.
+  virtual bool writes_paused_for_space() const { return false; }
+  // Tiles the map holds newer than the store whose checkpoint was deferred at start (recovered
+  // on a full disk): the first checkpoint after writes resume must write them.
+  virtual std::vector<TileKey> DeferredTiles() const { return {}; }
+  // OK if `bytes` more may be written to scratch_directory() (an import's spool) without eating
+  // into the free-space reserve.
+  virtual Status AdmitScratch(uint64_t /*bytes*/) { return Status::Ok(); }
 
   // At a barrier, right after a checkpoint at the applied version: the tiles in [min, max] as
   // of now, readable after the barrier ends. `map` supplies them where nothing is stored.

@@ -34,11 +34,19 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
   if (!durability.ok()) return durability.status();
   options.durability = *durability;
   options.periodic_sync_ms = config.periodic_sync_ms;
+  options.free_space.reserve_bytes = config.min_free_space_mb << 20;
   Result<std::unique_ptr<storage::TileStore>> store =
       storage::TileStore::Open(config.data_dir, options, params);
   if (!store.ok()) return store.status();
   std::unique_ptr<StoreDurability> d(new StoreDurability(std::move(store).value()));
   storage::TileStore& ts = *d->store_;
+  if (ts.read_only()) {
+    spdlog::warn(
+        "event=storage_read_only data_dir={} reason=\"{}\" detail=\"opened read-only: queries "
+        "are answered, writes are refused until there is room (checked every second)\"",
+        ts.directory(), ts.CheckFreeSpace().message());
+    d->pause_logged_.store(true);
+  }
 
   Result<storage::RecoveryReport> report = storage::RecoverMap(ts, map);
   if (!report.ok()) return report.status();
@@ -54,7 +62,20 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
       if (std::binary_search(corrupt.begin(), corrupt.end(), k)) continue;
       updates.push_back({k, map.FindTile(k)});
     }
-    if (Status s = ts.Checkpoint(ts.map_version(), updates); !s.ok()) return s;
+    Status s = ts.read_only() ? ts.AdmitWrite(0) : ts.Checkpoint(ts.map_version(), updates);
+    if (!s.ok() && !d->writes_paused_for_space()) return s;
+    if (!s.ok()) {
+      // No room for the checkpoint: the recovered tiles stay in memory, newer than the store,
+      // and the first checkpoint after writes resume stores them (the log keeps their changes
+      // meanwhile). A tile a replayed clear emptied is kept, empty, so that a query cannot load
+      // the stored one back.
+      for (const storage::TileUpdate& u : updates) {
+        if (u.tile == nullptr) map.GetOrCreateTile(u.key).set_version(ts.map_version());
+        d->deferred_.push_back(u.key);
+      }
+      spdlog::warn("event=recovery_checkpoint_deferred tiles={} reason=\"{}\"", updates.size(),
+                   s.message());
+    }
   }
   // Every other tile is current in the store and is loaded when the served map needs it.
   Result<std::vector<storage::StoredTileInfo>> stored = ts.ListTiles();
@@ -67,10 +88,12 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
 }
 
 std::map<std::string, uint64_t> StoreDurability::LoggedRobotSequences() const {
+  std::shared_lock lock(reopen_mu_);
   return store_->log().RobotSequences();
 }
 
 Status StoreDurability::Record(const ChangeRecord& change) {
+  std::shared_lock lock(reopen_mu_);
   // The stamp is informational; a sender's absurd seconds must not overflow.
   int64_t stamp_ns = 0;
   if (__builtin_mul_overflow(change.stamp.seconds, int64_t{1'000'000'000}, &stamp_ns) ||
@@ -82,18 +105,43 @@ Status StoreDurability::Record(const ChangeRecord& change) {
                                                              change.sequence, change.scan, stamp_ns)
                                   : storage::LogRecord::Clear(change.version, change.clear_box);
   Status s = store_->log().Append(record);
-  if (s.code() == Status::Code::kIoError) write_failed_.store(true);
+  if (!store_->log().write_failure().ok()) write_failed_.store(true);
+  NotePause(s);
+  return s;
+}
+
+bool StoreDurability::writes_paused_for_space() const {
+  return store_->read_only() || store_->free_space().below_reserve();
+}
+
+void StoreDurability::NotePause(const Status& outcome) {
+  if (!outcome.ok() && writes_paused_for_space()) {
+    if (!pause_logged_.exchange(true)) {
+      spdlog::warn("event=storage_full reason=\"{}\" detail=\"writes refused, queries answered\"",
+                   outcome.message());
+    }
+  } else if (outcome.ok() && pause_logged_.exchange(false)) {
+    spdlog::info("event=storage_resumed reason=\"free space above the reserve again\"");
+  }
+}
+
+Status StoreDurability::AdmitScratch(uint64_t bytes) {
+  std::shared_lock lock(reopen_mu_);
+  Status s = store_->AdmitWrite(bytes);
+  NotePause(s);
   return s;
 }
 
 Status StoreDurability::WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                                         std::span<const std::unique_ptr<Tile>> tiles) {
+  std::shared_lock lock(reopen_mu_);
   if (version <= store_->checkpoint_version() && keys.empty()) return Status::Ok();
   std::vector<storage::TileUpdate> updates;
   updates.reserve(keys.size());
   for (size_t i = 0; i < keys.size(); ++i) updates.push_back({keys[i], tiles[i].get()});
   Status s = store_->Checkpoint(version, updates);
-  if (s.code() == Status::Code::kIoError) write_failed_.store(true);
+  if (!store_->log().write_failure().ok()) write_failed_.store(true);
+  NotePause(s);
   if (!s.ok()) return s;
   index_.Update(GridGeometry(store_->params().resolution, store_->params().tile_size), keys, tiles);
   durable_version_.store(std::max(durable_version_.load(), version));
@@ -101,14 +149,20 @@ Status StoreDurability::WriteCheckpoint(uint64_t version, std::span<const TileKe
 }
 
 Status StoreDurability::Resume() {
-  if (!write_failed_.load() && store_->log().write_failure().ok()) return Status::Ok();
+  std::unique_lock lock(reopen_mu_);
+  if (!write_failed() && store_->log().write_failure().ok()) return Status::Ok();
+  // Reopens a read-only store or one that latched a failure; either way only with the reserve
+  // free, which is what writes paused for space wait for too.
   Status s = store_->Resume();
+  if (s.ok()) s = store_->CheckFreeSpace();
   if (s.ok()) write_failed_.store(false);
+  NotePause(s);
   return s;
 }
 
 Result<std::unique_ptr<TileSource>> StoreDurability::OpenTileSource(TileKey min, TileKey max,
                                                                     const TileCopier&) {
+  std::shared_lock lock(reopen_mu_);
   // Called right after a checkpoint at the applied version: the store holds the map exactly.
   std::unique_ptr<storage::TileSnapshot> snapshot = store_->NewSnapshot();
   Result<std::vector<storage::StoredTileInfo>> listed = snapshot->ListTiles(min, max);
@@ -124,12 +178,23 @@ Durability::ScratchDirectory StoreDurability::scratch_directory() const {
 }
 
 std::optional<StoreStatus> StoreDurability::store_status(bool with_disk_usage) const {
+  std::shared_lock lock(reopen_mu_);
   StoreStatus s;
   s.directory = store_->directory();
   s.durability = durability_name();
   s.checkpoint_version = store_->checkpoint_version();
   s.corrupt_tiles = store_->CorruptTiles().size();
   s.write_failed = write_failed_.load();
+  s.writes_paused_for_space = writes_paused_for_space();
+  s.read_only = store_->read_only();
+  s.free_bytes = store_->free_space().free_bytes();
+  s.reserve_bytes = store_->free_space().reserve_bytes();
+  if (s.writes_paused_for_space) {
+    s.paused_reason = (s.read_only ? "opened read-only on a full disk; " : "") +
+                      std::string("data dir has ") + std::to_string(s.free_bytes >> 20) +
+                      " MB free, below the reserve of " + std::to_string(s.reserve_bytes >> 20) +
+                      " MB; writes resume when space is freed";
+  }
   s.counters = store_->counters();
   if (with_disk_usage) s.usage = store_->Usage();
   return s;
@@ -147,7 +212,7 @@ Durability::VerifyReport StoreDurability::VerifyStoredTiles(const std::atomic<bo
       r.stopped = true;
       break;
     }
-    Result<std::unique_ptr<Tile>> tile = store_->LoadTile(k);  // marks a corrupt tile
+    Result<std::unique_ptr<Tile>> tile = Load(k);  // marks a corrupt tile
     ++r.tiles;
     if (tile.ok()) continue;
     if (tile.status().code() == Status::Code::kDataLoss) {

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <shared_mutex>
 #include <string>
 #include <vector>
 
@@ -31,13 +32,17 @@ class StoreDurability final : public Durability {
   uint64_t recovered_version() const override { return recovery_.map_version; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override;
   Status RetireRobot(const std::string& robot_id) override {
+    std::shared_lock lock(reopen_mu_);
     return store_->log().RetireRobot(robot_id);
   }
   Status Record(const ChangeRecord& change) override;
   Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                          std::span<const std::unique_ptr<Tile>> tiles) override;
-  bool write_failed() const override { return write_failed_.load(); }
+  bool write_failed() const override { return write_failed_.load() || writes_paused_for_space(); }
   Status Resume() override;
+  bool writes_paused_for_space() const override;
+  std::vector<TileKey> DeferredTiles() const override { return deferred_; }
+  Status AdmitScratch(uint64_t bytes) override;
   Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
                                                      const TileCopier& map) override;
   std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
@@ -53,7 +58,10 @@ class StoreDurability final : public Durability {
     index_.ForEach(fn);
   }
   std::optional<TileSummary> StoredSummary(TileKey key) const override { return index_.Find(key); }
-  Result<std::unique_ptr<Tile>> Load(TileKey key) const override { return store_->LoadTile(key); }
+  Result<std::unique_ptr<Tile>> Load(TileKey key) const override {
+    std::shared_lock lock(reopen_mu_);
+    return store_->LoadTile(key);
+  }
   uint64_t durable_version() const override { return durable_version_.load(); }
 
   VerifyReport VerifyStoredTiles(const std::atomic<bool>& stop) const override;
@@ -64,10 +72,17 @@ class StoreDurability final : public Durability {
 
  private:
   explicit StoreDurability(std::unique_ptr<storage::TileStore> store) : store_(std::move(store)) {}
+  // After a write (or a refusal): logs the start and the end of a pause for space, once each.
+  void NotePause(const Status& outcome);
 
   std::unique_ptr<storage::TileStore> store_;
+  // Resume() may reopen the database (a read-only start, a failed write): exclusive then; every
+  // other use of the database, queries' tile loads included, holds it shared.
+  mutable std::shared_mutex reopen_mu_;
   storage::RecoveryReport recovery_;
-  std::atomic<bool> write_failed_{false};
+  std::atomic<bool> write_failed_{false};  // the store latched a failed write
+  std::atomic<bool> pause_logged_{false};  // event=storage_full logged, resumption not yet
+  std::vector<TileKey> deferred_;          // set at Open()
   StoredTileIndex index_;
   // Moves past a checkpoint's version only after the index holds its tiles.
   std::atomic<uint64_t> durable_version_{0};

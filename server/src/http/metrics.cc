@@ -54,6 +54,18 @@ void WriteStore(const StoreMetrics& s, ExpositionWriter& w) {
   w.Gauge("bgkmap_store_write_failed",
           "1 while the store refuses writes after a failed append or checkpoint, else 0.",
           s.write_failed ? 1 : 0);
+  w.Gauge("bgkmap_store_writes_paused_for_space",
+          "1 while writes are refused because the data dir has less free space than "
+          "storage.min_free_space_mb (reads are answered; writes resume when there is room).",
+          s.writes_paused_for_space ? 1 : 0);
+  w.Gauge("bgkmap_store_read_only",
+          "1 while the store is open read-only (it was opened on a full disk), else 0.",
+          s.read_only ? 1 : 0);
+  w.Gauge("bgkmap_store_free_bytes",
+          "Free space on the data dir's file system, as last probed (for the reserve).",
+          s.free_bytes);
+  w.Gauge("bgkmap_store_free_space_reserve_bytes",
+          "storage.min_free_space_mb in bytes: writes are refused below it.", s.reserve_bytes);
   const storage::StoreCounters& c = s.counters;
   w.Counter("bgkmap_store_tiles_loaded_total", "Tiles read from the store since it was opened.",
             c.tiles_loaded);
@@ -72,6 +84,10 @@ void WriteStore(const StoreMetrics& s, ExpositionWriter& w) {
             c.log_bytes_appended);
   w.Counter("bgkmap_store_write_errors_total",
             "Failed scan log appends and checkpoints since open.", c.write_errors);
+  w.Counter("bgkmap_store_writes_refused_for_space_total",
+            "Writes refused before they were tried, for lack of free space, since the store was "
+            "last opened.",
+            c.writes_refused_for_space);
   w.Gauge("bgkmap_store_tile_sst_bytes", "Size of the tile column family's SST files.",
           s.usage.tile_bytes);
   w.Gauge("bgkmap_store_log_sst_bytes", "Size of the scan log column family's SST files.",
@@ -113,6 +129,10 @@ ServerMetrics CollectMetrics(ServiceContext& ctx) {
     s.corrupt_tiles = store->corrupt_tiles;
     s.dirty_tiles = ctx.map.checkpointer().dirty_tiles();
     s.write_failed = store->write_failed;
+    s.writes_paused_for_space = store->writes_paused_for_space;
+    s.read_only = store->read_only;
+    s.free_bytes = store->free_bytes;
+    s.reserve_bytes = store->reserve_bytes;
     s.counters = store->counters;
     s.usage = store->usage;
     s.residency = ctx.map.Residency();

@@ -24,6 +24,10 @@ struct StoreMetrics {
   uint64_t corrupt_tiles = 0;  // listed corrupt now (CorruptTiles())
   uint64_t dirty_tiles = 0;    // changed since the last checkpoint capture
   bool write_failed = false;
+  bool writes_paused_for_space = false;  // below storage.min_free_space_mb, or read-only
+  bool read_only = false;                // opened read-only on a full disk
+  uint64_t free_bytes = 0;
+  uint64_t reserve_bytes = 0;
   storage::StoreCounters counters;
   storage::DiskUsage usage;
   ResidencyStats residency;

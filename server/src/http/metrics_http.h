@@ -2,12 +2,19 @@
 // Boost.Asio thread) that answers GET /metrics with whatever `render` returns, in the
 // Prometheus text format's content type. What is exported is metrics.{h,cc}.
 //
-// Every other path is 404 and every other method on /metrics 405. One request per connection
-// (the response closes it). A request must arrive whole within Options::read_timeout and fit in
+// Every other path goes to Options::routes (the web map, web_routes.h) if set, else is 404; every
+// other method on /metrics is 405. A /metrics response closes its connection; web routes keep it
+// alive. A request must arrive whole within Options::read_timeout and fit in
 // Options::max_request_bytes: a malformed or oversized request is answered 400/413/431, a slow
-// or idle client is disconnected at the timeout. A client holds nothing but its own connection,
-// and at most Options::max_connections are open at once (more are closed at once). With
-// Options::tls the same is served over TLS; with Options::authorize every request needs a token.
+// or idle client is disconnected at the timeout. A client holds nothing but its own connection;
+// at most Options::max_connections are open at once, and when they are, a new connection evicts
+// the one that has waited longest for its request (so slow clients cannot lock scrapers out);
+// with none waiting, the new one is closed.
+//
+// With Options::tls all of it is served over TLS (HTTPS). With Options::authorize every request,
+// /metrics and the web routes alike, needs a token: an "Authorization: Bearer <token>" header, or
+// for a browser the cookie that GET /login?token=<token> sets (HttpOnly, SameSite=Strict, Secure
+// over TLS) before it redirects to the page. Without one the answer is 401.
 #pragma once
 
 #include <chrono>
@@ -18,6 +25,7 @@
 #include <string_view>
 
 #include "bgkmap/core/status.h"
+#include "http/http_exchange.h"
 
 namespace boost::asio::ssl {
 class context;
@@ -33,11 +41,15 @@ class MetricsHttpServer {
   struct Options {
     std::chrono::milliseconds read_timeout{5000};  // to receive a request, and to send a reply
     size_t max_request_bytes = 8192;               // request line, headers and body
-    size_t max_connections = 8;                    // open at the same time
+    size_t max_connections = 64;                   // open at the same time
+    // Answers every path but /metrics and /login, on the endpoint's thread (or later, through
+    // the exchange, from any thread). Unset: 404.
+    std::function<void(const HttpRequest&, std::shared_ptr<HttpExchange>)> routes;
     // HTTPS with this context (http/https_context.h); null = plain HTTP. The TLS handshake
     // counts against read_timeout.
     std::shared_ptr<boost::asio::ssl::context> tls;
-    // Given each request's Authorization header; false answers 401 (null: no check).
+    // Given each request's credentials as an Authorization header value ("Bearer <token>", from
+    // the header or the login cookie); false answers 401 (null: no check, /login just redirects).
     std::function<bool(std::string_view authorization)> authorize;
   };
 

@@ -50,6 +50,13 @@ void MapMaintenance::Stop() {
   }
 }
 
+void MapMaintenance::WatchWritable(std::function<void(bool writable)> on_change) {
+  std::lock_guard lock(mu_);
+  on_writable_ = std::move(on_change);
+  reported_writable_ = !durability_.writes_paused_for_space();
+  if (on_writable_) on_writable_(reported_writable_);
+}
+
 void MapMaintenance::RequestEviction() {
   {
     std::lock_guard lock(mu_);
@@ -69,6 +76,11 @@ void MapMaintenance::CheckpointLoop() {
   auto last = std::chrono::steady_clock::now();
   std::unique_lock lock(mu_);
   while (!cv_.wait_for(lock, tick, [this] { return stopping_; })) {
+    if (const bool writable = !durability_.writes_paused_for_space();
+        on_writable_ && writable != reported_writable_) {
+      reported_writable_ = writable;
+      on_writable_(writable);
+    }
     if (!durability_.write_failed() && std::chrono::steady_clock::now() - last < interval) {
       continue;
     }

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <thread>
 
@@ -32,6 +33,9 @@ class MapMaintenance {
   void Stop();
   // Wakes the eviction thread (the tiles in memory, or the changed ones, are over their limit).
   void RequestEviction();
+  // Calls `on_change(writable)` now and, from the checkpoint thread, within a second of each
+  // change: false while writes are paused for lack of free space (null: stop calling).
+  void WatchWritable(std::function<void(bool writable)> on_change);
 
  private:
   void CheckpointLoop();
@@ -45,6 +49,8 @@ class MapMaintenance {
   std::condition_variable cv_;
   bool stopping_ = false;
   bool eviction_requested_ = false;
+  std::function<void(bool)> on_writable_;  // guarded by mu_
+  bool reported_writable_ = true;
   std::atomic<bool> stop_verifying_{false};
   std::thread checkpointer_;
   std::thread evictor_;

@@ -46,6 +46,8 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
     summaries.push_back(summary);
   });
   summary_.Update(keys, summaries);
+  // Recovered on a full disk: those tiles are newer than the store until a checkpoint.
+  checkpointer_.MarkChanged(durability.DeferredTiles());
 }
 
 ServedMap::~ServedMap() { scheduler_.WaitIdle(); }

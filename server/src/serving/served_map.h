@@ -125,6 +125,8 @@ class ServedMap {
 
   MapSummary Summary();
   Durability::ScratchDirectory scratch_directory() const { return durability_.scratch_directory(); }
+  // Before writing `bytes` more to scratch_directory(): refused below the free-space reserve.
+  Status AdmitScratch(uint64_t bytes) { return durability_.AdmitScratch(bytes); }
   // The store's state; nullopt for a map in memory.
   std::optional<StoreStatus> store_status(bool with_disk_usage = false) const {
     return durability_.store_status(with_disk_usage);

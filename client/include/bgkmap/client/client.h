@@ -191,6 +191,12 @@ struct StorageInfo {
   uint64_t resident_bytes = 0;
   uint64_t tiles_loaded = 0;   // from the store since the server started
   uint64_t tiles_evicted = 0;  // since the server started
+  // Writes refused (UNAVAILABLE) for lack of free space on the data dir; queries still answered.
+  bool writes_paused_for_space = false;
+  bool read_only = false;  // the server started on a full disk and opened its store read-only
+  uint64_t free_bytes = 0;
+  uint64_t free_space_reserve_bytes = 0;
+  std::string writes_paused_reason;
 };
 
 // Where the map frame sits in a coordinate reference system (server config `georeference`):

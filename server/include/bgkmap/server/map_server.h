@@ -15,6 +15,9 @@ namespace bgkmap {
 
 // The health-check service name of the map service.
 inline constexpr const char* kMapServiceName = "bgkmap.v1.MapService";
+// Health of the writes alone: NOT_SERVING while they are refused for lack of free space
+// (storage.min_free_space_mb), when "" and kMapServiceName stay SERVING for the reads.
+inline constexpr const char* kWritesHealthName = "bgkmap.v1.MapService/writes";
 
 struct RobotSummary {
   std::string robot_id;

@@ -70,6 +70,12 @@ struct StorageConfig {
   // verify_on_start: read and check every stored tile in the background after start, so that
   // damage is reported before a query meets it (tiles are otherwise read only on demand).
   bool verify_on_start = true;
+  // min_free_space_mb: free space kept on the data directory's file system. A write (scan, clear,
+  // checkpoint, import, robot retirement) that would leave less is refused with UNAVAILABLE
+  // before RocksDB sees it, reads go on, and writes resume once there is room; a server started
+  // with less free opens its store read-only. It covers RocksDB's own flushes and compactions
+  // and the restart after a refusal (docs/storage.md, "Free-space reserve"). 0 = no reserve.
+  uint64_t min_free_space_mb = 64;
 };
 
 // The `georeference:` section: where the robots' local map frame sits in a coordinate reference

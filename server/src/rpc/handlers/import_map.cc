@@ -82,6 +82,11 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
       return;
     }
     boost::asio::post(ctx_.query_pool, [this] {
+      // The spool shares the store's disk: it must not eat the reserve RocksDB relies on.
+      if (Status s = ctx_.map.AdmitScratch(chunk_.data().size()); !s.ok()) {
+        End({grpc::StatusCode::UNAVAILABLE, "archive not imported: " + s.message()});
+        return;
+      }
       if (Status s = spool_->Append(chunk_.data()); !s.ok()) {
         End({grpc::StatusCode::UNAVAILABLE, "archive not imported: " + s.message()});
         return;

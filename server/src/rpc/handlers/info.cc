@@ -69,6 +69,11 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
     st->set_resident_bytes(r.resident_bytes);
     st->set_tiles_loaded(r.tiles_loaded);
     st->set_tiles_evicted(r.tiles_evicted);
+    st->set_writes_paused_for_space(store->writes_paused_for_space);
+    st->set_read_only(store->read_only);
+    st->set_free_bytes(store->free_bytes);
+    st->set_free_space_reserve_bytes(store->reserve_bytes);
+    st->set_writes_paused_reason(store->paused_reason);
   }
   return grpc::Status::OK;
 }

@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "bgkmap/core/status.h"
+#include "bgkmap/storage/free_space.h"
 #include "bgkmap/storage/log_record.h"
 #include "bgkmap/storage/store_options.h"
 
@@ -49,8 +50,11 @@ class ScanLog {
   // says; only then may the change be acknowledged. Concurrent appends share fsyncs.
   //   InvalidArgument: version 0, a version at or below the last checkpoint, or a scan
   //                    record without a scan.
-  //   IoError:         the write failed (disk full, I/O error). Nothing is acknowledged: the
-  //                    caller must refuse the change. Earlier appends are unaffected.
+  //   IoError:         the write failed (disk full, I/O error), or was refused before it was
+  //                    tried: less than the free-space reserve would stay free, or the store
+  //                    is read-only (opened on a full disk). Nothing is acknowledged: the
+  //                    caller must refuse the change. Earlier appends are unaffected; a
+  //                    refusal for space latches nothing (the next append probes again).
   // Versions must be unique; appending an existing version replaces its record.
   Status Append(const LogRecord& record);
 
@@ -88,11 +92,21 @@ class ScanLog {
   uint64_t bytes_appended() const { return appended_bytes_.load(); }
   uint64_t corrupt_records() const { return corrupt_.load(); }
   uint64_t append_errors() const { return append_errors_.load(); }
+  // Writes refused by the free-space reserve or because the store is read-only.
+  uint64_t space_refusals() const { return space_refusals_.load(); }
+  bool read_only() const { return read_only_; }
 
  private:
   friend class TileStore;
+  // `guard`: the store's free-space reserve (outlives the log). `read_only`: the database was
+  // opened read-only, every write is refused.
   ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
-          std::map<std::string, uint64_t> robots, uint64_t checkpoint_version);
+          std::map<std::string, uint64_t> robots, uint64_t checkpoint_version,
+          FreeSpaceGuard* guard, bool read_only);
+
+  // OK if `bytes` may be written now (the reserve stays free, the store is writable); the
+  // refusal otherwise, counted. Checked before every write to the database.
+  Status AdmitWrite(uint64_t bytes);
 
   // Adds to `batch` the deletion of every record with version <= `through`.
   void AddTruncation(rocksdb::WriteBatch* batch, uint64_t through);
@@ -102,6 +116,8 @@ class ScanLog {
   void SyncLoop();
 
   StoreDb* db_;
+  FreeSpaceGuard* guard_;
+  const bool read_only_;
   const Durability durability_;
   const uint32_t periodic_sync_ms_;
 
@@ -109,6 +125,7 @@ class ScanLog {
   std::atomic<uint64_t> appended_{0}, appended_bytes_{0};
   mutable std::atomic<uint64_t> corrupt_{0};
   std::atomic<uint64_t> append_errors_{0};
+  std::atomic<uint64_t> space_refusals_{0};
 
   mutable std::mutex mu_;  // guards last_version_, robots_, failure_
   Status failure_;

@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "bgkmap/core/status.h"
+#include "bgkmap/storage/free_space.h"
 #include "bgkmap/storage/tile_codec.h"
 
 namespace rocksdb {
@@ -46,6 +47,11 @@ struct StoreOptions {
   // operating system's (RocksDB's default). For fault injection in tests only, e.g.
   // tests/storage/power_cut_file_system.h, which forgets what was not fsync'ed.
   std::shared_ptr<rocksdb::FileSystem> file_system;
+  // The free-space reserve (free_space.h): every write (append, checkpoint, robot retirement)
+  // is refused with IoError while it would leave less than reserve_bytes free on the store's
+  // file system, and a store opened with less than that free opens read-only (writes refused
+  // until Resume() finds the space back). reserve_bytes 0: no reserve.
+  FreeSpaceOptions free_space;
 };
 
 }  // namespace bgkmap::storage

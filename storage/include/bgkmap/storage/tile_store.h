@@ -23,6 +23,7 @@
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/tile.h"
+#include "bgkmap/storage/free_space.h"
 #include "bgkmap/storage/map_metadata.h"
 #include "bgkmap/storage/scan_log.h"
 #include "bgkmap/storage/store_options.h"
@@ -61,6 +62,8 @@ struct StoreCounters {
   uint64_t log_records_appended = 0;
   uint64_t log_bytes_appended = 0;
   uint64_t write_errors = 0;  // failed appends and checkpoints
+  // Writes refused before they were tried: below the free-space reserve, or read-only.
+  uint64_t writes_refused_for_space = 0;
 };
 
 struct DiskUsage {
@@ -77,6 +80,9 @@ class TileStore {
   // (CheckParamsCompatible); otherwise the stored derived-layer parameters are updated to
   // `params`. FailedPrecondition as well for a store of a newer format or a directory in use
   // by another process; IoError/DataLoss if the database cannot be opened.
+  // With a free-space reserve (options.free_space) and less than it free: an existing store
+  // opens read-only (nothing is written, not even the parameters; every write is refused until
+  // Resume() finds the space back), and creating a store is refused with IoError.
   static Result<std::unique_ptr<TileStore>> Open(const std::string& dir,
                                                  const StoreOptions& options,
                                                  const MapParams& params);
@@ -146,8 +152,23 @@ class TileStore {
   // nothing half-written is ever acknowledged. Once the cause is gone (the disk has room),
   // Resume() brings the store back: RocksDB's own resume, or else a close and reopen of the
   // database in place. OK if writes are accepted again (OK at once if nothing failed).
+  // A store opened read-only (full disk) is reopened for writing once the reserve is free
+  // again. While less than the reserve is free, Resume() answers the reserve's IoError and
+  // changes nothing: reopening would have RocksDB write onto a full disk.
   // Not thread-safe: call it with no other call on this store in flight.
   Status Resume();
+
+  // Opened on a disk below the free-space reserve: every write is refused until Resume().
+  bool read_only() const { return read_only_.load(); }
+  // OK if `bytes` may be written next to the store now (the reserve stays free and the store
+  // is writable); the refusal otherwise. For files the server keeps in the store's directory
+  // (an import's spool); the store checks its own writes itself.
+  Status AdmitWrite(uint64_t bytes) { return log_->AdmitWrite(bytes); }
+  // Probes the free space now: OK if the reserve is free (whether or not the store is
+  // read-only; Resume() reopens it).
+  Status CheckFreeSpace() { return guard_->Check(); }
+  // The reserve and the free space as last probed (reserve_bytes() 0: no reserve).
+  const FreeSpaceGuard& free_space() const { return *guard_; }
 
   StoreCounters counters() const;
   DiskUsage Usage() const;
@@ -171,6 +192,8 @@ class TileStore {
   std::string dir_;
   StoreOptions options_;
   MapParams params_;
+  std::unique_ptr<FreeSpaceGuard> guard_;  // outlives log_, which checks it
+  std::atomic<bool> read_only_{false};
   std::unique_ptr<StoreDb> db_;
   std::unique_ptr<ScanLog> log_;
 

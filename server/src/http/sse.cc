@@ -1,0 +1,143 @@
+#include "http/sse.h"
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <boost/asio/post.hpp>
+#include <climits>
+#include <nlohmann/json.hpp>
+
+namespace bgkmap {
+namespace {
+
+constexpr size_t kMaxTilesPerEvent = 4096;
+
+std::string EventText(std::string_view name, const nlohmann::json& data) {
+  return "event: " + std::string(name) + "\ndata: " + data.dump() + "\n\n";
+}
+
+}  // namespace
+
+struct EventStreams::Session {
+  explicit Session(std::shared_ptr<HttpExchange> e) : out(std::move(e)) {}
+  const std::shared_ptr<HttpExchange> out;
+  std::atomic<uint64_t> hub_id{0};
+  std::atomic<bool> flush_posted{false};
+};
+
+EventStreams::EventStreams(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
+                           size_t max_clients, std::chrono::milliseconds ping_period)
+    : map_(map), hub_(hub), pool_(pool), max_clients_(max_clients), ping_period_(ping_period) {
+  pinger_ = std::thread([this] { Ping(); });
+}
+
+EventStreams::~EventStreams() { Stop(); }
+
+void EventStreams::Open(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
+  std::unique_lock lock(mu_);
+  if (stopped_ || sessions_.size() >= max_clients_) {
+    lock.unlock();
+    HttpResponse busy{boost::beast::http::status::service_unavailable, request.version()};
+    busy.set(boost::beast::http::field::content_type, "text/plain; charset=utf-8");
+    busy.set(boost::beast::http::field::retry_after, "5");
+    busy.body() = stopped_ ? "shutting down\n"
+                           : "too many event streams (" + std::to_string(max_clients_) +
+                                 " open); retry later\n";
+    exchange->Reply(std::move(busy));
+    return;
+  }
+  const uint64_t key = next_key_++;
+  auto session = std::make_shared<Session>(std::move(exchange));
+  sessions_[key] = session;
+  lock.unlock();
+
+  std::weak_ptr<Session> weak = session;
+  session->out->StartStream(
+      "HTTP/1.1 200 OK\r\nServer: bgkmapd\r\nContent-Type: text/event-stream\r\n"
+      "Cache-Control: no-cache\r\nX-Accel-Buffering: no\r\nConnection: close\r\n\r\n"
+      "retry: 1000\n\n" +
+          EventText("hello", {{"map_version", map_.applied_version()}}),
+      [this, key] { Remove(key); });
+  // The whole map: a key range no tile lies outside of.
+  const uint64_t id = hub_.Subscribe({INT_MIN, INT_MIN}, {INT_MAX, INT_MAX},
+                                     [this, weak] {
+                                       std::shared_ptr<Session> s = weak.lock();
+                                       if (s && !s->flush_posted.exchange(true)) {
+                                         boost::asio::post(pool_, [this, s] { Flush(s); });
+                                       }
+                                     },
+                                     {});
+  session->hub_id = id;
+  lock.lock();
+  if (sessions_.count(key) == 0) {  // closed meanwhile
+    lock.unlock();
+    hub_.Unsubscribe(id);
+    return;
+  }
+  spdlog::debug("event=web_events_open clients={}", sessions_.size());
+}
+
+void EventStreams::Flush(const std::shared_ptr<Session>& s) {
+  s->flush_posted = false;
+  const uint64_t id = s->hub_id.load();
+  if (id == 0) return;
+  const double res = map_.geometry().resolution();
+  const int n = map_.geometry().tile_size();
+  for (;;) {
+    nlohmann::json tiles = nlohmann::json::array();
+    TileKey k;
+    while (tiles.size() < kMaxTilesPerEvent && hub_.Take(id, &k)) {
+      // The tile's extent in metres: [x0, y0, x1, y1].
+      tiles.push_back({k.x * n * res, k.y * n * res, (k.x + 1) * n * res, (k.y + 1) * n * res});
+    }
+    if (tiles.empty()) return;
+    // Watchers are told after a change counts as applied: this version covers it.
+    const nlohmann::json data = {{"map_version", map_.applied_version()}, {"tiles", tiles}};
+    if (!s->out->Send(EventText("tiles", data))) return;  // closed: on_close removes it
+  }
+}
+
+void EventStreams::Remove(uint64_t key) {
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard lock(mu_);
+    auto it = sessions_.find(key);
+    if (it == sessions_.end()) return;
+    s = std::move(it->second);
+    sessions_.erase(it);
+  }
+  if (const uint64_t id = s->hub_id.load(); id != 0) hub_.Unsubscribe(id);
+}
+
+void EventStreams::Ping() {
+  std::unique_lock lock(mu_);
+  while (!stopped_) {
+    cv_.wait_for(lock, ping_period_);
+    if (stopped_) return;
+    // A comment line: browsers ignore it; a peer that went away fails the write.
+    for (auto& [key, s] : sessions_) s->out->Send(": ping\n\n");
+  }
+}
+
+void EventStreams::Stop() {
+  std::map<uint64_t, std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard lock(mu_);
+    if (stopped_) return;
+    stopped_ = true;
+    sessions.swap(sessions_);
+  }
+  cv_.notify_all();
+  if (pinger_.joinable()) pinger_.join();
+  for (auto& [key, s] : sessions) {
+    if (const uint64_t id = s->hub_id.load(); id != 0) hub_.Unsubscribe(id);
+    s->out->Close();
+  }
+}
+
+size_t EventStreams::count() const {
+  std::lock_guard lock(mu_);
+  return sessions_.size();
+}
+
+}  // namespace bgkmap

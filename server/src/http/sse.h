@@ -1,0 +1,58 @@
+// GET /events of the web map: Server-Sent Events telling each page which parts of the map
+// changed, fed by the watch hub (the Watch RPC's fan-out), so the page reloads just those tiles.
+//
+// Each client is one WatchHub subscriber over the whole map: changed tile keys coalesce there
+// (bounded by the map's tiles) and are sent, with the map version, when a worker of the pool gets
+// to them. At most `max_clients` streams are open (more are answered 503); a client that reads
+// nothing is dropped by the HTTP server (write timeout, backlog bound); a comment line every
+// `ping_period` finds clients that went away without closing.
+#pragma once
+
+#include <boost/asio/thread_pool.hpp>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "http/http_exchange.h"
+#include "serving/served_map.h"
+#include "serving/watch_hub.h"
+
+namespace bgkmap {
+
+class EventStreams {
+ public:
+  EventStreams(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool, size_t max_clients,
+               std::chrono::milliseconds ping_period = std::chrono::seconds(15));
+  ~EventStreams();  // Stop()
+
+  // Answers the request with an event stream (or 503 when full or stopping).
+  void Open(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange);
+  // Ends every stream; later Open() calls are answered 503. Idempotent.
+  void Stop();
+  size_t count() const;
+
+ private:
+  struct Session;
+  void Flush(const std::shared_ptr<Session>& session);
+  void Remove(uint64_t key);
+  void Ping();
+
+  ServedMap& map_;
+  WatchHub& hub_;
+  boost::asio::thread_pool& pool_;
+  const size_t max_clients_;
+  const std::chrono::milliseconds ping_period_;
+
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  bool stopped_ = false;
+  uint64_t next_key_ = 1;
+  std::map<uint64_t, std::shared_ptr<Session>> sessions_;
+  std::thread pinger_;
+};
+
+}  // namespace bgkmap

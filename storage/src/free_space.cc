@@ -1,0 +1,95 @@
+#include "bgkmap/storage/free_space.h"
+
+#include <sys/statvfs.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace bgkmap::storage {
+namespace {
+
+std::string Megabytes(uint64_t bytes) {
+  // One decimal: a reserve of a few MB must not read "0 MB free".
+  const uint64_t tenths = (bytes * 10 + (1 << 19)) >> 20;
+  return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10) + " MB";
+}
+
+}  // namespace
+
+Result<uint64_t> StatvfsFreeBytes(const std::string& path) {
+  struct statvfs st;
+  if (statvfs(path.c_str(), &st) != 0) {
+    return Status::IoError("cannot read the free space of " + path + ": " + std::strerror(errno));
+  }
+  return static_cast<uint64_t>(st.f_bavail) * static_cast<uint64_t>(st.f_frsize);
+}
+
+FreeSpaceGuard::FreeSpaceGuard(std::string path, FreeSpaceOptions options)
+    : path_(std::move(path)), options_(std::move(options)) {}
+
+std::chrono::steady_clock::time_point FreeSpaceGuard::Now() const {
+  return options_.clock ? options_.clock() : std::chrono::steady_clock::now();
+}
+
+Status FreeSpaceGuard::RefreshLocked(bool force) {
+  const auto now = Now();
+  if (!force && probed_ && admitted_since_probe_ < options_.refresh_bytes &&
+      now - probed_at_ < std::chrono::milliseconds(options_.refresh_ms)) {
+    return Status::Ok();
+  }
+  Result<uint64_t> free = options_.probe ? options_.probe(path_) : StatvfsFreeBytes(path_);
+  if (!free.ok()) return free.status();
+  probed_ = true;
+  probed_at_ = now;
+  probed_free_ = *free;
+  admitted_since_probe_ = 0;
+  return Status::Ok();
+}
+
+Status FreeSpaceGuard::DecideLocked(uint64_t bytes) {
+  const uint64_t free =
+      probed_free_ > admitted_since_probe_ ? probed_free_ - admitted_since_probe_ : 0;
+  if (free >= bytes && free - bytes >= options_.reserve_bytes) {
+    below_ = false;
+    admitted_since_probe_ += bytes;
+    return Status::Ok();
+  }
+  below_ = true;
+  return Status::IoError("data dir " + path_ + " has " + Megabytes(free) +
+                         " free, below the reserve of " + Megabytes(options_.reserve_bytes) +
+                         " (storage.min_free_space_mb); writes resume when space is freed");
+}
+
+Status FreeSpaceGuard::Admit(uint64_t bytes) {
+  if (!enabled()) return Status::Ok();
+  std::lock_guard lock(mu_);
+  // Refused writes admit nothing, so a paused writer would not re-probe by bytes: while below
+  // the reserve, the time rule alone brings the answer up to date.
+  if (Status s = RefreshLocked(/*force=*/false); !s.ok()) {
+    below_ = true;  // unknown counts as full: RocksDB must not find out by writing
+    return s;
+  }
+  return DecideLocked(bytes);
+}
+
+Status FreeSpaceGuard::Check() {
+  if (!enabled()) return Status::Ok();
+  std::lock_guard lock(mu_);
+  if (Status s = RefreshLocked(/*force=*/true); !s.ok()) {
+    below_ = true;
+    return s;
+  }
+  return DecideLocked(0);
+}
+
+uint64_t FreeSpaceGuard::free_bytes() const {
+  std::lock_guard lock(mu_);
+  return probed_free_ > admitted_since_probe_ ? probed_free_ - admitted_since_probe_ : 0;
+}
+
+bool FreeSpaceGuard::below_reserve() const {
+  std::lock_guard lock(mu_);
+  return below_;
+}
+
+}  // namespace bgkmap::storage
