@@ -7,9 +7,12 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <thread>
 #include <vector>
 
@@ -122,9 +125,29 @@ int main(int argc, char** argv) {
   app.add_option("--scans-per-robot", scans_per_robot, "Scans each robot sends per run")
       ->capture_default_str();
   app.add_option("--queries", queries, "Queries per latency measurement")->capture_default_str();
+  std::string tls_ca, tls_server_name, token_file;
+  app.add_option("--tls-ca", tls_ca, "Connect with TLS, trusting these CAs (PEM)");
+  app.add_option("--tls-server-name", tls_server_name, "Name the server certificate carries");
+  app.add_option("--token-file", token_file, "File holding a bearer token (admin or robot role)");
   CLI11_PARSE(app, argc, argv);
 
-  Client client(server);
+  ClientOptions options;
+  auto read = [](const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  };
+  if (!tls_ca.empty()) options.tls_ca_pem = read(tls_ca);
+  options.tls_server_name = tls_server_name;
+  if (!token_file.empty()) {
+    options.token = read(token_file);
+    while (!options.token.empty() &&
+           std::isspace(static_cast<unsigned char>(options.token.back()))) {
+      options.token.pop_back();
+    }
+  }
+  Client client(server, options);
   if (!client.WaitForConnected(std::chrono::seconds(10))) {
     std::fprintf(stderr, "server_load: cannot reach %s\n", server.c_str());
     return 1;

@@ -12,6 +12,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libprotobuf-dev protobuf-compiler libgrpc++-dev libgrpc-dev protobuf-compiler-grpc
   libboost-dev
+  libssl-dev openssl
   librocksdb-dev
   liboctomap-dev
   gnuplot-nox

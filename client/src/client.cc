@@ -34,13 +34,20 @@ void KeepGrpcInitialized() {
   std::call_once(once, [] { grpc_init(); });
 }
 
+void AddToken(grpc::ClientContext* context, const std::string& token) {
+  if (!token.empty()) context->AddMetadata("authorization", "Bearer " + token);
+}
+
 RpcStatus Malformed(const std::string& what) {
   return RpcStatus(RpcCode::kDataLoss, "malformed server response: " + what);
 }
 
 class GrpcIngestStream final : public IngestStream {
  public:
-  explicit GrpcIngestStream(v1::MapService::Stub& stub) { stream_ = stub.Ingest(&context_); }
+  GrpcIngestStream(v1::MapService::Stub& stub, const std::string& token) {
+    AddToken(&context_, token);
+    stream_ = stub.Ingest(&context_);
+  }
   ~GrpcIngestStream() override {
     if (!finished_) {
       context_.TryCancel();
@@ -92,9 +99,10 @@ class GrpcIngestStream final : public IngestStream {
 
 class GrpcWatch final : public WatchSubscription {
  public:
-  GrpcWatch(v1::MapService::Stub& stub, const WatchQuery& query,
+  GrpcWatch(v1::MapService::Stub& stub, const std::string& token, const WatchQuery& query,
             std::function<void(const TileUpdate&)> on_update)
       : on_update_(std::move(on_update)) {
+    AddToken(&context_, token);
     v1::WatchRequest request;
     ToProto(query, &request);
     reader_ = stub.Watch(&context_, request);
@@ -135,7 +143,9 @@ struct Client::Impl {
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::MapService::Stub> stub;
 
+  // The deadline and the token of a unary or region call.
   void SetDeadline(grpc::ClientContext* context) const {
+    AddToken(context, options.token);
     if (options.timeout.count() > 0) {
       context->set_deadline(std::chrono::system_clock::now() + options.timeout);
     }
@@ -148,7 +158,18 @@ Client::Client(const std::string& target, ClientOptions options) : impl_(new Imp
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(options.max_message_bytes);
   args.SetMaxSendMessageSize(options.max_message_bytes);
-  impl_->channel = grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (!options.tls_ca_pem.empty()) {
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = options.tls_ca_pem;
+    ssl.pem_cert_chain = options.tls_cert_pem;
+    ssl.pem_private_key = options.tls_key_pem;
+    credentials = grpc::SslCredentials(ssl);
+    if (!options.tls_server_name.empty()) {
+      args.SetSslTargetNameOverride(options.tls_server_name);
+    }
+  }
+  impl_->channel = grpc::CreateCustomChannel(target, credentials, args);
   impl_->stub = v1::MapService::NewStub(impl_->channel);
 }
 
@@ -170,7 +191,7 @@ RpcResult<ScanAck> Client::Insert(const ScanData& scan) {
 }
 
 std::unique_ptr<IngestStream> Client::OpenIngest() {
-  return std::make_unique<GrpcIngestStream>(*impl_->stub);
+  return std::make_unique<GrpcIngestStream>(*impl_->stub, impl_->options.token);
 }
 
 RpcResult<std::vector<ScanAck>> Client::IngestAll(
@@ -262,7 +283,8 @@ RpcResult<PathCheck> Client::CheckPath(const PathQuery& query) {
 
 std::unique_ptr<WatchSubscription> Client::Watch(const WatchQuery& query,
                                                  std::function<void(const TileUpdate&)> on_update) {
-  return std::make_unique<GrpcWatch>(*impl_->stub, query, std::move(on_update));
+  return std::make_unique<GrpcWatch>(*impl_->stub, impl_->options.token, query,
+                                     std::move(on_update));
 }
 
 RpcResult<MapInfo> Client::Info() {

@@ -7,6 +7,7 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
 #include <csignal>
+#include <functional>
 #include <iostream>
 #include <sstream>
 
@@ -113,13 +114,24 @@ int main(int argc, char** argv) {
   // during a long recovery) must still shut down gracefully, with the last checkpoint.
   boost::asio::io_context io;
   boost::asio::signal_set signals(io, SIGINT, SIGTERM);
+  boost::asio::signal_set hangup(io, SIGHUP);  // re-read server.auth.tokens_file
   bgkmap::Result<std::unique_ptr<bgkmap::MapServer>> server = bgkmap::MapServer::Start(config);
   if (!server.ok()) {
     spdlog::error("event=start_failed reason=\"{}\"", server.status().message());
     return 1;
   }
+  std::function<void()> wait_hangup = [&] {
+    hangup.async_wait([&](const boost::system::error_code& ec, int) {
+      if (ec) return;
+      spdlog::info("event=signal signal=SIGHUP");
+      (void)(*server)->ReloadTokens();  // logs the outcome; a bad file keeps the old tokens
+      wait_hangup();
+    });
+  };
+  wait_hangup();
   signals.async_wait([&](const boost::system::error_code& ec, int signal) {
     if (ec) return;
+    hangup.cancel();
     spdlog::info("event=signal signal={}", signal == SIGINT ? "SIGINT" : "SIGTERM");
     (*server)->Shutdown();
   });

@@ -19,12 +19,16 @@
 #include <future>
 #include <latch>
 #include <mutex>
+#include <optional>
+#include <string_view>
 #include <thread>
 
+#include "auth/token_table.h"
 #include "bgkmap/v1/map_service.pb.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
 #include "host_port.h"
+#include "http/https_context.h"
 #include "http/metrics.h"
 #include "http/metrics_http.h"
 #include "http/web_routes.h"
@@ -33,6 +37,7 @@
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
+#include "tls_files.h"
 
 namespace bgkmap {
 namespace {
@@ -80,6 +85,18 @@ std::chrono::milliseconds WatchdogPeriod(const ServerLimits& l) {
       std::clamp(static_cast<int64_t>(shortest * 1000 / 4), int64_t{20}, int64_t{1000}));
 }
 
+// The gRPC port's credentials: TLS with server.tls (client certificates required and verified
+// with client_ca_file), plaintext otherwise.
+std::shared_ptr<grpc::ServerCredentials> GrpcCredentials(const std::optional<TlsMaterial>& tls) {
+  if (!tls.has_value()) return grpc::InsecureServerCredentials();
+  grpc::SslServerCredentialsOptions options(
+      tls->client_ca_pem.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                 : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+  options.pem_root_certs = tls->client_ca_pem;
+  options.pem_key_cert_pairs.push_back({tls->private_key_pem, tls->cert_chain_pem});
+  return grpc::SslServerCredentials(options);
+}
+
 // The host of "host:port" as a URL writes it ("[::1]" for IPv6).
 std::string HostOf(const std::string& address) {
   Result<HostPort> hp = ParseHostPort(address);
@@ -98,15 +115,16 @@ size_t ThreadCount(int configured) {
 // destroyed in reverse.
 struct MapServer::Impl {
   Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map,
-       std::unique_ptr<Durability> durable)
+       std::unique_ptr<Durability> durable, std::unique_ptr<TokenTable> token_table)
       : config(cfg),
+        tokens(std::move(token_table)),
         durability(std::move(durable)),
         ingest_pool(ThreadCount(cfg.worker_threads)),
         query_pool(ThreadCount(cfg.query_threads)),
         map(std::move(map), *durability, ingest_pool, ServedMapOptionsFor(cfg)),
         maintenance(this->map, *durability, cfg.storage),
         ctx(cfg, this->map, hub, ingest_pool, query_pool),
-        service(ctx) {}
+        service(ctx, tokens.get()) {}
 
   ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
     ServedMapOptions o;
@@ -119,6 +137,7 @@ struct MapServer::Impl {
   }
 
   ServerConfig config;
+  std::unique_ptr<TokenTable> tokens;      // null: no authentication
   std::unique_ptr<Durability> durability;  // outlives the workers that journal into it
   WatchHub hub;
   boost::asio::thread_pool ingest_pool;
@@ -151,6 +170,23 @@ MapServer::~MapServer() { Shutdown(); }
 
 Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) {
   if (Status s = ValidateServerConfig(config); !s.ok()) return s;
+  if (Status s = ValidateSecurity(config); !s.ok()) return s;
+  // The security files first: a bad one fails the start before the store is opened.
+  std::optional<TlsMaterial> tls;
+  if (config.tls.enabled()) {
+    Result<TlsMaterial> loaded = LoadTlsMaterial(config.tls);
+    if (!loaded.ok()) return loaded.status();
+    tls = std::move(loaded).value();
+  }
+  std::unique_ptr<TokenTable> tokens;
+  if (config.auth.enabled()) {
+    Result<std::unique_ptr<TokenTable>> loaded = TokenTable::Load(
+        config.auth.tokens_file, {QueriesPerToken(config), IngestStreamsPerToken(config)});
+    if (!loaded.ok()) {
+      return Status::InvalidArgument("server.auth.tokens_file: " + loaded.status().message());
+    }
+    tokens = std::move(loaded).value();
+  }
   KeepGrpcInitialized();
   KeepServiceDescriptorLinked();
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
@@ -171,7 +207,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
         r.seconds);
     durability = std::move(opened).value();
   }
-  auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(durability));
+  auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(durability),
+                                     std::move(tokens));
   LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served
@@ -183,6 +220,19 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
                                                   std::shared_ptr<HttpExchange> exchange) {
       web->Handle(request, std::move(exchange));
     };
+    if (tls.has_value()) {
+      Result<std::shared_ptr<boost::asio::ssl::context>> https = MakeHttpsContext(*tls);
+      if (!https.ok()) return https.status();
+      http_options.tls = std::move(https).value();
+    }
+    if (const TokenTable* t = impl->tokens.get()) {
+      // Any role's token, for /metrics and the web map alike: what they show (counts, the
+      // map's cells) is no secret from a client of the map.
+      http_options.authorize = [t](std::string_view authorization) {
+        std::string why;
+        return t->Authenticate(authorization, &why) != nullptr;
+      };
+    }
     Result<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Listen(
         config.metrics_address, [p = impl.get()] { return FormatMetrics(CollectMetrics(p->ctx)); },
         http_options);
@@ -197,7 +247,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(config.listen_address, grpc::InsecureServerCredentials(), &impl->port);
+  builder.AddListeningPort(config.listen_address, GrpcCredentials(tls), &impl->port);
   builder.RegisterService(&impl->service);
   // A request that does not parse answers INVALID_ARGUMENT naming its type, not UNIMPLEMENTED.
   builder.experimental().SetInterceptorCreators(MapServiceInterceptors());
@@ -218,15 +268,19 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
         [health](bool writable) { health->SetServingStatus(kWritesHealthName, writable); });
   }
   impl->ctx.sessions.StartWatchdog(WatchdogPeriod(config.limits));
-  spdlog::info("event=listening address={} port={} worker_threads={} query_threads={}",
-               config.listen_address, impl->port, ThreadCount(config.worker_threads),
-               ThreadCount(config.query_threads));
+  spdlog::info(
+      "event=listening address={} port={} worker_threads={} query_threads={} tls={} auth={}",
+      config.listen_address, impl->port, ThreadCount(config.worker_threads),
+      ThreadCount(config.query_threads),
+      !tls.has_value() ? "off" : (tls->client_ca_pem.empty() ? "on" : "mutual"),
+      impl->tokens == nullptr ? "off" : std::to_string(impl->tokens->size()) + "_tokens");
   if (impl->metrics != nullptr) {
     impl->metrics->Start();
     spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
                  impl->metrics_port);
-    spdlog::info("event=web_map_listening url=http://{}:{}/", HostOf(config.metrics_address),
-                 impl->metrics_port);
+    spdlog::info("event=web_map_listening url={}://{}:{}/{}", tls.has_value() ? "https" : "http",
+                 HostOf(config.metrics_address), impl->metrics_port,
+                 impl->tokens == nullptr ? "" : "login?token=<token>");
   }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
 }
@@ -234,6 +288,21 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
 int MapServer::port() const { return impl_->port; }
 
 int MapServer::metrics_port() const { return impl_->metrics_port; }
+
+Status MapServer::ReloadTokens() {
+  if (impl_->tokens == nullptr) {
+    spdlog::info("event=tokens_reload_skipped reason=\"server.auth.tokens_file is not set\"");
+    return Status::FailedPrecondition("server.auth.tokens_file is not set; nothing to reload");
+  }
+  if (Status s = impl_->tokens->Reload(); !s.ok()) {
+    spdlog::error("event=tokens_reload_failed tokens={} reason=\"{}\" (the previous tokens stay)",
+                  impl_->tokens->size(), s.message());
+    return s;
+  }
+  spdlog::info("event=tokens_reloaded file={} tokens={}", impl_->tokens->path(),
+               impl_->tokens->size());
+  return Status::Ok();
+}
 
 void MapServer::Shutdown() {
   std::lock_guard lock(impl_->shutdown_mu);

@@ -85,6 +85,22 @@ const std::vector<ServerKey>& Keys() {
           "shutdown_timeout_s", [](ServerConfig & c) -> auto& { return c.shutdown_timeout_s; }),
       Key<std::string>(
           "metrics_address", [](ServerConfig & c) -> auto& { return c.metrics_address; }),
+      Key<std::string>(
+          "tls.cert_file", [](ServerConfig & c) -> auto& { return c.tls.cert_file; }),
+      Key<std::string>(
+          "tls.key_file", [](ServerConfig & c) -> auto& { return c.tls.key_file; }),
+      Key<std::string>(
+          "tls.client_ca_file", [](ServerConfig & c) -> auto& { return c.tls.client_ca_file; }),
+      Key<std::string>(
+          "auth.tokens_file", [](ServerConfig & c) -> auto& { return c.auth.tokens_file; }),
+      Key<uint32_t>(
+          "auth.max_queries_per_token",
+          [](ServerConfig & c) -> auto& { return c.auth.max_queries_per_token; }),
+      Key<uint32_t>(
+          "auth.max_ingest_streams_per_token",
+          [](ServerConfig & c) -> auto& { return c.auth.max_ingest_streams_per_token; }),
+      Key<bool>(
+          "insecure", [](ServerConfig & c) -> auto& { return c.insecure; }),
       Key<uint64_t>(
           "max_points_per_scan",
           [](ServerConfig & c) -> auto& { return c.limits.max_points_per_scan; }),
@@ -208,16 +224,29 @@ const std::vector<ServerKey>& GeoreferenceKeys() {
   return keys;
 }
 
+// Keys of a subsection ("tls.cert_file") are read from nested mappings (`tls: {cert_file: ..}`)
+// or as one dotted name (--set server.tls.cert_file=...).
 Status ReadSection(const YAML::Node& section, const std::string& section_name,
-                   const std::vector<ServerKey>& keys, ServerConfig& config) {
+                   const std::vector<ServerKey>& keys, ServerConfig& config,
+                   const std::string& prefix = "") {
   if (!section.IsMap()) {
-    return Status::InvalidArgument(section_name + ": must be a mapping of keys");
+    return Status::InvalidArgument(section_name + (prefix.empty() ? "" : "." + prefix) +
+                                   ": must be a mapping of keys");
   }
   for (const auto& entry : section) {
-    const std::string name = entry.first.as<std::string>();
+    const std::string name = prefix + entry.first.as<std::string>();
     const ServerKey* key = nullptr;
+    bool subsection = false;
     for (const ServerKey& k : keys) {
       if (k.name == name) key = &k;
+      if (k.name.rfind(name + ".", 0) == 0) subsection = true;
+    }
+    if (key == nullptr && subsection) {
+      if (entry.second.IsNull()) continue;  // "tls:" alone means defaults
+      if (Status s = ReadSection(entry.second, section_name, keys, config, name + "."); !s.ok()) {
+        return s;
+      }
+      continue;
     }
     if (key == nullptr) {
       return Status::InvalidArgument(section_name + "." + name + ": unknown key");
@@ -225,6 +254,17 @@ Status ReadSection(const YAML::Node& section, const std::string& section_name,
     if (Status s = key->read(entry.second, config); !s.ok()) return s;
   }
   return Status::Ok();
+}
+
+// Writes "tls.cert_file" as server: {tls: {cert_file: ...}}.
+void WriteKey(YAML::Node section, const std::string& name, const YAML::Node& value) {
+  const size_t dot = name.find('.');
+  if (dot == std::string::npos) {
+    section[name] = value;
+    return;
+  }
+  YAML::Node sub = section[name.substr(0, dot)];
+  WriteKey(sub, name.substr(dot + 1), value);
 }
 
 }  // namespace
@@ -276,7 +316,7 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
 std::string ServerConfigToYaml(const ServerConfig& config) {
   YAML::Node root = MapParamsToYaml(config.map);
   YAML::Node server(YAML::NodeType::Map);
-  for (const ServerKey& k : Keys()) server[k.name] = k.write(config);
+  for (const ServerKey& k : Keys()) WriteKey(server, k.name, k.write(config));
   root["server"] = server;
   YAML::Node storage(YAML::NodeType::Map);
   for (const ServerKey& k : StorageKeys()) storage[k.name] = k.write(config);
@@ -404,6 +444,50 @@ Status ValidateServerConfig(const ServerConfig& c) {
         "georeference.origin: needs georeference.crs (the system the origin is given in)");
   }
   return Status::Ok();
+}
+
+Status ValidateSecurity(const ServerConfig& c) {
+  auto bad = [](const std::string& key, const std::string& why) {
+    return Status::InvalidArgument("server." + key + ": " + why);
+  };
+  if (c.tls.key_file.empty() != c.tls.cert_file.empty()) {
+    return bad(c.tls.cert_file.empty() ? "tls.cert_file" : "tls.key_file",
+               "tls.cert_file and tls.key_file are set together");
+  }
+  if (!c.tls.client_ca_file.empty() && !c.tls.enabled()) {
+    return bad("tls.client_ca_file", "needs server.tls.cert_file (client certificates need TLS)");
+  }
+  if (!c.insecure) {
+    for (const auto& [key, address] :
+         {std::pair<const char*, const std::string&>{"listen_address", c.listen_address},
+          {"metrics_address", c.metrics_address}}) {
+      if (address.empty() || IsLoopbackAddress(address)) continue;
+      if (!c.tls.enabled() || !c.auth.enabled()) {
+        return bad(key, "'" + address +
+                            "' is not a loopback address: serving it needs server.tls.cert_file "
+                            "and server.auth.tokens_file (or server.insecure: true)");
+      }
+    }
+  }
+  return Status::Ok();
+}
+
+bool IsLoopbackAddress(const std::string& address) {
+  if (address.rfind("unix:", 0) == 0 || address.rfind("unix-abstract:", 0) == 0) return true;
+  Result<HostPort> hp = ParseHostPort(address);
+  if (!hp.ok()) return false;
+  const std::string& h = hp->host;
+  return h == "localhost" || h == "::1" || h.rfind("127.", 0) == 0;
+}
+
+uint32_t QueriesPerToken(const ServerConfig& c) {
+  if (c.auth.max_queries_per_token > 0) return c.auth.max_queries_per_token;
+  return std::max<uint32_t>(1, c.limits.max_concurrent_queries / 4);
+}
+
+uint32_t IngestStreamsPerToken(const ServerConfig& c) {
+  if (c.auth.max_ingest_streams_per_token > 0) return c.auth.max_ingest_streams_per_token;
+  return std::max<uint32_t>(1, c.limits.max_ingest_streams / 4);
 }
 
 }  // namespace bgkmap

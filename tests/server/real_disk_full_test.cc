@@ -201,7 +201,7 @@ void FillRefuseAndResume(const std::string& reserve_mb) {
     EXPECT_NE(refused.message().find("below the reserve of 16.0 MB"), std::string::npos)
         << refused.message();
     EXPECT_NE(refused.message().find("writes resume when space is freed"), std::string::npos);
-    EXPECT_NE(server.FindLine("event=storage_full"), "");
+    EXPECT_NE(server.WaitForLine("event=storage_full", 10), "");  // the log pipe lags the RPC
   } else {
     EXPECT_NE(refused.message().find("(disk full)"), std::string::npos) << refused.message();
   }
@@ -276,7 +276,7 @@ void FillRefuseAndResume(const std::string& reserve_mb) {
                           << LastLines(server);
   EXPECT_EQ(retry->status, AckStatus::kApplied);
   if (reserve) {
-    EXPECT_NE(server.FindLine("event=storage_resumed"), "");
+    EXPECT_NE(server.WaitForLine("event=storage_resumed", 10), "");
   }
   for (int i = 0; i < 5; ++i) {  // and the next ones
     RpcResult<ScanAck> ack = client.Insert(Scan(base, ++sequence, &owned));

@@ -68,7 +68,8 @@ TEST(ServerConfigTest, PrintedConfigReadsBackIdentically) {
   const std::string text = ServerConfigToYaml(c);
   ASSERT_GT(ServerConfigKeys().size(), 10u);  // the loop below checks every key, so there are some
   for (const std::string& key : ServerConfigKeys()) {
-    EXPECT_NE(text.find(key + ":"), std::string::npos) << key;
+    // "tls.cert_file" is written nested: tls: {cert_file: ...}
+    EXPECT_NE(text.find(key.substr(key.rfind('.') + 1) + ":"), std::string::npos) << key;
   }
   Result<ServerConfig> back = ServerConfigFromYaml(YAML::Load(text));
   ASSERT_TRUE(back.ok()) << back.status().ToString();
@@ -179,6 +180,36 @@ TEST(ServerConfigTest, GeoreferenceSection) {
   EXPECT_EQ(back->georeference.origin, (std::array<double, 3>{300000, 5270000, 0}));
   // No section: a local frame.
   EXPECT_TRUE(ServerConfigFromYaml(YAML::Load("server: {}\n"))->georeference.crs.empty());
+}
+
+TEST(ServerConfigTest, SecurityKeysReadNestedOrDottedAndAreCheckedTogether) {
+  Result<ServerConfig> c = ServerConfigFromYaml(YAML::Load(
+      "server: {tls: {cert_file: c.pem, key_file: k.pem}, auth: {tokens_file: t.yaml}}"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->tls.cert_file, "c.pem");
+  EXPECT_EQ(c->tls.key_file, "k.pem");
+  EXPECT_EQ(c->auth.tokens_file, "t.yaml");
+  ServerConfig o;
+  ASSERT_TRUE(ApplyConfigOverride(o, "server.tls.client_ca_file=ca.pem").ok());
+  EXPECT_EQ(o.tls.client_ca_file, "ca.pem");
+  EXPECT_EQ(ValidateSecurity(o).message(),
+            "server.tls.client_ca_file: needs server.tls.cert_file (client certificates need TLS)");
+  const Status unknown = ServerConfigFromYaml(YAML::Load("server: {tls: {cert: x}}")).status();
+  EXPECT_EQ(unknown.message(), "server.tls.cert: unknown key");
+  // Loopback needs nothing; anything else needs TLS and tokens, or insecure.
+  ServerConfig exposed;
+  exposed.listen_address = "0.0.0.0:50051";
+  EXPECT_NE(ValidateSecurity(exposed).message().find("server.listen_address: '0.0.0.0:50051' is "
+                                                     "not a loopback address"),
+            std::string::npos);
+  exposed.insecure = true;
+  EXPECT_TRUE(ValidateSecurity(exposed).ok());
+  for (const char* loopback : {"127.0.0.1:1", "localhost:1", "[::1]:1", "127.8.9.10:0"}) {
+    EXPECT_TRUE(IsLoopbackAddress(loopback)) << loopback;
+  }
+  for (const char* other : {"0.0.0.0:1", "[::]:1", "10.0.0.1:1", "map.example:1", "garbage"}) {
+    EXPECT_FALSE(IsLoopbackAddress(other)) << other;
+  }
 }
 
 }  // namespace

@@ -9,7 +9,8 @@ namespace bgkmap::cli {
 namespace {
 
 struct ExportOptions {
-  std::string server, out;
+  ServerTarget server;
+  std::string out;
   std::vector<double> bbox;
 };
 
@@ -20,7 +21,9 @@ int RunExport(const ExportOptions& o) {
     if (!b.ok()) return Usage("export", b.status().message());
     box = *b;
   }
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("export", connected.status().message());
+  Client& client = **connected;
   RpcResult<ExportResult> r = client.ExportMap(box, o.out);
   if (!r.ok()) return Fail("export", r.status().ToString());
   std::printf("bgkmap export: %llu tiles, %llu bytes, map version %llu -> %s\n",
@@ -30,11 +33,14 @@ int RunExport(const ExportOptions& o) {
 }
 
 struct ImportOptions {
-  std::string server, in;
+  ServerTarget server;
+  std::string in;
 };
 
 int RunImport(const ImportOptions& o) {
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("import", connected.status().message());
+  Client& client = **connected;
   RpcResult<ImportResult> r = client.ImportMap(o.in);
   if (!r.ok()) return Fail("import", r.status().ToString());
   std::printf(

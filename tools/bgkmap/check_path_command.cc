@@ -11,7 +11,7 @@ namespace bgkmap::cli {
 namespace {
 
 struct CheckPathOptions {
-  std::string server;
+  ServerTarget server;
   std::vector<double> poses;    // x,y,yaw triples
   std::vector<double> polygon;  // x,y pairs, robot frame
   double radius = 0;
@@ -44,7 +44,9 @@ int RunCheckPath(const CheckPathOptions& o) {
   if (o.max_trav >= 0) q.max_traversability = o.max_trav;
   if (o.max_var >= 0) q.max_traversability_variance = o.max_var;
   if (o.max_unknown >= 0) q.max_unknown_fraction = o.max_unknown;
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Error(connected.status().message());
+  Client& client = **connected;
   RpcResult<PathCheck> r = client.CheckPath(q);
   if (!r.ok()) return Error(r.status().ToString());
   nlohmann::json out = {{"safe", r->safe},

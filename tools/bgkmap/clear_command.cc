@@ -8,7 +8,7 @@ namespace bgkmap::cli {
 namespace {
 
 struct ClearOptions {
-  std::string server;
+  ServerTarget server;
   std::vector<double> bbox;
   bool yes = false;
 };
@@ -17,7 +17,9 @@ int RunClear(const ClearOptions& o) {
   Result<MetricBox> box = ParseBox(o.bbox, "--bbox");
   if (!box.ok()) return Usage("clear", box.status().message());
   if (!o.yes) return Usage("clear", "this erases map data; pass --yes to confirm");
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("clear", connected.status().message());
+  Client& client = **connected;
   RpcResult<ClearResult> r = client.ClearRegion(*box);
   if (!r.ok()) return Fail("clear", r.status().ToString());
   std::printf("bgkmap clear: %zu tiles changed, map version %llu\n", r->changed_tiles.size(),

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,8 +14,22 @@ namespace bgkmap::cli {
 
 inline constexpr const char* kDefaultServer = "127.0.0.1:50051";
 
-// Adds --server (host:port of bgkmapd) to `cmd`; default $BGKMAP_SERVER, else kDefaultServer.
-void AddServerOption(CLI::App* cmd, std::string& server);
+// Where bgkmapd is and how to reach it: its address, TLS files and the bearer token's file.
+struct ServerTarget {
+  std::string address;
+  std::string tls_ca;    // --tls-ca: CA certificates (PEM) the server must chain to
+  std::string tls_cert;  // --tls-cert / --tls-key: this client's certificate (mTLS)
+  std::string tls_key;
+  std::string tls_server_name;  // --tls-server-name: the name the certificate carries
+  std::string token_file;       // --token-file; else $BGKMAP_TOKEN holds the token itself
+};
+
+// Adds --server (host:port of bgkmapd; default $BGKMAP_SERVER, else kDefaultServer), --tls-ca,
+// --tls-cert, --tls-key, --tls-server-name and --token-file to `cmd`.
+void AddServerOption(CLI::App* cmd, ServerTarget& server);
+
+// The client for `target`, its files read; the error names the option at fault.
+Result<std::unique_ptr<Client>> Connect(const ServerTarget& target);
 
 // "xmin,ymin,xmax,ymax" already split by CLI11 into 4 numbers.
 Result<MetricBox> ParseBox(const std::vector<double>& v, const std::string& option);

@@ -31,8 +31,10 @@ nlohmann::json ToJson(const YAML::Node& n) {
   }
 }
 
-int RunInfo(const std::string& server) {
-  Client client(server);
+int RunInfo(const ServerTarget& server) {
+  Result<std::unique_ptr<Client>> connected = Connect(server);
+  if (!connected.ok()) return Usage("info", connected.status().message());
+  Client& client = **connected;
   RpcResult<MapInfo> r = client.Info();
   if (!r.ok()) return Fail("info", r.status().ToString());
   const nlohmann::json robots = RobotsJson(r->robots);
@@ -80,7 +82,7 @@ int RunInfo(const std::string& server) {
 }  // namespace
 
 void RegisterInfoCommand(CLI::App& app, int& exit_code) {
-  auto server = std::make_shared<std::string>();
+  auto server = std::make_shared<ServerTarget>();
   CLI::App* cmd = app.add_subcommand("info", "Describe the served map (JSON)");
   AddServerOption(cmd, *server);
   cmd->callback([server, &exit_code] { exit_code = RunInfo(*server); });

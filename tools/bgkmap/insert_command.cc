@@ -14,7 +14,8 @@ namespace bgkmap::cli {
 namespace {
 
 struct InsertOptions {
-  std::string server, input, robot = "robot";
+  ServerTarget server;
+  std::string input, robot = "robot";
   double rate_hz = 0;  // 0: as fast as flow control allows
   bool restart = false;
 };
@@ -23,9 +24,11 @@ int RunInsert(const InsertOptions& o) {
   if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input);
   if (!source.ok()) return Fail("insert", source.status().message());
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("insert", connected.status().message());
+  Client& client = **connected;
   if (!client.WaitForConnected(std::chrono::seconds(10))) {
-    return Fail("insert", "cannot reach bgkmapd at " + o.server);
+    return Fail("insert", "cannot reach bgkmapd at " + o.server.address);
   }
   // Resume: the server remembers the last sequence number it admitted for this robot.
   uint64_t first = 0;

@@ -10,7 +10,7 @@ namespace bgkmap::cli {
 namespace {
 
 struct PointsOptions {
-  std::string server;
+  ServerTarget server;
   std::vector<double> xy;
   std::vector<std::string> layers;
 };
@@ -23,7 +23,9 @@ int RunPoints(const PointsOptions& o) {
   for (size_t i = 0; i < o.xy.size(); i += 2) pts.push_back({o.xy[i], o.xy[i + 1]});
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
   if (!layers.ok()) return Usage("points", layers.status().message());
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("points", connected.status().message());
+  Client& client = **connected;
   RpcResult<PointValues> r = client.QueryPoints(pts, *layers);
   if (!r.ok()) return Fail("points", r.status().ToString());
   nlohmann::json out = {{"map_version", r->map_version}, {"points", nlohmann::json::array()}};

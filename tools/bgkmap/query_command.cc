@@ -11,7 +11,8 @@ namespace bgkmap::cli {
 namespace {
 
 struct QueryOptions {
-  std::string server, out, png, ot;
+  ServerTarget server;
+  std::string out, png, ot;
   std::vector<double> bbox;
   std::vector<std::string> layers;
   int stride = 1;
@@ -24,7 +25,9 @@ int RunQuery(const QueryOptions& o) {
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
   if (!layers.ok()) return Usage("query", layers.status().message());
   if (o.stride < 1) return Usage("query", "--stride must be >= 1");
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("query", connected.status().message());
+  Client& client = **connected;
   // Info gives the known bounds and where the map frame sits (server config `georeference`).
   RpcResult<MapInfo> info = client.Info();
   if (!info.ok()) return Fail("query", info.status().ToString());

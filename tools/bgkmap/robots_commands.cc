@@ -10,8 +10,10 @@
 namespace bgkmap::cli {
 namespace {
 
-int RunRobots(const std::string& server) {
-  Client client(server);
+int RunRobots(const ServerTarget& server) {
+  Result<std::unique_ptr<Client>> connected = Connect(server);
+  if (!connected.ok()) return Usage("robots", connected.status().message());
+  Client& client = **connected;
   RpcResult<MapInfo> r = client.Info();
   if (!r.ok()) return Fail("robots", r.status().ToString());
   const nlohmann::json robots = RobotsJson(r->robots);
@@ -20,7 +22,7 @@ int RunRobots(const std::string& server) {
 }
 
 struct RetireOptions {
-  std::string server;
+  ServerTarget server;
   std::string robot_id;
   bool yes = false;
 };
@@ -31,7 +33,9 @@ int RunRetire(const RetireOptions& o) {
                 "the robot's sequence number is forgotten (its next scan starts afresh); pass "
                 "--yes to confirm");
   }
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("retire-robot", connected.status().message());
+  Client& client = **connected;
   RpcResult<RetiredRobot> r = client.RetireRobot(o.robot_id);
   if (!r.ok()) return Fail("retire-robot", r.status().ToString());
   std::printf("bgkmap retire-robot: retired at sequence %llu; %llu robots left\n",
@@ -43,7 +47,7 @@ int RunRetire(const RetireOptions& o) {
 }  // namespace
 
 void RegisterRobotsCommand(CLI::App& app, int& exit_code) {
-  auto server = std::make_shared<std::string>();
+  auto server = std::make_shared<ServerTarget>();
   CLI::App* cmd = app.add_subcommand("robots", "List the robots the server knows (JSON)");
   AddServerOption(cmd, *server);
   cmd->callback([server, &exit_code] { exit_code = RunRobots(*server); });

@@ -16,7 +16,7 @@ namespace {
 std::atomic<bool> g_interrupted{false};
 
 struct WatchOptions {
-  std::string server;
+  ServerTarget server;
   std::vector<double> bbox;
   int count = 0;        // 0: unlimited
   double duration = 0;  // seconds, 0: unlimited
@@ -26,7 +26,9 @@ struct WatchOptions {
 int RunWatch(const WatchOptions& o) {
   Result<MetricBox> box = ParseBox(o.bbox, "--bbox");
   if (!box.ok()) return Usage("watch", box.status().message());
-  Client client(o.server);
+  Result<std::unique_ptr<Client>> connected = Connect(o.server);
+  if (!connected.ok()) return Usage("watch", connected.status().message());
+  Client& client = **connected;
   std::mutex mu;
   std::condition_variable cv;
   int seen = 0;

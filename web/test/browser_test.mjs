@@ -3,9 +3,12 @@
 //   1. the page draws map pixels (screenshot analysis), fetching nothing but loopback;
 //   2. a scan inserted afterwards appears on the page within 2 s (Server-Sent Events);
 //   3. a click shows the values `bgkmap points` prints for the clicked point.
+// With BGKMAP_WEB_AUTH=1 the same over HTTPS with tokens (a certificate made by the openssl CLI):
+// the page is 401 before /login?token=, and everything above works with the cookie it sets.
 // Exit 0 pass, 1 fail, 77 skip (chromium missing). Environment: BGKMAPD, BGKMAP_CLI,
-// BGKMAP_SHARED_DATA, CHROMIUM (default /usr/bin/chromium).
+// BGKMAP_SHARED_DATA, CHROMIUM (default /usr/bin/chromium), BGKMAP_WEB_AUTH.
 import { spawn, execFileSync } from 'node:child_process';
+import crypto from 'node:crypto';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -49,9 +52,28 @@ function scanDir(name, indices, dx) {
   return dir;
 }
 
+// With auth: a self-signed certificate for 127.0.0.1, an admin token (the CLI inserts with it;
+// any role's token opens the page).
+const auth = process.env.BGKMAP_WEB_AUTH === '1';
+const token = crypto.randomBytes(16).toString('hex');
+const serverArgs = ['--listen', '127.0.0.1:0', '--http', '127.0.0.1:0'];
+const cliAuth = [];
+if (auth) {
+  const cert = path.join(tmp, 'server.pem'), key = path.join(tmp, 'server.key');
+  execFileSync('openssl', ['req', '-x509', '-newkey', 'rsa:2048', '-nodes', '-keyout', key,
+    '-out', cert, '-days', '1', '-subj', '/CN=127.0.0.1', '-addext',
+    'subjectAltName=IP:127.0.0.1'], { stdio: 'pipe' });
+  const tokens = path.join(tmp, 'tokens.yaml');
+  const digest = crypto.createHash('sha256').update(token).digest('hex');
+  fs.writeFileSync(tokens, `tokens:\n  - {name: ops, sha256: ${digest}, role: admin}\n`);
+  fs.writeFileSync(path.join(tmp, 'token'), token);
+  serverArgs.push('--set', `server.tls.cert_file=${cert}`, '--set', `server.tls.key_file=${key}`,
+    '--set', `server.auth.tokens_file=${tokens}`);
+  cliAuth.push('--tls-ca', cert, '--token-file', path.join(tmp, 'token'));
+}
+
 // bgkmapd on loopback ports chosen by the system, read from its log.
-const server = spawn(bgkmapd, ['--listen', '127.0.0.1:0', '--http', '127.0.0.1:0'],
-  { stdio: ['ignore', 'pipe', 'pipe'] });
+const server = spawn(bgkmapd, serverArgs, { stdio: ['ignore', 'pipe', 'pipe'] });
 // However this script ends (a broken stdout pipe, say), bgkmapd does not outlive it.
 process.on('exit', () => { if (server.exitCode === null) server.kill('SIGKILL'); });
 let serverLog = '';
@@ -71,7 +93,8 @@ const ports = await new Promise((resolve, reject) => {
   server.on('exit', (code) => reject(new Error(`bgkmapd exited ${code}:\n${serverLog}`)));
 });
 const insert = (dir, robot) =>
-  execFileSync(cli, ['insert', dir, '--server', ports.grpc, '--robot', robot], { stdio: 'pipe' });
+  execFileSync(cli, ['insert', dir, '--server', ports.grpc, '--robot', robot, ...cliAuth],
+    { stdio: 'pipe' });
 
 let context;
 try {
@@ -81,6 +104,7 @@ try {
   context = await chromium.launchPersistentContext(userData, {
     executablePath: chromiumPath,
     headless: true,
+    ignoreHTTPSErrors: auth,  // the test's own self-signed certificate
     viewport: { width: 1280, height: 800 },
     args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
       '--disable-background-networking', '--disable-component-update', '--disable-sync'],
@@ -95,8 +119,23 @@ try {
   });
   const pageErrors = [];
   page.on('pageerror', (e) => pageErrors.push(String(e)));
-  const base = `http://127.0.0.1:${ports.http}`;
-  await page.goto(base + '/', { waitUntil: 'load' });
+  const base = `${auth ? 'https' : 'http'}://127.0.0.1:${ports.http}`;
+  if (auth) {
+    const refused = await page.goto(base + '/', { waitUntil: 'load' });
+    check(refused.status() === 401, `the page without a token is 401 (${refused.status()})`);
+    const wrong = await page.goto(base + '/login?token=wrong', { waitUntil: 'load' });
+    check(wrong.status() === 401, `/login with a wrong token is 401 (${wrong.status()})`);
+    await page.goto(base + '/login?token=' + token, { waitUntil: 'load' });
+    check(page.url() === base + '/', `/login redirects to the page (${page.url()})`);
+    const cookies = await context.cookies(base);
+    const c = cookies.find((k) => k.name === 'bgkmap_token');
+    check(c && c.httpOnly && c.secure && c.sameSite === 'Strict',
+      `the cookie is HttpOnly, Secure, SameSite=Strict (${JSON.stringify(c)})`);
+    check(!(await page.evaluate(() => document.cookie)).includes('bgkmap_token'),
+      'the page\'s script cannot read the token');
+  } else {
+    await page.goto(base + '/', { waitUntil: 'load' });
+  }
   await page.waitForFunction(() => window.bgkmap && window.bgkmap.map, null, { timeout: 10000 });
   // The whole street and empty land east of it: 0.4 m per pixel.
   await page.evaluate(() => window.bgkmap.map.setView([10, 60], -2, { animate: false }));
@@ -158,8 +197,8 @@ try {
   await page.waitForFunction(() => window.bgkmap.lastPoint !== null, null, { timeout: 5000 });
   const shown = await page.evaluate(() => window.bgkmap.lastPoint);
   const p = shown.points[0];
-  const printed = JSON.parse(execFileSync(cli, ['points', '--server', ports.grpc, `${p.x},${p.y}`],
-    { encoding: 'utf8' }));
+  const printed = JSON.parse(execFileSync(cli,
+    ['points', '--server', ports.grpc, `${p.x},${p.y}`, ...cliAuth], { encoding: 'utf8' }));
   const q = printed.points[0];
   const layers = ['elevation', 'elevation_variance', 'traversability', 'traversability_variance', 'state'];
   log(`clicked x ${p.x} y ${p.y}:`, JSON.stringify(p));

@@ -12,6 +12,7 @@ bgkmap.BgkmapError with the gRPC status code and the server's message.
 
 from __future__ import annotations
 
+import collections
 import os
 import threading
 from typing import Callable, Iterable, Iterator, Optional
@@ -35,19 +36,64 @@ def _rpc(call, *args, **kwargs):
         raise BgkmapError.from_rpc_error(e) from None
 
 
+def _read(path: str) -> bytes:
+    with open(path, "rb") as f:
+        return f.read()
+
+
+class _CallDetails(collections.namedtuple(
+        "_CallDetails", ("method", "timeout", "metadata", "credentials", "wait_for_ready",
+                         "compression")), grpc.ClientCallDetails):
+    pass
+
+
+class _BearerToken(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInterceptor,
+                   grpc.StreamUnaryClientInterceptor, grpc.StreamStreamClientInterceptor):
+    """Adds "authorization: Bearer <token>" to every call's metadata."""
+
+    def __init__(self, token: str):
+        self._header = ("authorization", "Bearer " + token)
+
+    def _details(self, d):
+        metadata = list(d.metadata or []) + [self._header]
+        return _CallDetails(d.method, d.timeout, metadata, d.credentials,
+                            getattr(d, "wait_for_ready", None), getattr(d, "compression", None))
+
+    def intercept_unary_unary(self, continuation, details, request):
+        return continuation(self._details(details), request)
+
+    def intercept_unary_stream(self, continuation, details, request):
+        return continuation(self._details(details), request)
+
+    def intercept_stream_unary(self, continuation, details, requests):
+        return continuation(self._details(details), requests)
+
+    def intercept_stream_stream(self, continuation, details, requests):
+        return continuation(self._details(details), requests)
+
+
 class Client:
     """A connection to bgkmapd.
 
     address: "host:port" (any gRPC target); None takes $BGKMAP_SERVER, else 127.0.0.1:50051.
     timeout: deadline in seconds of each call except the long-lived streams (insert_stream, watch);
         None for none.
-    credentials: grpc.ChannelCredentials for a TLS channel (grpc.ssl_channel_credentials(...),
-        composed with call credentials for a token); None: plaintext.
+    tls_ca: path of the CA certificates (PEM) the server's certificate must chain to; set, the
+        channel uses TLS (server.tls.cert_file). None: plaintext.
+    tls_cert, tls_key: paths of this client's certificate and key (PEM), for a server that asks
+        for client certificates (server.tls.client_ca_file).
+    tls_server_name: the name the server certificate carries, when not the address's host.
+    token: bearer token sent on every call as "authorization: Bearer <token>"
+        (server.auth.tokens_file); None takes $BGKMAP_TOKEN, "" sends none.
+    credentials: grpc.ChannelCredentials for a TLS channel built by the caller instead of tls_*.
     max_message_bytes: largest message sent or accepted (the server's default limit is 64 MiB).
     options: further gRPC channel arguments, [(name, value), ...].
     """
 
     def __init__(self, address: Optional[str] = None, *, timeout: Optional[float] = 60.0,
+                 tls_ca: Optional[str] = None, tls_cert: Optional[str] = None,
+                 tls_key: Optional[str] = None, tls_server_name: Optional[str] = None,
+                 token: Optional[str] = None,
                  credentials: Optional[grpc.ChannelCredentials] = None,
                  max_message_bytes: int = 64 << 20, options: Iterable = ()):
         self.address = address or os.environ.get("BGKMAP_SERVER") or DEFAULT_SERVER
@@ -55,11 +101,29 @@ class Client:
         channel_options = [("grpc.max_receive_message_length", max_message_bytes),
                            ("grpc.max_send_message_length", max_message_bytes)]
         channel_options += list(options)
+        if (tls_cert is None) != (tls_key is None):
+            raise ValueError("tls_cert and tls_key go together")
+        if tls_cert is not None and tls_ca is None:
+            raise ValueError("tls_cert needs tls_ca (client certificates need TLS)")
+        if tls_ca is not None:
+            if credentials is not None:
+                raise ValueError("give either tls_ca (and tls_cert, tls_key) or credentials")
+            credentials = grpc.ssl_channel_credentials(
+                root_certificates=_read(tls_ca),
+                private_key=_read(tls_key) if tls_key else None,
+                certificate_chain=_read(tls_cert) if tls_cert else None)
+        if tls_server_name:
+            channel_options.append(("grpc.ssl_target_name_override", tls_server_name))
         if credentials is None:
             self._channel = grpc.insecure_channel(self.address, options=channel_options)
         else:
             self._channel = grpc.secure_channel(self.address, credentials, options=channel_options)
-        self._stub = map_service_pb2_grpc.MapServiceStub(self._channel)
+        if token is None:
+            token = os.environ.get("BGKMAP_TOKEN", "")
+        # Metadata rather than call credentials: a token also works on a plaintext loopback port.
+        intercepted = (grpc.intercept_channel(self._channel, _BearerToken(token)) if token
+                       else self._channel)
+        self._stub = map_service_pb2_grpc.MapServiceStub(intercepted)
 
     # --- lifetime ----------------------------------------------------------------------------
 

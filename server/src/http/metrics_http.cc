@@ -7,18 +7,23 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
+#include <boost/asio/ssl/context.hpp>
+#include <boost/asio/ssl/error.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl/ssl_stream.hpp>
 #include <exception>
 #include <functional>
 #include <mutex>
 #include <optional>
 #include <set>
 #include <thread>
+#include <type_traits>
 
 #include "host_port.h"
 #include "http/http_exchange.h"
+#include "http/login_cookie.h"
 
 namespace bgkmap {
 namespace {
@@ -29,6 +34,7 @@ namespace http = beast::http;
 using tcp = asio::ip::tcp;
 
 constexpr const char* kMetricsPath = "/metrics";
+constexpr const char* kLoginPath = "/login";
 constexpr const char* kMetricsContentType = "text/plain; version=0.0.4; charset=utf-8";
 // How long, and for how many bytes, a connection waits for the client to close after the
 // response.
@@ -37,7 +43,19 @@ constexpr size_t kMaxLingerBytes = 1 << 20;
 // Bytes an event stream may hold for a client that reads too slowly.
 constexpr size_t kMaxStreamBacklog = 1 << 20;
 
-class Connection;
+// What the server holds of a connection, plain or TLS (Connection<Stream> below).
+class ConnectionBase {
+ public:
+  // Aborts whatever is pending and frees the slot; the handlers then release the connection.
+  virtual void Close() = 0;
+  // Waiting for (or receiving) a request, or in the TLS handshake: the connection a full server
+  // evicts first, oldest first. 0 while a request is being answered or a stream is open.
+  uint64_t reading_since() const { return reading_since_; }
+
+ protected:
+  ~ConnectionBase() = default;
+  uint64_t reading_since_ = 0;
+};
 
 }  // namespace
 
@@ -45,8 +63,11 @@ struct MetricsHttpServer::State {
   State(Render r, Options o) : render(std::move(r)), options(o) {}
 
   void Accept();
-  // Answers a parsed request: the status and body.
-  http::response<http::string_body> Answer(const http::request<http::string_body>& request);
+  // The token check, before any route: a 401 for a request without a valid token, or the
+  // answer to /login; nothing if the request may go on.
+  std::optional<HttpResponse> CheckAccess(const HttpRequest& request) const;
+  // Answers a parsed request for /metrics (or, without routes, any path): the status and body.
+  HttpResponse Answer(const HttpRequest& request);
 
   // Closes the listener and every connection, then stops the loop. On the io thread.
   void CloseAll();
@@ -56,7 +77,7 @@ struct MetricsHttpServer::State {
   // The open connections, touched on the io thread only. Declared before the io_context: its
   // destruction destroys the handlers still pending, and with them connections, which remove
   // themselves from here.
-  std::set<Connection*> connections;
+  std::set<ConnectionBase*> connections;
   uint64_t read_sequence = 0;  // orders the connections waiting for a request
   asio::io_context io;
   tcp::acceptor acceptor{io};
@@ -73,18 +94,44 @@ namespace {
 // One client connection: reads a request (bounded in time and size), answers it, then reads the
 // next one (keep-alive, web routes) or closes (/metrics, errors); or streams events (/events).
 // Lives on the io thread; the HttpExchange it hands to the web routes may be called from any
-// thread and posts there.
-class Connection : public std::enable_shared_from_this<Connection> {
+// thread and posts there. `Stream` is beast::tcp_stream, or beast::ssl_stream of one (then the
+// TLS handshake comes first, and a closing response sends TLS close_notify).
+template <typename Stream>
+class Connection final : public ConnectionBase,
+                         public std::enable_shared_from_this<Connection<Stream>> {
  public:
   using State = MetricsHttpServer::State;
+  static constexpr bool kTls = !std::is_same_v<Stream, beast::tcp_stream>;
 
-  Connection(tcp::socket socket, State& state)
-      : stream_(std::move(socket)), buffer_(state.options.max_request_bytes), state_(state) {
+  template <typename... StreamArgs>
+  explicit Connection(State& state, StreamArgs&&... stream_args)
+      : stream_(std::forward<StreamArgs>(stream_args)...),
+        buffer_(state.options.max_request_bytes),
+        state_(state) {
     state_.connections.insert(this);
   }
   ~Connection() {
     state_.connections.erase(this);
     if (on_close_) on_close_();
+  }
+
+  void Open() {
+    if constexpr (kTls) {
+      // A handshake that trickles is as evictable as a request that does.
+      reading_since_ = ++state_.read_sequence;
+      Tcp().expires_after(state_.options.read_timeout);
+      stream_.async_handshake(
+          asio::ssl::stream_base::server, [self = this->shared_from_this()](beast::error_code ec) {
+            if (ec) {
+              self->reading_since_ = 0;
+              spdlog::debug("event=metrics_tls_failed reason=\"{}\"", ec.message());
+              return;
+            }
+            if (!self->closed_->load()) self->Read();
+          });
+    } else {
+      Read();
+    }
   }
 
   void Read() {
@@ -93,29 +140,26 @@ class Connection : public std::enable_shared_from_this<Connection> {
     parser_->header_limit(static_cast<uint32_t>(state_.options.max_request_bytes));
     parser_->body_limit(state_.options.max_request_bytes);
     // The whole request must arrive within the timeout, however it trickles in.
-    stream_.expires_after(state_.options.read_timeout);
+    Tcp().expires_after(state_.options.read_timeout);
     http::async_read(
         stream_, buffer_, *parser_,
-        [self = shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
+        [self = this->shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
   }
 
-  // Waiting for (or receiving) a request: the connection a full server evicts first, oldest
-  // first. 0 while a request is being answered or a stream is open.
-  uint64_t reading_since() const { return reading_since_; }
-
-  // Aborts whatever is pending; the handlers then release the connection.
-  void Close() {
+  void Close() override {
     state_.connections.erase(this);  // its slot is free now
     closed_->store(true);
-    hold_.reset();
-    stream_.close();
+    reading_since_ = 0;
+    // The hold may be the last owner: released after the socket is closed, at the end.
+    const std::shared_ptr<Connection> hold = std::move(hold_);
+    Tcp().close();
   }
 
   // What a route answers through: posts to this connection's thread.
   class Exchange final : public HttpExchange {
    public:
     explicit Exchange(const std::shared_ptr<Connection>& c)
-        : connection_(c), executor_(c->stream_.get_executor()), closed_(c->closed_) {}
+        : connection_(c), executor_(c->Tcp().get_executor()), closed_(c->closed_) {}
     void Reply(HttpResponse response) override {
       asio::post(executor_, [c = connection_, r = std::move(response)]() mutable {
         if (auto self = c.lock()) self->Write(std::move(r));
@@ -154,7 +198,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
     reading_since_ = 0;
     if (ec == beast::error::timeout || ec == http::error::end_of_stream ||
         ec == http::error::partial_message || ec == asio::error::operation_aborted ||
-        ec == asio::error::eof || ec == asio::error::connection_reset || closed_->load()) {
+        ec == asio::error::eof || ec == asio::error::connection_reset ||
+        ec == asio::ssl::error::stream_truncated || closed_->load()) {
       return;  // closed, evicted or too slow: nothing to answer
     }
     if (ec) {
@@ -173,6 +218,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
       return;
     }
     const http::request<http::string_body>& request = parser_->get();
+    if (std::optional<HttpResponse> refused = state_.CheckAccess(request)) {
+      keep_alive_ = request.keep_alive();  // a 401 closes (Write: every error does)
+      Write(std::move(*refused));
+      return;
+    }
     const std::string_view target(request.target().data(), request.target().size());
     if (!state_.options.routes || target.substr(0, target.find('?')) == kMetricsPath) {
       keep_alive_ = false;  // a scrape per connection, as before
@@ -181,8 +231,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
     }
     // A web route answers later (or on another thread): the connection holds itself meanwhile.
     keep_alive_ = request.keep_alive();
-    hold_ = shared_from_this();
-    state_.options.routes(request, std::make_shared<Exchange>(shared_from_this()));
+    hold_ = this->shared_from_this();
+    state_.options.routes(request, std::make_shared<Exchange>(this->shared_from_this()));
   }
 
   void Write(http::response<http::string_body> response) {
@@ -197,41 +247,59 @@ class Connection : public std::enable_shared_from_this<Connection> {
     response.keep_alive(keep_alive_);
     response.prepare_payload();
     response_ = std::move(response);
-    stream_.expires_after(state_.options.read_timeout);
+    Tcp().expires_after(state_.options.read_timeout);
     http::async_write(stream_, *response_,
-                      [self = shared_from_this()](beast::error_code write_ec, size_t) {
+                      [self = this->shared_from_this()](beast::error_code write_ec, size_t) {
                         if (write_ec) return;
                         if (self->keep_alive_) {
                           self->Read();
                           return;
                         }
-                        beast::error_code ignored;
-                        self->stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
-                        self->stream_.expires_after(kLingerTime);
-                        self->Drain();
+                        self->CloseSend();
                       });
   }
+
+  // After a closing response: tells the client it is whole, then lingers (Drain).
+  void CloseSend() {
+    if constexpr (kTls) {
+      // close_notify, so the client knows the response is whole; then the TCP close.
+      Tcp().expires_after(kLingerTime);
+      stream_.async_shutdown([self = this->shared_from_this()](beast::error_code) {
+        beast::error_code ignored;
+        self->Tcp().socket().shutdown(tcp::socket::shutdown_both, ignored);
+      });
+    } else {
+      beast::error_code ignored;
+      stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+      stream_.expires_after(kLingerTime);
+      Drain();
+    }
+  }
+
+  beast::tcp_stream& Tcp() { return beast::get_lowest_layer(stream_); }
 
   void StartStream(std::string head, std::function<void()> on_close) {
     hold_.reset();
     on_close_ = std::move(on_close);
     if (closed_->load()) return;
-    hold_ = shared_from_this();  // until Close(): between writes nothing else holds it
+    hold_ = this->shared_from_this();  // until Close(): between writes nothing else holds it
     Queue(std::move(head));
     WatchForClose();
   }
 
   // A stream's client sends nothing more: a read that ends tells that it has gone (without
-  // waiting for a write to fail). On the socket itself, outside the stream's write timeout.
+  // waiting for a write to fail). On the socket itself, outside the stream's write timeout; over
+  // TLS too: nothing reads the TLS stream again, so what the client sends (close_notify) is
+  // dropped.
   void WatchForClose() {
-    stream_.socket().async_read_some(asio::buffer(discard_),
-                                     [self = shared_from_this()](beast::error_code ec, size_t) {
-                                       if (ec) {
-                                         self->Close();
-                                       } else {
-                                         self->WatchForClose();
-                                       }
-                                     });
+    Tcp().socket().async_read_some(asio::buffer(discard_),
+                                   [self = this->shared_from_this()](beast::error_code ec, size_t) {
+                                     if (ec) {
+                                       self->Close();
+                                     } else {
+                                       self->WatchForClose();
+                                     }
+                                   });
   }
 
   // A stream's bytes: written in order; a client that lets kMaxStreamBacklog bytes pile up, or
@@ -248,9 +316,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
     writing_ = true;
     out_.swap(pending_);
     pending_.clear();
-    stream_.expires_after(state_.options.read_timeout);
+    Tcp().expires_after(state_.options.read_timeout);
     asio::async_write(stream_, asio::buffer(out_),
-                      [self = shared_from_this()](beast::error_code ec, size_t) {
+                      [self = this->shared_from_this()](beast::error_code ec, size_t) {
                         self->writing_ = false;
                         self->out_.clear();
                         if (ec) {
@@ -267,20 +335,19 @@ class Connection : public std::enable_shared_from_this<Connection> {
   // before the whole request was read).
   void Drain() {
     stream_.async_read_some(asio::buffer(discard_),
-                            [self = shared_from_this()](beast::error_code ec, size_t n) {
+                            [self = this->shared_from_this()](beast::error_code ec, size_t n) {
                               self->drained_ += n;
                               if (!ec && self->drained_ < kMaxLingerBytes) self->Drain();
                             });
   }
 
-  beast::tcp_stream stream_;
+  Stream stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::optional<http::response<http::string_body>> response_;
   std::array<char, 4096> discard_;
   size_t drained_ = 0;
   State& state_;
-  uint64_t reading_since_ = 0;
   bool keep_alive_ = false;
   std::shared_ptr<Connection> hold_;  // while a route answers, and while a stream is open
   std::shared_ptr<std::atomic<bool>> closed_ = std::make_shared<std::atomic<bool>>(false);
@@ -306,8 +373,8 @@ void MetricsHttpServer::State::Accept() {
     if (connections.size() >= options.max_connections) {
       // Full: the connection that has waited longest for its request goes (a slow or idle
       // client), so trickling clients cannot hold every slot against a scraper.
-      Connection* oldest = nullptr;
-      for (Connection* c : connections) {
+      ConnectionBase* oldest = nullptr;
+      for (ConnectionBase* c : connections) {
         if (c->reading_since() != 0 &&
             (oldest == nullptr || c->reading_since() < oldest->reading_since())) {
           oldest = c;
@@ -318,8 +385,12 @@ void MetricsHttpServer::State::Accept() {
     if (connections.size() >= options.max_connections) {
       beast::error_code ignored;
       socket.close(ignored);  // every slot answers a request: a scraper retries
+    } else if (options.tls != nullptr) {
+      std::make_shared<Connection<beast::ssl_stream<beast::tcp_stream>>>(*this, std::move(socket),
+                                                                         *options.tls)
+          ->Open();
     } else {
-      std::make_shared<Connection>(std::move(socket), *this)->Read();
+      std::make_shared<Connection<beast::tcp_stream>>(*this, std::move(socket))->Open();
     }
     Accept();
   });
@@ -330,12 +401,53 @@ void MetricsHttpServer::State::CloseAll() {
   acceptor.close(ignored);
   retry.cancel();
   // Close() only aborts operations; the connections go when their handlers have run.
-  for (Connection* c : std::set<Connection*>(connections)) c->Close();
+  for (ConnectionBase* c : std::set<ConnectionBase*>(connections)) c->Close();
   io.stop();
 }
 
-http::response<http::string_body> MetricsHttpServer::State::Answer(
-    const http::request<http::string_body>& request) {
+std::optional<HttpResponse> MetricsHttpServer::State::CheckAccess(
+    const HttpRequest& request) const {
+  const std::string_view target(request.target().data(), request.target().size());
+  const std::string_view path = target.substr(0, target.find('?'));
+  const unsigned version = request.version() == 10 ? 10 : 11;
+  auto unauthorized = [version](std::string body) {
+    HttpResponse response{http::status::unauthorized, version};
+    response.set(http::field::content_type, "text/plain; charset=utf-8");
+    response.set(http::field::www_authenticate, "Bearer");
+    response.body() = std::move(body);
+    return response;
+  };
+  if (path == kLoginPath) {
+    // The browser's way in: the token from the address, once, into an HttpOnly cookie; the
+    // redirect drops it from the address bar.
+    const std::string token = LoginTokenFromQuery(target);
+    if (options.authorize != nullptr && !options.authorize("Bearer " + token)) {
+      return unauthorized("unauthorized: open /login?token=<a valid token>\n");
+    }
+    HttpResponse response{http::status::see_other, version};
+    response.set(http::field::location, "/");
+    response.set(http::field::cache_control, "no-store");
+    response.set("Referrer-Policy", "no-referrer");
+    if (options.authorize != nullptr) {
+      response.set(http::field::set_cookie, LoginCookie(token, options.tls != nullptr));
+    }
+    return response;
+  }
+  if (options.authorize == nullptr) return std::nullopt;
+  const auto header = request[http::field::authorization];
+  if (!header.empty()) {
+    if (options.authorize(std::string_view(header.data(), header.size()))) return std::nullopt;
+  } else if (const auto cookie = request[http::field::cookie]; !cookie.empty()) {
+    const std::optional<std::string> token =
+        TokenFromCookies(std::string_view(cookie.data(), cookie.size()));
+    if (token.has_value() && options.authorize("Bearer " + *token)) return std::nullopt;
+  }
+  return unauthorized(
+      "unauthorized: send 'Authorization: Bearer <token>' (a browser: open "
+      "/login?token=<token>)\n");
+}
+
+HttpResponse MetricsHttpServer::State::Answer(const HttpRequest& request) {
   const auto raw_target = request.target();
   const std::string_view target(raw_target.data(), raw_target.size());
   const std::string_view path = target.substr(0, target.find('?'));

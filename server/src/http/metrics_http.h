@@ -10,6 +10,11 @@
 // at most Options::max_connections are open at once, and when they are, a new connection evicts
 // the one that has waited longest for its request (so slow clients cannot lock scrapers out);
 // with none waiting, the new one is closed.
+//
+// With Options::tls all of it is served over TLS (HTTPS). With Options::authorize every request,
+// /metrics and the web routes alike, needs a token: an "Authorization: Bearer <token>" header, or
+// for a browser the cookie that GET /login?token=<token> sets (HttpOnly, SameSite=Strict, Secure
+// over TLS) before it redirects to the page. Without one the answer is 401.
 #pragma once
 
 #include <chrono>
@@ -17,9 +22,14 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "bgkmap/core/status.h"
 #include "http/http_exchange.h"
+
+namespace boost::asio::ssl {
+class context;
+}
 
 namespace bgkmap {
 
@@ -32,9 +42,15 @@ class MetricsHttpServer {
     std::chrono::milliseconds read_timeout{5000};  // to receive a request, and to send a reply
     size_t max_request_bytes = 8192;               // request line, headers and body
     size_t max_connections = 64;                   // open at the same time
-    // Answers every path but /metrics, on the endpoint's thread (or later, through the
-    // exchange, from any thread). Unset: 404.
+    // Answers every path but /metrics and /login, on the endpoint's thread (or later, through
+    // the exchange, from any thread). Unset: 404.
     std::function<void(const HttpRequest&, std::shared_ptr<HttpExchange>)> routes;
+    // HTTPS with this context (http/https_context.h); null = plain HTTP. The TLS handshake
+    // counts against read_timeout.
+    std::shared_ptr<boost::asio::ssl::context> tls;
+    // Given each request's credentials as an Authorization header value ("Bearer <token>", from
+    // the header or the login cookie); false answers 401 (null: no check, /login just redirects).
+    std::function<bool(std::string_view authorization)> authorize;
   };
 
   // Resolves and binds `address` ("host:port", port 0 = any free port) and listens. Requests

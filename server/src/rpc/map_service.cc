@@ -3,65 +3,139 @@
 #include "rpc/handlers/handlers.h"
 
 namespace bgkmap {
+namespace {
+
+// Streaming calls refused before their handler runs: finish at once with the status.
+template <typename Request, typename Response>
+class RefusedBidi final : public grpc::ServerBidiReactor<Request, Response> {
+ public:
+  explicit RefusedBidi(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+template <typename Response>
+class RefusedWrite final : public grpc::ServerWriteReactor<Response> {
+ public:
+  explicit RefusedWrite(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+template <typename Request>
+class RefusedRead final : public grpc::ServerReadReactor<Request> {
+ public:
+  explicit RefusedRead(const grpc::Status& status) { this->Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+grpc::ServerUnaryReactor* RefusedUnary(grpc::CallbackServerContext* call,
+                                       const grpc::Status& status) {
+  grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
+  reactor->Finish(status);
+  return reactor;
+}
+
+}  // namespace
 
 grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* MapService::Ingest(
     grpc::CallbackServerContext* call) {
-  return StartIngestStream(ctx_, call);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "Ingest", &who); !s.ok()) {
+    return new RefusedBidi<v1::Scan, v1::ScanAck>(s);
+  }
+  return StartIngestStream(ctx_, call, std::move(who));
 }
 
 grpc::ServerUnaryReactor* MapService::IngestScan(grpc::CallbackServerContext* call,
                                                  const v1::Scan* request, v1::ScanAck* response) {
-  return StartIngestScan(ctx_, call, request, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "IngestScan", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartIngestScan(ctx_, call, std::move(who), request, response);
 }
 
 grpc::ServerWriteReactor<v1::RegionChunk>* MapService::QueryRegion(
     grpc::CallbackServerContext* call, const v1::RegionRequest* request) {
-  return StartQueryRegion(ctx_, call, request);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "QueryRegion", &who); !s.ok()) {
+    return new RefusedWrite<v1::RegionChunk>(s);
+  }
+  return StartQueryRegion(ctx_, call, std::move(who), request);
 }
 
 grpc::ServerUnaryReactor* MapService::QueryPoints(grpc::CallbackServerContext* call,
                                                   const v1::PointsRequest* request,
                                                   v1::PointsResponse* response) {
-  return StartQueryPoints(ctx_, call, request, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "QueryPoints", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartQueryPoints(ctx_, call, std::move(who), request, response);
 }
 
 grpc::ServerUnaryReactor* MapService::CheckPath(grpc::CallbackServerContext* call,
                                                 const v1::PathCheckRequest* request,
                                                 v1::PathCheckResponse* response) {
-  return StartCheckPath(ctx_, call, request, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "CheckPath", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartCheckPath(ctx_, call, std::move(who), request, response);
 }
 
 grpc::ServerWriteReactor<v1::TileUpdate>* MapService::Watch(grpc::CallbackServerContext* call,
                                                             const v1::WatchRequest* request) {
-  return StartWatch(ctx_, call, request);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "Watch", &who); !s.ok()) {
+    return new RefusedWrite<v1::TileUpdate>(s);
+  }
+  return StartWatch(ctx_, call, std::move(who), request);
 }
 
 grpc::ServerUnaryReactor* MapService::Info(grpc::CallbackServerContext* call,
                                            const v1::InfoRequest* /*request*/,
                                            v1::InfoResponse* response) {
-  return StartInfo(ctx_, call, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "Info", &who); !s.ok()) return RefusedUnary(call, s);
+  return StartInfo(ctx_, call, std::move(who), response);
 }
 
 grpc::ServerUnaryReactor* MapService::ClearRegion(grpc::CallbackServerContext* call,
                                                   const v1::ClearRegionRequest* request,
                                                   v1::ClearRegionResponse* response) {
-  return StartClearRegion(ctx_, call, request, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "ClearRegion", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartClearRegion(ctx_, call, std::move(who), request, response);
 }
 
 grpc::ServerWriteReactor<v1::ArchiveChunk>* MapService::ExportMap(
     grpc::CallbackServerContext* call, const v1::ExportRequest* request) {
-  return StartExportMap(ctx_, call, request);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "ExportMap", &who); !s.ok()) {
+    return new RefusedWrite<v1::ArchiveChunk>(s);
+  }
+  return StartExportMap(ctx_, call, std::move(who), request);
 }
 
 grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(grpc::CallbackServerContext* call,
                                                                  v1::ImportResponse* response) {
-  return StartImportMap(ctx_, call, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "ImportMap", &who); !s.ok()) {
+    return new RefusedRead<v1::ArchiveChunk>(s);
+  }
+  return StartImportMap(ctx_, call, std::move(who), response);
 }
 
 grpc::ServerUnaryReactor* MapService::RetireRobot(grpc::CallbackServerContext* call,
                                                   const v1::RetireRobotRequest* request,
                                                   v1::RetireRobotResponse* response) {
-  return StartRetireRobot(ctx_, call, request, response);
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "RetireRobot", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartRetireRobot(ctx_, call, std::move(who), request, response);
 }
 
 }  // namespace bgkmap

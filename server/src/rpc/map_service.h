@@ -1,14 +1,17 @@
-// MapService wiring: each RPC is served by its handler (rpc/handlers/).
+// MapService wiring: each call is admitted by AccessControl (token and role), then served by its
+// RPC's handler (rpc/handlers/).
 #pragma once
 
 #include "bgkmap/v1/map_service.grpc.pb.h"
+#include "rpc/access_control.h"
 #include "rpc/service_context.h"
 
 namespace bgkmap {
 
 class MapService final : public v1::MapService::CallbackService {
  public:
-  explicit MapService(ServiceContext& ctx) : ctx_(ctx) {}
+  // `tokens` null: no authentication (every caller may do everything).
+  MapService(ServiceContext& ctx, const TokenTable* tokens) : ctx_(ctx), access_(tokens) {}
 
   grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* Ingest(
       grpc::CallbackServerContext* call) override;
@@ -39,6 +42,7 @@ class MapService final : public v1::MapService::CallbackService {
 
  private:
   ServiceContext& ctx_;
+  const AccessControl access_;
 };
 
 }  // namespace bgkmap

@@ -1,9 +1,12 @@
 #include "rpc/service_context.h"
 
 #include <grpcpp/server_context.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <sstream>
+
+#include "log_safe.h"
 
 namespace bgkmap {
 
@@ -128,6 +131,34 @@ grpc::Status QueriesBusy(const ServiceContext& ctx) {
   return {grpc::StatusCode::RESOURCE_EXHAUSTED,
           "server.max_concurrent_queries = " + std::to_string(ctx.limits.max_concurrent_queries) +
               " queries are already running; retry later"};
+}
+
+QueryPermit::QueryPermit(ServiceContext& ctx, const Principal& who) {
+  global_.emplace(ctx.queries, ctx.limits.max_concurrent_queries);
+  if (!*global_) {
+    refusal_ = QueriesBusy(ctx);
+    return;
+  }
+  if (who.usage == nullptr) return;
+  token_.emplace(who.usage->queries, who.max_queries);
+  if (!*token_) {
+    refusal_ = TokenQuotaReached(who, who.max_queries, "concurrent queries",
+                                 "server.auth.max_queries_per_token");
+    global_.reset();
+  }
+}
+
+grpc::Status TokenQuotaReached(const Principal& who, uint32_t limit, const std::string& what,
+                               const std::string& key) {
+  return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+          "token '" + who.name + "' already holds its limit of " + std::to_string(limit) + " " +
+              what + " (" + key + " or the token's own limit); retry later"};
+}
+
+void AuditLog(const Principal& who, const std::string& action, const std::string& details,
+              uint64_t map_version, const std::string& peer) {
+  spdlog::info("event=audit who=\"{}\" role={} action={} {} map_version={} peer=\"{}\"", who.name,
+               RoleName(who.role), action, details, map_version, LogSafe(peer));
 }
 
 }  // namespace bgkmap

@@ -10,10 +10,12 @@
 #include <condition_variable>
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unordered_map>
 
+#include "auth/principal.h"
 #include "bgkmap/server/server_config.h"
 #include "serving/served_map.h"
 #include "serving/watch_hub.h"
@@ -111,6 +113,25 @@ class Permit {
   std::atomic<uint32_t>* counter_;
 };
 
+// A running query's two slots: one of server.max_concurrent_queries and one of its token's
+// (Principal::max_queries; none when authentication is off). Released on destruction.
+class QueryPermit {
+ public:
+  QueryPermit(ServiceContext& ctx, const Principal& who);
+  explicit operator bool() const { return refusal_.ok(); }
+  // RESOURCE_EXHAUSTED naming the limit that was reached (OK when held).
+  const grpc::Status& refusal() const { return refusal_; }
+
+ private:
+  std::optional<Permit> global_;
+  std::optional<Permit> token_;
+  grpc::Status refusal_;
+};
+
+// RESOURCE_EXHAUSTED: `who` holds its token's limit of `limit` `what` (a retry can succeed).
+grpc::Status TokenQuotaReached(const Principal& who, uint32_t limit, const std::string& what,
+                               const std::string& key);
+
 // A budget of bytes shared by concurrent operations (region rasters held in memory).
 class ByteBudget {
  public:
@@ -146,5 +167,10 @@ struct ServiceContext {
   std::atomic<uint32_t> imports{0};      // ImportMap calls (one at a time)
   ByteBudget region_bytes{limits.max_region_bytes_in_flight};
 };
+
+// One line per admin action (event=audit): who (token name and role), what, the box or robot
+// it touched, the map version it produced, and the peer.
+void AuditLog(const Principal& who, const std::string& action, const std::string& details,
+              uint64_t map_version, const std::string& peer);
 
 }  // namespace bgkmap

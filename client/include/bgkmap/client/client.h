@@ -34,6 +34,16 @@ struct ClientOptions {
   std::chrono::milliseconds timeout{60'000};
   // Largest message accepted from the server.
   int max_message_bytes = 64 << 20;
+  // TLS: the CA certificates (PEM text, not a path) the server's certificate must chain to;
+  // "" = plaintext.
+  std::string tls_ca_pem;
+  // Mutual TLS: this client's certificate chain and private key (PEM text).
+  std::string tls_cert_pem;
+  std::string tls_key_pem;
+  // The name the server certificate must carry when it is not the target's host ("" = host).
+  std::string tls_server_name;
+  // Sent on every call as "authorization: Bearer <token>" (server.auth.tokens_file); "" = none.
+  std::string token;
 };
 
 // A rectangle in the map frame, metres; regions cover the cells meeting [min, max).
@@ -238,7 +248,9 @@ struct ImportResult {
 
 class Client {
  public:
-  // `target`: "host:port" (any gRPC target string). Connects lazily.
+  // `target`: "host:port" (any gRPC target string). Connects lazily; with options.tls_ca_pem
+  // over TLS (a plaintext server, or a certificate that does not verify, fails each call with
+  // UNAVAILABLE).
   explicit Client(const std::string& target, ClientOptions options = {});
   ~Client();
   Client(const Client&) = delete;

@@ -55,6 +55,10 @@ class MapServer {
   // 0 when it is off.
   int metrics_port() const;
 
+  // Reads server.auth.tokens_file again (bgkmapd: on SIGHUP). A file that does not load keeps
+  // the tokens in use; the error says why (also logged).
+  Status ReloadTokens();
+
   // Graceful stop: refuses new calls, lets every ingest stream ack the scans it has read (then
   // ends it with UNAVAILABLE), ends watches, waits for admitted scans, closes the metrics
   // endpoint, stops the workers.

@@ -85,6 +85,27 @@ struct GeoreferenceConfig {
   std::array<double, 3> origin = {0, 0, 0};  // origin: [easting, northing, height] of map (0,0,0)
 };
 
+// `server.tls`: TLS on the gRPC port and the HTTP (metrics) port (docs/server.md, Security).
+struct TlsConfig {
+  std::string cert_file;  // tls.cert_file: the server's certificate chain (PEM); "" = plaintext
+  std::string key_file;   // tls.key_file: its private key (PEM)
+  std::string client_ca_file;  // tls.client_ca_file: CAs of client certificates; set = mTLS
+  bool enabled() const { return !cert_file.empty(); }
+};
+
+// `server.auth`: bearer tokens and their roles, and what one token may hold at a time.
+struct AuthConfig {
+  // auth.tokens_file: YAML `tokens: [{name, sha256, role, robots}]`; "" = no authentication.
+  // Re-read on SIGHUP.
+  std::string tokens_file;
+  // auth.max_queries_per_token / auth.max_ingest_streams_per_token: concurrent queries and open
+  // Ingest streams of one token (a token's own `max_queries` / `max_ingest_streams` in the
+  // tokens file win). 0 = a quarter of server.max_concurrent_queries / max_ingest_streams.
+  uint32_t max_queries_per_token = 0;
+  uint32_t max_ingest_streams_per_token = 0;
+  bool enabled() const { return !tokens_file.empty(); }
+};
+
 struct ServerConfig {
   MapParams map;
   std::string listen_address = "127.0.0.1:50051";  // listen_address (host:port; port 0 = any)
@@ -98,6 +119,10 @@ struct ServerConfig {
   // metrics_address: host:port of the Prometheus endpoint (GET /metrics over HTTP); "" = off,
   // port 0 = any free port (logged as event=metrics_listening).
   std::string metrics_address;
+  TlsConfig tls;
+  AuthConfig auth;
+  // insecure: allow a non-loopback listen or metrics address without TLS and tokens.
+  bool insecure = false;
   ServerLimits limits;
   StorageConfig storage;
   GeoreferenceConfig georeference;
@@ -123,5 +148,17 @@ Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment);
 
 // Checks cross-field rules (the engine parameters and the limits).
 Status ValidateServerConfig(const ServerConfig& config);
+
+// Checks the security keys together, once every override is applied (MapServer::Start): TLS
+// cert and key come as a pair, and a non-loopback address needs TLS and tokens unless
+// server.insecure. Files are read by the server at start, not here.
+Status ValidateSecurity(const ServerConfig& config);
+
+// True for a loopback address ("127.x.x.x:p", "localhost:p", "[::1]:p") or a unix socket.
+bool IsLoopbackAddress(const std::string& address);
+
+// The per-token limits in effect (0 in the config: a quarter of the global limit, at least 1).
+uint32_t QueriesPerToken(const ServerConfig& config);
+uint32_t IngestStreamsPerToken(const ServerConfig& config);
 
 }  // namespace bgkmap

@@ -223,11 +223,12 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
 }  // namespace
 
 grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                         const v1::PathCheckRequest* request,
+                                         PrincipalRef who, const v1::PathCheckRequest* request,
                                          v1::PathCheckResponse* response) {
-  return RunUnaryQuery(ctx, call, [&ctx, request, response](const QueryControl& control) {
-    return CheckPath(ctx, control, *request, response);
-  });
+  return RunUnaryQuery(ctx, call, std::move(who),
+                       [&ctx, request, response](const QueryControl& control) {
+                         return CheckPath(ctx, control, *request, response);
+                       });
 }
 
 }  // namespace bgkmap

@@ -8,7 +8,7 @@
 namespace bgkmap {
 
 grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                           const v1::ClearRegionRequest* request,
+                                           PrincipalRef who, const v1::ClearRegionRequest* request,
                                            v1::ClearRegionResponse* response) {
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
   if (ctx.sessions.draining()) {
@@ -22,7 +22,8 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
     reactor->Finish(s);
     return reactor;
   }
-  ctx.map.SubmitClear(box, [reactor, response, box](const ClearOutcome& outcome) {
+  ctx.map.SubmitClear(box, [reactor, response, box, who,
+                            peer = call->peer()](const ClearOutcome& outcome) {
     if (!outcome.status.ok()) {
       spdlog::error("event=clear_not_persisted version={} reason=\"{}\"", outcome.version,
                     outcome.status.message());
@@ -33,6 +34,10 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
     }
     spdlog::info("event=clear_region cells=[{},{}]..[{},{}] version={} tiles={}", box.min.x,
                  box.min.y, box.max.x, box.max.y, outcome.version, outcome.changed_tiles.size());
+    AuditLog(*who, "clear_region",
+             "box_cells=[" + std::to_string(box.min.x) + "," + std::to_string(box.min.y) + "]..[" +
+                 std::to_string(box.max.x) + "," + std::to_string(box.max.y) + "]",
+             outcome.version, peer);
     for (TileKey k : outcome.changed_tiles) ToProto(k, response->add_changed_tiles());
     response->set_map_version(outcome.version);
     reactor->Finish(grpc::Status::OK);

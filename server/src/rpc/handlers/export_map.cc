@@ -44,13 +44,15 @@ bool CropToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Ti
 
 class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
  public:
-  ExportStream(ServiceContext& ctx, grpc::CallbackServerContext* call,
+  ExportStream(ServiceContext& ctx, grpc::CallbackServerContext* call, PrincipalRef who,
                const v1::ExportRequest& request)
       : ctx_(ctx),
-        permit_(ctx.queries, ctx.limits.max_concurrent_queries),
+        who_(std::move(who)),
+        peer_(call->peer()),
+        permit_(ctx, *who_),
         stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (!permit_) {
-      Finish(QueriesBusy(ctx));
+      Finish(permit_.refusal());
       return;
     }
     if (ctx.sessions.draining()) {
@@ -100,6 +102,7 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
       Finish(Failed(snapshot.status()));
       return;
     }
+    AuditLog(*who_, "export_map", AuditBox(), snapshot->version, peer_);
     metadata_.params = ctx_.map.params();
     metadata_.map_version = snapshot->version;
     metadata_.checkpoint_version = snapshot->version;
@@ -177,8 +180,16 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
     StartWrite(&chunk_);
   }
 
+  std::string AuditBox() const {
+    if (!region_) return "box_cells=all";
+    return "box_cells=[" + std::to_string(box_.min.x) + "," + std::to_string(box_.min.y) + "]..[" +
+           std::to_string(box_.max.x) + "," + std::to_string(box_.max.y) + "]";
+  }
+
   ServiceContext& ctx_;
-  Permit permit_;
+  const PrincipalRef who_;
+  const std::string peer_;
+  QueryPermit permit_;
   StalledWriteWatch stalled_;
   bool registered_ = false;
   bool region_ = false;
@@ -199,8 +210,9 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
 
 grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
                                                            grpc::CallbackServerContext* call,
+                                                           PrincipalRef who,
                                                            const v1::ExportRequest* request) {
-  return new ExportStream(ctx, call, *request);
+  return new ExportStream(ctx, call, std::move(who), *request);
 }
 
 }  // namespace bgkmap

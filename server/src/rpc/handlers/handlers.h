@@ -1,5 +1,7 @@
 // One handler per MapService RPC. Each returns the reactor that serves one call; heavy work runs
-// on the context's worker pools, never on gRPC's own threads.
+// on the context's worker pools, never on gRPC's own threads. `who` is the caller, already
+// allowed the RPC's right (rpc/access_control.h); handlers check what depends on the request (a
+// robot token's ids) and count the token's quotas.
 #pragma once
 
 #include <grpcpp/support/server_callback.h>
@@ -12,36 +14,42 @@
 
 namespace bgkmap {
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(
-    ServiceContext& ctx, grpc::CallbackServerContext* call);
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
+                                                                  grpc::CallbackServerContext* call,
+                                                                  PrincipalRef who);
 grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                          const v1::Scan* request, v1::ScanAck* response);
+                                          PrincipalRef who, const v1::Scan* request,
+                                          v1::ScanAck* response);
 grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
                                                             grpc::CallbackServerContext* call,
+                                                            PrincipalRef who,
                                                             const v1::RegionRequest* request);
 grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                           const v1::PointsRequest* request,
+                                           PrincipalRef who, const v1::PointsRequest* request,
                                            v1::PointsResponse* response);
 grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                         const v1::PathCheckRequest* request,
+                                         PrincipalRef who, const v1::PathCheckRequest* request,
                                          v1::PathCheckResponse* response);
 grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
                                                      grpc::CallbackServerContext* call,
+                                                     PrincipalRef who,
                                                      const v1::WatchRequest* request);
 grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                    v1::InfoResponse* response);
+                                    PrincipalRef who, v1::InfoResponse* response);
 grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                           const v1::ClearRegionRequest* request,
+                                           PrincipalRef who, const v1::ClearRegionRequest* request,
                                            v1::ClearRegionResponse* response);
 grpc::ServerWriteReactor<v1::ArchiveChunk>* StartExportMap(ServiceContext& ctx,
                                                            grpc::CallbackServerContext* call,
+                                                           PrincipalRef who,
                                                            const v1::ExportRequest* request);
 grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
                                                           grpc::CallbackServerContext* call,
+                                                          PrincipalRef who,
                                                           v1::ImportResponse* response);
 
 grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                           const v1::RetireRobotRequest* request,
+                                           PrincipalRef who, const v1::RetireRobotRequest* request,
                                            v1::RetireRobotResponse* response);
 
 // What a query's work checks between steps, so that no call outlives its purpose: the client
@@ -64,6 +72,7 @@ class QueryControl {
 // status (RESOURCE_EXHAUSTED without running it when the limit is reached; CANCELLED or
 // DEADLINE_EXCEEDED without running it when the call ended while it waited for a thread).
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                        PrincipalRef who,
                                         std::function<grpc::Status(const QueryControl&)> work);
 
 }  // namespace bgkmap

@@ -25,8 +25,13 @@ namespace {
 
 class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, public DrainListener {
  public:
-  ImportStream(ServiceContext& ctx, v1::ImportResponse* response)
-      : ctx_(ctx), response_(response), idle_timeout_(TimeoutOf(ctx.limits.import_idle_timeout_s)) {
+  ImportStream(ServiceContext& ctx, grpc::CallbackServerContext* call, PrincipalRef who,
+               v1::ImportResponse* response)
+      : ctx_(ctx),
+        who_(std::move(who)),
+        peer_(call->peer()),
+        response_(response),
+        idle_timeout_(TimeoutOf(ctx.limits.import_idle_timeout_s)) {
     permit_.emplace(ctx.imports, 1);
     if (!*permit_) {
       End({grpc::StatusCode::RESOURCE_EXHAUSTED, "an import is already running; retry later"});
@@ -197,11 +202,17 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
           "event=import_map version={} tiles={} archive_known_cells={} bytes={} seconds={:.3f}",
           response_->map_version(), response_->tiles_added(), archive_.known_cells, bytes_,
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count());
+      AuditLog(*who_, "import_map",
+               "tiles=" + std::to_string(response_->tiles_added()) +
+                   " archive_map_version=" + std::to_string(response_->archive_map_version()),
+               response_->map_version(), peer_);
       End(grpc::Status::OK);
     });
   }
 
   ServiceContext& ctx_;
+  const PrincipalRef who_;
+  const std::string peer_;
   v1::ImportResponse* response_;
   const std::chrono::steady_clock::duration idle_timeout_;
   bool registered_ = false;
@@ -223,9 +234,10 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
 }  // namespace
 
 grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
-                                                          grpc::CallbackServerContext* /*call*/,
+                                                          grpc::CallbackServerContext* call,
+                                                          PrincipalRef who,
                                                           v1::ImportResponse* response) {
-  return new ImportStream(ctx, response);
+  return new ImportStream(ctx, call, std::move(who), response);
 }
 
 }  // namespace bgkmap

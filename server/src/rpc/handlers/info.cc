@@ -81,7 +81,7 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
 }  // namespace
 
 grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                    v1::InfoResponse* response) {
+                                    PrincipalRef /*who*/, v1::InfoResponse* response) {
   // Answered on gRPC's thread: Info reads counters kept per change and takes no map-wide lock
   // (~0.2 ms), so a hop to the query pool would only add scheduling delay on a busy machine.
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();

@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "log_safe.h"
+#include "rpc/access_control.h"
 #include "rpc/proto_convert.h"
 #include "rpc/request_checks.h"
 
@@ -52,8 +53,15 @@ v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::S
   return ack;
 }
 
-void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback done) {
+void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan& scan,
+                       AckCallback done) {
   if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) {
+    done(RejectedAck(ctx, scan, s), s);
+    return;
+  }
+  // Before the duplicate check: another robot's id learns nothing of that robot's sequence.
+  if (!who.MayIngestAs(scan.robot_id())) {
+    const grpc::Status s = NotThisRobot(who, scan.robot_id());
     done(RejectedAck(ctx, scan, s), s);
     return;
   }

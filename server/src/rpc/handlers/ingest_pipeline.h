@@ -18,7 +18,9 @@ using AckCallback = std::function<void(v1::ScanAck ack, grpc::Status status)>;
 // Runs the checks and preparation on the calling thread, then admits the scan. Rejections and
 // duplicates are answered before returning; an admitted scan is answered on a worker once it is
 // in the map. Scans of one robot must be passed in the order they were sent.
-void IngestScanMessage(ServiceContext& ctx, const v1::Scan& scan, AckCallback done);
+// `who` must be allowed to ingest as the scan's robot id (PERMISSION_DENIED otherwise).
+void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan& scan,
+                       AckCallback done);
 
 // An ACK_REJECTED ack for `scan` with `status`.
 v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::Status& status);

@@ -8,7 +8,8 @@
 namespace bgkmap {
 
 grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                          const v1::Scan* request, v1::ScanAck* response) {
+                                          PrincipalRef who, const v1::Scan* request,
+                                          v1::ScanAck* response) {
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
   if (ctx.sessions.draining()) {
     reactor->Finish({grpc::StatusCode::UNAVAILABLE, "server is shutting down: scan not applied"});
@@ -22,8 +23,8 @@ grpc::ServerUnaryReactor* StartIngestScan(ServiceContext& ctx, grpc::CallbackSer
                          " scans are already in flight; retry later or use the Ingest stream"});
     return reactor;
   }
-  boost::asio::post(ctx.ingest_pool, [&ctx, request, response, reactor, permit] {
-    IngestScanMessage(ctx, *request,
+  boost::asio::post(ctx.ingest_pool, [&ctx, who, request, response, reactor, permit] {
+    IngestScanMessage(ctx, *who, *request,
                       [response, reactor, permit](v1::ScanAck ack, grpc::Status status) {
                         *response = std::move(ack);
                         reactor->Finish(status);

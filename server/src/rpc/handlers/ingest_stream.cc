@@ -10,6 +10,7 @@
 #include <chrono>
 #include <deque>
 #include <mutex>
+#include <optional>
 
 #include "log_safe.h"
 #include "rpc/handlers/handlers.h"
@@ -21,8 +22,9 @@ namespace {
 class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>,
                            public DrainListener {
  public:
-  IngestStream(ServiceContext& ctx, grpc::CallbackServerContext* call)
+  IngestStream(ServiceContext& ctx, grpc::CallbackServerContext* call, PrincipalRef who)
       : ctx_(ctx),
+        who_(std::move(who)),
         call_(call),
         peer_(call->peer()),
         window_(ctx.limits.max_inflight_scans_per_stream),
@@ -42,6 +44,15 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
       return;
     }
     registered_ = true;
+    if (who_->usage != nullptr) {
+      token_slot_.emplace(who_->usage->ingest_streams, who_->max_ingest_streams);
+      if (!*token_slot_) {
+        finished_ = true;
+        Finish(TokenQuotaReached(*who_, who_->max_ingest_streams, "open ingest streams",
+                                 "server.auth.max_ingest_streams_per_token"));
+        return;
+      }
+    }
     spdlog::debug("event=ingest_open peer=\"{}\"", LogSafe(peer_));
     std::unique_lock lock(mu_);
     Step(lock);
@@ -148,7 +159,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
         to_prepare_.pop_front();
       }
       Slot* slot = next.slot;
-      IngestScanMessage(ctx_, next.scan, [this, slot](v1::ScanAck ack, grpc::Status) {
+      IngestScanMessage(ctx_, *who_, next.scan, [this, slot](v1::ScanAck ack, grpc::Status) {
         std::unique_lock lock(mu_);
         ++counts_[ack.status()];
         slot->ack = std::move(ack);
@@ -213,6 +224,8 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   }
 
   ServiceContext& ctx_;
+  const PrincipalRef who_;
+  std::optional<Permit> token_slot_;  // one of the token's max_ingest_streams
   grpc::CallbackServerContext* const call_;
   const std::string peer_;
   const size_t window_;
@@ -239,9 +252,10 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
 
 }  // namespace
 
-grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(
-    ServiceContext& ctx, grpc::CallbackServerContext* call) {
-  return new IngestStream(ctx, call);
+grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* StartIngestStream(ServiceContext& ctx,
+                                                                  grpc::CallbackServerContext* call,
+                                                                  PrincipalRef who) {
+  return new IngestStream(ctx, call, std::move(who));
 }
 
 }  // namespace bgkmap

@@ -55,11 +55,12 @@ grpc::Status QueryPoints(ServiceContext& ctx, const QueryControl& control,
 }  // namespace
 
 grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                           const v1::PointsRequest* request,
+                                           PrincipalRef who, const v1::PointsRequest* request,
                                            v1::PointsResponse* response) {
-  return RunUnaryQuery(ctx, call, [&ctx, request, response](const QueryControl& control) {
-    return QueryPoints(ctx, control, *request, response);
-  });
+  return RunUnaryQuery(ctx, call, std::move(who),
+                       [&ctx, request, response](const QueryControl& control) {
+                         return QueryPoints(ctx, control, *request, response);
+                       });
 }
 
 }  // namespace bgkmap

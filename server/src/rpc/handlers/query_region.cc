@@ -15,13 +15,11 @@ constexpr uint32_t kMaxStride = 4096;
 
 class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
  public:
-  RegionStream(ServiceContext& ctx, grpc::CallbackServerContext* call,
+  RegionStream(ServiceContext& ctx, grpc::CallbackServerContext* call, const Principal& who,
                const v1::RegionRequest& request)
-      : ctx_(ctx),
-        permit_(ctx.queries, ctx.limits.max_concurrent_queries),
-        stalled_(call, ctx.limits.stalled_write_timeout_s) {
+      : ctx_(ctx), permit_(ctx, who), stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (!permit_) {
-      Finish(QueriesBusy(ctx));
+      Finish(permit_.refusal());
       return;
     }
     if (grpc::Status s = Parse(request); !s.ok()) {
@@ -124,7 +122,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
   }
 
   ServiceContext& ctx_;
-  Permit permit_;
+  QueryPermit permit_;
   StalledWriteWatch stalled_;
   bool registered_ = false;
   std::vector<Layer> layers_;
@@ -143,8 +141,9 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
 
 grpc::ServerWriteReactor<v1::RegionChunk>* StartQueryRegion(ServiceContext& ctx,
                                                             grpc::CallbackServerContext* call,
+                                                            PrincipalRef who,
                                                             const v1::RegionRequest* request) {
-  return new RegionStream(ctx, call, *request);
+  return new RegionStream(ctx, call, *who, *request);
 }
 
 }  // namespace bgkmap

@@ -8,7 +8,7 @@
 namespace bgkmap {
 
 grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                           const v1::RetireRobotRequest* request,
+                                           PrincipalRef who, const v1::RetireRobotRequest* request,
                                            v1::RetireRobotResponse* response) {
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
   if (ctx.sessions.draining()) {
@@ -23,7 +23,7 @@ grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackSe
     return reactor;
   }
   const std::string peer = call->peer();
-  ctx.map.RetireRobot(id, [&ctx, reactor, response, peer](Result<RobotProgress> retired) {
+  ctx.map.RetireRobot(id, [&ctx, reactor, response, peer, who](Result<RobotProgress> retired) {
     if (!retired.ok()) {
       const Status& s = retired.status();
       if (s.code() == Status::Code::kFailedPrecondition) {
@@ -37,6 +37,8 @@ grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackSe
     const size_t robots = ctx.map.robots().Robots().size();
     spdlog::info("event=robot_retired robot=\"{}\" last_sequence={} robots={} peer=\"{}\"",
                  LogSafe(retired->robot_id, 128), retired->last_sequence, robots, LogSafe(peer));
+    AuditLog(*who, "retire_robot", "robot=\"" + LogSafe(retired->robot_id, 128) + "\"",
+             ctx.map.applied_version(), peer);
     response->set_last_sequence(retired->last_sequence);
     response->set_robots(robots);
     reactor->Finish(grpc::Status::OK);

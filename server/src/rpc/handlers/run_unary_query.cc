@@ -33,11 +33,12 @@ grpc::Status QueryControl::Check() const {
 }
 
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                        PrincipalRef who,
                                         std::function<grpc::Status(const QueryControl&)> work) {
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
-  auto permit = std::make_shared<Permit>(ctx.queries, ctx.limits.max_concurrent_queries);
+  auto permit = std::make_shared<QueryPermit>(ctx, *who);
   if (!*permit) {
-    reactor->Finish(QueriesBusy(ctx));
+    reactor->Finish(permit->refusal());
     return reactor;
   }
   auto control = std::make_shared<QueryControl>(call, ctx.limits.max_query_seconds);

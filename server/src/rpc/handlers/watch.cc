@@ -192,6 +192,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
 
 grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
                                                      grpc::CallbackServerContext* call,
+                                                     PrincipalRef /*who*/,
                                                      const v1::WatchRequest* request) {
   return new WatchStream(ctx, call, *request);
 }

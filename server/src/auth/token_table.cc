@@ -1,0 +1,195 @@
+#include "auth/token_table.h"
+
+#include <openssl/evp.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace bgkmap {
+namespace {
+
+bool IsHexDigest(const std::string& s) {
+  return s.size() == 64 && std::all_of(s.begin(), s.end(), [](char c) {
+           return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f');
+         });
+}
+
+bool IsName(const std::string& s) {
+  return !s.empty() && s.size() <= 128 && std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.';
+  });
+}
+
+Result<uint32_t> ReadLimit(const YAML::Node& node, const std::string& where) {
+  try {
+    const int64_t v = node.as<int64_t>();
+    if (v < 1 || v > 1'000'000) return Status::InvalidArgument(where + ": must be in 1..1000000");
+    return static_cast<uint32_t>(v);
+  } catch (const YAML::Exception&) {
+    return Status::InvalidArgument(where + ": not a number");
+  }
+}
+
+}  // namespace
+
+std::string Sha256Hex(std::string_view data) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  EVP_Digest(data.data(), data.size(), digest, &length, EVP_sha256(), nullptr);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string hex;
+  hex.reserve(2 * length);
+  for (unsigned int i = 0; i < length; ++i) {
+    hex += kHex[digest[i] >> 4];
+    hex += kHex[digest[i] & 15];
+  }
+  return hex;
+}
+
+Result<std::unique_ptr<TokenTable>> TokenTable::Load(const std::string& path, Defaults defaults) {
+  std::unique_ptr<TokenTable> table(new TokenTable(path, defaults));
+  if (Status s = table->Reload(); !s.ok()) return s;
+  return table;
+}
+
+Status TokenTable::Reload() {
+  Result<std::shared_ptr<const Digests>> parsed = Parse();
+  if (!parsed.ok()) return parsed.status();
+  std::lock_guard lock(mu_);
+  digests_ = std::move(parsed).value();
+  return Status::Ok();
+}
+
+Result<std::shared_ptr<const TokenTable::Digests>> TokenTable::Parse() const {
+  std::ifstream in(path_);
+  if (!in) return Status::IoError(path_ + ": cannot read");
+  std::stringstream text;
+  text << in.rdbuf();
+  YAML::Node root;
+  try {
+    root = YAML::Load(text.str());
+  } catch (const YAML::Exception& e) {
+    return Status::InvalidArgument(path_ + ": not YAML: " + e.what());
+  }
+  if (!root.IsMap() || !root["tokens"] || !root["tokens"].IsSequence()) {
+    return Status::InvalidArgument(path_ + ": expected 'tokens:' holding a list");
+  }
+  auto digests = std::make_shared<Digests>();
+  std::set<std::string> names;
+  const YAML::Node tokens = root["tokens"];
+  for (size_t i = 0; i < tokens.size(); ++i) {
+    const YAML::Node t = tokens[i];
+    const std::string at = path_ + ": tokens[" + std::to_string(i) + "]";
+    if (!t.IsMap()) return Status::InvalidArgument(at + ": expected a mapping");
+    for (const auto& field : t) {
+      static const std::set<std::string> kFields = {"name",   "sha256",      "role",
+                                                    "robots", "max_queries", "max_ingest_streams"};
+      const std::string key = field.first.as<std::string>();
+      if (kFields.count(key) == 0) return Status::InvalidArgument(at + "." + key + ": unknown key");
+    }
+    auto p = std::make_shared<Principal>();
+    try {
+      p->name = t["name"] ? t["name"].as<std::string>() : "";
+      if (!IsName(p->name)) {
+        return Status::InvalidArgument(at + ".name: '" + p->name +
+                                       "' must be 1..128 of [A-Za-z0-9._-]");
+      }
+      if (!names.insert(p->name).second) {
+        return Status::InvalidArgument(at + ".name: '" + p->name + "' is listed twice");
+      }
+      std::string digest = t["sha256"] ? t["sha256"].as<std::string>() : "";
+      std::transform(digest.begin(), digest.end(), digest.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (!IsHexDigest(digest)) {
+        return Status::InvalidArgument(at +
+                                       ".sha256: expected 64 hex digits (the token's "
+                                       "SHA-256, e.g. `printf %s TOKEN | sha256sum`)");
+      }
+      const std::string role = t["role"] ? t["role"].as<std::string>() : "";
+      if (role == "robot") {
+        p->role = Role::kRobot;
+      } else if (role == "planner") {
+        p->role = Role::kPlanner;
+      } else if (role == "admin") {
+        p->role = Role::kAdmin;
+      } else {
+        return Status::InvalidArgument(at + ".role: '" + role +
+                                       "' is not one of robot|planner|admin");
+      }
+      if (const YAML::Node robots = t["robots"]) {
+        if (p->role != Role::kRobot) {
+          return Status::InvalidArgument(at + ".robots: only a robot token lists robot ids");
+        }
+        if (!robots.IsSequence()) return Status::InvalidArgument(at + ".robots: expected a list");
+        for (const auto& r : robots) p->robots.push_back(r.as<std::string>());
+      }
+      if (p->role == Role::kRobot && p->robots.empty()) {
+        return Status::InvalidArgument(at + ".robots: a robot token lists the ids it ingests as");
+      }
+      p->max_queries = defaults_.max_queries;
+      p->max_ingest_streams = defaults_.max_ingest_streams;
+      if (t["max_queries"]) {
+        Result<uint32_t> v = ReadLimit(t["max_queries"], at + ".max_queries");
+        if (!v.ok()) return v.status();
+        p->max_queries = *v;
+      }
+      if (t["max_ingest_streams"]) {
+        Result<uint32_t> v = ReadLimit(t["max_ingest_streams"], at + ".max_ingest_streams");
+        if (!v.ok()) return v.status();
+        p->max_ingest_streams = *v;
+      }
+      if (digests->count(digest) > 0) {
+        return Status::InvalidArgument(at + ".sha256: the same digest as another token");
+      }
+      {
+        std::lock_guard lock(mu_);
+        std::shared_ptr<TokenUsage>& usage = usage_[p->name];
+        if (usage == nullptr) usage = std::make_shared<TokenUsage>();
+        p->usage = usage;
+      }
+      digests->emplace(std::move(digest), std::move(p));
+    } catch (const YAML::Exception& e) {
+      return Status::InvalidArgument(at + ": " + e.what());
+    }
+  }
+  return std::shared_ptr<const Digests>(std::move(digests));
+}
+
+PrincipalRef TokenTable::Authenticate(std::string_view authorization, std::string* why) const {
+  if (authorization.empty()) {
+    *why = "no token: send the metadata 'authorization: Bearer <token>'";
+    return nullptr;
+  }
+  constexpr std::string_view kScheme = "bearer ";
+  if (authorization.size() <= kScheme.size() ||
+      !std::equal(kScheme.begin(), kScheme.end(), authorization.begin(), [](char a, char b) {
+        return a == std::tolower(static_cast<unsigned char>(b));
+      })) {
+    *why = "the 'authorization' metadata is not 'Bearer <token>'";
+    return nullptr;
+  }
+  // Looked up by digest: the comparison's timing says nothing about the token itself.
+  const std::string digest = Sha256Hex(authorization.substr(kScheme.size()));
+  std::shared_ptr<const Digests> digests;
+  {
+    std::lock_guard lock(mu_);
+    digests = digests_;
+  }
+  const auto it = digests->find(digest);
+  if (it == digests->end()) {
+    *why = "unknown token";
+    return nullptr;
+  }
+  return it->second;
+}
+
+size_t TokenTable::size() const {
+  std::lock_guard lock(mu_);
+  return digests_ == nullptr ? 0 : digests_->size();
+}
+
+}  // namespace bgkmap
