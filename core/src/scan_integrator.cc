@@ -6,8 +6,10 @@
 #include <limits>
 #include <unordered_map>
 
+#include "bgkmap/core/cell_estimate.h"
 #include "bgkmap/core/terrain_features.h"
 #include "footprint.h"
+#include "ray_walk.h"
 
 namespace bgkmap {
 namespace {
@@ -70,7 +72,64 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       geometry_(params.resolution, params.tile_size),
       kernel_(params.resolution, params.kernel_length),
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
-      neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {}
+      neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
+  for (int r = 0; r < kernel_.row_count(); ++r) {
+    for (int dx = -kernel_.half_width(r); dx <= kernel_.half_width(r); ++dx) {
+      kernel_offsets_.push_back({dx, r - kernel_.radius()});
+    }
+  }
+  if (params.dynamics == Dynamics::kOn) {
+    // A "full-kernel observation" is every cell within l observed once.
+    double full_w = 0.0;
+    float full_ab = 0.0f;
+    for (int r = 0; r < kernel_.row_count(); ++r) {
+      for (int j = 0; j <= 2 * kernel_.half_width(r); ++j) {
+        full_w += kernel_.row_weights_double(r)[j];
+        full_ab += kernel_.row_weights(r)[j];
+      }
+    }
+    if (!InfersElevation(params.method)) full_w = 1.0;  // raw elevation: one per observation
+    caps_.w = params.max_confidence_scans * full_w;
+    caps_.forget_below = 0.1 * full_w;
+    // Direct methods keep the latest v (a + b = 1): nothing accumulates.
+    if (InfersTraversability(params.method)) {
+      caps_.ab = static_cast<float>(params.max_confidence_scans * full_ab);
+    }
+  }
+}
+
+namespace {
+
+// Scales the cells of [w, w + len) whose elevation weight passed `cap` back onto it.
+inline void CapElevation(double* w, double* s, double* q, int len, double cap) {
+  for (int j = 0; j < len; ++j) {
+    if (w[j] > cap) {
+      const double f = cap / w[j];
+      w[j] = cap;
+      s[j] *= f;
+      q[j] *= f;
+    }
+  }
+}
+
+inline void CapBeta(float* a, float* b, int len, float cap) {
+  for (int j = 0; j < len; ++j) {
+    const float sum = a[j] + b[j];
+    if (sum > cap) {
+      const float f = cap / sum;
+      a[j] *= f;
+      b[j] *= f;
+    }
+  }
+}
+
+}  // namespace
+
+void ScanIntegrator::Saturate(Tile& tile) const {
+  const int n = tile.cell_count();
+  if (caps_.w > 0) CapElevation(tile.w().data(), tile.s().data(), tile.q().data(), n, caps_.w);
+  if (caps_.ab > 0) CapBeta(tile.a().data(), tile.b().data(), n, caps_.ab);
+}
 
 // The per-scan work, with the scan's window and parameters at hand.
 struct ScanIntegrator::Impl {
@@ -127,6 +186,56 @@ struct ScanIntegrator::Impl {
     return (p.lambda * p.prior_mean + tile->s()[i]) / (p.lambda + w);
   }
 
+  // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
+  // "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
+  // elevation (something appeared), and a ray passing clearly below one on its way to its return
+  // (what was there has gone).
+  std::vector<CellIndex> Contradicted(const PreparedScan& scan) const {
+    std::vector<CellIndex> out;
+    const MapParams& p = self.params_;
+    const double margin = p.clear_margin;
+    for (const ObservedCell& oc : scan.cells) {
+      const double m = Elevation(oc.cell);
+      if (oc.y > m + margin) out.push_back(oc.cell);  // false for NaN (unknown)
+    }
+    if (p.clear_ray_length > 0) {
+      const double res = p.resolution;
+      const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
+      const double length = p.clear_ray_length / res;
+      // Cells within l of the return are skipped: there the kernel blends the return's own
+      // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
+      const double skip = p.kernel_length / res;
+      TileKey last_key{0, 0};
+      const Tile* last_tile = nullptr;
+      bool have_last = false;
+      for (const ObservedCell& oc : scan.cells) {
+        const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
+        if (!(dist > skip)) continue;
+        const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
+        internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
+          if (t < skip) return;
+          const TileKey key = self.geometry_.TileOf(c);
+          if (!have_last || key != last_key) {  // the footprint holds every tile a ray crosses
+            last_key = key;
+            last_tile = window.at(key);
+            have_last = true;
+          }
+          if (last_tile == nullptr) return;
+          const int i = self.geometry_.LocalIndex(c);
+          const double w = last_tile->w()[i];
+          if (!(w > 0.0)) return;
+          // The top of what the cell has seen: its mean plus its disagreement's deviation, so
+          // an old object's remains, mixed with new ground, still stand above a grazing ray.
+          const double m = (p.lambda * p.prior_mean + last_tile->s()[i]) / (p.lambda + w);
+          const double top = m + std::sqrt(Disagreement(w, last_tile->s()[i], last_tile->q()[i]));
+          if (oc.y + rise * t < top - margin) out.push_back(c);
+        });
+      }
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+
   // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
   // with fewer than three known cells within the robot radius.
   float ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const {
@@ -166,9 +275,57 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   const Impl impl{*this, window, params_.tile_size};
   const Method method = params_.method;
 
-  // 1. Elevation (semantics 4; raw running mean for baseline and one-step).
+  const bool dynamic = params_.dynamics == Dynamics::kOn;
   const auto t0 = Clock::now();
-  if (InfersElevation(method)) {
+  std::vector<TileKey> cleared;  // clear_tiles the evidence changed
+  // 0. Free-space evidence (dynamics): contradicted cells keep clear_decay of their statistics.
+  if (dynamic && scan.has_sensor) {
+    // Each contradicted cell once, with the number of rays (and returns) that contradict it.
+    std::vector<std::pair<CellIndex, int>> contradicted;
+    for (const CellIndex& c : impl.Contradicted(scan)) {
+      if (!contradicted.empty() && contradicted.back().first == c) {
+        ++contradicted.back().second;
+      } else {
+        contradicted.emplace_back(c, 1);
+      }
+    }
+    // The traversability evidence within l of a contradicted cell was learnt from a surface that
+    // is not there any more: it is re-learnt from this scan on.
+    for (const auto& [c, count] : contradicted) {
+      for (const CellIndex& o : kernel_offsets_) {
+        const CellIndex n{c.x + o.x, c.y + o.y};
+        if (Tile* tile = impl.TileAt(n)) {
+          const int i = geometry_.LocalIndex(n);
+          tile->a()[i] = tile->b()[i] = 0.0f;
+        }
+      }
+    }
+    for (const auto& [c, count] : contradicted) {
+      Tile& tile = *impl.TileAt(c);
+      const int i = geometry_.LocalIndex(c);
+      // Independent rays are independent evidence: each keeps clear_decay of what is left.
+      double keep = 1.0;
+      for (int k = 0; k < count && keep > 0.0; ++k) keep *= params_.clear_decay;
+      tile.ScaleCell(i, keep);
+      // What is left is less than a tenth of one observation: forgotten, the cell is unknown
+      // again until something is seen there (a removed object over ground no ray reaches).
+      if (tile.w()[i] < caps_.forget_below) tile.ScaleCell(i, 0.0);
+    }
+    report.contradicted_cells = contradicted.size();
+    for (const auto& [c, count] : contradicted) {
+      const TileKey key = geometry_.TileOf(c);
+      if (!std::binary_search(scan.write_tiles.begin(), scan.write_tiles.end(), key) &&
+          (cleared.empty() || cleared.back() != key)) {
+        cleared.push_back(key);
+      }
+    }
+    std::sort(cleared.begin(), cleared.end());
+    cleared.erase(std::unique(cleared.begin(), cleared.end()), cleared.end());
+  }
+
+  // 1. Elevation (semantics 4; raw running mean for baseline and one-step).
+  const double w_cap = caps_.w;
+  if (InfersElevation(method) && !dynamic) {
     for (const ObservedCell& oc : scan.cells) {
       const double y = oc.y;
       impl.ForEachKernelRun(oc.cell,
@@ -181,12 +338,32 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
                               }
                             });
     }
+  } else if (InfersElevation(method)) {
+    for (const ObservedCell& oc : scan.cells) {
+      const double y = oc.y, yy = oc.y * oc.y;
+      impl.ForEachKernelRun(
+          oc.cell, [y, yy, w_cap](Tile& tile, int start, const double* k, const float*, int len) {
+            double* __restrict w = tile.w().data() + start;
+            double* __restrict s = tile.s().data() + start;
+            double* __restrict q = tile.q().data() + start;
+            for (int j = 0; j < len; ++j) {
+              w[j] += k[j];
+              s[j] += k[j] * y;
+              q[j] += k[j] * yy;
+            }
+            CapElevation(w, s, q, len, w_cap);
+          });
+    }
   } else {
     for (const ObservedCell& oc : scan.cells) {
       Tile* tile = impl.TileAt(oc.cell);
       const int i = geometry_.LocalIndex(oc.cell);
       tile->w()[i] += 1.0;
       tile->s()[i] += oc.y;
+      if (dynamic) {
+        tile->q()[i] += oc.y * oc.y;
+        CapElevation(&tile->w()[i], &tile->s()[i], &tile->q()[i], 1, w_cap);
+      }
     }
   }
 
@@ -231,16 +408,18 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   // direct value for baseline and bgk-trav.
   const auto t2 = Clock::now();
   if (InfersTraversability(method)) {
+    const float ab_cap = caps_.ab;
     for (const auto& [cell, v] : values) {
       const float va = v, vb = 1.0f - v;
       impl.ForEachKernelRun(
-          cell, [va, vb](Tile& tile, int start, const double*, const float* k, int len) {
+          cell, [va, vb, ab_cap](Tile& tile, int start, const double*, const float* k, int len) {
             float* __restrict a = tile.a().data() + start;
             float* __restrict b = tile.b().data() + start;
             for (int j = 0; j < len; ++j) {
               a[j] += k[j] * va;
               b[j] += k[j] * vb;
             }
+            if (ab_cap > 0) CapBeta(a, b, len, ab_cap);
           });
     }
   } else {
@@ -254,7 +433,13 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   const auto t3 = Clock::now();
 
   for (const TileKey& key : scan.write_tiles) window.at(key)->set_version(version);
-  report.changed_tiles = scan.write_tiles;
+  for (const TileKey& key : cleared) window.at(key)->set_version(version);
+  if (cleared.empty()) {
+    report.changed_tiles = scan.write_tiles;
+  } else {
+    std::merge(scan.write_tiles.begin(), scan.write_tiles.end(), cleared.begin(), cleared.end(),
+               std::back_inserter(report.changed_tiles));
+  }
   report.times = {Seconds(t0, t1), Seconds(t1, t2), Seconds(t2, t3)};
   return report;
 }
