@@ -112,10 +112,13 @@ inline void CapElevation(double* w, double* s, double* q, int len, double cap) {
   }
 }
 
+// The float sum of a scaled pair can land an ulp above `cap`: the slack makes capping
+// idempotent, so a merge re-capping an already capped map changes nothing.
 inline void CapBeta(float* a, float* b, int len, float cap) {
+  const float limit = cap * (1.0f + 1e-5f);
   for (int j = 0; j < len; ++j) {
     const float sum = a[j] + b[j];
-    if (sum > cap) {
+    if (sum > limit) {
       const float f = cap / sum;
       a[j] *= f;
       b[j] *= f;
@@ -289,15 +292,26 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
         contradicted.emplace_back(c, 1);
       }
     }
+    // Every tile this changes beyond the write tiles is stamped and reported like them (it must
+    // be checkpointed before it can be evicted).
+    const auto note_changed = [&](const CellIndex& c) {
+      const TileKey key = geometry_.TileOf(c);
+      if ((cleared.empty() || cleared.back() != key) &&
+          !std::binary_search(scan.write_tiles.begin(), scan.write_tiles.end(), key)) {
+        cleared.push_back(key);
+      }
+    };
     // The traversability evidence within l of a contradicted cell was learnt from a surface that
     // is not there any more: it is re-learnt from this scan on.
     for (const auto& [c, count] : contradicted) {
       for (const CellIndex& o : kernel_offsets_) {
         const CellIndex n{c.x + o.x, c.y + o.y};
-        if (Tile* tile = impl.TileAt(n)) {
-          const int i = geometry_.LocalIndex(n);
-          tile->a()[i] = tile->b()[i] = 0.0f;
-        }
+        Tile* tile = impl.TileAt(n);
+        if (tile == nullptr) continue;
+        const int i = geometry_.LocalIndex(n);
+        if (tile->a()[i] == 0.0f && tile->b()[i] == 0.0f) continue;
+        tile->a()[i] = tile->b()[i] = 0.0f;
+        note_changed(n);
       }
     }
     for (const auto& [c, count] : contradicted) {
@@ -309,16 +323,10 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
       tile.ScaleCell(i, keep);
       // What is left is less than a tenth of one observation: forgotten, the cell is unknown
       // again until something is seen there (a removed object over ground no ray reaches).
-      if (tile.w()[i] < caps_.forget_below) tile.ScaleCell(i, 0.0);
+      if (tile.w()[i] < caps_.forget_below) tile.ClearCell(i);
+      note_changed(c);
     }
     report.contradicted_cells = contradicted.size();
-    for (const auto& [c, count] : contradicted) {
-      const TileKey key = geometry_.TileOf(c);
-      if (!std::binary_search(scan.write_tiles.begin(), scan.write_tiles.end(), key) &&
-          (cleared.empty() || cleared.back() != key)) {
-        cleared.push_back(key);
-      }
-    }
     std::sort(cleared.begin(), cleared.end());
     cleared.erase(std::unique(cleared.begin(), cleared.end()), cleared.end());
   }

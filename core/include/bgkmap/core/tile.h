@@ -71,6 +71,13 @@ class Tile {
     b_[local] = static_cast<float>(b_[local] * f);
   }
 
+  // Makes cell `local` unknown: every statistic +0 (not -0, which a scaling by 0 could leave and
+  // which a merge would turn into +0).
+  void ClearCell(int local) {
+    w_[local] = s_[local] = q_[local] = 0.0;
+    a_[local] = b_[local] = 0.0f;
+  }
+
   static constexpr size_t kBytesPerCell = 3 * sizeof(double) + 2 * sizeof(float);
 
  private:
