@@ -73,11 +73,6 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       kernel_(params.resolution, params.kernel_length),
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
       neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
-  for (int r = 0; r < kernel_.row_count(); ++r) {
-    for (int dx = -kernel_.half_width(r); dx <= kernel_.half_width(r); ++dx) {
-      kernel_offsets_.push_back({dx, r - kernel_.radius()});
-    }
-  }
   if (params.dynamics == Dynamics::kOn) {
     // A "full-kernel observation" is every cell within l observed once.
     double full_w = 0.0;
@@ -146,13 +141,16 @@ struct ScanIntegrator::Impl {
   // stencil around `c` that lies in one tile. The same runs in the same order whatever the tile
   // size, up to splitting: each cell sees the same sequence of additions, so sums are bitwise
   // independent of the tiling.
-  template <typename RowFn>
+  // With kSkipAbsent, runs in tiles the window does not hold (or that do not exist) are
+  // skipped; otherwise every tile must be there.
+  template <bool kSkipAbsent = false, typename RowFn>
   void ForEachKernelRun(CellIndex c, RowFn&& row) const {
     const KernelStencil& k = self.kernel_;
     const int R = k.radius();
     const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
     if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
       Tile* tile = TileAt(c);
+      if (kSkipAbsent && tile == nullptr) return;
       for (int r = 0; r < k.row_count(); ++r) {
         const int hw = k.half_width(r);
         const int start = (ly + r - R) * T + lx - hw;
@@ -171,8 +169,10 @@ struct ScanIntegrator::Impl {
         const int seg_end = std::min(x_end, key.x * T + T - 1);
         Tile* tile = window.at(key);
         const int off = x - (c.x - hw);
-        row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
-            k.row_weights(r) + off, seg_end - x + 1);
+        if (!kSkipAbsent || tile != nullptr) {
+          row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
+              k.row_weights(r) + off, seg_end - x + 1);
+        }
         x = seg_end + 1;
       }
     }
@@ -294,25 +294,21 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     }
     // Every tile this changes beyond the write tiles is stamped and reported like them (it must
     // be checkpointed before it can be evicted).
-    const auto note_changed = [&](const CellIndex& c) {
-      const TileKey key = geometry_.TileOf(c);
-      if ((cleared.empty() || cleared.back() != key) &&
-          !std::binary_search(scan.write_tiles.begin(), scan.write_tiles.end(), key)) {
-        cleared.push_back(key);
-      }
-    };
+    std::vector<const Tile*> touched;
     // The traversability evidence within l of a contradicted cell was learnt from a surface that
     // is not there any more: it is re-learnt from this scan on.
     for (const auto& [c, count] : contradicted) {
-      for (const CellIndex& o : kernel_offsets_) {
-        const CellIndex n{c.x + o.x, c.y + o.y};
-        Tile* tile = impl.TileAt(n);
-        if (tile == nullptr) continue;
-        const int i = geometry_.LocalIndex(n);
-        if (tile->a()[i] == 0.0f && tile->b()[i] == 0.0f) continue;
-        tile->a()[i] = tile->b()[i] = 0.0f;
-        note_changed(n);
-      }
+      impl.ForEachKernelRun<true>(
+          c, [&](Tile& tile, int start, const double*, const float*, int len) {
+            float* a = tile.a().data() + start;
+            float* b = tile.b().data() + start;
+            bool any = false;
+            for (int j = 0; j < len; ++j) any |= (a[j] != 0.0f) | (b[j] != 0.0f);
+            if (!any) return;
+            std::fill_n(a, len, 0.0f);
+            std::fill_n(b, len, 0.0f);
+            if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
+          });
     }
     for (const auto& [c, count] : contradicted) {
       Tile& tile = *impl.TileAt(c);
@@ -324,11 +320,16 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
       // What is left is less than a tenth of one observation: forgotten, the cell is unknown
       // again until something is seen there (a removed object over ground no ray reaches).
       if (tile.w()[i] < caps_.forget_below) tile.ClearCell(i);
-      note_changed(c);
+      if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
     }
     report.contradicted_cells = contradicted.size();
-    std::sort(cleared.begin(), cleared.end());
-    cleared.erase(std::unique(cleared.begin(), cleared.end()), cleared.end());
+    std::sort(touched.begin(), touched.end());
+    for (const TileKey& key : scan.clear_tiles) {
+      const Tile* tile = window.at(key);
+      if (tile != nullptr && std::binary_search(touched.begin(), touched.end(), tile)) {
+        cleared.push_back(key);
+      }
+    }
   }
 
   // 1. Elevation (semantics 4; raw running mean for baseline and one-step).

@@ -83,7 +83,6 @@ class ScanIntegrator {
   GridGeometry geometry_;
   KernelStencil kernel_;
   std::vector<CellIndex> neighbourhood_;   // offsets within robot_radius, inclusive
-  std::vector<CellIndex> kernel_offsets_;  // offsets within the kernel support (d < l)
   int neighbourhood_radius_;               // largest |offset| in neighbourhood_
 };
 
