@@ -40,7 +40,7 @@ const Sequence& Drive(const sim::BeamModel& beams, double sensor_height) {
 }
 
 void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double kernel_length,
-                   Method method, int tile_size = 64) {
+                   Method method, int tile_size = 64, Dynamics dynamics = Dynamics::kOn) {
   const Sequence& seq = Drive(beams, 0.8);
   MapParams p;
   p.resolution = 0.1;
@@ -48,10 +48,11 @@ void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double 
   p.robot_radius = 0.3;
   p.method = method;
   p.tile_size = tile_size;
+  p.dynamics = dynamics;
   std::unique_ptr<TerrainMap> map;
   size_t next = 0;
   StageTimes sum;
-  double points = 0, observed = 0, bytes_per_known = 0;
+  double points = 0, observed = 0, contradicted = 0, bytes_per_known = 0;
   for (auto _ : state) {
     if (next % seq.scans.size() == 0) {  // restart the drive on a fresh map, untimed
       state.PauseTiming();
@@ -70,10 +71,12 @@ void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double 
     sum.traversability += r->times.traversability;
     points += static_cast<double>(r->counts.input);
     observed += static_cast<double>(r->observed_cells);
+    contradicted += static_cast<double>(r->contradicted_cells);
   }
   const double n = static_cast<double>(state.iterations());
   state.counters["points"] = points / n;
   state.counters["observed_cells"] = observed / n;
+  state.counters["contradicted"] = contradicted / n;
   state.counters["elev_ms"] = 1e3 * sum.elevation / n;
   state.counters["feat_ms"] = 1e3 * sum.features / n;
   state.counters["trav_ms"] = 1e3 * sum.traversability / n;
@@ -83,6 +86,15 @@ void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double 
 
 void BM_Vlp16(benchmark::State& s, Method m) { RunScanUpdate(s, sim::Vlp16(), 0.3, m); }
 void BM_Hdl32e(benchmark::State& s, Method m) { RunScanUpdate(s, sim::Hdl32e(), 1.0, m); }
+// The paper's accumulation (dynamics: off): the cost of following a changing world.
+void BM_Vlp16Paper(benchmark::State& s, Method m) {
+  RunScanUpdate(s, sim::Vlp16(), 0.3, m, 64, Dynamics::kOff);
+}
+void BM_Hdl32ePaper(benchmark::State& s, Method m) {
+  RunScanUpdate(s, sim::Hdl32e(), 1.0, m, 64, Dynamics::kOff);
+}
+BENCHMARK_CAPTURE(BM_Vlp16Paper, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32ePaper, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_CAPTURE(BM_Vlp16, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Hdl32e, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);

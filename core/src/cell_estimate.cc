@@ -1,5 +1,6 @@
 #include "bgkmap/core/cell_estimate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -56,7 +57,13 @@ float CellEstimate::Get(Layer layer) const {
   return kNaN;
 }
 
-CellEstimate EstimateCell(const MapParams& p, double w, double s, float a, float b) {
+double Disagreement(double w, double s, double q) {
+  if (!(w > 0.0)) return 0.0;
+  const double mean = s / w;
+  return std::max(0.0, q / w - mean * mean);
+}
+
+CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b) {
   CellEstimate e{kNaN, kNaN, kNaN, kNaN, CellState::kUnknown, static_cast<float>(w)};
   const double ab = static_cast<double>(a) + static_cast<double>(b);
   const bool known = w > 0.0 || ab > 0.0;
@@ -64,10 +71,13 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, float a, float
     e.elevation_weight = kNaN;
     return e;
   }
+  const bool dynamic = p.dynamics == Dynamics::kOn;
+  double disagreement = 0.0;
   if (w > 0.0) {
     const double lw = p.lambda + w;
+    if (dynamic) disagreement = Disagreement(w, s, q);
     e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
-    e.elevation_variance = static_cast<float>(p.sigma2 / lw);
+    e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
   }
   if (InfersTraversability(p.method)) {
     const double alpha = p.alpha0 + a;
@@ -80,8 +90,9 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, float a, float
     e.traversability_variance = 0.0f;
   }
   // NaN comparisons are false: a known cell without a traversability value is non-traversable.
-  const bool traversable =
-      e.traversability < p.trav_threshold && e.traversability_variance < p.variance_threshold;
+  const bool traversable = e.traversability < p.trav_threshold &&
+                           e.traversability_variance < p.variance_threshold &&
+                           disagreement <= p.step_crit * p.step_crit;
   e.state = traversable ? CellState::kTraversable : CellState::kNonTraversable;
   return e;
 }

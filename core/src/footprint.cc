@@ -66,11 +66,47 @@ void ComputeFootprint(const MapParams& p, PreparedScan& scan) {
         geo, scan.cells, robot_radius,
         [&](int dx, int dy) { return InNeighbourhood(dx, dy, nb_limit); }, reads);
   }
+  // Rays: the tiles of each ray's last clear_ray_length metres (its bounding box of tiles).
+  std::vector<TileKey> rays;
+  if (p.dynamics == Dynamics::kOn && scan.has_sensor && p.clear_ray_length > 0) {
+    const double res = p.resolution;
+    const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
+    const double length = p.clear_ray_length / res;
+    for (const ObservedCell& oc : scan.cells) {
+      const double ex = oc.cell.x + 0.5, ey = oc.cell.y + 0.5;
+      const double dist = std::hypot(sx - ex, sy - ey);
+      const double f = dist > length ? length / dist : 1.0;
+      // Slack each way: the cells the segment touches, and the kernel support around them
+      // (a contradicted cell's neighbours re-learn their traversability).
+      const int slack = kernel_radius + 1;
+      const double fx = ex + (sx - ex) * f, fy = ey + (sy - ey) * f;
+      const TileKey lo = geo.TileOf({static_cast<int>(std::floor(std::min(ex, fx))) - slack,
+                                     static_cast<int>(std::floor(std::min(ey, fy))) - slack});
+      const TileKey hi = geo.TileOf({static_cast<int>(std::floor(std::max(ex, fx))) + slack,
+                                     static_cast<int>(std::floor(std::max(ey, fy))) + slack});
+      if (lo == hi) {
+        if (rays.empty() || rays.back() != lo) rays.push_back(lo);
+        continue;
+      }
+      for (int ty = lo.y; ty <= hi.y; ++ty) {
+        for (int tx = lo.x; tx <= hi.x; ++tx) rays.push_back({tx, ty});
+      }
+    }
+    std::sort(rays.begin(), rays.end());
+    rays.erase(std::unique(rays.begin(), rays.end()), rays.end());
+  }
+  std::vector<TileKey> clears;
+  std::set_difference(rays.begin(), rays.end(), writes.begin(), writes.end(),
+                      std::back_inserter(clears));
+  std::vector<TileKey> changeable;
+  std::merge(writes.begin(), writes.end(), clears.begin(), clears.end(),
+             std::back_inserter(changeable));
   std::vector<TileKey> read_only;
-  std::set_difference(reads.begin(), reads.end(), writes.begin(), writes.end(),
+  std::set_difference(reads.begin(), reads.end(), changeable.begin(), changeable.end(),
                       std::back_inserter(read_only));
   scan.write_tiles = std::move(writes);
   scan.read_tiles = std::move(read_only);
+  scan.clear_tiles = std::move(clears);
 }
 
 }  // namespace bgkmap::internal

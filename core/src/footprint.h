@@ -24,7 +24,7 @@ inline bool InNeighbourhood(int dx, int dy, double limit) {
   return static_cast<double>(dx) * dx + static_cast<double>(dy) * dy <= limit;
 }
 
-// Fills scan.write_tiles and scan.read_tiles from scan.cells.
+// Fills scan.write_tiles, scan.read_tiles and scan.clear_tiles from scan.cells (and the sensor).
 void ComputeFootprint(const MapParams& params, PreparedScan& scan);
 
 }  // namespace bgkmap::internal

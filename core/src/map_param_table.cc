@@ -100,6 +100,23 @@ Status MaxRange(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
+Status UnitInterval(std::string_view key, double v, const MapParams&) {
+  if (!std::isfinite(v) || v < 0 || v > 1) return Bad(key, v, "must lie in [0, 1]");
+  return Status::Ok();
+}
+
+Status ConfidenceScans(std::string_view key, double v, const MapParams&) {
+  if (!std::isfinite(v) || v < 1) return Bad(key, v, "must be finite and >= 1 (scans)");
+  return Status::Ok();
+}
+
+// Rays are walked cell by cell: their length bounds the per-scan cost.
+Status RayLength(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 50) return Bad(key, v, "must be <= 50 metres");
+  return Status::Ok();
+}
+
 Status TileSize(std::string_view key, double v, const MapParams&) {
   if (v < kMinTileSize || v > kMaxTileSize) {
     return Bad(key, v,
@@ -152,6 +169,11 @@ MapParamInfo Enum(std::string_view key, bool shapes, std::string_view doc) {
   return info;
 }
 
+MapParamInfo Legacy(MapParamInfo info, std::string_view legacy_text) {
+  info.legacy_text = legacy_text;
+  return info;
+}
+
 using P = MapParams;
 
 const std::vector<MapParamInfo>& Table() {
@@ -186,6 +208,23 @@ const std::vector<MapParamInfo>& Table() {
       Integer("tile_size", &P::tile_size, kStats, TileSize, "cells per tile edge"),
       Enum<&P::method, MethodName, ParseMethod>("method", kStats,
                                                 "bgk+ | bgk-trav | baseline | one-step"),
+      // Dynamics (docs/semantics.md); stores and archives from before them were built "off".
+      Legacy(Enum<&P::dynamics, DynamicsName, ParseDynamics>(
+                 "dynamics", kStats, "on | off: follow a changing world, or accumulate (paper)"),
+             "off"),
+      Legacy(Real("max_confidence_scans", &P::max_confidence_scans, kStats, ConfidenceScans,
+                  "confidence cap: statistics saturate at this many full-kernel observations"),
+             "20"),
+      Legacy(Real("clear_margin", &P::clear_margin, kStats, Positive,
+                  "a ray this far below a cell's elevation, or a return this far above, "
+                  "contradicts it, metres"),
+             "0.2"),
+      Legacy(Real("clear_decay", &P::clear_decay, kStats, UnitInterval,
+                  "fraction of a contradicted cell's statistics kept"),
+             "0.05"),
+      Legacy(Real("clear_ray_length", &P::clear_ray_length, kStats, RayLength,
+                  "free-space rays are walked over this many metres before their return"),
+             "2"),
   };
   return table;
 }

@@ -20,6 +20,14 @@ std::string_view MethodName(Method m) {
 
 std::string_view ObservationName(Observation o) { return o == Observation::kMax ? "max" : "mean"; }
 
+std::string_view DynamicsName(Dynamics d) { return d == Dynamics::kOn ? "on" : "off"; }
+
+Result<Dynamics> ParseDynamics(std::string_view name) {
+  if (name == "on") return Dynamics::kOn;
+  if (name == "off") return Dynamics::kOff;
+  return Status::InvalidArgument("dynamics = " + std::string(name) + ": must be one of on, off");
+}
+
 Result<Method> ParseMethod(std::string_view name) {
   for (Method m : {Method::kBgkPlus, Method::kBgkTrav, Method::kBaseline, Method::kOneStep}) {
     if (name == MethodName(m)) return m;

@@ -11,33 +11,30 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 // Running aggregate of the cells behind one raster pixel.
 struct PixelAggregate {
-  double w = 0, s = 0;
+  double w = 0, s = 0, q = 0;
   float worst_trav = -1, worst_var = -1;
   bool known = false;
-  bool undefined_trav = false;  // a known cell without a traversability value
+  bool any_non_traversable = false;  // the pixel is traversable only if all its cells are
 
-  void Add(const MapParams& p, double cw, double cs, float ca, float cb) {
-    const CellEstimate e = EstimateCell(p, cw, cs, ca, cb);
+  void Add(const MapParams& p, double cw, double cs, double cq, float ca, float cb) {
+    const CellEstimate e = EstimateCell(p, cw, cs, cq, ca, cb);
     if (e.state == CellState::kUnknown) return;
     known = true;
     w += cw;
     s += cs;
-    if (std::isnan(e.traversability)) {
-      undefined_trav = true;
-      return;
-    }
+    q += cq;
+    any_non_traversable |= e.state == CellState::kNonTraversable;
+    if (std::isnan(e.traversability)) return;
     worst_trav = std::max(worst_trav, e.traversability);
     worst_var = std::max(worst_var, e.traversability_variance);
   }
 
   CellEstimate Estimate(const MapParams& p) const {
-    CellEstimate e = EstimateCell(p, w, s, 0.0f, 0.0f);
+    CellEstimate e = EstimateCell(p, w, s, q, 0.0f, 0.0f);
     if (!known) return e;
     e.traversability = worst_trav >= 0 ? worst_trav : kNaN;
     e.traversability_variance = worst_var >= 0 ? worst_var : kNaN;
-    const bool traversable = !undefined_trav && e.traversability < p.trav_threshold &&
-                             e.traversability_variance < p.variance_threshold;
-    e.state = traversable ? CellState::kTraversable : CellState::kNonTraversable;
+    e.state = any_non_traversable ? CellState::kNonTraversable : CellState::kTraversable;
     e.elevation_weight = static_cast<float>(w);
     return e;
   }
@@ -91,10 +88,11 @@ Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vecto
           const int i = (y - o.y) * T + (x - o.x);
           if (!tile->IsKnown(i)) continue;
           if (stride == 1) {
-            write(pixel_of(x, y),
-                  EstimateCell(p, tile->w()[i], tile->s()[i], tile->a()[i], tile->b()[i]));
+            write(pixel_of(x, y), EstimateCell(p, tile->w()[i], tile->s()[i], tile->q()[i],
+                                               tile->a()[i], tile->b()[i]));
           } else {
-            agg[pixel_of(x, y)].Add(p, tile->w()[i], tile->s()[i], tile->a()[i], tile->b()[i]);
+            agg[pixel_of(x, y)].Add(p, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i],
+                                    tile->b()[i]);
           }
         }
       }

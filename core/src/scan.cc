@@ -74,11 +74,22 @@ std::vector<ObservedCell> ReduceCells(const std::vector<BinnedPoint>& pts,
 
 }  // namespace
 
+std::vector<TileKey> PreparedScan::ChangeableTiles() const {
+  std::vector<TileKey> out;
+  out.reserve(write_tiles.size() + clear_tiles.size());
+  std::merge(write_tiles.begin(), write_tiles.end(), clear_tiles.begin(), clear_tiles.end(),
+             std::back_inserter(out));
+  return out;
+}
+
 Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3f> points,
                                  const Pose& T, bool frame_is_map) {
   if (Status s = ValidatePose(T, params); !s.ok()) return s;
   PreparedScan scan;
   scan.sensor_z = T.translation.z();
+  scan.has_sensor = !frame_is_map;
+  scan.sensor_x = T.translation.x();
+  scan.sensor_y = T.translation.y();
   ScanPointCounts& c = scan.counts;
   c.input = points.size();
 

@@ -6,8 +6,10 @@
 #include <limits>
 #include <unordered_map>
 
+#include "bgkmap/core/cell_estimate.h"
 #include "bgkmap/core/terrain_features.h"
 #include "footprint.h"
+#include "ray_walk.h"
 
 namespace bgkmap {
 namespace {
@@ -70,7 +72,62 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       geometry_(params.resolution, params.tile_size),
       kernel_(params.resolution, params.kernel_length),
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
-      neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {}
+      neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
+  if (params.dynamics == Dynamics::kOn) {
+    // A "full-kernel observation" is every cell within l observed once.
+    double full_w = 0.0;
+    float full_ab = 0.0f;
+    for (int r = 0; r < kernel_.row_count(); ++r) {
+      for (int j = 0; j <= 2 * kernel_.half_width(r); ++j) {
+        full_w += kernel_.row_weights_double(r)[j];
+        full_ab += kernel_.row_weights(r)[j];
+      }
+    }
+    if (!InfersElevation(params.method)) full_w = 1.0;  // raw elevation: one per observation
+    caps_.w = params.max_confidence_scans * full_w;
+    caps_.forget_below = 0.1 * full_w;
+    // Direct methods keep the latest v (a + b = 1): nothing accumulates.
+    if (InfersTraversability(params.method)) {
+      caps_.ab = static_cast<float>(params.max_confidence_scans * full_ab);
+    }
+  }
+}
+
+namespace {
+
+// Scales the cells of [w, w + len) whose elevation weight passed `cap` back onto it.
+inline void CapElevation(double* w, double* s, double* q, int len, double cap) {
+  for (int j = 0; j < len; ++j) {
+    if (w[j] > cap) {
+      const double f = cap / w[j];
+      w[j] = cap;
+      s[j] *= f;
+      q[j] *= f;
+    }
+  }
+}
+
+// The float sum of a scaled pair can land an ulp above `cap`: the slack makes capping
+// idempotent, so a merge re-capping an already capped map changes nothing.
+inline void CapBeta(float* a, float* b, int len, float cap) {
+  const float limit = cap * (1.0f + 1e-5f);
+  for (int j = 0; j < len; ++j) {
+    const float sum = a[j] + b[j];
+    if (sum > limit) {
+      const float f = cap / sum;
+      a[j] *= f;
+      b[j] *= f;
+    }
+  }
+}
+
+}  // namespace
+
+void ScanIntegrator::Saturate(Tile& tile) const {
+  const int n = tile.cell_count();
+  if (caps_.w > 0) CapElevation(tile.w().data(), tile.s().data(), tile.q().data(), n, caps_.w);
+  if (caps_.ab > 0) CapBeta(tile.a().data(), tile.b().data(), n, caps_.ab);
+}
 
 // The per-scan work, with the scan's window and parameters at hand.
 struct ScanIntegrator::Impl {
@@ -84,13 +141,16 @@ struct ScanIntegrator::Impl {
   // stencil around `c` that lies in one tile. The same runs in the same order whatever the tile
   // size, up to splitting: each cell sees the same sequence of additions, so sums are bitwise
   // independent of the tiling.
-  template <typename RowFn>
+  // With kSkipAbsent, runs in tiles the window does not hold (or that do not exist) are
+  // skipped; otherwise every tile must be there.
+  template <bool kSkipAbsent = false, typename RowFn>
   void ForEachKernelRun(CellIndex c, RowFn&& row) const {
     const KernelStencil& k = self.kernel_;
     const int R = k.radius();
     const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
     if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
       Tile* tile = TileAt(c);
+      if (kSkipAbsent && tile == nullptr) return;
       for (int r = 0; r < k.row_count(); ++r) {
         const int hw = k.half_width(r);
         const int start = (ly + r - R) * T + lx - hw;
@@ -109,8 +169,10 @@ struct ScanIntegrator::Impl {
         const int seg_end = std::min(x_end, key.x * T + T - 1);
         Tile* tile = window.at(key);
         const int off = x - (c.x - hw);
-        row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
-            k.row_weights(r) + off, seg_end - x + 1);
+        if (!kSkipAbsent || tile != nullptr) {
+          row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
+              k.row_weights(r) + off, seg_end - x + 1);
+        }
         x = seg_end + 1;
       }
     }
@@ -125,6 +187,56 @@ struct ScanIntegrator::Impl {
     if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
     const MapParams& p = self.params_;
     return (p.lambda * p.prior_mean + tile->s()[i]) / (p.lambda + w);
+  }
+
+  // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
+  // "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
+  // elevation (something appeared), and a ray passing clearly below one on its way to its return
+  // (what was there has gone).
+  std::vector<CellIndex> Contradicted(const PreparedScan& scan) const {
+    std::vector<CellIndex> out;
+    const MapParams& p = self.params_;
+    const double margin = p.clear_margin;
+    for (const ObservedCell& oc : scan.cells) {
+      const double m = Elevation(oc.cell);
+      if (oc.y > m + margin) out.push_back(oc.cell);  // false for NaN (unknown)
+    }
+    if (p.clear_ray_length > 0) {
+      const double res = p.resolution;
+      const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
+      const double length = p.clear_ray_length / res;
+      // Cells within l of the return are skipped: there the kernel blends the return's own
+      // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
+      const double skip = p.kernel_length / res;
+      TileKey last_key{0, 0};
+      const Tile* last_tile = nullptr;
+      bool have_last = false;
+      for (const ObservedCell& oc : scan.cells) {
+        const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
+        if (!(dist > skip)) continue;
+        const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
+        internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
+          if (t < skip) return;
+          const TileKey key = self.geometry_.TileOf(c);
+          if (!have_last || key != last_key) {  // the footprint holds every tile a ray crosses
+            last_key = key;
+            last_tile = window.at(key);
+            have_last = true;
+          }
+          if (last_tile == nullptr) return;
+          const int i = self.geometry_.LocalIndex(c);
+          const double w = last_tile->w()[i];
+          if (!(w > 0.0)) return;
+          // The top of what the cell has seen: its mean plus its disagreement's deviation, so
+          // an old object's remains, mixed with new ground, still stand above a grazing ray.
+          const double m = (p.lambda * p.prior_mean + last_tile->s()[i]) / (p.lambda + w);
+          const double top = m + std::sqrt(Disagreement(w, last_tile->s()[i], last_tile->q()[i]));
+          if (oc.y + rise * t < top - margin) out.push_back(c);
+        });
+      }
+    }
+    std::sort(out.begin(), out.end());
+    return out;
   }
 
   // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
@@ -166,9 +278,63 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   const Impl impl{*this, window, params_.tile_size};
   const Method method = params_.method;
 
-  // 1. Elevation (semantics 4; raw running mean for baseline and one-step).
+  const bool dynamic = params_.dynamics == Dynamics::kOn;
   const auto t0 = Clock::now();
-  if (InfersElevation(method)) {
+  std::vector<TileKey> cleared;  // clear_tiles the evidence changed
+  // 0. Free-space evidence (dynamics): contradicted cells keep clear_decay of their statistics.
+  if (dynamic && scan.has_sensor) {
+    // Each contradicted cell once, with the number of rays (and returns) that contradict it.
+    std::vector<std::pair<CellIndex, int>> contradicted;
+    for (const CellIndex& c : impl.Contradicted(scan)) {
+      if (!contradicted.empty() && contradicted.back().first == c) {
+        ++contradicted.back().second;
+      } else {
+        contradicted.emplace_back(c, 1);
+      }
+    }
+    // Every tile this changes beyond the write tiles is stamped and reported like them (it must
+    // be checkpointed before it can be evicted).
+    std::vector<const Tile*> touched;
+    // The traversability evidence within l of a contradicted cell was learnt from a surface that
+    // is not there any more: it is re-learnt from this scan on.
+    for (const auto& [c, count] : contradicted) {
+      impl.ForEachKernelRun<true>(
+          c, [&](Tile& tile, int start, const double*, const float*, int len) {
+            float* a = tile.a().data() + start;
+            float* b = tile.b().data() + start;
+            bool any = false;
+            for (int j = 0; j < len; ++j) any |= (a[j] != 0.0f) | (b[j] != 0.0f);
+            if (!any) return;
+            std::fill_n(a, len, 0.0f);
+            std::fill_n(b, len, 0.0f);
+            if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
+          });
+    }
+    for (const auto& [c, count] : contradicted) {
+      Tile& tile = *impl.TileAt(c);
+      const int i = geometry_.LocalIndex(c);
+      // Independent rays are independent evidence: each keeps clear_decay of what is left.
+      double keep = 1.0;
+      for (int k = 0; k < count && keep > 0.0; ++k) keep *= params_.clear_decay;
+      tile.ScaleCell(i, keep);
+      // What is left is less than a tenth of one observation: forgotten, the cell is unknown
+      // again until something is seen there (a removed object over ground no ray reaches).
+      if (tile.w()[i] < caps_.forget_below) tile.ClearCell(i);
+      if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
+    }
+    report.contradicted_cells = contradicted.size();
+    std::sort(touched.begin(), touched.end());
+    for (const TileKey& key : scan.clear_tiles) {
+      const Tile* tile = window.at(key);
+      if (tile != nullptr && std::binary_search(touched.begin(), touched.end(), tile)) {
+        cleared.push_back(key);
+      }
+    }
+  }
+
+  // 1. Elevation (semantics 4; raw running mean for baseline and one-step).
+  const double w_cap = caps_.w;
+  if (InfersElevation(method) && !dynamic) {
     for (const ObservedCell& oc : scan.cells) {
       const double y = oc.y;
       impl.ForEachKernelRun(oc.cell,
@@ -181,12 +347,32 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
                               }
                             });
     }
+  } else if (InfersElevation(method)) {
+    for (const ObservedCell& oc : scan.cells) {
+      const double y = oc.y, yy = oc.y * oc.y;
+      impl.ForEachKernelRun(
+          oc.cell, [y, yy, w_cap](Tile& tile, int start, const double* k, const float*, int len) {
+            double* __restrict w = tile.w().data() + start;
+            double* __restrict s = tile.s().data() + start;
+            double* __restrict q = tile.q().data() + start;
+            for (int j = 0; j < len; ++j) {
+              w[j] += k[j];
+              s[j] += k[j] * y;
+              q[j] += k[j] * yy;
+            }
+            CapElevation(w, s, q, len, w_cap);
+          });
+    }
   } else {
     for (const ObservedCell& oc : scan.cells) {
       Tile* tile = impl.TileAt(oc.cell);
       const int i = geometry_.LocalIndex(oc.cell);
       tile->w()[i] += 1.0;
       tile->s()[i] += oc.y;
+      if (dynamic) {
+        tile->q()[i] += oc.y * oc.y;
+        CapElevation(&tile->w()[i], &tile->s()[i], &tile->q()[i], 1, w_cap);
+      }
     }
   }
 
@@ -231,16 +417,18 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   // direct value for baseline and bgk-trav.
   const auto t2 = Clock::now();
   if (InfersTraversability(method)) {
+    const float ab_cap = caps_.ab;
     for (const auto& [cell, v] : values) {
       const float va = v, vb = 1.0f - v;
       impl.ForEachKernelRun(
-          cell, [va, vb](Tile& tile, int start, const double*, const float* k, int len) {
+          cell, [va, vb, ab_cap](Tile& tile, int start, const double*, const float* k, int len) {
             float* __restrict a = tile.a().data() + start;
             float* __restrict b = tile.b().data() + start;
             for (int j = 0; j < len; ++j) {
               a[j] += k[j] * va;
               b[j] += k[j] * vb;
             }
+            if (ab_cap > 0) CapBeta(a, b, len, ab_cap);
           });
     }
   } else {
@@ -254,7 +442,13 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   const auto t3 = Clock::now();
 
   for (const TileKey& key : scan.write_tiles) window.at(key)->set_version(version);
-  report.changed_tiles = scan.write_tiles;
+  for (const TileKey& key : cleared) window.at(key)->set_version(version);
+  if (cleared.empty()) {
+    report.changed_tiles = scan.write_tiles;
+  } else {
+    std::merge(scan.write_tiles.begin(), scan.write_tiles.end(), cleared.begin(), cleared.end(),
+               std::back_inserter(report.changed_tiles));
+  }
   report.times = {Seconds(t0, t1), Seconds(t1, t2), Seconds(t2, t3)};
   return report;
 }

@@ -24,12 +24,14 @@ Result<ScanReport> TerrainMap::IntegrateScan(std::span<const Point3f> points, co
 }
 
 TileWindow TerrainMap::MakeWindow(const PreparedScan& scan) {
+  const std::vector<TileKey> changeable = scan.ChangeableTiles();
   std::vector<TileKey> keys;
-  keys.reserve(scan.write_tiles.size() + scan.read_tiles.size());
-  std::merge(scan.write_tiles.begin(), scan.write_tiles.end(), scan.read_tiles.begin(),
-             scan.read_tiles.end(), std::back_inserter(keys));
+  keys.reserve(changeable.size() + scan.read_tiles.size());
+  std::merge(changeable.begin(), changeable.end(), scan.read_tiles.begin(), scan.read_tiles.end(),
+             std::back_inserter(keys));
   TileWindow window(keys);
   for (const TileKey& k : scan.write_tiles) window.set(k, &GetOrCreateTile(k));
+  for (const TileKey& k : scan.clear_tiles) window.set(k, FindMutableTile(k));
   for (const TileKey& k : scan.read_tiles) window.set(k, FindMutableTile(k));
   return window;
 }
@@ -64,6 +66,7 @@ void TerrainMap::ForEachTile(const std::function<void(TileKey, const Tile&)>& fn
 void TerrainMap::AddTile(TileKey key, const Tile& tile) {
   Tile& dst = GetOrCreateTile(key);
   dst.Add(tile);
+  integrator_.Saturate(dst);
   dst.set_version(std::max(dst.version(), tile.version()));
 }
 
@@ -71,6 +74,7 @@ void TerrainMap::SetTile(TileKey key, const Tile& tile) {
   Tile& dst = GetOrCreateTile(key);
   std::copy(tile.w().begin(), tile.w().end(), dst.w().begin());
   std::copy(tile.s().begin(), tile.s().end(), dst.s().begin());
+  std::copy(tile.q().begin(), tile.q().end(), dst.q().begin());
   std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
   std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
   dst.set_version(tile.version());
@@ -78,9 +82,10 @@ void TerrainMap::SetTile(TileKey key, const Tile& tile) {
 
 CellEstimate TerrainMap::Estimate(CellIndex cell) const {
   const Tile* tile = FindTile(geometry_.TileOf(cell));
-  if (tile == nullptr) return EstimateCell(params_, 0.0, 0.0, 0.0f, 0.0f);
+  if (tile == nullptr) return EstimateCell(params_, 0.0, 0.0, 0.0, 0.0f, 0.0f);
   const int i = geometry_.LocalIndex(cell);
-  return EstimateCell(params_, tile->w()[i], tile->s()[i], tile->a()[i], tile->b()[i]);
+  return EstimateCell(params_, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i],
+                      tile->b()[i]);
 }
 
 int64_t TerrainMap::CountKnownCells() const {
@@ -117,7 +122,7 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version, 
     for (int y = part.min.y; y <= part.max.y; ++y) {
       for (int x = part.min.x; x <= part.max.x; ++x) {
         const int i = (y - o.y) * T + (x - o.x);
-        tile.w()[i] = tile.s()[i] = 0.0;
+        tile.w()[i] = tile.s()[i] = tile.q()[i] = 0.0;
         tile.a()[i] = tile.b()[i] = 0.0f;
       }
     }

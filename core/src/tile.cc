@@ -9,6 +9,7 @@ Tile::Tile(int tile_size)
     : size_(tile_size),
       w_(new double[n()]()),
       s_(new double[n()]()),
+      q_(new double[n()]()),
       a_(new float[n()]()),
       b_(new float[n()]()) {}
 
@@ -16,6 +17,7 @@ Tile::Tile(const Tile& o) : Tile(o.size_) {
   version_ = o.version_;
   std::copy_n(o.w_.get(), n(), w_.get());
   std::copy_n(o.s_.get(), n(), s_.get());
+  std::copy_n(o.q_.get(), n(), q_.get());
   std::copy_n(o.a_.get(), n(), a_.get());
   std::copy_n(o.b_.get(), n(), b_.get());
 }
@@ -48,6 +50,7 @@ void Tile::Add(const Tile& o) {
   for (size_t i = 0; i < n(); ++i) {
     w_[i] += o.w_[i];
     s_[i] += o.s_[i];
+    q_[i] += o.q_[i];
     a_[i] += o.a_[i];
     b_[i] += o.b_[i];
   }
@@ -56,6 +59,7 @@ void Tile::Add(const Tile& o) {
 void Tile::Clear() {
   std::fill_n(w_.get(), n(), 0.0);
   std::fill_n(s_.get(), n(), 0.0);
+  std::fill_n(q_.get(), n(), 0.0);
   std::fill_n(a_.get(), n(), 0.0f);
   std::fill_n(b_.get(), n(), 0.0f);
 }
@@ -64,6 +68,7 @@ bool Tile::operator==(const Tile& o) const {
   // Bitwise comparison: "identical maps" means identical statistics, not merely close ones.
   return size_ == o.size_ && std::memcmp(w_.get(), o.w_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(s_.get(), o.s_.get(), n() * sizeof(double)) == 0 &&
+         std::memcmp(q_.get(), o.q_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(a_.get(), o.a_.get(), n() * sizeof(float)) == 0 &&
          std::memcmp(b_.get(), o.b_.get(), n() * sizeof(float)) == 0;
 }

@@ -53,8 +53,12 @@ void PutScan(ByteWriter& w, const PreparedScan& scan) {
     w.PutVarint(v);
   }
   w.PutDouble(scan.sensor_z);
+  w.PutU8(scan.has_sensor ? 1 : 0);
+  w.PutDouble(scan.sensor_x);
+  w.PutDouble(scan.sensor_y);
   PutTileKeys(w, scan.write_tiles);
   PutTileKeys(w, scan.read_tiles);
+  PutTileKeys(w, scan.clear_tiles);
   w.PutVarint(scan.cells.size());
   CellIndex prev{0, 0};
   for (const ObservedCell& cell : scan.cells) {
@@ -70,14 +74,23 @@ void PutScan(ByteWriter& w, const PreparedScan& scan) {
   }
 }
 
-bool GetScan(ByteReader& r, PreparedScan* scan) {
+bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan) {
   ScanPointCounts& c = scan->counts;
   for (uint64_t* v : {&c.input, &c.kept, &c.dropped_nonfinite, &c.dropped_range, &c.dropped_height,
                       &c.dropped_out_of_bounds}) {
     if (!r.GetVarint(v)) return false;
   }
-  if (!r.GetDouble(&scan->sensor_z) || !GetTileKeys(r, &scan->write_tiles) ||
-      !GetTileKeys(r, &scan->read_tiles)) {
+  if (!r.GetDouble(&scan->sensor_z)) return false;
+  if (format >= 2) {  // format 1 had no sensor position: its scans bring no free-space evidence
+    uint8_t has_sensor;
+    if (!r.GetU8(&has_sensor) || has_sensor > 1 || !r.GetDouble(&scan->sensor_x) ||
+        !r.GetDouble(&scan->sensor_y)) {
+      return false;
+    }
+    scan->has_sensor = has_sensor == 1;
+  }
+  if (!GetTileKeys(r, &scan->write_tiles) || !GetTileKeys(r, &scan->read_tiles) ||
+      (format >= 2 && !GetTileKeys(r, &scan->clear_tiles))) {
     return false;
   }
   uint64_t n;
@@ -158,14 +171,14 @@ Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
   }
   LogRecord record;
   std::string_view robot;
-  if (format != kLogRecordFormat || !r.GetVarint(&record.version) || !r.GetLengthPrefixed(&robot) ||
+  if (format < 1 || !r.GetVarint(&record.version) || !r.GetLengthPrefixed(&robot) ||
       !r.GetVarint(&record.sequence) || !r.GetSignedVarint(&record.stamp_ns)) {
     return malformed;
   }
   record.robot_id = std::string(robot);
   if (type == static_cast<uint8_t>(LogRecord::Type::kScan)) {
     auto scan = std::make_shared<PreparedScan>();
-    if (!GetScan(r, scan.get())) return malformed;
+    if (!GetScan(r, format, scan.get())) return malformed;
     record.type = LogRecord::Type::kScan;
     record.scan = std::move(scan);
   } else if (type == static_cast<uint8_t>(LogRecord::Type::kClear)) {

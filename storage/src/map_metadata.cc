@@ -40,15 +40,16 @@ std::string ParamText(const MapParamInfo& info, const MapParams& p) {
   return "";
 }
 
-Status ParseParamText(const MapParamInfo& info, const std::string& text, MapParams& p) {
+Status ParseParamText(const MapParamInfo& info, std::string_view text, MapParams& p) {
   switch (info.kind) {
     case MapParamKind::kDouble:
-      if (!ParseDouble(text, &(p.*info.real))) return BadKey(info.key, "is not a number: " + text);
+      if (!ParseDouble(text, &(p.*info.real)))
+        return BadKey(info.key, "is not a number: " + std::string(text));
       return Status::Ok();
     case MapParamKind::kInt: {
       const auto res = std::from_chars(text.data(), text.data() + text.size(), p.*info.integer);
       if (res.ec != std::errc() || res.ptr != text.data() + text.size()) {
-        return BadKey(info.key, "is not an integer: " + text);
+        return BadKey(info.key, "is not an integer: " + std::string(text));
       }
       return Status::Ok();
     }
@@ -59,7 +60,7 @@ Status ParseParamText(const MapParamInfo& info, const std::string& text, MapPara
         const std::string_view part = rest.substr(0, comma);
         if ((i < 2) == (comma == std::string_view::npos) ||
             !ParseDouble(part, &(p.*info.triple)[i])) {
-          return BadKey(info.key, "is not three numbers: " + text);
+          return BadKey(info.key, "is not three numbers: " + std::string(text));
         }
         rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
       }
@@ -81,12 +82,17 @@ std::vector<std::pair<std::string, std::string>> ParamsToKeyValues(const MapPara
 }
 
 Result<MapParams> ParamsFromKeyValues(const std::map<std::string, std::string, std::less<>>& kv) {
-  for (std::string_view key : MapParamKeys()) {
-    if (kv.find(key) == kv.end()) return BadKey(key, "is missing");
+  for (const MapParamInfo& info : MapParamTable()) {
+    if (kv.find(info.key) == kv.end() && info.legacy_text.empty()) {
+      return BadKey(info.key, "is missing");
+    }
   }
   MapParams p;
   for (const MapParamInfo& info : MapParamTable()) {
-    if (Status s = ParseParamText(info, kv.find(info.key)->second, p); !s.ok()) return s;
+    // A key added after the store was written: the value the store was built with.
+    const auto it = kv.find(info.key);
+    const std::string_view text = it != kv.end() ? std::string_view(it->second) : info.legacy_text;
+    if (Status s = ParseParamText(info, text, p); !s.ok()) return s;
   }
   if (Status s = p.Validate(); !s.ok()) {
     return Status::DataLoss("stored map parameters are invalid: " + s.message());

@@ -85,7 +85,9 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
           const PreparedScan& scan = *record->scan;
           for (const TileKey& k : scan.write_tiles) loader.Ensure(k);
           for (const TileKey& k : scan.read_tiles) loader.Ensure(k);
+          for (const TileKey& k : scan.clear_tiles) loader.Ensure(k);
           touched.insert(scan.write_tiles.begin(), scan.write_tiles.end());
+          touched.insert(scan.clear_tiles.begin(), scan.clear_tiles.end());
           const TileWindow window = map.MakeWindow(scan);
           map.Integrate(scan, window, version);
           map.set_version(version);

@@ -12,7 +12,8 @@ namespace {
 
 bool CellIsZero(const Tile& t, int i) {
   return std::bit_cast<uint64_t>(t.w()[i]) == 0 && std::bit_cast<uint64_t>(t.s()[i]) == 0 &&
-         std::bit_cast<uint32_t>(t.a()[i]) == 0 && std::bit_cast<uint32_t>(t.b()[i]) == 0;
+         std::bit_cast<uint64_t>(t.q()[i]) == 0 && std::bit_cast<uint32_t>(t.a()[i]) == 0 &&
+         std::bit_cast<uint32_t>(t.b()[i]) == 0;
 }
 
 // Gathers the present cells of one array as raw bits, optionally XOR-delta coded.
@@ -80,8 +81,11 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
   for (int i = 0; i < cell_count; ++i) {
     if (!CellIsZero(tile, i)) present.push_back(i);
   }
-  const uint8_t flags = static_cast<uint8_t>((options.shuffle ? kTileShuffled : 0) |
-                                             (options.xor_delta ? kTileXorDelta : 0));
+  bool moments = false;  // a map without dynamics keeps Q at zero: not stored
+  for (int i : present) moments |= std::bit_cast<uint64_t>(tile.q()[i]) != 0;
+  const uint8_t flags =
+      static_cast<uint8_t>((options.shuffle ? kTileShuffled : 0) |
+                           (options.xor_delta ? kTileXorDelta : 0) | (moments ? kTileMoments : 0));
   std::string out;
   out.reserve(16 + cell_count / 8 + present.size() * Tile::kBytesPerCell);
   ByteWriter w(&out);
@@ -97,6 +101,7 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
   }
   PutArray<uint64_t>(w, tile.w(), present, flags);
   PutArray<uint64_t>(w, tile.s(), present, flags);
+  if (moments) PutArray<uint64_t>(w, tile.q(), present, flags);
   PutArray<uint32_t>(w, tile.a(), present, flags);
   PutArray<uint32_t>(w, tile.b(), present, flags);
   w.PutFixed32(Crc32c(out));
@@ -121,7 +126,9 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
                                       " is newer than this build reads (" +
                                       std::to_string(kTileFormat) + ")");
   }
-  if (format != kTileFormat || (flags & ~(kTileShuffled | kTileXorDelta)) != 0) {
+  // Format 1 is format 2 without moments (written before dynamics): still read.
+  const uint8_t known_flags = kTileShuffled | kTileXorDelta | (format >= 2 ? kTileMoments : 0);
+  if (format < 1 || (flags & ~known_flags) != 0) {
     return Malformed("unknown format or flags");
   }
   if (!r.GetVarint(&size) || !r.GetVarint(&version) || !r.GetVarint(&n)) {
@@ -149,6 +156,7 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
   }
   if (!GetArray<uint64_t>(r, tile->w(), present, flags) ||
       !GetArray<uint64_t>(r, tile->s(), present, flags) ||
+      ((flags & kTileMoments) && !GetArray<uint64_t>(r, tile->q(), present, flags)) ||
       !GetArray<uint32_t>(r, tile->a(), present, flags) ||
       !GetArray<uint32_t>(r, tile->b(), present, flags)) {
     return Malformed("truncated cell values");

@@ -151,6 +151,9 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
                                         ", newer than this build reads (" +
                                         std::to_string(kStoreFormat) + ")");
     }
+    // An older store upgrades in place: it is read as it is and written from now on in the
+    // current formats, which an older build then refuses by this marker.
+    if (stored_format < kStoreFormat) batch.Put(sdb.meta, kFormatKey, std::to_string(kStoreFormat));
     std::map<std::string, std::string, std::less<>> kv;
     for (const auto& [key, value] : *meta) {
       if (key.starts_with(kParamPrefix)) kv.emplace(key.substr(kParamPrefix.size()), value);

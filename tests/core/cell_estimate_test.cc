@@ -8,7 +8,7 @@ namespace bgkmap {
 namespace {
 
 TEST(CellEstimateTest, UnknownCellIsNaNEverywhere) {
-  const CellEstimate e = EstimateCell(MapParams{}, 0.0, 0.0, 0.0f, 0.0f);
+  const CellEstimate e = EstimateCell(MapParams{}, 0.0, 0.0, 0.0, 0.0f, 0.0f);
   EXPECT_EQ(e.state, CellState::kUnknown);
   EXPECT_TRUE(std::isnan(e.elevation));
   EXPECT_TRUE(std::isnan(e.elevation_variance));
@@ -22,7 +22,7 @@ TEST(CellEstimateTest, ElevationFollowsEquation2) {
   p.prior_mean = 1.0;
   p.sigma2 = 0.04;
   // Two observations: y = 2 with k = 1 and y = 4 with k = 0.5: W = 1.5, S = 4.
-  const CellEstimate e = EstimateCell(p, 1.5, 4.0, 0.0f, 0.0f);
+  const CellEstimate e = EstimateCell(p, 1.5, 4.0, 0.0, 0.0f, 0.0f);
   EXPECT_FLOAT_EQ(e.elevation, (0.5 * 1.0 + 4.0) / (0.5 + 1.5));
   EXPECT_FLOAT_EQ(e.elevation_variance, 0.04 / 2.0);
   EXPECT_FLOAT_EQ(e.elevation_weight, 1.5f);
@@ -33,7 +33,7 @@ TEST(CellEstimateTest, TraversabilityIsTheBetaPosterior) {
   p.alpha0 = 0.5;
   p.beta0 = 1.5;
   // A = 1 (k v summed), B = 3.
-  const CellEstimate e = EstimateCell(p, 1.0, 0.0, 1.0f, 3.0f);
+  const CellEstimate e = EstimateCell(p, 1.0, 0.0, 0.0, 1.0f, 3.0f);
   const double alpha = 1.5, beta = 4.5, sum = 6.0;
   EXPECT_FLOAT_EQ(e.traversability, alpha / sum);
   // The Beta variance, with the +1 the paper's printed Eq. 4 lacks.
@@ -45,27 +45,27 @@ TEST(CellEstimateTest, StateUsesBothThresholds) {
   p.trav_threshold = 0.5;
   p.variance_threshold = 0.05;
   // Well supported and flat: traversable.
-  EXPECT_EQ(EstimateCell(p, 10, 0, 1.0f, 19.0f).state, CellState::kTraversable);
+  EXPECT_EQ(EstimateCell(p, 10, 0, 0.0, 1.0f, 19.0f).state, CellState::kTraversable);
   // Well supported and rough: not.
-  EXPECT_EQ(EstimateCell(p, 10, 0, 15.0f, 5.0f).state, CellState::kNonTraversable);
+  EXPECT_EQ(EstimateCell(p, 10, 0, 0.0, 15.0f, 5.0f).state, CellState::kNonTraversable);
   // Flat but a single weak observation: variance too high, so not traversable.
-  const CellEstimate weak = EstimateCell(p, 0.2, 0, 0.02f, 0.18f);
+  const CellEstimate weak = EstimateCell(p, 0.2, 0, 0.0, 0.02f, 0.18f);
   EXPECT_LT(weak.traversability, 0.5f);
   EXPECT_GT(weak.traversability_variance, 0.05f);
   EXPECT_EQ(weak.state, CellState::kNonTraversable);
   // Known elevation without traversability data: the prior decides (mean 0.5): not traversable.
-  EXPECT_EQ(EstimateCell(p, 1.0, 0, 0.0f, 0.0f).state, CellState::kNonTraversable);
+  EXPECT_EQ(EstimateCell(p, 1.0, 0, 0.0, 0.0f, 0.0f).state, CellState::kNonTraversable);
 }
 
 TEST(CellEstimateTest, DirectMethodsReportTheStoredValue) {
   MapParams p;
   p.method = Method::kBaseline;
-  const CellEstimate e = EstimateCell(p, 1.0, 0.3, 0.25f, 0.75f);
+  const CellEstimate e = EstimateCell(p, 1.0, 0.3, 0.0, 0.25f, 0.75f);
   EXPECT_FLOAT_EQ(e.traversability, 0.25f);
   EXPECT_EQ(e.traversability_variance, 0.0f);
   EXPECT_EQ(e.state, CellState::kTraversable);
   // Observed but too few neighbours for a value: known, conservatively non-traversable.
-  const CellEstimate none = EstimateCell(p, 1.0, 0.3, 0.0f, 0.0f);
+  const CellEstimate none = EstimateCell(p, 1.0, 0.3, 0.0, 0.0f, 0.0f);
   EXPECT_TRUE(std::isnan(none.traversability));
   EXPECT_EQ(none.state, CellState::kNonTraversable);
 }
@@ -78,6 +78,26 @@ TEST(CellEstimateTest, LayerNamesRoundTrip) {
     EXPECT_EQ(*parsed, l);
   }
   EXPECT_FALSE(ParseLayer("height").ok());
+}
+
+TEST(CellEstimateTest, DisagreementEntersVarianceAndStateWithDynamics) {
+  // One observation at 1 m and one at 0 m (k = 1 each): W = 2, S = 1, Q = 1, D = 0.25. Beta
+  // counts say "clearly traversable".
+  MapParams p;
+  p.sigma2 = 0.01;
+  const CellEstimate on = EstimateCell(p, 2.0, 1.0, 1.0, 0.1f, 19.9f);
+  EXPECT_FLOAT_EQ(on.elevation, 0.5f);
+  EXPECT_FLOAT_EQ(on.elevation_variance, 0.01 / 2.0 + 0.25);
+  EXPECT_EQ(on.state, CellState::kNonTraversable) << "1 m of disagreement is not a drivable cell";
+
+  p.dynamics = Dynamics::kOff;  // the paper: "confidently 0.5 m"
+  const CellEstimate off = EstimateCell(p, 2.0, 1.0, 1.0, 0.1f, 19.9f);
+  EXPECT_FLOAT_EQ(off.elevation_variance, 0.01 / 2.0);
+  EXPECT_EQ(off.state, CellState::kTraversable);
+
+  // Agreement within step_crit stays traversable: y = 0.1 and 0 give D = 0.0025 <= 0.15^2.
+  p.dynamics = Dynamics::kOn;
+  EXPECT_EQ(EstimateCell(p, 2.0, 0.1, 0.01, 0.1f, 19.9f).state, CellState::kTraversable);
 }
 
 }  // namespace

@@ -102,8 +102,11 @@ TEST(ScanIntegrationTest, ElevationStatisticsDoNotDependOnScanOrder) {
     scans.emplace_back(testing::SampleSurface(testing::RollingWithStep, origin, 3.0, 4000, 50 + s),
                        testing::At(origin));
   }
-  auto forward = NewMap();
-  auto backward = NewMap();
+  // The paper's accumulation: with dynamics, caps and free-space evidence depend on the order.
+  MapParams p;
+  p.dynamics = Dynamics::kOff;
+  auto forward = NewMap(p);
+  auto backward = NewMap(p);
   for (size_t i = 0; i < scans.size(); ++i) {
     ASSERT_TRUE(forward->IntegrateScan(scans[i].first, scans[i].second).ok());
     const auto& [pts, pose] = scans[scans.size() - 1 - i];

@@ -1,10 +1,10 @@
 // A brute-force oracle for coarse (stride > 1) rasters, written from the rule in
 // docs/semantics.md ("Rasters") and independent of ExtractRaster's aggregation: for each block of
-// stride x stride cells, the elevation layers come from EstimateCell on the summed W and S of the
-// block's known cells; traversability and its variance are each the maximum over the known cells'
-// own estimates (TerrainMap::Estimate, cell by cell); the state is traversable only if every known
-// cell has a traversability and the worst traversability and the worst variance are both under
-// their thresholds. A block without a known cell is unknown (NaN, state 0).
+// stride x stride cells, the elevation layers come from EstimateCell on the summed W, S and Q of
+// the block's known cells; traversability and its variance are each the maximum over the known
+// cells' own estimates (TerrainMap::Estimate, cell by cell); the state is traversable only if
+// every known cell's own state is traversable. A block without a known cell is unknown (NaN,
+// state 0).
 #pragma once
 
 #include <algorithm>
@@ -23,8 +23,8 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
   const MapParams& p = map.params();
   const GridGeometry& geo = map.geometry();
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  double w = 0, s = 0;
-  bool known = false, undefined = false;
+  double w = 0, s = 0, q = 0;
+  bool known = false, all_traversable = true;
   float worst_trav = nan, worst_var = nan;
   const int x0 = box.min.x + col * stride;
   const int ytop = box.max.y - row * stride;
@@ -37,10 +37,9 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
       const int i = geo.LocalIndex({x, y});
       w += t->w()[i];
       s += t->s()[i];
-      if (std::isnan(e.traversability)) {
-        undefined = true;
-        continue;
-      }
+      q += t->q()[i];
+      all_traversable &= e.state == CellState::kTraversable;
+      if (std::isnan(e.traversability)) continue;
       worst_trav =
           std::isnan(worst_trav) ? e.traversability : std::max(worst_trav, e.traversability);
       worst_var = std::isnan(worst_var) ? e.traversability_variance
@@ -53,7 +52,7 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
       out.push_back(l == Layer::kState ? 0.0f : nan);
       continue;
     }
-    const CellEstimate elev = EstimateCell(p, w, s, 0.0f, 0.0f);
+    const CellEstimate elev = EstimateCell(p, w, s, q, 0.0f, 0.0f);
     switch (l) {
       case Layer::kElevation:
       case Layer::kElevationVariance:
@@ -69,10 +68,8 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
         out.push_back(worst_var);
         break;
       case Layer::kState: {
-        const bool traversable = !undefined && !std::isnan(worst_trav) &&
-                                 worst_trav < p.trav_threshold && worst_var < p.variance_threshold;
-        out.push_back(
-            static_cast<float>(traversable ? CellState::kTraversable : CellState::kNonTraversable));
+        out.push_back(static_cast<float>(all_traversable ? CellState::kTraversable
+                                                         : CellState::kNonTraversable));
         break;
       }
     }

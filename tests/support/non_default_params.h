@@ -31,6 +31,11 @@ inline MapParams NonDefaultParams() {
   p.observation = Observation::kMean;
   p.tile_size = 32;
   p.method = Method::kOneStep;
+  p.dynamics = Dynamics::kOff;
+  p.max_confidence_scans = 7.5;
+  p.clear_margin = 0.35;
+  p.clear_decay = 0.25;
+  p.clear_ray_length = 4.5;
   return p;
 }
 

@@ -62,7 +62,7 @@ ServedMap::Admission ServedMap::SubmitScan(ScanOrigin origin,
       robots_.Admit(origin.robot_id, origin.sequence, origin.stamp, scan->counts.kept, &previous);
   if (last_sequence != nullptr) *last_sequence = previous;
   if (a != Admission::kAdmitted) return a;
-  ChangeScheduler::TileChange kind{scan->write_tiles, scan->read_tiles};
+  ChangeScheduler::TileChange kind{scan->ChangeableTiles(), scan->read_tiles};
   scheduler_.Submit(std::move(kind), [this, origin = std::move(origin), scan = std::move(scan),
                                       previous, done = std::move(done)](uint64_t version) mutable {
     return RunScan(origin, std::move(scan), previous, version, std::move(done));
@@ -92,7 +92,7 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
   }
   outcome.report = table_.ApplyScan(scan, version);
   summary_.MarkStale(outcome.report.changed_tiles);
-  checkpointer_.MarkChanged(scan.write_tiles);
+  checkpointer_.MarkChanged(outcome.report.changed_tiles);
   scans_applied_.fetch_add(1);
   residency_.SignalIfOverLimit();
   std::vector<TileKey> tiles = outcome.report.changed_tiles;

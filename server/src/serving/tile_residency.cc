@@ -88,7 +88,7 @@ Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool s
 
 Result<TileResidency::Pins> TileResidency::PinScan(const PreparedScan& scan) {
   if (!persists_) return Pins();  // (the merged key list costs a sort per scan)
-  std::vector<TileKey> keys = scan.write_tiles;
+  std::vector<TileKey> keys = scan.ChangeableTiles();
   keys.insert(keys.end(), scan.read_tiles.begin(), scan.read_tiles.end());
   SortUnique(&keys);
   return Pin(std::move(keys), /*strict=*/false);

@@ -26,7 +26,7 @@ uint64_t TileTable::TileBytes() const {
 ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version) {
   std::shared_lock gate(gate_);
   // Read tiles need no lock: the scheduler runs no writer of them now, and readers only read.
-  TileLockTable::Guard tiles = tile_locks_.Lock(scan.write_tiles, {});
+  TileLockTable::Guard tiles = tile_locks_.Lock(scan.ChangeableTiles(), {});
   TileWindow window;
   {
     std::unique_lock table(table_mu_);

@@ -43,6 +43,12 @@ struct CellEstimate {
 //  traversability (direct methods): mean = A / (A + B), the latest computed v; variance 0.
 //  state: unknown if not known; traversable if mean < trav_threshold and variance <
 //    variance_threshold; otherwise non-traversable (also when the mean is undefined).
-CellEstimate EstimateCell(const MapParams& p, double w, double s, float a, float b);
+// With dynamics on, the observations' disagreement D = Q/W - (S/W)^2 (their kernel-weighted
+// variance) is added to the elevation variance, and a cell whose observations disagree by more
+// than a step the robot can take (sqrt(D) > step_crit) is non-traversable.
+CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b);
+
+// D = Q/W - (S/W)^2, clamped at 0 against rounding; 0 without weight.
+double Disagreement(double w, double s, double q);
 
 }  // namespace bgkmap

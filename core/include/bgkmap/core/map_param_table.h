@@ -40,6 +40,10 @@ struct MapParamInfo {
   // message names the key, the value and the rule broken.
   Status (*check)(std::string_view key, double value, const MapParams& params) = nullptr;
 
+  // The value, as text, that a store or archive written before this key existed was built with
+  // (empty: the key has always been stored, and is required).
+  std::string_view legacy_text = {};
+
   // True if the field holds the same value in `a` and `b` (exactly, for doubles).
   bool Equal(const MapParams& a, const MapParams& b) const;
 };

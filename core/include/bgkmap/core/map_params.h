@@ -22,10 +22,16 @@ enum class Method {
 // How the points of one scan falling in one cell become that cell's training value y.
 enum class Observation { kMax, kMean };
 
+// Whether the map follows a changing world (docs/semantics.md, "Dynamics"): bounded confidence,
+// free-space evidence and visible disagreement. kOff is the paper's pure accumulation, exactly.
+enum class Dynamics { kOff, kOn };
+
 std::string_view MethodName(Method m);
 std::string_view ObservationName(Observation o);
+std::string_view DynamicsName(Dynamics d);
 Result<Method> ParseMethod(std::string_view name);
 Result<Observation> ParseObservation(std::string_view name);
+Result<Dynamics> ParseDynamics(std::string_view name);
 
 // True for the methods whose traversability is a Beta posterior (bgk+, one-step); the others
 // keep the latest directly computed value per cell.
@@ -56,6 +62,11 @@ struct MapParams {
   Observation observation = Observation::kMax;
   int tile_size = 64;
   Method method = Method::kBgkPlus;
+  Dynamics dynamics = Dynamics::kOn;
+  double max_confidence_scans = 20.0;
+  double clear_margin = 0.2;
+  double clear_decay = 0.05;
+  double clear_ray_length = 2.0;
 
   // Checks every field (MapParamInfo::check); the message names the key, the value and the rule
   // broken.

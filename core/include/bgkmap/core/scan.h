@@ -55,7 +55,17 @@ struct PreparedScan {
   ScanPointCounts counts;
   std::vector<TileKey> write_tiles;  // sorted; tiles whose statistics the scan changes
   std::vector<TileKey> read_tiles;   // sorted; tiles it reads but does not write
-  double sensor_z = 0.0;             // t.z, for diagnostics
+  // Sorted; tiles its free-space rays cross (dynamics), disjoint from the others: changed if they
+  // exist (held for writing), never created.
+  std::vector<TileKey> clear_tiles;
+  double sensor_z = 0.0;  // t.z
+  // Where the rays start, in the map frame: free-space evidence needs it. A cloud already in
+  // the map frame (frame_is_map) has no sensor.
+  bool has_sensor = false;
+  double sensor_x = 0.0, sensor_y = 0.0;
+
+  // write_tiles and clear_tiles, merged: every tile the scan may change.
+  std::vector<TileKey> ChangeableTiles() const;
 };
 
 // Filters, transforms and bins one scan. `frame_is_map` marks a cloud already in the map frame

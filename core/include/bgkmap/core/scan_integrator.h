@@ -50,6 +50,7 @@ struct ScanReport {
   ScanPointCounts counts;
   uint64_t observed_cells = 0;
   uint64_t feature_cells = 0;          // cells where v was computed
+  uint64_t contradicted_cells = 0;     // cells whose confidence free-space evidence cut
   std::vector<TileKey> changed_tiles;  // sorted
   StageTimes times;
 };
@@ -60,19 +61,29 @@ class ScanIntegrator {
   explicit ScanIntegrator(const MapParams& params);
 
   // Applies `scan` to the tiles of `window`, which must hold every tile of scan.write_tiles
-  // (created) and of scan.read_tiles (or null where absent). Stamps changed tiles with
-  // `version`.
+  // (created) and of scan.clear_tiles and scan.read_tiles (or null where absent). Stamps
+  // changed tiles with `version`.
   ScanReport Integrate(const PreparedScan& scan, const TileWindow& window, uint64_t version) const;
 
   const KernelStencil& kernel() const { return kernel_; }
 
+  // With dynamics on, brings every cell of `tile` within the confidence caps (scaling its
+  // statistics together, which keeps its means): what a merge does after adding. No-op when off.
+  void Saturate(Tile& tile) const;
+
  private:
   struct Impl;
+  struct Caps {
+    double w = 0;             // elevation weight cap (0: none)
+    float ab = 0;             // Beta pseudo-count cap (0: none)
+    double forget_below = 0;  // a contradicted cell left with less weight is forgotten
+  };
+  Caps caps_;
   MapParams params_;
   GridGeometry geometry_;
   KernelStencil kernel_;
-  std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
-  int neighbourhood_radius_;              // largest |offset| in neighbourhood_
+  std::vector<CellIndex> neighbourhood_;   // offsets within robot_radius, inclusive
+  int neighbourhood_radius_;               // largest |offset| in neighbourhood_
 };
 
 // Offsets (dx, dy) with dx^2 + dy^2 <= (radius/resolution)^2, with a relative tolerance of 1e-9

@@ -36,7 +36,7 @@ class TerrainMap {
                                    bool frame_is_map = false);
 
   // The two halves of IntegrateScan for callers that schedule scans themselves.
-  TileWindow MakeWindow(const PreparedScan& scan);  // creates scan.write_tiles
+  TileWindow MakeWindow(const PreparedScan& scan);  // creates scan.write_tiles (not clear_tiles)
   ScanReport Integrate(const PreparedScan& scan, const TileWindow& window, uint64_t version) const;
 
   // Map version: number of scans and edits applied (stamped on changed tiles).

@@ -9,9 +9,11 @@
 
 namespace bgkmap {
 
-// Per-cell statistics, stored as structure-of-arrays (24 bytes per cell):
+// Per-cell statistics, stored as structure-of-arrays (32 bytes per cell):
 //   w: elevation weight   W = sum k          (double: its rounding would bias S/W)
 //   s: elevation moment   S = sum k*y        (double: y can be an absolute altitude)
+//   q: second moment      Q = sum k*y^2      (double; kept with dynamics on, else 0): Q/W - (S/W)^2
+//                         is how much the cell's observations disagree
 //   a: traversability     A = sum k*v        (float: enters only a probability)
 //   b: traversability     B = sum k*(1 - v)
 // For methods that keep a directly computed v instead of inferring it (baseline, bgk-trav),
@@ -28,10 +30,12 @@ class Tile {
 
   std::span<double> w() { return {w_.get(), n()}; }
   std::span<double> s() { return {s_.get(), n()}; }
+  std::span<double> q() { return {q_.get(), n()}; }
   std::span<float> a() { return {a_.get(), n()}; }
   std::span<float> b() { return {b_.get(), n()}; }
   std::span<const double> w() const { return {w_.get(), n()}; }
   std::span<const double> s() const { return {s_.get(), n()}; }
+  std::span<const double> q() const { return {q_.get(), n()}; }
   std::span<const float> a() const { return {a_.get(), n()}; }
   std::span<const float> b() const { return {b_.get(), n()}; }
 
@@ -57,13 +61,30 @@ class Tile {
   uint64_t version() const { return version_; }
   void set_version(uint64_t v) { version_ = v; }
 
-  static constexpr size_t kBytesPerCell = 2 * sizeof(double) + 2 * sizeof(float);
+  // Multiplies every statistic of cell `local` by f: the mean and the disagreement stay, the
+  // confidence scales (saturation and free-space evidence, docs/semantics.md).
+  void ScaleCell(int local, double f) {
+    w_[local] *= f;
+    s_[local] *= f;
+    q_[local] *= f;
+    a_[local] = static_cast<float>(a_[local] * f);
+    b_[local] = static_cast<float>(b_[local] * f);
+  }
+
+  // Makes cell `local` unknown: every statistic +0 (not -0, which a scaling by 0 could leave and
+  // which a merge would turn into +0).
+  void ClearCell(int local) {
+    w_[local] = s_[local] = q_[local] = 0.0;
+    a_[local] = b_[local] = 0.0f;
+  }
+
+  static constexpr size_t kBytesPerCell = 3 * sizeof(double) + 2 * sizeof(float);
 
  private:
   size_t n() const { return static_cast<size_t>(size_) * size_; }
   int size_;
   uint64_t version_ = 0;
-  std::unique_ptr<double[]> w_, s_;
+  std::unique_ptr<double[]> w_, s_, q_;
   std::unique_ptr<float[]> a_, b_;
 };
 

@@ -1,11 +1,13 @@
 // One entry of the scan log: a change applied to the map, recorded with everything needed to
 // apply it again bit for bit (the prepared scan's training set, not its raw points).
 //
-// Layout (format 1), little-endian:
+// Layout (format 2), little-endian:
 //   u8 format, u8 type, varint version, length-prefixed robot_id, varint sequence,
 //   zigzag stamp_ns, then
 //   scan:  varint counts (input, kept, nonfinite, range, height, out_of_bounds), f64 sensor_z,
-//          write_tiles and read_tiles (varint count, zigzag deltas of x and y),
+//          u8 has_sensor, f64 sensor_x, f64 sensor_y (format >= 2; format 1 had no sensor),
+//          write_tiles, read_tiles and (format >= 2) clear_tiles (varint count, zigzag deltas
+//          of x and y),
 //          cells (varint count, zigzag deltas of x and y), their y as f64 bits (XOR-delta)
 //   clear: zigzag min.x, min.y, max.x, max.y
 //   fixed32 crc32c of every byte before it.
@@ -22,7 +24,7 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kLogRecordFormat = 1;
+inline constexpr uint8_t kLogRecordFormat = 2;
 
 struct LogRecord {
   enum class Type : uint8_t { kScan = 1, kClear = 2 };

@@ -19,8 +19,10 @@
 namespace bgkmap::storage {
 
 // Version of the store layout (column families, keys, tile and log formats). A store written by
-// a newer format is refused rather than misread.
-inline constexpr uint32_t kStoreFormat = 1;
+// a newer format is refused rather than misread. Format 2 (dynamics): tile format 2 (second
+// moments), log record format 2 (sensor position), parameters keys of dynamics; format 1 stores
+// and archives are read (their missing keys take MapParamInfo::legacy_text) and upgraded.
+inline constexpr uint32_t kStoreFormat = 2;
 
 struct MapMetadata {
   uint32_t format = kStoreFormat;

@@ -1,17 +1,18 @@
 // The on-disk encoding of one tile's statistics: exact (bitwise) and compact.
 //
-// Layout (format 1), little-endian:
+// Layout (format 2; format 1, still read, is format 2 without kTileMoments), little-endian:
 //   u8      format            kTileFormat
-//   u8      layout flags      kTileShuffled | kTileXorDelta
+//   u8      layout flags      kTileShuffled | kTileXorDelta | kTileMoments
 //   varint  tile_size         cells per edge
 //   varint  version           map version of the tile's last change
-//   varint  n                 cells with any non-zero bit in W, S, A or B ("present" cells)
+//   varint  n                 cells with any non-zero bit in W, S, Q, A or B ("present" cells)
 //   bytes   presence bitmap   ceil(tile_size^2 / 8) bytes, row-major, bit i%8 of byte i/8;
 //                             omitted when n == 0 or n == tile_size^2
-//   W[n] S[n] (8 bytes each)  A[n] B[n] (4 bytes each), present cells only, in cell order,
+//   W[n] S[n] (8 bytes each), Q[n] (8 bytes, with kTileMoments: a map with dynamics),
+//   A[n] B[n] (4 bytes each), present cells only, in cell order,
 //                             each array optionally XOR-delta coded and byte-shuffled
 //   fixed32 crc32c            of every byte before it
-// Cells that are bitwise +0 in all four arrays are skipped: a missing cell decodes to +0. Every
+// Cells that are bitwise +0 in all five arrays are skipped: a missing cell decodes to +0. Every
 // other bit pattern (-0, NaN payloads, denormals) round-trips unchanged.
 #pragma once
 
@@ -25,9 +26,10 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kTileFormat = 1;
+inline constexpr uint8_t kTileFormat = 2;
 inline constexpr uint8_t kTileShuffled = 1;  // arrays stored as byte planes
 inline constexpr uint8_t kTileXorDelta = 2;  // each value XOR the previous present value
+inline constexpr uint8_t kTileMoments = 4;   // the Q array is stored (format >= 2)
 
 // Both transforms are off by default: measured on the real street map with zstd, the plain
 // arrays compress best (18.6 bytes per known cell; shuffled 19.9, XOR-delta 20.2; see

@@ -1,0 +1,44 @@
+// The cells a lidar ray passes over, walked backwards from its return toward the sensor: the
+// free-space evidence of docs/semantics.md ("Dynamics"). Pure geometry in cell units.
+#pragma once
+
+#include <cmath>
+
+#include "bgkmap/core/grid.h"
+
+namespace bgkmap::internal {
+
+// Walks the horizontal segment from the centre of cell `end` toward the point (sx, sy) (cell
+// units: metres / resolution) for at most `length` cells of distance, visiting every cell it
+// crosses after `end` in order (Amanatides-Woo traversal). Calls visit(cell, t) with t the
+// distance from the start to the middle of the segment's part inside that cell.
+template <typename Visit>
+void WalkRayBack(CellIndex end, double sx, double sy, double length, Visit&& visit) {
+  const double x0 = end.x + 0.5, y0 = end.y + 0.5;
+  const double dx = sx - x0, dy = sy - y0;
+  const double dist = std::hypot(dx, dy);
+  if (!(dist > 0.0)) return;
+  const double limit = std::min(length, dist);
+  const double ux = dx / dist, uy = dy / dist;
+  const int step_x = ux > 0 ? 1 : -1, step_y = uy > 0 ? 1 : -1;
+  // Distance along the ray to the first vertical / horizontal cell boundary, and between them.
+  const double delta_x = ux != 0 ? 1.0 / std::abs(ux) : INFINITY;
+  const double delta_y = uy != 0 ? 1.0 / std::abs(uy) : INFINITY;
+  double next_x = delta_x * 0.5, next_y = delta_y * 0.5;  // from a cell centre
+  CellIndex c = end;
+  double t_enter = std::min(next_x, next_y);
+  while (t_enter < limit) {
+    if (next_x < next_y) {
+      c.x += step_x;
+      next_x += delta_x;
+    } else {
+      c.y += step_y;
+      next_y += delta_y;
+    }
+    const double t_exit = std::min({next_x, next_y, limit});
+    visit(c, 0.5 * (t_enter + t_exit));
+    t_enter = std::min(next_x, next_y);
+  }
+}
+
+}  // namespace bgkmap::internal
