@@ -7,9 +7,9 @@
 #            library and links a downstream project without the sanitizer runtime), in
 #            build-asan/.
 #   asan-ci  The same build directory and options, for CI's time budget: only the GoogleTest
-#            suites of core, proto, storage and server (serving, durability, rpc, the bgkmapd
-#            process tests) are built and run; tools, sim, eval, cli and python run under ASan
-#            in `asan` only. docs/testing.md has the times that decided it.
+#            suites of core, proto and storage (the engine, the codecs, the store and its
+#            recovery) are built and run; the server, tools, sim, eval, cli and python suites run
+#            under ASan in `asan` only. docs/testing.md has the times that decided it.
 #   tsan  TSan over the server's map-serving and durability layers without gRPC or RocksDB
 #         (ServedMap, ChangeScheduler, TileResidency, TileLockTable, MapSummary: the threaded core,
 #         tests/server/serving/), in build-tsan/. Not the gRPC or RocksDB suites: Debian's gRPC,
@@ -76,13 +76,12 @@ for stage in "${stages[@]}"; do
       ;;
     asan-ci)
       configure build-asan address,undefined
-      cmake --build build-asan -j"$jobs" --target tests_core tests_proto tests_storage \
-        tests_server
+      cmake --build build-asan -j"$jobs" --target tests_core tests_proto tests_storage
       echo "sanitize: asan-ci built in $((SECONDS - start)) s"
       reports=$(fresh_reports build-asan)
       ASAN_OPTIONS="log_path=$reports/asan:detect_leaks=1" \
       UBSAN_OPTIONS="log_path=$reports/ubsan:print_stacktrace=1:halt_on_error=1" \
-        run_tests build-asan -L '^(core|proto|storage|server)$'
+        run_tests build-asan -L '^(core|proto|storage)$'
       ;;
     tsan)
       configure build-tsan thread

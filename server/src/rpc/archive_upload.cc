@@ -53,14 +53,14 @@ bool InRange(TileKey k, int tile_size) {
   return ok(k.x) && ok(k.y);
 }
 
-// Weights and pseudo-counts are sums of non-negative kernel values; S is any finite number.
-// Returns the first local cell that breaks this, or -1.
+// Weights, pseudo-counts and second moments are sums of non-negative values; S is any finite
+// number. Returns the first local cell that breaks this, or -1.
 int FirstImpossibleCell(const Tile& t) {
   for (int i = 0; i < t.cell_count(); ++i) {
-    const double w = t.w()[i], s = t.s()[i];
+    const double w = t.w()[i], s = t.s()[i], q = t.q()[i];
     const float a = t.a()[i], b = t.b()[i];
-    if (!(w >= 0.0 && std::isfinite(w)) || !std::isfinite(s) || !(a >= 0.0f && std::isfinite(a)) ||
-        !(b >= 0.0f && std::isfinite(b))) {
+    if (!(w >= 0.0 && std::isfinite(w)) || !std::isfinite(s) || !(q >= 0.0 && std::isfinite(q)) ||
+        !(a >= 0.0f && std::isfinite(a)) || !(b >= 0.0f && std::isfinite(b))) {
       return i;
     }
   }

@@ -63,14 +63,19 @@ Status TileTable::CheckSumsFinite(std::span<const TileKey> keys,
     const Tile& add = *tiles[i];
     for (int c = 0; c < add.cell_count(); ++c) {
       const double w = have->w()[c] + add.w()[c], s = have->s()[c] + add.s()[c];
+      const double q = have->q()[c] + add.q()[c];
       const float a = have->a()[c] + add.a()[c], b = have->b()[c] + add.b()[c];
-      if (std::isfinite(w) && std::isfinite(s) && std::isfinite(a) && std::isfinite(b)) continue;
+      if (std::isfinite(w) && std::isfinite(s) && std::isfinite(q) && std::isfinite(a) &&
+          std::isfinite(b)) {
+        continue;
+      }
       const CellIndex origin = geometry().TileOrigin(keys[i]);
       const int ts = params().tile_size;
       std::ostringstream m;
       m << "tile (" << keys[i].x << ", " << keys[i].y << ") cell (" << origin.x + c % ts << ", "
         << origin.y + c / ts << "): the merged statistics would not be finite (W " << have->w()[c]
-        << " + " << add.w()[c] << ", S " << have->s()[c] << " + " << add.s()[c] << ", A "
+        << " + " << add.w()[c] << ", S " << have->s()[c] << " + " << add.s()[c] << ", Q "
+        << have->q()[c] << " + " << add.q()[c] << ", A "
         << have->a()[c] << " + " << add.a()[c] << ", B " << have->b()[c] << " + " << add.b()[c]
         << ")";
       return Status::OutOfRange(m.str());

@@ -33,11 +33,7 @@ bool CropToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Ti
         continue;
       }
       const int i = y * n + x;
-      tile.w()[i] = 0.0;
-      tile.s()[i] = 0.0;
-      tile.q()[i] = 0.0;
-      tile.a()[i] = 0.0f;
-      tile.b()[i] = 0.0f;
+      tile.ClearCell(i);
     }
   }
   return !storage::IsZeroTile(tile);
