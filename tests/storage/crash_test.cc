@@ -19,10 +19,7 @@
 namespace bgkmap::storage {
 namespace {
 
-using testing::Apply;
-using testing::MakeScan;
-using testing::MapsIdentical;
-using testing::NewMap;
+using testing::ExpectRecoveryEqualsReplay;
 using testing::SmallParams;
 using testing::TempDir;
 
@@ -129,23 +126,7 @@ void CheckRecovered(const std::string& dir, const ChildRun& run, size_t* kept_co
   if (kept_count != nullptr) *kept_count = kept.size();
   for (uint64_t v : run.acked) ASSERT_TRUE(kept.count(v)) << "acknowledged scan " << v << " lost";
 
-  auto recovered = NewMap(params);
-  auto report = RecoverMap(**store, *recovered);
-  ASSERT_TRUE(report.ok()) << report.status().ToString();
-  EXPECT_TRUE(report->clean());
-  ASSERT_TRUE(LoadAllTiles(**store, *recovered).ok());
-
-  auto reference = NewMap(params);
-  std::map<std::string, uint64_t> last_sequence;
-  for (uint64_t v : kept) {
-    const int robot = static_cast<int>(v % kRobots), index = static_cast<int>(v / kRobots);
-    Apply(*reference, *MakeScan(params, robot, index), v);
-    last_sequence["robot-" + std::to_string(robot)] = index + 1;
-  }
-  EXPECT_TRUE(MapsIdentical(*reference, *recovered));
-  for (const auto& [robot, sequence] : last_sequence) {
-    EXPECT_EQ((*store)->LastSequence(robot), sequence) << robot;
-  }
+  ExpectRecoveryEqualsReplay(**store, params, kept, kRobots);
 }
 
 // Kills `trials` writers mid-run: each as soon as it has acknowledged a random number of scans

@@ -38,8 +38,8 @@ namespace {
 
 using testing::Apply;
 using testing::Checkpointer;
+using testing::ExpectRecoveryEqualsReplay;
 using testing::MakeScan;
-using testing::MapsIdentical;
 using testing::NewMap;
 using testing::PowerCutFileSystem;
 using testing::SmallParams;
@@ -197,23 +197,7 @@ std::set<uint64_t> CheckRecovered(const std::string& dir) {
       });
   EXPECT_TRUE(walked.ok()) << walked.ToString();
 
-  auto recovered = NewMap(params);
-  auto report = RecoverMap(**store, *recovered);
-  EXPECT_TRUE(report.ok()) << report.status().ToString();
-  if (!report.ok()) return kept;
-  EXPECT_TRUE(report->clean());
-  EXPECT_TRUE(LoadAllTiles(**store, *recovered).ok());
-  auto reference = NewMap(params);
-  std::map<std::string, uint64_t> last_sequence;
-  for (uint64_t v : kept) {
-    const int robot = static_cast<int>(v % kRobots), index = static_cast<int>(v / kRobots);
-    Apply(*reference, *MakeScan(params, robot, index), v);
-    last_sequence["robot-" + std::to_string(robot)] = index + 1;
-  }
-  EXPECT_TRUE(MapsIdentical(*reference, *recovered));
-  for (const auto& [robot, sequence] : last_sequence) {
-    EXPECT_EQ((*store)->LastSequence(robot), sequence) << robot;
-  }
+  ExpectRecoveryEqualsReplay(**store, params, kept, kRobots);
   return kept;
 }
 

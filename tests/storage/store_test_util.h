@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <random>
 #include <set>
@@ -15,6 +16,7 @@
 
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/storage/recovery.h"
 #include "bgkmap/storage/tile_store.h"
 
 namespace bgkmap::storage::testing {
@@ -137,6 +139,29 @@ inline ::testing::AssertionResult StatisticsIdentical(const TerrainMap& a, const
 
 inline std::unique_ptr<TerrainMap> NewMap(const MapParams& params) {
   return std::move(TerrainMap::Create(params)).value();
+}
+
+// The crash and power-cut trials' check: `store` recovers cleanly to exactly the map of the kept
+// versions replayed in order (version v is MakeScan(params, v % robots, v / robots)), and each
+// robot's last logged sequence is that of its last kept scan.
+inline void ExpectRecoveryEqualsReplay(const TileStore& store, const MapParams& params,
+                                       const std::set<uint64_t>& kept, int robots) {
+  auto recovered = NewMap(params);
+  auto report = RecoverMap(store, *recovered);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->clean());
+  ASSERT_TRUE(LoadAllTiles(store, *recovered).ok());
+  auto reference = NewMap(params);
+  std::map<std::string, uint64_t> last_sequence;
+  for (uint64_t v : kept) {
+    const int robot = static_cast<int>(v % robots), index = static_cast<int>(v / robots);
+    Apply(*reference, *MakeScan(params, robot, index), v);
+    last_sequence["robot-" + std::to_string(robot)] = index + 1;
+  }
+  EXPECT_TRUE(MapsIdentical(*reference, *recovered));
+  for (const auto& [robot, sequence] : last_sequence) {
+    EXPECT_EQ(store.LastSequence(robot), sequence) << robot;
+  }
 }
 
 }  // namespace bgkmap::storage::testing
