@@ -133,6 +133,19 @@ LogRecord LogRecord::Clear(uint64_t version, const CellBox& box) {
   return r;
 }
 
+LogRecord LogRecord::Correction(uint64_t version, std::string robot_id, uint64_t base_version,
+                                std::vector<TileKey> seed_tiles,
+                                std::vector<uint64_t> revised_versions) {
+  LogRecord r;
+  r.type = Type::kCorrection;
+  r.version = version;
+  r.robot_id = std::move(robot_id);
+  r.base_version = base_version;
+  r.seed_tiles = std::move(seed_tiles);
+  r.revised_versions = std::move(revised_versions);
+  return r;
+}
+
 std::string EncodeLogRecord(const LogRecord& record) {
   std::string out;
   if (record.type == LogRecord::Type::kScan && record.scan) {
@@ -147,9 +160,18 @@ std::string EncodeLogRecord(const LogRecord& record) {
   w.PutSignedVarint(record.stamp_ns);
   if (record.type == LogRecord::Type::kScan) {
     PutScan(w, record.scan ? *record.scan : PreparedScan{});
-  } else {
+  } else if (record.type == LogRecord::Type::kClear) {
     const CellBox& b = record.clear_box;
     for (int v : {b.min.x, b.min.y, b.max.x, b.max.y}) w.PutSignedVarint(v);
+  } else {
+    w.PutVarint(record.base_version);
+    PutTileKeys(w, record.seed_tiles);
+    w.PutVarint(record.revised_versions.size());
+    uint64_t prev = 0;
+    for (uint64_t v : record.revised_versions) {
+      w.PutVarint(v - prev);
+      prev = v;
+    }
   }
   w.PutFixed32(Crc32c(out));
   return out;
@@ -188,6 +210,20 @@ Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
       int64_t x;
       if (!r.GetSignedVarint(&x) || x < INT32_MIN || x > INT32_MAX) return malformed;
       *v = static_cast<int>(x);
+    }
+  } else if (type == static_cast<uint8_t>(LogRecord::Type::kCorrection) && format >= 3) {
+    record.type = LogRecord::Type::kCorrection;
+    uint64_t n;
+    if (!r.GetVarint(&record.base_version) || !GetTileKeys(r, &record.seed_tiles) ||
+        !r.GetVarint(&n) || n > r.remaining()) {
+      return malformed;
+    }
+    uint64_t v = 0;
+    for (uint64_t i = 0; i < n; ++i) {
+      uint64_t delta;
+      if (!r.GetVarint(&delta) || delta > UINT64_MAX - v) return malformed;
+      v += delta;
+      record.revised_versions.push_back(v);
     }
   } else {
     return malformed;

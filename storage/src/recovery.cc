@@ -1,5 +1,7 @@
 #include "bgkmap/storage/recovery.h"
 
+#include "bgkmap/storage/reintegration.h"
+
 #include <algorithm>
 #include <chrono>
 #include <set>
@@ -44,6 +46,14 @@ class TileLoader {
 };
 
 }  // namespace
+
+void InstallTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
+                  TerrainMap& map) {
+  for (size_t i = 0; i < keys.size(); ++i) {
+    // An empty tile rather than none: the stored copy, older, must not be loaded in its place.
+    map.SetTile(keys[i], tiles[i] != nullptr ? *tiles[i] : Tile(map.params().tile_size));
+  }
+}
 
 Result<bool> LoadTileInto(const TileStore& store, TileKey key, TerrainMap& map) {
   Result<std::unique_ptr<Tile>> tile = store.LoadTile(key);
@@ -92,6 +102,23 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
           map.Integrate(scan, window, version);
           map.set_version(version);
           ++report.scans_replayed;
+        } else if (record->type == LogRecord::Type::kCorrection) {
+          // Rebuilt as the live server did (reintegration.h): the log already holds the
+          // revised records.
+          ReintegrationRequest request;
+          request.base = record->base_version;
+          request.end = version;
+          request.seed_tiles = record->seed_tiles;
+          request.revised_in_log = record->revised_versions;
+          Result<Reintegration> rebuilt = Reintegrate(store, request);
+          if (!rebuilt.ok()) {
+            return Status::DataLoss("replaying correction " + std::to_string(version) + ": " +
+                                    rebuilt.status().message());
+          }
+          InstallTiles(rebuilt->affected, rebuilt->tiles, map);
+          touched.insert(rebuilt->affected.begin(), rebuilt->affected.end());
+          map.set_version(version);
+          ++report.corrections_replayed;
         } else {
           if (Status s = loader.EnsureBox(record->clear_box, &touched); !s.ok()) return s;
           map.ClearBox(record->clear_box, version);

@@ -18,6 +18,7 @@ ScanLog::ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
       guard_(guard),
       read_only_(read_only),
       durability_(options.durability),
+      retain_sources_(options.retention.enabled()),
       periodic_sync_ms_(std::max<uint32_t>(1, options.periodic_sync_ms)),
       checkpoint_version_(checkpoint_version),
       last_version_(map_version),
@@ -105,6 +106,9 @@ Status ScanLog::Append(const LogRecord& record) {
   if (s.ok() && record.type == LogRecord::Type::kScan) {
     s = batch.Merge(db_->meta, std::string(kRobotPrefix) + record.robot_id,
                     U64Bytes(record.sequence));
+  }
+  if (s.ok() && record.source && retain_sources_ && db_->sources != nullptr) {
+    s = batch.Put(db_->sources, VersionKeyBytes(record.version), EncodeScanSource(*record.source));
   }
   if (!s.ok()) {
     append_errors_.fetch_add(1);
@@ -219,8 +223,26 @@ Status ScanLog::RetireRobot(std::string_view robot_id) {
 }
 
 void ScanLog::AddTruncation(rocksdb::WriteBatch* batch, uint64_t through) {
-  batch->DeleteRange(db_->log, VersionKeyBytes(0),
-                     through == UINT64_MAX ? std::string(9, '\xff') : VersionKeyBytes(through + 1));
+  const std::string end =
+      through == UINT64_MAX ? std::string(9, '\xff') : VersionKeyBytes(through + 1);
+  batch->DeleteRange(db_->log, VersionKeyBytes(0), end);
+  if (db_->sources != nullptr) batch->DeleteRange(db_->sources, VersionKeyBytes(0), end);
+}
+
+Result<std::optional<ScanSource>> ScanLog::LoadSource(uint64_t version) const {
+  if (db_->sources == nullptr) return std::optional<ScanSource>();
+  rocksdb::PinnableSlice value;
+  rocksdb::ReadOptions read;
+  read.verify_checksums = true;
+  const rocksdb::Status s = db_->db->Get(read, db_->sources, VersionKeyBytes(version), &value);
+  if (s.IsNotFound()) return std::optional<ScanSource>();
+  if (!s.ok()) return FromRocks(s, "reading the raw scan of version " + std::to_string(version));
+  Result<ScanSource> source = DecodeScanSource(value.ToStringView());
+  if (!source.ok()) {
+    return Status::DataLoss("raw scan of version " + std::to_string(version) + ": " +
+                            source.status().message());
+  }
+  return std::optional<ScanSource>(std::move(*source));
 }
 
 }  // namespace bgkmap::storage

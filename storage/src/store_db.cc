@@ -8,6 +8,7 @@
 #include <rocksdb/write_buffer_manager.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -112,7 +113,8 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
                                                bool read_only) {
   rocksdb::DBOptions db_options;
   db_options.create_if_missing = options.create_if_missing;
-  db_options.create_missing_column_families = options.create_if_missing;
+  // A store of an older format gains the families it lacks when opened for writing.
+  db_options.create_missing_column_families = !read_only;
   // A torn last record (the crash came mid-write) is dropped; it was never acknowledged.
   db_options.wal_recovery_mode = rocksdb::WALRecoveryMode::kPointInTimeRecovery;
   db_options.paranoid_checks = true;
@@ -139,12 +141,16 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
   rocksdb::ColumnFamilyOptions log;
   // Log records live only until the next checkpoint; compressing them is wasted work.
   log.compression = rocksdb::kNoCompression;
-  const std::vector<rocksdb::ColumnFamilyDescriptor> families = {
+  std::vector<rocksdb::ColumnFamilyDescriptor> families = {
       {rocksdb::kDefaultColumnFamilyName, rocksdb::ColumnFamilyOptions()},
       {kMetaFamily, meta},
       {kTilesFamily, TileFamilyOptions(options, cache)},
       {kTileIndexFamily, rocksdb::ColumnFamilyOptions()},
       {kLogFamily, log},
+      // Raw scans and superseded tiles, kept for corrections (scan_history.h): written once,
+      // read rarely, large; compressed like the tiles.
+      {kSourcesFamily, TileFamilyOptions(options, cache)},
+      {kHistoryFamily, TileFamilyOptions(options, cache)},
   };
 
   store->dir = dir;
@@ -157,6 +163,15 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
     if (LockedReadOnly().contains(LockKey(dir))) {
       return Status::IoError("opening the map store in " + dir +
                              ": it is already open (read-only) in this process");
+    }
+  }
+  if (read_only) {
+    // Read-only cannot create a family: an older store opens without the ones it lacks.
+    std::vector<std::string> present;
+    if (rocksdb::DB::ListColumnFamilies(db_options, dir, &present).ok()) {
+      std::erase_if(families, [&](const rocksdb::ColumnFamilyDescriptor& f) {
+        return std::find(present.begin(), present.end(), f.name) == present.end();
+      });
     }
   }
   rocksdb::DB* db = nullptr;
@@ -174,6 +189,10 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
   store->tiles = store->handles[2];
   store->tile_index = store->handles[3];
   store->log = store->handles[4];
+  if (store->handles.size() > 6) {
+    store->sources = store->handles[5];
+    store->history = store->handles[6];
+  }
   return store;
 }
 

@@ -26,6 +26,8 @@ struct StoreDb {
   rocksdb::ColumnFamilyHandle* tiles = nullptr;
   rocksdb::ColumnFamilyHandle* tile_index = nullptr;
   rocksdb::ColumnFamilyHandle* log = nullptr;
+  rocksdb::ColumnFamilyHandle* sources = nullptr;
+  rocksdb::ColumnFamilyHandle* history = nullptr;
   // Read-only: the database writes nothing (no log, no flush, no compaction, no lock file), so
   // the store holds its own lock on <dir>/LOCK instead, as RocksDB does, against a second
   // server; -1 when RocksDB holds it.

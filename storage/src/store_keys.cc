@@ -2,6 +2,8 @@
 
 #include <cstring>
 
+#include "byte_coding.h"
+
 namespace bgkmap::storage {
 namespace {
 
@@ -67,6 +69,37 @@ std::string TileKeyName(TileKey key) {
   name += std::to_string(key.y);
   name += ")";
   return name;
+}
+
+}  // namespace bgkmap::storage
+
+namespace bgkmap::storage {
+
+std::string EncodeVersionList(const std::vector<uint64_t>& versions) {
+  std::string out;
+  ByteWriter w(&out);
+  w.PutVarint(versions.size());
+  uint64_t prev = 0;
+  for (uint64_t v : versions) {
+    w.PutVarint(v - prev);
+    prev = v;
+  }
+  return out;
+}
+
+bool DecodeVersionList(std::string_view bytes, std::vector<uint64_t>* versions) {
+  ByteReader r(bytes);
+  uint64_t n;
+  if (!r.GetVarint(&n) || n > r.remaining()) return false;
+  versions->clear();
+  uint64_t v = 0;
+  for (uint64_t i = 0; i < n; ++i) {
+    uint64_t delta;
+    if (!r.GetVarint(&delta) || delta > UINT64_MAX - v || (i > 0 && delta == 0)) return false;
+    v += delta;
+    versions->push_back(v);
+  }
+  return r.remaining() == 0;
 }
 
 }  // namespace bgkmap::storage

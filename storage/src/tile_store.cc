@@ -139,6 +139,8 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
     effective = *params;
     batch.Put(sdb.meta, kFormatKey, std::to_string(kStoreFormat));
     batch.Put(sdb.meta, kCheckpointVersionKey, U64Bytes(0));
+    // A new store's log is complete from the start: the empty map at version 0 is a base.
+    if (options.retention.enabled()) batch.Put(sdb.meta, kBasesKey, EncodeVersionList({0}));
     if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
   } else {
     uint32_t stored_format = 0;
@@ -201,6 +203,14 @@ Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
     }
     robots.emplace(key.substr(kRobotPrefix.size()), sequence);
   }
+  std::vector<uint64_t> bases;
+  if (auto it = meta->find(kBasesKey); it != meta->end() && !DecodeVersionList(it->second, &bases)) {
+    return Status::DataLoss("map metadata " + std::string(kBasesKey) + " is malformed");
+  }
+  {
+    std::lock_guard<std::mutex> lock(bases_mu_);
+    bases_ = std::move(bases);
+  }
   db_ = std::move(db);
   checkpoint_version_.store(*checkpoint);
   log_.reset(new ScanLog(db_.get(), options_, std::max(*map_version, *checkpoint),
@@ -254,7 +264,8 @@ Result<std::unique_ptr<Tile>> TileStore::LoadTileAt(TileKey key,
   return tile;
 }
 
-Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles) {
+Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles,
+                             bool forget_earlier_bases) {
   std::lock_guard<std::mutex> lock(checkpoint_mu_);
   if (Status failed = log_->write_failure(); !failed.ok()) {
     // RocksDB must not write through a log writer that has failed (7.8 asserts): refuse, like
@@ -269,6 +280,12 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
                                    std::to_string(checkpoint_version_.load()) + ")");
   }
   rocksdb::WriteBatch batch;
+  // First, so that the history reads the tiles as they were before this checkpoint.
+  Result<std::vector<uint64_t>> bases = AddRetention(&batch, version, tiles, forget_earlier_bases);
+  if (!bases.ok()) {
+    checkpoint_errors_.fetch_add(1);
+    return bases.status();
+  }
   uint64_t written = 0, deleted = 0;
   for (const TileUpdate& update : tiles) {
     const std::string key = TileKeyBytes(update.key);
@@ -291,7 +308,6 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
   }
   batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));
   batch.Merge(db_->meta, kMapVersionKey, U64Bytes(version));
-  log_->AddTruncation(&batch, version);
   // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h).
   if (Status refused = log_->AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
   rocksdb::WriteOptions write;
@@ -305,6 +321,10 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
   }
   checkpoint_version_.store(version);
   log_->OnCheckpoint(version);
+  {
+    std::lock_guard<std::mutex> bases_lock(bases_mu_);
+    bases_ = std::move(*bases);
+  }
   tiles_written_.fetch_add(written);
   tiles_deleted_.fetch_add(deleted);
   checkpoints_.fetch_add(1);

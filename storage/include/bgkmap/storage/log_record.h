@@ -10,6 +10,8 @@
 //          of x and y),
 //          cells (varint count, zigzag deltas of x and y), their y as f64 bits (XOR-delta)
 //   clear: zigzag min.x, min.y, max.x, max.y
+//   correction (format >= 3): varint base_version, seed_tiles (as write_tiles), varint count and
+//          varint deltas of revised_versions (ascending)
 //   fixed32 crc32c of every byte before it.
 #pragma once
 
@@ -21,13 +23,16 @@
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
+#include "bgkmap/storage/scan_source.h"
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kLogRecordFormat = 2;
+inline constexpr uint8_t kLogRecordFormat = 3;
 
 struct LogRecord {
-  enum class Type : uint8_t { kScan = 1, kClear = 2 };
+  // kCorrection: some earlier scan records were rewritten (a pose correction) or removed; the
+  // map's tiles are rebuilt from a retained checkpoint (scan_history.h). robot_id names the robot.
+  enum class Type : uint8_t { kScan = 1, kClear = 2, kCorrection = 3 };
 
   Type type = Type::kScan;
   uint64_t version = 0;   // map version the change was applied as; replay follows it
@@ -36,10 +41,21 @@ struct LogRecord {
   int64_t stamp_ns = 0;   // kScan: the sender's stamp, informational
   std::shared_ptr<const PreparedScan> scan;  // kScan: required
   CellBox clear_box;                         // kClear: the cleared cells
+  // kScan, optional and not part of the encoding: the raw scan, which the log keeps beside the
+  // record (in its own family) while corrections may need it.
+  std::shared_ptr<const ScanSource> source;
+  // kCorrection: the retained checkpoint the rebuild starts from, the tiles the revised scans
+  // changed before they were revised, and the revised scans' versions (removed ones included).
+  uint64_t base_version = 0;
+  std::vector<TileKey> seed_tiles;
+  std::vector<uint64_t> revised_versions;
 
   static LogRecord Scan(uint64_t version, std::string robot_id, uint64_t sequence,
                         std::shared_ptr<const PreparedScan> scan, int64_t stamp_ns = 0);
   static LogRecord Clear(uint64_t version, const CellBox& box);
+  static LogRecord Correction(uint64_t version, std::string robot_id, uint64_t base_version,
+                              std::vector<TileKey> seed_tiles,
+                              std::vector<uint64_t> revised_versions);
 };
 
 std::string EncodeLogRecord(const LogRecord& record);

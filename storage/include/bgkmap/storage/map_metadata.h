@@ -22,7 +22,7 @@ namespace bgkmap::storage {
 // a newer format is refused rather than misread. Format 2 (dynamics): tile format 2 (second
 // moments), log record format 2 (sensor position), parameters keys of dynamics; format 1 stores
 // and archives are read (their missing keys take MapParamInfo::legacy_text) and upgraded.
-inline constexpr uint32_t kStoreFormat = 2;
+inline constexpr uint32_t kStoreFormat = 3;
 
 struct MapMetadata {
   uint32_t format = kStoreFormat;

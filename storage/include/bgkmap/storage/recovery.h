@@ -8,6 +8,8 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
+#include <span>
 #include <vector>
 
 #include "bgkmap/core/status.h"
@@ -21,6 +23,7 @@ struct RecoveryReport {
   uint64_t map_version = 0;  // of the recovered map (= store.map_version())
   uint64_t scans_replayed = 0;
   uint64_t clears_replayed = 0;
+  uint64_t corrections_replayed = 0;  // rebuilt from their base (reintegration.h)
   uint64_t tiles_loaded = 0;
   // Log records that failed their checksum: their changes are lost (and later scans were
   // replayed without them). Empty in a healthy store.
@@ -44,6 +47,11 @@ struct RecoveryReport {
 // Precondition: `map` was created with store.params() and holds no tiles.
 // Returns an error only if the log cannot be read at all; damage is reported, not fatal.
 Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map);
+
+// Sets the tiles at `keys` in `map` to `tiles`; a null tile becomes an empty one (so that an
+// older stored copy is never loaded in its place).
+void InstallTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
+                  TerrainMap& map);
 
 // Copies the stored tile at `key` into `map`, replacing what the map holds there. Returns
 // false if the store has no such tile; the store's DataLoss or IoError otherwise.

@@ -7,6 +7,7 @@
 // Owned by a TileStore; obtain it with TileStore::log(). Thread-safe.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
@@ -45,7 +46,8 @@ class ScanLog {
   ScanLog(const ScanLog&) = delete;
   ScanLog& operator=(const ScanLog&) = delete;
 
-  // Appends `record` and, for a scan, max-merges the robot's last sequence number; the map
+  // Appends `record` (and its raw scan, record.source, when the store retains them) and, for a
+  // scan, max-merges the robot's last sequence number; the map
   // version is max-merged too. Returns once the record is durable as the store's Durability
   // says; only then may the change be acknowledged. Concurrent appends share fsyncs.
   //   InvalidArgument: version 0, a version at or below the last checkpoint, or a scan
@@ -65,6 +67,10 @@ class ScanLog {
   // block) ends the walk with DataLoss.
   using Visitor = std::function<Status(uint64_t version, Result<LogRecord> record)>;
   Status ForEach(uint64_t after, const Visitor& visit) const;
+
+  // The raw scan kept beside the record of `version` (StoreOptions::retention); nullopt if none
+  // is kept (retention off, or dropped). DataLoss if it fails its checksum.
+  Result<std::optional<ScanSource>> LoadSource(uint64_t version) const;
 
   // Counts the records after `after` (reads them).
   Result<LogStats> Stats(uint64_t after = 0) const;
@@ -108,9 +114,14 @@ class ScanLog {
   // refusal otherwise, counted. Checked before every write to the database.
   Status AdmitWrite(uint64_t bytes);
 
-  // Adds to `batch` the deletion of every record with version <= `through`.
+  // Adds to `batch` the deletion of every record (and raw scan) with version <= `through`.
   void AddTruncation(rocksdb::WriteBatch* batch, uint64_t through);
   void OnCheckpoint(uint64_t version) { checkpoint_version_.store(version); }
+  // A record was written by the store itself (a correction).
+  void NoteAppended(uint64_t version) {
+    std::lock_guard<std::mutex> lock(mu_);
+    last_version_ = std::max(last_version_, version);
+  }
   void LatchFailure(const Status& s);
   void ClearFailure();
   void SyncLoop();
@@ -119,6 +130,7 @@ class ScanLog {
   FreeSpaceGuard* guard_;
   const bool read_only_;
   const Durability durability_;
+  const bool retain_sources_;
   const uint32_t periodic_sync_ms_;
 
   std::atomic<uint64_t> checkpoint_version_;

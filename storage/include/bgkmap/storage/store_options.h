@@ -52,6 +52,17 @@ struct StoreOptions {
   // file system, and a store opened with less than that free opens read-only (writes refused
   // until Resume() finds the space back). reserve_bytes 0: no reserve.
   FreeSpaceOptions free_space;
+  // What the store keeps for pose corrections (scan_history.h). max_bytes 0: nothing is kept
+  // (the log ends at the last checkpoint, no scan can be corrected).
+  struct Retention {
+    // Bound on the raw scans and log records kept below the last checkpoint (RocksDB's
+    // estimate of their files and memory tables).
+    uint64_t max_bytes = 0;
+    // Bound on their age in map time: scans older than this before the newest scan's stamp are
+    // dropped at the next checkpoint. 0: no bound by age.
+    int64_t max_age_ns = 0;
+    bool enabled() const { return max_bytes > 0; }
+  } retention;
 };
 
 }  // namespace bgkmap::storage

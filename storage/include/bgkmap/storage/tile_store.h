@@ -30,6 +30,7 @@
 
 namespace rocksdb {
 class Snapshot;
+class WriteBatch;
 }
 
 namespace bgkmap::storage {
@@ -124,7 +125,28 @@ class TileStore {
   // above `version` (or copies the tiles at a barrier) before calling. Tiles not passed keep
   // their stored state. InvalidArgument if `version` is below checkpoint_version(); IoError if
   // the write fails (the previous checkpoint and the log stay intact).
-  Status Checkpoint(uint64_t version, std::span<const TileUpdate> tiles);
+  // With retention (StoreOptions::retention) the checkpoint also keeps the tiles it replaces
+  // (the history), becomes a base, and drops the log records, raw scans and history older than
+  // the oldest base the retention bound keeps; without it, every record up to `version` goes.
+  // `forget_earlier_bases`: the map changed outside the log (an import), so no earlier base
+  // can be rebuilt from any more; this checkpoint becomes the only one.
+  Status Checkpoint(uint64_t version, std::span<const TileUpdate> tiles,
+                    bool forget_earlier_bases = false);
+
+  // ---- Corrections (scan_history.h): retained checkpoints and rewriting the log
+  // The retained checkpoints a rebuild may start from, ascending (empty without retention).
+  // The log holds every record above the first one.
+  std::vector<uint64_t> Bases() const;
+  // The tiles at `keys` as they were at the retained checkpoint `base` (null: no tile then).
+  // InvalidArgument if `base` is not in Bases(); DataLoss naming a corrupt stored tile.
+  Result<std::vector<std::unique_ptr<Tile>>> LoadTilesAt(uint64_t base,
+                                                         std::span<const TileKey> keys) const;
+  // Atomically (one fsync'ed write): appends `correction` (a kCorrection record at a new
+  // version), replaces the records in `rewritten` (same versions, their raw scans too),
+  // deletes the records (and raw scans) in `removed`, and forgets the bases between
+  // correction.base_version and correction.version, whose stored history predates it.
+  Status ApplyCorrection(const LogRecord& correction, std::span<const LogRecord> rewritten,
+                         std::span<const uint64_t> removed);
 
   // Every stored tile (from the index, no tile is read), in (x, y) order; or those with
   // min <= key <= max coordinate-wise.
@@ -182,6 +204,17 @@ class TileStore {
   // Takes over an opened database: reads the versions and robots, starts the log.
   Status Attach(std::unique_ptr<StoreDb> db);
   void MarkCorrupt(TileKey key) const;
+  // Retention at a checkpoint of `version`: the replaced tiles go to the history, the
+  // bases are updated and what falls out of the bound is deleted (all into `batch`). Returns
+  // the new bases. Requires checkpoint_mu_.
+  Result<std::vector<uint64_t>> AddRetention(rocksdb::WriteBatch* batch, uint64_t version,
+                                             std::span<const TileUpdate> tiles,
+                                             bool forget_earlier_bases);
+  // RocksDB's estimate of the log and raw-scan bytes above `version`.
+  uint64_t RetainedBytesAbove(uint64_t version) const;
+  // The stamp of the first scan record above `version`, and of the newest one (0: none).
+  int64_t FirstStampAbove(uint64_t version) const;
+  int64_t LastStamp() const;
   // LoadTile() and ListTiles() as of `snapshot` (null: now). A corrupt tile found through a
   // snapshot is not marked: a later checkpoint may have rewritten it.
   friend class TileSnapshot;
@@ -198,7 +231,9 @@ class TileStore {
   std::unique_ptr<ScanLog> log_;
 
   std::atomic<uint64_t> checkpoint_version_{0};
-  std::mutex checkpoint_mu_;  // one checkpoint at a time
+  std::mutex checkpoint_mu_;  // one checkpoint (or correction) at a time
+  mutable std::mutex bases_mu_;
+  std::vector<uint64_t> bases_;  // guarded by bases_mu_; written under checkpoint_mu_ too
   mutable std::atomic<uint64_t> tiles_loaded_{0};
   std::atomic<uint64_t> tiles_written_{0}, tiles_deleted_{0}, checkpoints_{0};
   std::atomic<uint64_t> checkpoint_errors_{0};

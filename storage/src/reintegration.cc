@@ -1,0 +1,141 @@
+#include "bgkmap/storage/reintegration.h"
+
+#include <algorithm>
+#include <chrono>
+#include <set>
+
+#include "bgkmap/core/terrain_map.h"
+
+namespace bgkmap::storage {
+namespace {
+
+struct HistoryEntry {
+  uint64_t version = 0;
+  std::shared_ptr<const PreparedScan> scan;  // null: a clear
+  CellBox clear_box;
+  bool revised = false;
+  bool replay = false;
+};
+
+bool AnyIn(const std::vector<TileKey>& keys, const std::set<TileKey>& set) {
+  return std::any_of(keys.begin(), keys.end(), [&](TileKey k) { return set.contains(k); });
+}
+
+bool AnyInRange(TileKey lo, TileKey hi, const std::set<TileKey>& set) {
+  return std::any_of(set.begin(), set.end(), [&](TileKey k) {
+    return k.x >= lo.x && k.x <= hi.x && k.y >= lo.y && k.y <= hi.y;
+  });
+}
+
+Status ReadHistory(const TileStore& store, const ReintegrationRequest& request,
+                   std::vector<HistoryEntry>* entries) {
+  const std::set<uint64_t> in_log(request.revised_in_log.begin(), request.revised_in_log.end());
+  std::set<uint64_t> replaced_seen;
+  const Status stop = Status::OutOfRange("end of the history");
+  Status walked = store.log().ForEach(
+      request.base, [&](uint64_t version, Result<LogRecord> record) -> Status {
+        if (version >= request.end) return stop;
+        if (!record.ok()) return record.status();
+        if (record->type == LogRecord::Type::kCorrection) return Status::Ok();  // see header
+        HistoryEntry e;
+        e.version = version;
+        if (record->type == LogRecord::Type::kClear) {
+          e.clear_box = record->clear_box;
+          entries->push_back(std::move(e));
+          return Status::Ok();
+        }
+        e.scan = record->scan;
+        if (auto r = request.replacements.find(version); r != request.replacements.end()) {
+          replaced_seen.insert(version);
+          if (r->second == nullptr) return Status::Ok();  // removed
+          e.scan = r->second;
+          e.revised = true;
+        }
+        e.revised = e.revised || in_log.contains(version);
+        entries->push_back(std::move(e));
+        return Status::Ok();
+      });
+  if (!walked.ok() && walked.message() != stop.message()) return walked;
+  for (const auto& [version, scan] : request.replacements) {
+    if (!replaced_seen.contains(version)) {
+      return Status::InvalidArgument("version " + std::to_string(version) +
+                                     " is not a scan record after checkpoint " +
+                                     std::to_string(request.base));
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationRequest& request) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<uint64_t> bases = store.Bases();
+  if (!std::binary_search(bases.begin(), bases.end(), request.base)) {
+    return Status::InvalidArgument("version " + std::to_string(request.base) +
+                                   " is not a retained checkpoint");
+  }
+  std::vector<HistoryEntry> history;
+  if (Status s = ReadHistory(store, request, &history); !s.ok()) return s;
+
+  const GridGeometry geometry(store.params().resolution, store.params().tile_size);
+  // Forward: what may differ.
+  std::set<TileKey> affected(request.seed_tiles.begin(), request.seed_tiles.end());
+  for (const HistoryEntry& e : history) {
+    if (e.scan == nullptr) continue;  // a clear makes its tiles equal in both histories
+    std::vector<TileKey> inputs = e.scan->ChangeableTiles();
+    if (e.revised || AnyIn(inputs, affected) || AnyIn(e.scan->read_tiles, affected)) {
+      affected.insert(inputs.begin(), inputs.end());
+    }
+  }
+  // Backward: what the rebuild of `affected` reads.
+  std::set<TileKey> needed = affected;
+  for (auto it = history.rbegin(); it != history.rend(); ++it) {
+    if (it->scan == nullptr) {
+      it->replay = AnyInRange(geometry.TileOf(it->clear_box.min),
+                              geometry.TileOf(it->clear_box.max), needed);
+      continue;
+    }
+    const std::vector<TileKey> outputs = it->scan->ChangeableTiles();
+    if (!AnyIn(outputs, needed)) continue;
+    it->replay = true;
+    needed.insert(outputs.begin(), outputs.end());
+    needed.insert(it->scan->read_tiles.begin(), it->scan->read_tiles.end());
+  }
+
+  Reintegration out;
+  out.affected.assign(affected.begin(), affected.end());
+  out.needed.assign(needed.begin(), needed.end());
+  out.records_in_history = history.size();
+  for (const HistoryEntry& e : history) out.records_replayed += e.replay ? 1 : 0;
+  if (request.plan_only) return out;
+
+  Result<std::vector<std::unique_ptr<Tile>>> base = store.LoadTilesAt(request.base, out.needed);
+  if (!base.ok()) return base.status();
+  Result<std::unique_ptr<TerrainMap>> scratch = TerrainMap::Create(store.params());
+  if (!scratch.ok()) return scratch.status();
+  TerrainMap& map = **scratch;
+  for (size_t i = 0; i < out.needed.size(); ++i) {
+    if ((*base)[i] != nullptr) map.SetTile(out.needed[i], *(*base)[i]);
+  }
+  map.set_version(request.base);
+  for (const HistoryEntry& e : history) {
+    if (!e.replay) continue;
+    if (e.scan == nullptr) {
+      map.ClearBox(e.clear_box, e.version);
+    } else {
+      const TileWindow window = map.MakeWindow(*e.scan);
+      map.Integrate(*e.scan, window, e.version);
+    }
+    map.set_version(e.version);
+  }
+  out.tiles.reserve(out.affected.size());
+  for (TileKey k : out.affected) {
+    const Tile* t = map.FindTile(k);
+    out.tiles.push_back(t == nullptr ? nullptr : std::make_unique<Tile>(*t));
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace bgkmap::storage
