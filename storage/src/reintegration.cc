@@ -80,14 +80,25 @@ Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationReq
 
   const GridGeometry geometry(store.params().resolution, store.params().tile_size);
   // Forward: what may differ.
-  std::set<TileKey> affected(request.seed_tiles.begin(), request.seed_tiles.end());
+  // Nothing before the first revised scan differs; from it on, its old tiles may.
+  uint64_t first_revised = UINT64_MAX;
+  if (!request.replacements.empty()) first_revised = request.replacements.begin()->first;
+  for (uint64_t v : request.revised_in_log) first_revised = std::min(first_revised, v);
+  std::set<TileKey> affected;
+  bool seeded = false;
+  auto seed = [&] {
+    if (!seeded) affected.insert(request.seed_tiles.begin(), request.seed_tiles.end());
+    seeded = true;
+  };
   for (const HistoryEntry& e : history) {
+    if (e.version >= first_revised) seed();
     if (e.scan == nullptr) continue;  // a clear makes its tiles equal in both histories
     std::vector<TileKey> inputs = e.scan->ChangeableTiles();
     if (e.revised || AnyIn(inputs, affected) || AnyIn(e.scan->read_tiles, affected)) {
       affected.insert(inputs.begin(), inputs.end());
     }
   }
+  seed();  // (every revised scan was removed)
   // Backward: what the rebuild of `affected` reads.
   std::set<TileKey> needed = affected;
   for (auto it = history.rbegin(); it != history.rend(); ++it) {

@@ -3,8 +3,8 @@
 // checkpoint (TileStore::Bases()) and the log after it, without touching the rest of the map.
 //
 // Which records are replayed, over the history H = the log's records in (base, end):
-//   - affected tiles A: the revised scans' tiles before (`seed_tiles`) and after the revision,
-//     then, in version order, the tiles a record changes if it reads a tile of A (or is revised):
+//   - affected tiles A: from the first revised scan on, the revised scans' tiles before
+//     (`seed_tiles`) and after the revision, then, in version order, the tiles a record changes if it reads a tile of A (or is revised):
 //     a scan's traversability reads the elevation around it, so a later scan over a corrected
 //     region changes too. Only tiles of A can differ from the map as it is.
 //   - needed tiles N: A, then, in reverse version order, every tile read by a record that
