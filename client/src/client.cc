@@ -320,6 +320,46 @@ RpcResult<RetiredRobot> Client::RetireRobot(const std::string& robot_id) {
 
 namespace {
 
+CorrectionResult FromProto(const v1::CorrectionSummary& s) {
+  return {s.map_version(),        s.scans_revised(), s.records_replayed(),
+          s.records_in_history(), s.tiles_changed(), s.seconds()};
+}
+
+}  // namespace
+
+RpcResult<CorrectionResult> Client::CorrectPoses(
+    const std::string& robot_id, const std::vector<std::pair<uint64_t, ScanPose>>& poses) {
+  v1::CorrectPosesRequest request;
+  request.set_robot_id(robot_id);
+  for (const auto& [sequence, pose] : poses) {
+    v1::PoseCorrection* c = request.add_corrections();
+    c->set_sequence(sequence);
+    ToProto(pose, c->mutable_pose());
+  }
+  v1::CorrectPosesResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->CorrectPoses(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  return FromProto(response.summary());
+}
+
+RpcResult<CorrectionResult> Client::RemoveScans(const std::string& robot_id, uint64_t first,
+                                                uint64_t last) {
+  v1::RemoveScansRequest request;
+  request.set_robot_id(robot_id);
+  request.set_first_sequence(first);
+  request.set_last_sequence(last);
+  v1::RemoveScansResponse response;
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  grpc::Status status = impl_->stub->RemoveScans(&context, request, &response);
+  if (!status.ok()) return FromGrpc(status);
+  return FromProto(response.summary());
+}
+
+namespace {
+
 constexpr size_t kArchiveChunkBytes = 1 << 20;
 
 RpcStatus FileError(const std::string& what, const std::string& path) {

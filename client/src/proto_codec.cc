@@ -43,19 +43,22 @@ MetricBox FromProto(const v1::BoundingBox& box) {
   return {box.min_x(), box.min_y(), box.max_x(), box.max_y()};
 }
 
+void ToProto(const ScanPose& in, v1::Pose3* pose) {
+  pose->mutable_translation()->set_x(in.tx);
+  pose->mutable_translation()->set_y(in.ty);
+  pose->mutable_translation()->set_z(in.tz);
+  pose->mutable_rotation()->set_w(in.qw);
+  pose->mutable_rotation()->set_x(in.qx);
+  pose->mutable_rotation()->set_y(in.qy);
+  pose->mutable_rotation()->set_z(in.qz);
+}
+
 void ToProto(const ScanData& scan, v1::Scan* out) {
   out->set_robot_id(scan.robot_id);
   out->set_sequence(scan.sequence);
   out->mutable_stamp()->set_seconds(scan.stamp_ns / 1'000'000'000);
   out->mutable_stamp()->set_nanos(static_cast<int32_t>(scan.stamp_ns % 1'000'000'000));
-  v1::Pose3* pose = out->mutable_pose();
-  pose->mutable_translation()->set_x(scan.pose.tx);
-  pose->mutable_translation()->set_y(scan.pose.ty);
-  pose->mutable_translation()->set_z(scan.pose.tz);
-  pose->mutable_rotation()->set_w(scan.pose.qw);
-  pose->mutable_rotation()->set_x(scan.pose.qx);
-  pose->mutable_rotation()->set_y(scan.pose.qy);
-  pose->mutable_rotation()->set_z(scan.pose.qz);
+  ToProto(scan.pose, out->mutable_pose());
   static_assert(sizeof(Point3f) == 12);
   out->mutable_points()->assign(reinterpret_cast<const char*>(scan.points.data()),
                                 scan.points.size() * sizeof(Point3f));

@@ -24,6 +24,7 @@ RpcStatus FromGrpc(const grpc::Status& status);
 
 // Requests.
 void ToProto(const MetricBox& box, v1::BoundingBox* out);
+void ToProto(const ScanPose& pose, v1::Pose3* out);
 void ToProto(const ScanData& scan, v1::Scan* out);
 void ToProto(const RegionQuery& query, v1::RegionRequest* out);
 void ToProto(std::span<const std::array<double, 2>> points, const std::vector<Layer>& layers,

@@ -190,6 +190,12 @@ const std::vector<ServerKey>& StorageKeys() {
       Key<uint64_t>(
           "min_free_space_mb",
           [](ServerConfig & c) -> auto& { return c.storage.min_free_space_mb; }, "storage"),
+      Key<uint64_t>(
+          "retention_mb", [](ServerConfig & c) -> auto& { return c.storage.retention_mb; },
+          "storage"),
+      Key<double>(
+          "retention_s", [](ServerConfig & c) -> auto& { return c.storage.retention_s; },
+          "storage"),
   };
   return keys;
 }
@@ -434,6 +440,12 @@ Status ValidateServerConfig(const ServerConfig& c) {
   }
   if (st.min_free_space_mb > (uint64_t{1} << 30)) {
     return bad_storage("min_free_space_mb", "must be at most 2^30 (1 PiB)");
+  }
+  if (st.retention_mb > (uint64_t{1} << 30)) {
+    return bad_storage("retention_mb", "must be at most 2^30 (1 PiB)");
+  }
+  if (!(st.retention_s >= 0) || st.retention_s > 1e9) {
+    return bad_storage("retention_s", "must be in [0, 1e9] seconds of map time");
   }
   const GeoreferenceConfig& geo = c.georeference;
   for (double v : geo.origin) {

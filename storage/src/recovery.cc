@@ -1,11 +1,11 @@
 #include "bgkmap/storage/recovery.h"
 
-#include "bgkmap/storage/reintegration.h"
-
 #include <algorithm>
 #include <chrono>
 #include <set>
 #include <unordered_set>
+
+#include "bgkmap/storage/reintegration.h"
 
 namespace bgkmap::storage {
 namespace {
@@ -48,10 +48,12 @@ class TileLoader {
 }  // namespace
 
 void InstallTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
-                  TerrainMap& map) {
+                  uint64_t version, TerrainMap& map) {
   for (size_t i = 0; i < keys.size(); ++i) {
     // An empty tile rather than none: the stored copy, older, must not be loaded in its place.
-    map.SetTile(keys[i], tiles[i] != nullptr ? *tiles[i] : Tile(map.params().tile_size));
+    Tile tile = tiles[i] != nullptr ? *tiles[i] : Tile(map.params().tile_size);
+    tile.set_version(version);
+    map.SetTile(keys[i], tile);
   }
 }
 
@@ -115,7 +117,7 @@ Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map) {
             return Status::DataLoss("replaying correction " + std::to_string(version) + ": " +
                                     rebuilt.status().message());
           }
-          InstallTiles(rebuilt->affected, rebuilt->tiles, map);
+          InstallTiles(rebuilt->affected, rebuilt->tiles, version, map);
           touched.insert(rebuilt->affected.begin(), rebuilt->affected.end());
           map.set_version(version);
           ++report.corrections_replayed;

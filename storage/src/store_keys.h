@@ -36,6 +36,8 @@ inline constexpr std::string_view kCheckpointVersionKey = "checkpoint_version";
 inline constexpr std::string_view kMapVersionKey = "map_version";
 inline constexpr std::string_view kRobotPrefix = "robot/";
 inline constexpr std::string_view kBasesKey = "bases";
+// u64: a checkpoint below this version is never a base (it may predate a correction above it).
+inline constexpr std::string_view kBasesFloorKey = "bases_floor";
 
 // Signed coordinates are offset by 2^31 so that negative keys sort first.
 std::string TileKeyBytes(TileKey key);

@@ -61,8 +61,7 @@ int64_t TileStore::LastStamp() const {
   return 0;
 }
 
-Result<std::vector<uint64_t>> TileStore::AddRetention(rocksdb::WriteBatch* batch,
-                                                      uint64_t version,
+Result<std::vector<uint64_t>> TileStore::AddRetention(rocksdb::WriteBatch* batch, uint64_t version,
                                                       std::span<const TileUpdate> tiles,
                                                       bool forget_earlier_bases) {
   std::vector<uint64_t> bases = Bases();
@@ -88,7 +87,14 @@ Result<std::vector<uint64_t>> TileStore::AddRetention(rocksdb::WriteBatch* batch
     }
   }
   if (forget_earlier_bases) bases.clear();
-  if (bases.empty() || bases.back() < version) bases.push_back(version);
+  uint64_t floor;
+  {
+    std::lock_guard<std::mutex> lock(bases_mu_);
+    floor = bases_floor_;
+  }
+  // A checkpoint captured before a correction but written after it holds uncorrected tiles.
+  if ((bases.empty() || bases.back() < version) && version >= floor) bases.push_back(version);
+  if (bases.empty()) return bases;  // (nothing retained yet: keep the log as it is)
   // Drop the oldest bases while what they keep exceeds the bound; the newest always stays.
   const int64_t newest_stamp = options_.retention.max_age_ns > 0 ? LastStamp() : 0;
   while (bases.size() > 1) {
@@ -136,7 +142,8 @@ Result<std::vector<std::unique_ptr<Tile>>> TileStore::LoadTilesAt(
       if (w == wanted.end() || found[w->second]) continue;
       found[w->second] = true;
       if (it->value().empty()) continue;
-      Result<std::unique_ptr<Tile>> tile = DecodeTile(it->value().ToStringView(), params_.tile_size);
+      Result<std::unique_ptr<Tile>> tile =
+          DecodeTile(it->value().ToStringView(), params_.tile_size);
       if (!tile.ok()) {
         status = Status::DataLoss("history of tile " + TileKeyName(key) + ": " +
                                   tile.status().message());
@@ -160,8 +167,7 @@ Result<std::vector<std::unique_ptr<Tile>>> TileStore::LoadTilesAt(
   return out;
 }
 
-Status TileStore::ApplyCorrection(const LogRecord& correction,
-                                  std::span<const LogRecord> rewritten,
+Status TileStore::ApplyCorrection(const LogRecord& correction, std::span<const LogRecord> rewritten,
                                   std::span<const uint64_t> removed) {
   std::lock_guard<std::mutex> lock(checkpoint_mu_);
   if (Status failed = log_->write_failure(); !failed.ok()) {
@@ -186,10 +192,10 @@ Status TileStore::ApplyCorrection(const LogRecord& correction,
     if (db_->sources != nullptr) batch.Delete(db_->sources, VersionKeyBytes(version));
   }
   std::vector<uint64_t> bases = Bases();
-  std::erase_if(bases, [&](uint64_t b) {
-    return b > correction.base_version && b < correction.version;
-  });
+  std::erase_if(bases,
+                [&](uint64_t b) { return b > correction.base_version && b < correction.version; });
   batch.Put(db_->meta, kBasesKey, EncodeVersionList(bases));
+  batch.Put(db_->meta, kBasesFloorKey, U64Bytes(correction.version));
   if (Status refused = log_->AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
   rocksdb::WriteOptions write;
   write.sync = true;  // acknowledged only once durable, in either durability mode
@@ -202,6 +208,7 @@ Status TileStore::ApplyCorrection(const LogRecord& correction,
   log_->NoteAppended(correction.version);
   std::lock_guard<std::mutex> bases_lock(bases_mu_);
   bases_ = std::move(bases);
+  bases_floor_ = correction.version;
   return Status::Ok();
 }
 

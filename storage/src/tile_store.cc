@@ -204,12 +204,19 @@ Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
     robots.emplace(key.substr(kRobotPrefix.size()), sequence);
   }
   std::vector<uint64_t> bases;
-  if (auto it = meta->find(kBasesKey); it != meta->end() && !DecodeVersionList(it->second, &bases)) {
+  if (auto it = meta->find(kBasesKey);
+      it != meta->end() && !DecodeVersionList(it->second, &bases)) {
     return Status::DataLoss("map metadata " + std::string(kBasesKey) + " is malformed");
+  }
+  uint64_t floor = 0;
+  if (auto it = meta->find(kBasesFloorKey);
+      it != meta->end() && !ParseU64Bytes(it->second, &floor)) {
+    return Status::DataLoss("map metadata " + std::string(kBasesFloorKey) + " is malformed");
   }
   {
     std::lock_guard<std::mutex> lock(bases_mu_);
     bases_ = std::move(bases);
+    bases_floor_ = floor;
   }
   db_ = std::move(db);
   checkpoint_version_.store(*checkpoint);

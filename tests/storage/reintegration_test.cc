@@ -133,7 +133,7 @@ TEST(TileHistory, LoadTilesAtReturnsEachTileAsItWasAtTheRetainedCheckpoint) {
 // Corrects robot 0's scans 10.. to their true poses, in the store and the live map; returns the
 // revised training sets by version.
 std::map<uint64_t, std::shared_ptr<const PreparedScan>> CorrectRobot0(Drive& drive, int from,
-                                                                       uint64_t version) {
+                                                                      uint64_t version) {
   std::map<uint64_t, std::shared_ptr<const PreparedScan>> revised;
   std::vector<LogRecord> rewritten;
   std::set<TileKey> seeds;
@@ -158,11 +158,11 @@ std::map<uint64_t, std::shared_ptr<const PreparedScan>> CorrectRobot0(Drive& dri
   if (!result.ok()) return revised;
   EXPECT_GT(result->records_replayed, 0u);
   EXPECT_LE(result->records_replayed, result->records_in_history);
-  InstallTiles(result->affected, result->tiles, *drive.map);
+  InstallTiles(result->affected, result->tiles, version, *drive.map);
   std::vector<uint64_t> versions;
   for (const auto& [v, scan] : revised) versions.push_back(v);
-  const LogRecord correction = LogRecord::Correction(version, "robot-0", request.base,
-                                                     request.seed_tiles, versions);
+  const LogRecord correction =
+      LogRecord::Correction(version, "robot-0", request.base, request.seed_tiles, versions);
   EXPECT_TRUE(drive.store->ApplyCorrection(correction, rewritten, {}).ok());
   for (LogRecord& r : rewritten) drive.records[r.version] = std::move(r);
   return revised;
@@ -212,7 +212,7 @@ TEST(Reintegration, RemovedScansLeaveTheMapWithoutThem) {
   request.replacements = removed;
   auto result = Reintegrate(*drive.store, request);
   ASSERT_TRUE(result.ok()) << result.status().ToString();
-  InstallTiles(result->affected, result->tiles, *drive.map);
+  InstallTiles(result->affected, result->tiles, 31, *drive.map);
   EXPECT_TRUE(StatisticsIdentical(*drive.Rebuilt(removed), *drive.map));
 }
 

@@ -26,6 +26,8 @@ void RegisterWatchCommand(CLI::App& app, int& exit_code);
 void RegisterInfoCommand(CLI::App& app, int& exit_code);
 void RegisterClearCommand(CLI::App& app, int& exit_code);
 void RegisterRobotsCommand(CLI::App& app, int& exit_code);
+void RegisterCorrectCommand(CLI::App& app, int& exit_code);
+void RegisterRemoveScansCommand(CLI::App& app, int& exit_code);
 void RegisterRetireRobotCommand(CLI::App& app, int& exit_code);
 void RegisterExportCommand(CLI::App& app, int& exit_code);
 void RegisterImportCommand(CLI::App& app, int& exit_code);

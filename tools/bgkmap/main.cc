@@ -25,6 +25,8 @@ int main(int argc, char** argv) {
   bgkmap::cli::RegisterClearCommand(app, exit_code);
   bgkmap::cli::RegisterRobotsCommand(app, exit_code);
   bgkmap::cli::RegisterRetireRobotCommand(app, exit_code);
+  bgkmap::cli::RegisterCorrectCommand(app, exit_code);
+  bgkmap::cli::RegisterRemoveScansCommand(app, exit_code);
   bgkmap::cli::RegisterExportCommand(app, exit_code);
   bgkmap::cli::RegisterImportCommand(app, exit_code);
   try {

@@ -24,7 +24,10 @@
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/tile.h"
+#include "bgkmap/storage/reintegration.h"
+#include "bgkmap/storage/scan_source.h"
 #include "bgkmap/storage/tile_store.h"
+#include "durability/correction_plan.h"
 #include "durability/tile_backing.h"
 
 namespace bgkmap {
@@ -42,6 +45,8 @@ struct ChangeRecord {
   uint64_t sequence = 0;
   Stamp stamp;
   CellBox clear_box;
+  // The raw scan, kept beside the record when the store retains scans for corrections.
+  std::shared_ptr<const storage::ScanSource> source;
 };
 
 // Copies of the served map's tiles, taken at a barrier (no change in flight).
@@ -96,6 +101,24 @@ class Durability : public TileBacking {
   // logged sequence number.
   virtual uint64_t recovered_version() const = 0;
   virtual std::map<std::string, uint64_t> LoggedRobotSequences() const = 0;
+
+  // ---- Pose corrections (docs/semantics.md, "Pose corrections"); a map in memory has none.
+  // Whether Record() keeps raw scans (ChangeRecord::source) for corrections.
+  virtual bool retains_scans() const { return false; }
+  // Resolves `spec` against the log: the robot's scans by sequence number, each prepared again
+  // with its corrected pose, and the retained checkpoint to rebuild from. InvalidArgument for a
+  // pose the engine refuses; NotFound-like InvalidArgument for a sequence never logged;
+  // FailedPrecondition when a scan is no longer retained (naming the robot's oldest retained
+  // sequence number) or the map keeps none.
+  virtual Result<CorrectionPlan> PlanCorrection(const CorrectionSpec& spec) const;
+  // The re-integration of `plan` over the log's records below `end` (reintegration.h).
+  virtual Result<storage::Reintegration> Reintegrate(const CorrectionPlan& plan, uint64_t end,
+                                                     bool plan_only) const;
+  // The map changed at `version` outside the log (an import): corrections cannot reach past it.
+  virtual void NoteChangeOutsideLog(uint64_t /*version*/) {}
+  // Journals the correction at `version` and rewrites the revised records, atomically and
+  // durably: once OK, a restart rebuilds the corrected map.
+  virtual Status RecordCorrection(const CorrectionPlan& plan, uint64_t version);
 
   // Forgets a robot's logged sequence number for good (it survives a restart as forgotten).
   // Called at a scheduler barrier: no scan of the robot is being journaled.

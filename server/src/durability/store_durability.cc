@@ -35,6 +35,8 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
   options.durability = *durability;
   options.periodic_sync_ms = config.periodic_sync_ms;
   options.free_space.reserve_bytes = config.min_free_space_mb << 20;
+  options.retention.max_bytes = config.retention_mb << 20;
+  options.retention.max_age_ns = static_cast<int64_t>(config.retention_s * 1e9);
   Result<std::unique_ptr<storage::TileStore>> store =
       storage::TileStore::Open(config.data_dir, options, params);
   if (!store.ok()) return store.status();
@@ -104,6 +106,7 @@ Status StoreDurability::Record(const ChangeRecord& change) {
                                   ? storage::LogRecord::Scan(change.version, change.robot_id,
                                                              change.sequence, change.scan, stamp_ns)
                                   : storage::LogRecord::Clear(change.version, change.clear_box);
+  record.source = change.source;
   Status s = store_->log().Append(record);
   if (!store_->log().write_failure().ok()) write_failed_.store(true);
   NotePause(s);
@@ -139,7 +142,10 @@ Status StoreDurability::WriteCheckpoint(uint64_t version, std::span<const TileKe
   std::vector<storage::TileUpdate> updates;
   updates.reserve(keys.size());
   for (size_t i = 0; i < keys.size(); ++i) updates.push_back({keys[i], tiles[i].get()});
-  Status s = store_->Checkpoint(version, updates);
+  uint64_t outside = outside_log_version_.load();
+  const bool rebase = outside != 0 && version >= outside;
+  Status s = store_->Checkpoint(version, updates, rebase);
+  if (s.ok() && rebase) outside_log_version_.compare_exchange_strong(outside, 0);
   if (!store_->log().write_failure().ok()) write_failed_.store(true);
   NotePause(s);
   if (!s.ok()) return s;

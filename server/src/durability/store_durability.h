@@ -36,6 +36,14 @@ class StoreDurability final : public Durability {
     return store_->log().RetireRobot(robot_id);
   }
   Status Record(const ChangeRecord& change) override;
+  bool retains_scans() const override;
+  Result<CorrectionPlan> PlanCorrection(const CorrectionSpec& spec) const override;
+  Result<storage::Reintegration> Reintegrate(const CorrectionPlan& plan, uint64_t end,
+                                             bool plan_only) const override;
+  Status RecordCorrection(const CorrectionPlan& plan, uint64_t version) override;
+  // The next checkpoint at or above `version` follows a change made outside the log (an
+  // import): earlier checkpoints can no longer be rebuilt from.
+  void NoteChangeOutsideLog(uint64_t version) override { outside_log_version_.store(version); }
   Status WriteCheckpoint(uint64_t version, std::span<const TileKey> keys,
                          std::span<const std::unique_ptr<Tile>> tiles) override;
   bool write_failed() const override { return write_failed_.load() || writes_paused_for_space(); }
@@ -86,6 +94,7 @@ class StoreDurability final : public Durability {
   StoredTileIndex index_;
   // Moves past a checkpoint's version only after the index holds its tiles.
   std::atomic<uint64_t> durable_version_{0};
+  std::atomic<uint64_t> outside_log_version_{0};  // NoteChangeOutsideLog(), until checkpointed
 };
 
 }  // namespace bgkmap

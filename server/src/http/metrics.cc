@@ -139,6 +139,7 @@ ServerMetrics CollectMetrics(ServiceContext& ctx) {
     s.memory_limit_bytes = ctx.config.storage.max_memory_mb << 20;
   }
   m.process_resident_bytes = ProcessResidentBytes();
+  m.corrections = ctx.map.corrections();
   return m;
 }
 
@@ -158,6 +159,18 @@ std::string FormatMetrics(const ServerMetrics& m) {
   w.Gauge("bgkmap_robots", "Robots the server has seen (or recovered from the store).",
           m.robots.size());
   WriteRobots(m.robots, w);
+  const CorrectionStats& c = m.corrections;
+  w.Gauge("bgkmap_corrections_in_progress",
+          "Pose corrections and scan removals being re-integrated now.", c.in_progress);
+  w.Counter("bgkmap_corrections_applied_total", "Pose corrections and removals switched in.",
+            c.applied);
+  w.Counter("bgkmap_corrections_failed_total", "Pose corrections and removals refused.", c.failed);
+  w.Counter("bgkmap_correction_scans_revised_total", "Scans corrected or removed.",
+            c.scans_revised);
+  w.Counter("bgkmap_correction_records_replayed_total", "Log records re-integrated by corrections.",
+            c.records_replayed);
+  w.Gauge("bgkmap_correction_last_seconds", "Duration of the last correction, request to switch.",
+          c.last_seconds);
   if (m.store) WriteStore(*m.store, w);
   if (m.process_resident_bytes) {
     w.Gauge("process_resident_memory_bytes", "Resident memory of the bgkmapd process (VmRSS).",

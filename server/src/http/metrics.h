@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bgkmap/storage/tile_store.h"
+#include "serving/correction_stats.h"
 #include "serving/robot_registry.h"
 #include "serving/tile_residency.h"
 
@@ -47,6 +48,7 @@ struct ServerMetrics {
   std::vector<RobotProgress> robots;  // sorted by id
   std::optional<StoreMetrics> store;
   std::optional<uint64_t> process_resident_bytes;
+  CorrectionStats corrections;
 };
 
 // Reads every value from the server's accessors. Locks nothing map-wide (the summary is kept

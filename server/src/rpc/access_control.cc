@@ -8,12 +8,20 @@ namespace bgkmap {
 
 const std::unordered_map<std::string, Right>& RpcRights() {
   static const std::unordered_map<std::string, Right> rights = {
-      {"Ingest", Right::kIngest},     {"IngestScan", Right::kIngest},
-      {"QueryRegion", Right::kQuery}, {"QueryPoints", Right::kQuery},
-      {"CheckPath", Right::kQuery},   {"Info", Right::kQuery},
-      {"Watch", Right::kWatch},       {"ClearRegion", Right::kAdmin},
-      {"ExportMap", Right::kAdmin},   {"ImportMap", Right::kAdmin},
+      {"Ingest", Right::kIngest},
+      {"IngestScan", Right::kIngest},
+      {"QueryRegion", Right::kQuery},
+      {"QueryPoints", Right::kQuery},
+      {"CheckPath", Right::kQuery},
+      {"Info", Right::kQuery},
+      {"Watch", Right::kWatch},
+      {"ClearRegion", Right::kAdmin},
+      {"ExportMap", Right::kAdmin},
+      {"ImportMap", Right::kAdmin},
       {"RetireRobot", Right::kAdmin},
+      // The robot itself (checked in the handler, MayIngestAs) or an admin.
+      {"CorrectPoses", Right::kIngest},
+      {"RemoveScans", Right::kIngest},
   };
   return rights;
 }

@@ -128,6 +128,26 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(grpc::CallbackS
   return StartImportMap(ctx_, call, std::move(who), response);
 }
 
+grpc::ServerUnaryReactor* MapService::CorrectPoses(grpc::CallbackServerContext* call,
+                                                   const v1::CorrectPosesRequest* request,
+                                                   v1::CorrectPosesResponse* response) {
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "CorrectPoses", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartCorrectPoses(ctx_, call, std::move(who), request, response);
+}
+
+grpc::ServerUnaryReactor* MapService::RemoveScans(grpc::CallbackServerContext* call,
+                                                  const v1::RemoveScansRequest* request,
+                                                  v1::RemoveScansResponse* response) {
+  PrincipalRef who;
+  if (grpc::Status s = access_.Admit(*call, "RemoveScans", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  return StartRemoveScans(ctx_, call, std::move(who), request, response);
+}
+
 grpc::ServerUnaryReactor* MapService::RetireRobot(grpc::CallbackServerContext* call,
                                                   const v1::RetireRobotRequest* request,
                                                   v1::RetireRobotResponse* response) {

@@ -36,6 +36,12 @@ class MapService final : public v1::MapService::CallbackService {
                                                         const v1::ExportRequest* request) override;
   grpc::ServerReadReactor<v1::ArchiveChunk>* ImportMap(grpc::CallbackServerContext* call,
                                                        v1::ImportResponse* response) override;
+  grpc::ServerUnaryReactor* CorrectPoses(grpc::CallbackServerContext* call,
+                                         const v1::CorrectPosesRequest* request,
+                                         v1::CorrectPosesResponse* response) override;
+  grpc::ServerUnaryReactor* RemoveScans(grpc::CallbackServerContext* call,
+                                        const v1::RemoveScansRequest* request,
+                                        v1::RemoveScansResponse* response) override;
   grpc::ServerUnaryReactor* RetireRobot(grpc::CallbackServerContext* call,
                                         const v1::RetireRobotRequest* request,
                                         v1::RetireRobotResponse* response) override;

@@ -23,6 +23,8 @@ std::string Num(double v) {
   return s.str();
 }
 
+}  // namespace
+
 grpc::Status CheckPose(const v1::Pose3& pose, const MapParams& params, const ServerLimits& limits,
                        Pose* out) {
   const v1::Vector3& t = pose.translation();
@@ -57,8 +59,6 @@ grpc::Status CheckPose(const v1::Pose3& pose, const MapParams& params, const Ser
   return grpc::Status::OK;
 }
 
-}  // namespace
-
 grpc::Status CheckRobotId(const std::string& robot_id) {
   if (robot_id.empty()) return Invalid("robot_id: must not be empty");
   if (robot_id.size() > kMaxRobotIdBytes) {
@@ -89,7 +89,8 @@ grpc::Status CheckCoordinate(double value, const std::string& field, const Serve
 }
 
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
-                                const ServerLimits& limits, PreparedScan* out) {
+                                const ServerLimits& limits, PreparedScan* out,
+                                std::shared_ptr<storage::ScanSource>* source) {
   if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) return s;
   const std::string& bytes = scan.points();
   if (bytes.size() % kBytesPerPoint != 0) {
@@ -112,6 +113,12 @@ grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
   Result<PreparedScan> prepared = PrepareScan(params, points, pose);
   if (!prepared.ok()) return ToGrpcStatus(prepared.status());
   *out = std::move(prepared).value();
+  if (source != nullptr) {
+    auto raw = std::make_shared<storage::ScanSource>();
+    raw->pose = pose;
+    raw->points = std::move(points);
+    *source = std::move(raw);
+  }
   return grpc::Status::OK;
 }
 

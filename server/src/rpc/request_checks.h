@@ -10,14 +10,22 @@
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/server/server_config.h"
+#include "bgkmap/storage/scan_source.h"
 #include "bgkmap/v1/ingest.pb.h"
 #include "bgkmap/v1/types.pb.h"
 
 namespace bgkmap {
 
 // Checks a scan (robot id, packed points, pose) and prepares it. Pure: reads no map state.
+// `source` (optional) receives the raw scan as sent, for a map that retains scans.
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
-                                const ServerLimits& limits, PreparedScan* out);
+                                const ServerLimits& limits, PreparedScan* out,
+                                std::shared_ptr<storage::ScanSource>* source = nullptr);
+
+// A finite pose within the coordinate limits whose quaternion has unit norm (within
+// server.quaternion_tolerance), as the engine's Pose; the message names pose.<field>.
+grpc::Status CheckPose(const v1::Pose3& pose, const MapParams& params, const ServerLimits& limits,
+                       Pose* out);
 
 // Cheap checks done before anything else (robot id: 1..128 bytes, no control characters), so
 // even duplicates are well-formed.

@@ -82,7 +82,8 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
   Result<TileResidency::Pins> pins = residency_.PinScan(scan);
   outcome.status = pins.status();
   if (outcome.status.ok()) {
-    ChangeRecord record{version, shared_scan, origin.robot_id, origin.sequence, origin.stamp, {}};
+    ChangeRecord record{version,      shared_scan, origin.robot_id, origin.sequence,
+                        origin.stamp, {},          origin.source};
     outcome.status = durability_.Record(record);
   }
   if (!outcome.status.ok()) {
@@ -172,6 +173,7 @@ ChangeScheduler::Done ServedMap::RunImport(std::span<const TileKey> keys,
   table_.AddTiles(keys, adding, version);
   checkpointer_.MarkChanged(keys);
   summary_.MarkStale(keys);  // (an undone import recounts to what it was)
+  durability_.NoteChangeOutsideLog(version);
   if (Status s = checkpointer_.CheckpointAt(version); !s.ok()) {
     table_.ReplaceTiles(keys, before);
     outcome.status = Status::IoError("cannot persist it: " + s.message());

@@ -29,6 +29,7 @@
 #include "durability/checkpointer.h"
 #include "durability/durability.h"
 #include "serving/change_scheduler.h"
+#include "serving/correction_stats.h"
 #include "serving/map_summary.h"
 #include "serving/robot_registry.h"
 #include "serving/tile_residency.h"
@@ -40,6 +41,8 @@ struct ScanOrigin {
   std::string robot_id;
   uint64_t sequence = 0;
   Stamp stamp;
+  // The raw scan, when the map retains scans for corrections (Durability::retains_scans()).
+  std::shared_ptr<const storage::ScanSource> source;
 };
 
 struct ScanOutcome {
@@ -52,6 +55,16 @@ struct ClearOutcome {
   uint64_t version = 0;
   std::vector<TileKey> changed_tiles;
   Status status;  // not OK: nothing was cleared
+};
+
+struct CorrectionOutcome {
+  uint64_t version = 0;        // the correction's own map version
+  uint64_t scans_revised = 0;  // corrected or removed
+  uint64_t records_replayed = 0;
+  uint64_t records_in_history = 0;
+  std::vector<TileKey> changed_tiles;
+  double seconds = 0;  // from submission to the switch
+  Status status;       // not OK: nothing changed
 };
 
 struct ImportOutcome {
@@ -105,6 +118,16 @@ class ServedMap {
   // tile and cell, and nothing is added. `keys` (sorted, distinct) and `tiles` must outlive `done`.
   void SubmitImport(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
                     std::function<void(ImportOutcome)> done);
+  // Re-integrates a robot's scans with corrected poses, or without the removed ones, so that the
+  // map equals the one built from scratch with them (docs/semantics.md, "Pose corrections").
+  // Runs in the background: queries go on answering from the map as it is, scans into other
+  // tiles go on integrating, and scans into the corrected region wait; the corrected tiles then
+  // switch in as one change at the correction's version (told to watchers). `done` runs once it
+  // is durable (or refused: nothing changed).
+  void SubmitCorrection(CorrectionSpec spec, std::function<void(CorrectionOutcome)> done);
+  CorrectionStats corrections() const;
+  bool retains_scans() const { return durability_.retains_scans(); }
+
   // Forgets a robot: scans admitted after this call see it as new (its next scan starts a new
   // sequence, and it no longer counts against max_robots), and at the next barrier the store
   // forgets it too, so it stays forgotten after a restart. `done` gets what the robot was;
@@ -153,6 +176,10 @@ class ServedMap {
   ChangeScheduler::Done RunScan(const ScanOrigin& origin, std::shared_ptr<const PreparedScan> scan,
                                 uint64_t previous_sequence, uint64_t version,
                                 std::function<void(ScanOutcome)> done);
+  struct CorrectionJob;
+  void ScheduleCorrection(std::shared_ptr<CorrectionJob> job, std::vector<TileKey> region);
+  ChangeScheduler::Done RunCorrection(std::shared_ptr<CorrectionJob> job,
+                                      const std::vector<TileKey>& region, uint64_t version);
   ChangeScheduler::Done RunClear(const CellBox& box, uint64_t version,
                                  std::function<void(ClearOutcome)> done);
   ChangeScheduler::Done RunImport(std::span<const TileKey> keys,
@@ -170,6 +197,8 @@ class ServedMap {
   RobotRegistry robots_;
   std::mutex admission_mu_;  // a robot's sequence order is its version order
   std::atomic<uint64_t> scans_applied_{0};
+  mutable std::mutex corrections_mu_;
+  CorrectionStats corrections_;
   ChangeScheduler scheduler_;  // last: its workers use everything above
 };
 

@@ -233,6 +233,16 @@ struct RetiredRobot {
   uint64_t robots = 0;         // robots the server knows after the retirement
 };
 
+// What a pose correction or a scan removal did (CorrectionSummary in admin.proto).
+struct CorrectionResult {
+  uint64_t map_version = 0;  // the correction's own version
+  uint64_t scans_revised = 0;
+  uint64_t records_replayed = 0;
+  uint64_t records_in_history = 0;
+  uint64_t tiles_changed = 0;
+  double seconds = 0;
+};
+
 struct ExportResult {
   uint64_t bytes = 0;        // of the archive file
   uint64_t tiles = 0;        // in the archive
@@ -280,6 +290,14 @@ class Client {
   // Admin: forgets a robot (Info() lists them); its next scan starts a new sequence. NOT_FOUND
   // if the server does not know it.
   RpcResult<RetiredRobot> RetireRobot(const std::string& robot_id);
+  // The robot itself (or admin): re-integrates its scans `sequence -> pose` with corrected poses
+  // (T_map_sensor); answers once the corrected map is in place (docs/semantics.md, "Pose
+  // corrections"). FAILED_PRECONDITION if a scan is no longer retained.
+  RpcResult<CorrectionResult> CorrectPoses(const std::string& robot_id,
+                                           const std::vector<std::pair<uint64_t, ScanPose>>& poses);
+  // The robot itself (or admin): removes its scans first..last (inclusive) from the map.
+  RpcResult<CorrectionResult> RemoveScans(const std::string& robot_id, uint64_t first,
+                                          uint64_t last);
 
   // Admin: the whole map, or the cells meeting `box`, as one map archive at `path` (a
   // consistent snapshot at one map version). Written to path + ".partial", synced, then renamed:

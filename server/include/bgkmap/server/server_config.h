@@ -76,6 +76,13 @@ struct StorageConfig {
   // with less free opens its store read-only. It covers RocksDB's own flushes and compactions
   // and the restart after a refusal (docs/storage.md, "Free-space reserve"). 0 = no reserve.
   uint64_t min_free_space_mb = 64;
+  // retention_mb: bound on the raw scans and log records kept below the last checkpoint so that
+  // a robot's poses can be corrected later (CorrectPoses, RemoveScans; docs/semantics.md,
+  // "Pose corrections"); older ones are dropped at checkpoints. 0 = keep none (no corrections).
+  // Needs data_dir.
+  uint64_t retention_mb = 1024;
+  // retention_s: bound on their age in map time (scan stamps); 0 = no bound by age.
+  double retention_s = 0;
 };
 
 // The `georeference:` section: where the robots' local map frame sits in a coordinate reference

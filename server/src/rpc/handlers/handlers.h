@@ -48,6 +48,14 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
                                                           PrincipalRef who,
                                                           v1::ImportResponse* response);
 
+grpc::ServerUnaryReactor* StartCorrectPoses(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                            PrincipalRef who,
+                                            const v1::CorrectPosesRequest* request,
+                                            v1::CorrectPosesResponse* response);
+grpc::ServerUnaryReactor* StartRemoveScans(ServiceContext& ctx, grpc::CallbackServerContext* call,
+                                           PrincipalRef who, const v1::RemoveScansRequest* request,
+                                           v1::RemoveScansResponse* response);
+
 grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            PrincipalRef who, const v1::RetireRobotRequest* request,
                                            v1::RetireRobotResponse* response);

@@ -57,6 +57,14 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
     g->set_origin_northing(geo.origin[1]);
     g->set_origin_height(geo.origin[2]);
   }
+  const CorrectionStats c = ctx.map.corrections();
+  v1::Corrections* corrections = response->mutable_corrections();
+  corrections->set_in_progress(c.in_progress);
+  corrections->set_applied(c.applied);
+  corrections->set_failed(c.failed);
+  corrections->set_scans_revised(c.scans_revised);
+  corrections->set_records_replayed(c.records_replayed);
+  corrections->set_last_seconds(c.last_seconds);
   if (const std::optional<StoreStatus> store = ctx.map.store_status()) {
     v1::StorageInfo* st = response->mutable_storage();
     st->set_data_dir(store->directory);

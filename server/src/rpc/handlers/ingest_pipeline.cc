@@ -72,7 +72,9 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
     return;
   }
   auto prepared = std::make_shared<PreparedScan>();
-  if (grpc::Status s = PrepareScanMessage(scan, ctx.map.params(), ctx.limits, prepared.get());
+  std::shared_ptr<storage::ScanSource> source;
+  if (grpc::Status s = PrepareScanMessage(scan, ctx.map.params(), ctx.limits, prepared.get(),
+                                          ctx.map.retains_scans() ? &source : nullptr);
       !s.ok()) {
     ctx.map.robots().CountRejected(scan.robot_id());
     done(RejectedAck(ctx, scan, s), s);
@@ -82,7 +84,7 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
   v1::ScanAck applied = BaseAck(scan);
   uint64_t last_sequence = 0;
   const ServedMap::Admission admission = ctx.map.SubmitScan(
-      {scan.robot_id(), scan.sequence(), stamp}, prepared,
+      {scan.robot_id(), scan.sequence(), stamp, std::move(source)}, prepared,
       [applied, done, counts = prepared->counts](ScanOutcome outcome) mutable {
         if (!outcome.status.ok()) {
           // Not in the log, so not in the map: the robot may send it again.

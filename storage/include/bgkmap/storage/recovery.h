@@ -48,10 +48,10 @@ struct RecoveryReport {
 // Returns an error only if the log cannot be read at all; damage is reported, not fatal.
 Result<RecoveryReport> RecoverMap(const TileStore& store, TerrainMap& map);
 
-// Sets the tiles at `keys` in `map` to `tiles`; a null tile becomes an empty one (so that an
-// older stored copy is never loaded in its place).
+// Sets the tiles at `keys` in `map` to `tiles`, as changed at `version` (a correction's); a null
+// tile becomes an empty one (so that an older stored copy is never loaded in its place).
 void InstallTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
-                  TerrainMap& map);
+                  uint64_t version, TerrainMap& map);
 
 // Copies the stored tile at `key` into `map`, replacing what the map holds there. Returns
 // false if the store has no such tile; the store's DataLoss or IoError otherwise.

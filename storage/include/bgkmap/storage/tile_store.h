@@ -31,7 +31,7 @@
 namespace rocksdb {
 class Snapshot;
 class WriteBatch;
-}
+}  // namespace rocksdb
 
 namespace bgkmap::storage {
 
@@ -234,6 +234,7 @@ class TileStore {
   std::mutex checkpoint_mu_;  // one checkpoint (or correction) at a time
   mutable std::mutex bases_mu_;
   std::vector<uint64_t> bases_;  // guarded by bases_mu_; written under checkpoint_mu_ too
+  uint64_t bases_floor_ = 0;     // guarded by bases_mu_ (store_keys.h, kBasesFloorKey)
   mutable std::atomic<uint64_t> tiles_loaded_{0};
   std::atomic<uint64_t> tiles_written_{0}, tiles_deleted_{0}, checkpoints_{0};
   std::atomic<uint64_t> checkpoint_errors_{0};

@@ -1,0 +1,22 @@
+#include "durability/durability.h"
+
+namespace bgkmap {
+namespace {
+Status NoCorrections() {
+  return Status::FailedPrecondition(
+      "pose corrections need a persistent store: set storage.data_dir (the map is in memory)");
+}
+}  // namespace
+
+Result<CorrectionPlan> Durability::PlanCorrection(const CorrectionSpec&) const {
+  return NoCorrections();
+}
+
+Result<storage::Reintegration> Durability::Reintegrate(const CorrectionPlan&, uint64_t,
+                                                       bool) const {
+  return NoCorrections();
+}
+
+Status Durability::RecordCorrection(const CorrectionPlan&, uint64_t) { return NoCorrections(); }
+
+}  // namespace bgkmap
