@@ -27,3 +27,15 @@ build/bench/store_scale --bgkmapd build/server/bgkmapd bounded --sites 40 --boun
   | tee out/bench/store_bounded.md
 build/bench/store_scale --bgkmapd build/server/bgkmapd bounded --sites 80 --bound-mb 64 0 \
   | tail -n 2 | tee -a out/bench/store_bounded.md
+
+# Pose corrections (docs/benchmarks.md, "Pose corrections"): a 1,000-scan drive on drifting
+# odometry, 10 % corrected, against its full ingest; another robot's load during a correction.
+cmake --build build -j"$(nproc)" --target correction_load
+CDIR=$(mktemp -d)
+CADDR="127.0.0.1:${BGKMAP_BENCH_CORRECTION_PORT:-50572}"
+build/server/bgkmapd --listen "$CADDR" --data-dir "$CDIR/map" --set storage.durability=periodic \
+  >out/bench/bgkmapd_correction.log 2>&1 &
+CSERVER=$!
+trap 'kill -TERM $CSERVER 2>/dev/null || true; wait $CSERVER 2>/dev/null || true; rm -rf "$CDIR"' EXIT
+build/bench/correction_load --server "$CADDR" | tee out/bench/correction.md
+kill -TERM $CSERVER && wait $CSERVER || true

@@ -3,10 +3,14 @@
 // exactly: also with a second robot in the region, while the robot streams on, and across a
 // restart. Removing a robot's scans gives the map without them. Bad requests change nothing.
 #include <gtest/gtest.h>
+#include <signal.h>
 
 #include <Eigen/Geometry>
+#include <atomic>
+#include <cstdio>
 #include <thread>
 
+#include "bgkmapd_process.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -222,6 +226,56 @@ TEST(PoseCorrection, AScanNoLongerRetainedIsRefusedNamingTheOldestRetainedOne) {
       << r.status().ToString();
   // The newest scans are still retained, and can be corrected.
   EXPECT_TRUE(fixture.client().CorrectPoses("robot-a", drive.TruePosesFrom(kScans)).ok());
+}
+
+// kill -9 while a correction runs: the restarted map is the map before it or after it, never a
+// mix, and an acknowledged correction is kept. Kills land at several moments of the correction.
+TEST(PoseCorrection, Kill9DuringACorrectionRecoversBeforeOrAfterIt) {
+  const DriveScans drive("robot-a", kParts, kScans);
+  const std::vector<OwnedScan> corrected = drive.CorrectedFrom(4);
+  const auto before_map = ReferenceMap(Pointers(drive.drifted));
+  const auto after_map = ReferenceMap(Pointers(corrected));
+  MetricBox box = KnownBox(*before_map);
+  const MetricBox b2 = KnownBox(*after_map);
+  box = {std::min(box.min_x, b2.min_x), std::min(box.min_y, b2.min_y),
+         std::max(box.max_x, b2.max_x), std::max(box.max_y, b2.max_y)};
+  const Raster before = OfflineRegion(*before_map, box), after = OfflineRegion(*after_map, box);
+  int recovered_before = 0, recovered_after = 0;
+  for (int delay_ms : {0, 40, 80, 120, 160, 240, 1500}) {
+    TempDir dir("bgkmap_correct_kill");
+    const std::vector<std::string> args = {"--data-dir", dir.str(), "--set",
+                                           "storage.checkpoint_interval_s=0.1"};
+    std::atomic<bool> acknowledged{false};
+    {
+      BgkmapdProcess server(args);
+      ASSERT_TRUE(server.started());
+      Client client(server.target());
+      Send(client, Pointers(drive.drifted));
+      std::thread corrector([&] {
+        Client c(server.target());
+        acknowledged = c.CorrectPoses("robot-a", drive.TruePosesFrom(4)).ok();
+      });
+      std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+      server.Signal(SIGKILL);
+      server.Wait();
+      corrector.join();
+    }
+    BgkmapdProcess server(args);
+    ASSERT_TRUE(server.started());
+    Client client(server.target());
+    RpcResult<Raster> map = client.QueryRegion({box, {}, 1});
+    ASSERT_TRUE(map.ok()) << map.status().ToString();
+    const bool is_before = RastersMatch(*map, before, 0.0);
+    const bool is_after = RastersMatch(*map, after, 0.0);
+    EXPECT_TRUE(is_before || is_after) << "a mix after a kill at " << delay_ms << " ms";
+    if (acknowledged) {
+      EXPECT_TRUE(is_after) << "an acknowledged correction was lost";
+    }
+    recovered_before += is_before ? 1 : 0;
+    recovered_after += is_after ? 1 : 0;
+  }
+  std::printf("kill -9 during a correction: %d trials recovered the map before it, %d after\n",
+              recovered_before, recovered_after);
 }
 
 }  // namespace

@@ -174,7 +174,10 @@ void FillRefuseAndResume(const std::string& reserve_mb) {
   ASSERT_TRUE(WriteBallast(ballast, 40));
   BgkmapdProcess server({"--data-dir", disk.Sub("store"), "--worker-threads", "2", "--set",
                          "storage.checkpoint_interval_s=3600", "--set",
-                         "storage.min_free_space_mb=" + reserve_mb});
+                         "storage.min_free_space_mb=" + reserve_mb,
+                         // The tmpfs holds ~8 MiB of store: without the raw scans kept for
+                         // corrections (~400 KB each here), enough scans to see the log fill it.
+                         "--set", "storage.retention_mb=0"});
   ASSERT_TRUE(server.started());
   Client client(server.target());
   const std::vector<OwnedScan> base = SubScans("alpha", 4);
@@ -322,7 +325,9 @@ TEST(RealDiskFullTest, ARestartOnTheFullDiskOpensTheStoreReadOnly) {
                                          "--set",
                                          "storage.checkpoint_interval_s=3600",
                                          "--set",
-                                         std::string("storage.min_free_space_mb=") + kReserveMb};
+                                         std::string("storage.min_free_space_mb=") + kReserveMb,
+                                         "--set",
+                                         "storage.retention_mb=0"};
   const std::vector<OwnedScan> base = SubScans("alpha", 4);
   OwnedScan owned;
   constexpr uint64_t kScans = 20;
@@ -416,7 +421,9 @@ TEST(RealDiskFullTest, DISABLED_MeasureTheSpaceRecoveryNeeds) {
                                              "--set",
                                              "storage.checkpoint_interval_s=3600",
                                              "--set",
-                                             "storage.min_free_space_mb=0"};
+                                             "storage.min_free_space_mb=0",
+                                             "--set",
+                                             "storage.retention_mb=0"};
       OwnedScan owned;
       uint64_t empty = 0, logged = 0;
       {

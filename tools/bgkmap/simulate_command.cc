@@ -1,6 +1,8 @@
 // `bgkmap simulate`: renders one of the paper's simulated experiments (city, aerial) into a
 // KITTI-like sequence plus its ground truth (docs/results.md explains the worlds).
 //   <out>/velodyne/NNNNNN.bin, <out>/poses.txt   the mapping scans, sensor frame
+//   <out>/odometry_poses.txt                     with --drift: the same scans' poses as a
+//                                                drifting odometry would report them
 //   <out>/ground_truth.tif                       true elevation, traversability, state
 //   <out>/scenario.json                          what was simulated
 #include <atomic>
@@ -17,6 +19,7 @@
 #include "bgkmap/io/kitti_sequence.h"
 #include "bgkmap/io/progress_bar.h"
 #include "bgkmap/sim/ground_truth.h"
+#include "bgkmap/sim/odometry_drift.h"
 #include "bgkmap/sim/ray_caster.h"
 #include "bgkmap/sim/scenario.h"
 #include "commands.h"
@@ -35,6 +38,7 @@ struct SimulateOptions {
   int grid = 13;             // aerial only
   int threads = 2;
   bool truth = true;  // false: the mapping scans only (e.g. a cloud for bgkmap regress)
+  double drift = 0;   // > 0: also odometry_poses.txt (sim/odometry_drift.h)
 };
 
 int Fail(const std::string& msg) {
@@ -119,6 +123,16 @@ int RunSimulate(const SimulateOptions& o) {
   for (const Pose& pose : scenario.mapping_poses) {
     if (Status s = io::AppendPose(poses_path, pose); !s.ok()) return Fail(s.message());
   }
+  if (o.drift > 0) {
+    const std::string odometry_path = (fs::path(o.out) / "odometry_poses.txt").string();
+    fs::remove(odometry_path, ec);
+    sim::DriftOptions drift;
+    drift.translation_per_m = o.drift;
+    drift.yaw_per_m = o.drift / 5.0;
+    for (const Pose& pose : sim::DriftedOdometry(scenario.mapping_poses, drift)) {
+      if (Status s = io::AppendPose(odometry_path, pose); !s.ok()) return Fail(s.message());
+    }
+  }
 
   if (!o.truth) scenario.truth_poses.clear();
   // Ground-truth visibility from the dense scan set, one mask per worker.
@@ -192,6 +206,10 @@ void RegisterSimulateCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--grid", o->grid, "aerial: n for n x n scan positions 10 m apart (default 13)");
   cmd->add_option("--threads", o->threads, "Worker threads for ray casting (default 2)");
   cmd->add_flag("!--no-truth", o->truth, "Only the mapping scans, no ground truth");
+  cmd->add_option("--drift", o->drift,
+                  "Also write odometry_poses.txt: the poses a drifting odometry reports, with "
+                  "this position error per metre moved (e.g. 0.01; heading a fifth of it in rad/m)")
+      ->check(CLI::Range(0.0, 1.0));
   cmd->callback([o, &exit_code] { exit_code = RunSimulate(*o); });
 }
 

@@ -59,7 +59,7 @@ TEST_F(ServedMapChangesTest, RefusedClearClearsNothing) {
 // version of its own.
 TEST_F(ServedMapChangesTest, CheckpointCoversEveryEarlierChangeAndTakesNoVersion) {
   for (uint64_t s = 1; s <= 3; ++s) {
-    map_.SubmitScan({"r", s, {}}, testing::GroundScan(map_.params(), s * 3.0f, 0), [](auto) {});
+    map_.SubmitScan({"r", s, {}, {}}, testing::GroundScan(map_.params(), s * 3.0f, 0), [](auto) {});
   }
   ASSERT_TRUE(map_.Checkpoint().ok());
   ASSERT_EQ(durability_.checkpoints.size(), 1u);
@@ -120,14 +120,15 @@ TEST_F(ServedMapChangesTest, FailedCheckpointResumesTheStoreAtTheNextBarrier) {
 
 TEST_F(ServedMapChangesTest, DuplicateAndTooManyRobotsAreRefusedAtAdmission) {
   ASSERT_TRUE(Scan(5).status.ok());
-  EXPECT_EQ(map_.SubmitScan({"r", 5, {}}, testing::GroundScan(map_.params(), 0, 0), [](auto) {}),
-            ServedMap::Admission::kDuplicate);
+  EXPECT_EQ(
+      map_.SubmitScan({"r", 5, {}, {}}, testing::GroundScan(map_.params(), 0, 0), [](auto) {}),
+      ServedMap::Admission::kDuplicate);
   for (int i = 0; i < 15; ++i) {
-    EXPECT_EQ(map_.SubmitScan({"robot" + std::to_string(i), 1, {}},
+    EXPECT_EQ(map_.SubmitScan({"robot" + std::to_string(i), 1, {}, {}},
                               testing::GroundScan(map_.params(), 0, 0), [](auto) {}),
               ServedMap::Admission::kAdmitted);
   }
-  EXPECT_EQ(map_.SubmitScan({"one-too-many", 1, {}}, testing::GroundScan(map_.params(), 0, 0),
+  EXPECT_EQ(map_.SubmitScan({"one-too-many", 1, {}, {}}, testing::GroundScan(map_.params(), 0, 0),
                             [](auto) {}),
             ServedMap::Admission::kTooManyRobots);
   map_.WaitIdle();

@@ -43,7 +43,7 @@ class ServedMapFixture : public ::testing::Test {
   ScanOutcome Scan(uint64_t sequence, float cx = 0, float cy = 0, float z = -1.0f) {
     std::promise<ScanOutcome> done;
     const ServedMap::Admission a =
-        map_.SubmitScan({"r", sequence, {}}, GroundScan(map_.params(), cx, cy, z),
+        map_.SubmitScan({"r", sequence, {}, {}}, GroundScan(map_.params(), cx, cy, z),
                         [&done](ScanOutcome o) { done.set_value(std::move(o)); });
     EXPECT_EQ(a, ServedMap::Admission::kAdmitted);
     if (a != ServedMap::Admission::kAdmitted) {  // `done` is never called
