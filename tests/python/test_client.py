@@ -400,6 +400,41 @@ def raises(code, call, *args, **kwargs) -> bgkmap.BgkmapError:
     return e.value
 
 
+def test_correct_poses_equals_the_map_sent_with_those_poses(street, tmp_path):
+    """Scans sent with shifted poses, then corrected: the same map as scans sent right."""
+    scans = [(points, np.array(pose)) for points, pose in street]
+    shifted = []
+    for k, (points, pose) in enumerate(scans):
+        p = pose.copy()
+        p[0, 3] += 0.3 * (k + 1)
+        shifted.append((points, p))
+    expected_server = BgkmapdProcess()
+    server = BgkmapdProcess("--data-dir", str(tmp_path / "map"))
+    try:
+        with expected_server.client() as expected, server.client() as client:
+            for k, (points, pose) in enumerate(scans):
+                expected.insert(points, pose, robot="r", seq=k + 1)
+            for k, (points, pose) in enumerate(shifted):
+                client.insert(points, pose, robot="r", seq=k + 1)
+            box = known_box(expected.info())
+            before = client.query(box, layers=["elevation"])["elevation"]
+            r = client.correct_poses("r", {k + 1: pose for k, (_, pose) in enumerate(scans)})
+            assert r["scans_revised"] == len(scans) and r["tiles_changed"] > 0
+            after = client.query(box, layers=["elevation"])["elevation"]
+            want = expected.query(box, layers=["elevation"])["elevation"]
+            assert_same(after, want)
+            assert not np.array_equal(np.nan_to_num(before), np.nan_to_num(want))
+            with pytest.raises(bgkmap.BgkmapError) as e:
+                client.correct_poses("r", {99: scans[0][1]})
+            assert e.value.code == grpc.StatusCode.INVALID_ARGUMENT
+            assert "never ingested" in str(e.value)
+            removed = client.remove_scans("r", 2, 3)
+            assert removed["scans_revised"] == 2
+    finally:
+        assert expected_server.stop() == 0
+        assert server.stop() == 0
+
+
 def test_bad_input_raises_bgkmap_error_with_the_servers_code_and_message(client, street):
     points, pose = street[0]
     invalid = grpc.StatusCode.INVALID_ARGUMENT

@@ -72,6 +72,13 @@ class _BearerToken(grpc.UnaryUnaryClientInterceptor, grpc.UnaryStreamClientInter
         return continuation(self._details(details), requests)
 
 
+def _correction(summary) -> dict:
+    return {"map_version": summary.map_version, "scans_revised": summary.scans_revised,
+            "records_replayed": summary.records_replayed,
+            "records_in_history": summary.records_in_history,
+            "tiles_changed": summary.tiles_changed, "seconds": summary.seconds}
+
+
 class Client:
     """A connection to bgkmapd.
 
@@ -296,6 +303,28 @@ class Client:
         r = _rpc(self._stub.ClearRegion, request, timeout=self.timeout)
         return {"changed_tiles": [(k.x, k.y) for k in r.changed_tiles],
                 "map_version": r.map_version}
+
+    def correct_poses(self, robot: str, poses) -> dict:
+        """The robot's SLAM revised its trajectory: re-integrates its scans with corrected poses.
+
+        poses: {sequence: 4x4 (or 3x4) T_map_sensor} or an iterable of (sequence, pose) pairs.
+        Returns once the corrected map is in place: map_version, scans_revised, records_replayed,
+        records_in_history, tiles_changed, seconds. FAILED_PRECONDITION if a scan is no longer
+        retained (storage.retention_mb)."""
+        request = admin_pb2.CorrectPosesRequest(robot_id=robot)
+        items = poses.items() if hasattr(poses, "items") else poses
+        for sequence, pose in items:
+            c = request.corrections.add(sequence=int(sequence))
+            _codec.set_pose(pose, c.pose)
+        r = _rpc(self._stub.CorrectPoses, request, timeout=self.timeout)
+        return _correction(r.summary)
+
+    def remove_scans(self, robot: str, first: int, last: int) -> dict:
+        """Removes the robot's scans first..last (inclusive) from the map, as if never sent."""
+        request = admin_pb2.RemoveScansRequest(robot_id=robot, first_sequence=int(first),
+                                               last_sequence=int(last))
+        r = _rpc(self._stub.RemoveScans, request, timeout=self.timeout)
+        return _correction(r.summary)
 
     def export_map(self, path, bbox=None) -> ExportResult:
         """Admin: the map, or the cells meeting `bbox`, as one archive file at `path` (a consistent
