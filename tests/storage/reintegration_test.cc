@@ -279,6 +279,17 @@ TEST(Retention, TheByteBoundDropsOldBasesWithTheirLogAndHistory) {
   EXPECT_EQ(drive.store->LoadTilesAt(0, keys).status().code(), Status::Code::kInvalidArgument);
 }
 
+// An import changes the map outside the log: no rebuild may start before it.
+TEST(Retention, AChangeOutsideTheLogForgetsEarlierBases) {
+  Drive drive(14);
+  ASSERT_EQ(drive.store->Bases(), (std::vector<uint64_t>{0, 7, 14}));
+  ASSERT_TRUE(drive.store->Checkpoint(15, {}, /*forget_earlier_bases=*/true).ok());
+  EXPECT_EQ(drive.store->Bases(), (std::vector<uint64_t>{15}));
+  auto stats = drive.store->log().Stats(0);
+  ASSERT_TRUE(stats.ok());
+  EXPECT_EQ(stats->records, 0u);
+}
+
 TEST(Retention, WithoutItTheLogEndsAtTheCheckpointAndNoScanIsKept) {
   Drive drive(14, StoreOptions{});
   EXPECT_TRUE(drive.store->Bases().empty());
