@@ -158,5 +158,48 @@ TEST(GeoreferencedQueryTest, QueryWritesTheServersCrsAndOrigin) {
   fs::remove_all(dir);
 }
 
+// `bgkmap correct` and `bgkmap remove-scans` against a server with a store: line i of a KITTI
+// poses file is sequence i, as `bgkmap insert` numbered the scans; a bad file is a usage error
+// naming the line, a file with more lines than scans a server error naming the sequence.
+TEST(CorrectCommandTest, CorrectsByLineNumberAndRefusesBadFilesWithOneLine) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("bgkmap_cli_correct_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  testing::BgkmapdProcess server({"--data-dir", (dir / "map").string()});
+  ASSERT_TRUE(server.started());
+  const std::string s = " --server " + server.target();
+  ASSERT_EQ(Cli("insert " + kStreet + " --robot r1" + s).exit_code, 0);
+
+  testing::CliRun run = Cli("correct --robot r1 --poses " + kStreet + "/poses.txt" + s);
+  EXPECT_EQ(run.exit_code, 0);
+  EXPECT_NE(run.output.find("3 scans re-integrated"), std::string::npos) << run.output;
+
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::FILE* f = std::fopen((dir / name).c_str(), "w");
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+    return (dir / name).string();
+  };
+  run = testing::RunCli(
+      "correct --robot r1 --poses " + write("short.txt", "1 0 0 0 0 1 0 0 0 0 1\n") + s,
+      "2>&1 >/dev/null");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_NE(run.output.find("short.txt:1: 11 numbers"), std::string::npos) << run.output;
+  const std::string identity = "1 0 0 0 0 1 0 0 0 0 1 0\n";
+  run = testing::RunCli("correct --robot r1 --poses " +
+                            write("long.txt", identity + identity + identity + identity) + s,
+                        "2>&1 >/dev/null");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_NE(run.output.find("sequence 4"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("never ingested"), std::string::npos) << run.output;
+
+  run = Cli("remove-scans --robot r1 --from 2 --to 3" + s);
+  EXPECT_EQ(run.exit_code, 0);
+  EXPECT_NE(run.output.find("2 scans re-integrated"), std::string::npos) << run.output;
+  server.Signal(SIGTERM);
+  EXPECT_EQ(server.Wait(), 0);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace bgkmap
