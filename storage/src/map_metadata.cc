@@ -117,7 +117,8 @@ Status CheckParamsCompatible(const MapParams& stored, const MapParams& requested
       " (stored vs requested); the statistics of one cannot be continued with the other");
 }
 
-Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeference& requested) {
+Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeference& requested,
+                                   std::string_view roles) {
   if (stored.empty() || requested.empty() || stored == requested) return Status::Ok();
   // Appended piecewise: GCC 12 warns falsely on "[" + std::string.
   std::string message;
@@ -134,9 +135,9 @@ Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeferenc
     message += Triple(requested.origin);
     message += "]";
   }
-  message +=
-      " (stored vs requested); a map is tied to one coordinate system, or its cells would be "
-      "placed wrongly";
+  message += " (";
+  message += roles;
+  message += "); a map is tied to one coordinate system, or its cells would be placed wrongly";
   return Status::FailedPrecondition(message);
 }
 

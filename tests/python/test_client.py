@@ -54,10 +54,31 @@ def test_info_describes_the_street_map(client, street):
     assert info["robots"][0]["last_stamp"] > 1.6e9  # seconds since the epoch
     assert info["limits"]["max_region_cells"] > 0
     assert info["storage"] is None  # a map in memory
+    assert info["georeference"] is None  # a local frame
     b = info["known_bounds"]
     assert b["min_x"] < b["max_x"] and b["min_y"] < b["max_y"]
     assert client.last_sequence("street") == len(street)
     assert client.last_sequence("nobody") is None
+
+
+def test_info_shows_the_georeference_the_store_keeps(tmp_path):
+    store = str(tmp_path / "store")
+    origin = ["--set", "georeference.origin=[551000.5, 4180000.25, 12.5]"]
+    first = BgkmapdProcess("--data-dir", store, "--set", "georeference.crs=EPSG:32610", *origin)
+    try:
+        with first.client() as c:
+            geo = c.info()["georeference"]
+    finally:
+        assert first.stop() == 0
+    assert geo == {"crs": "EPSG:32610", "origin_easting": 551000.5,
+                   "origin_northing": 4180000.25, "origin_height": 12.5}
+    # Restarted with none configured: the store's.
+    again = BgkmapdProcess("--data-dir", store)
+    try:
+        with again.client() as c:
+            assert c.info()["georeference"] == geo
+    finally:
+        assert again.stop() == 0
 
 
 def test_insert_acks_and_duplicates(fresh_server, street):

@@ -64,8 +64,9 @@ Status CheckParamsCompatible(const MapParams& stored, const MapParams& requested
 
 // OK if a map georeferenced as `stored` may take `requested`: either is empty (local frame) or
 // they are equal. Otherwise FailedPrecondition naming the differing key (georeference.crs or
-// georeference.origin) and both values, stored first.
-Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeference& requested);
+// georeference.origin) and both values, stored first, as `roles` says.
+Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeference& requested,
+                                   std::string_view roles = "stored vs requested");
 
 // The georeference as text key/value pairs ("crs", "origin" as "e,n,h" in shortest round-trip
 // form); none for an empty one. Inverse: GeoreferenceFromKeyValues, DataLoss naming a malformed
