@@ -77,9 +77,9 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
       return;
     }
     if (spool_->size() + chunk_.data().size() > ctx_.limits.max_import_bytes) {
-      End({grpc::StatusCode::RESOURCE_EXHAUSTED, "archive: more than server.max_import_bytes = " +
-                                                     std::to_string(ctx_.limits.max_import_bytes) +
-                                                     " bytes; nothing imported"});
+      End({grpc::StatusCode::INVALID_ARGUMENT, "archive: more than server.max_import_bytes = " +
+                                                   std::to_string(ctx_.limits.max_import_bytes) +
+                                                   " bytes; nothing imported"});
       return;
     }
     boost::asio::post(ctx_.query_pool, [this] {
