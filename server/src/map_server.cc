@@ -191,10 +191,11 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   KeepServiceDescriptorLinked();
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
   if (!map.ok()) return map.status();
-  std::unique_ptr<Durability> durability = std::make_unique<MemoryDurability>();
+  const storage::Georeference georeference{config.georeference.crs, config.georeference.origin};
+  std::unique_ptr<Durability> durability = std::make_unique<MemoryDurability>(georeference);
   if (!config.storage.data_dir.empty()) {
     Result<std::unique_ptr<StoreDurability>> opened =
-        StoreDurability::Open(config.storage, config.map, **map);
+        StoreDurability::Open(config.storage, config.map, georeference, **map);
     if (!opened.ok()) return opened.status();
     const StoreDurability& d = **opened;
     const storage::RecoveryReport& r = d.recovery();

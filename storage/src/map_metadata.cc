@@ -19,6 +19,23 @@ bool ParseDouble(std::string_view text, double* v) {
   return res.ec == std::errc() && res.ptr == text.data() + text.size();
 }
 
+std::string Triple(const std::array<double, 3>& v) {
+  return FormatDouble(v[0]) + "," + FormatDouble(v[1]) + "," + FormatDouble(v[2]);
+}
+
+// "a,b,c" into three doubles.
+bool ParseTriple(std::string_view text, std::array<double, 3>* v) {
+  std::string_view rest = text;
+  for (size_t i = 0; i < 3; ++i) {
+    const size_t comma = rest.find(',');
+    if ((i < 2) == (comma == std::string_view::npos) ||
+        !ParseDouble(rest.substr(0, comma), &(*v)[i]))
+      return false;
+    rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
+  }
+  return true;
+}
+
 Status BadKey(std::string_view key, std::string_view why) {
   return Status::DataLoss("stored map parameter " + std::string(key) + " " + std::string(why));
 }
@@ -30,10 +47,8 @@ std::string ParamText(const MapParamInfo& info, const MapParams& p) {
       return FormatDouble(p.*info.real);
     case MapParamKind::kInt:
       return std::to_string(p.*info.integer);
-    case MapParamKind::kDouble3: {
-      const std::array<double, 3>& v = p.*info.triple;
-      return FormatDouble(v[0]) + "," + FormatDouble(v[1]) + "," + FormatDouble(v[2]);
-    }
+    case MapParamKind::kDouble3:
+      return Triple(p.*info.triple);
     case MapParamKind::kEnum:
       return std::string(info.enum_name(p));
   }
@@ -53,25 +68,19 @@ Status ParseParamText(const MapParamInfo& info, std::string_view text, MapParams
       }
       return Status::Ok();
     }
-    case MapParamKind::kDouble3: {
-      std::string_view rest = text;
-      for (size_t i = 0; i < 3; ++i) {
-        const size_t comma = rest.find(',');
-        const std::string_view part = rest.substr(0, comma);
-        if ((i < 2) == (comma == std::string_view::npos) ||
-            !ParseDouble(part, &(p.*info.triple)[i])) {
-          return BadKey(info.key, "is not three numbers: " + std::string(text));
-        }
-        rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
-      }
+    case MapParamKind::kDouble3:
+      if (!ParseTriple(text, &(p.*info.triple)))
+        return BadKey(info.key, "is not three numbers: " + std::string(text));
       return Status::Ok();
-    }
     case MapParamKind::kEnum:
       if (Status s = info.enum_parse(text, p); !s.ok()) return BadKey(info.key, s.message());
       return Status::Ok();
   }
   return Status::Ok();
 }
+
+// Where EncodeMetadata keeps the georeference among the parameters' pairs.
+constexpr std::string_view kGeoreferencePrefix = "georeference/";
 
 }  // namespace
 
@@ -108,13 +117,61 @@ Status CheckParamsCompatible(const MapParams& stored, const MapParams& requested
       " (stored vs requested); the statistics of one cannot be continued with the other");
 }
 
+Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeference& requested,
+                                   std::string_view roles) {
+  if (stored.empty() || requested.empty() || stored == requested) return Status::Ok();
+  // Appended piecewise: GCC 12 warns falsely on "[" + std::string.
+  std::string message;
+  if (stored.crs != requested.crs) {
+    message += "georeference.crs differs: \"";
+    message += stored.crs;
+    message += "\" vs \"";
+    message += requested.crs;
+    message += "\"";
+  } else {
+    message += "georeference.origin differs: [";
+    message += Triple(stored.origin);
+    message += "] vs [";
+    message += Triple(requested.origin);
+    message += "]";
+  }
+  message += " (";
+  message += roles;
+  message += "); a map is tied to one coordinate system, or its cells would be placed wrongly";
+  return Status::FailedPrecondition(message);
+}
+
+std::vector<std::pair<std::string, std::string>> GeoreferenceToKeyValues(const Georeference& g) {
+  if (g.empty()) return {};
+  return {{"crs", g.crs}, {"origin", Triple(g.origin)}};
+}
+
+Result<Georeference> GeoreferenceFromKeyValues(
+    const std::map<std::string, std::string, std::less<>>& kv) {
+  Georeference g;
+  if (kv.empty()) return g;
+  const auto crs = kv.find("crs"), origin = kv.find("origin");
+  if (crs == kv.end() || crs->second.empty()) {
+    return Status::DataLoss("stored georeference.crs is missing");
+  }
+  g.crs = crs->second;
+  if (origin == kv.end() || !ParseTriple(origin->second, &g.origin)) {
+    return Status::DataLoss("stored georeference.origin is not three numbers" +
+                            (origin == kv.end() ? std::string() : ": " + origin->second));
+  }
+  return g;
+}
+
 std::string EncodeMetadata(const MapMetadata& m) {
   std::string out;
   ByteWriter w(&out);
   w.PutVarint(m.format);
   w.PutVarint(m.checkpoint_version);
   w.PutVarint(m.map_version);
-  const auto params = ParamsToKeyValues(m.params);
+  auto params = ParamsToKeyValues(m.params);
+  for (auto& [key, value] : GeoreferenceToKeyValues(m.georeference)) {
+    params.emplace_back(std::string(kGeoreferencePrefix) + key, std::move(value));
+  }
   w.PutVarint(params.size());
   for (const auto& [key, value] : params) {
     w.PutLengthPrefixed(key);
@@ -143,15 +200,22 @@ Result<MapMetadata> DecodeMetadata(std::string_view bytes) {
                                       std::to_string(kStoreFormat) + ")");
   }
   m.format = static_cast<uint32_t>(format);
-  std::map<std::string, std::string, std::less<>> kv;
+  std::map<std::string, std::string, std::less<>> kv, geo;
   for (uint64_t i = 0; i < count; ++i) {
     std::string_view key, value;
     if (!r.GetLengthPrefixed(&key) || !r.GetLengthPrefixed(&value)) return malformed;
-    kv.emplace(key, value);
+    if (key.starts_with(kGeoreferencePrefix)) {
+      geo.emplace(key.substr(kGeoreferencePrefix.size()), value);
+    } else {
+      kv.emplace(key, value);
+    }
   }
   Result<MapParams> params = ParamsFromKeyValues(kv);
   if (!params.ok()) return params.status();
   m.params = *params;
+  Result<Georeference> georeference = GeoreferenceFromKeyValues(geo);
+  if (!georeference.ok()) return georeference.status();
+  m.georeference = *georeference;
   if (!r.GetVarint(&count)) return malformed;
   for (uint64_t i = 0; i < count; ++i) {
     std::string_view robot;

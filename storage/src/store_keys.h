@@ -4,6 +4,7 @@
 //   meta        "format" -> decimal            "param/<yaml key>" -> text value
 //               "checkpoint_version" -> u64    "map_version" -> u64 (max-merged)
 //               "robot/<id>" -> u64 last logged sequence (max-merged)
+//               "georeference/crs", "georeference/origin" -> text (absent: a local frame)
 //   tiles       tile key (8 bytes) -> TileCodec encoding
 //   tile_index  tile key (8 bytes) -> varint version, known cells, encoded bytes
 //   log         version (8 bytes)  -> LogRecord encoding
@@ -38,6 +39,7 @@ inline constexpr std::string_view kRobotPrefix = "robot/";
 inline constexpr std::string_view kBasesKey = "bases";
 // u64: a checkpoint below this version is never a base (it may predate a correction above it).
 inline constexpr std::string_view kBasesFloorKey = "bases_floor";
+inline constexpr std::string_view kGeoreferencePrefix = "georeference/";
 
 // Signed coordinates are offset by 2^31 so that negative keys sort first.
 std::string TileKeyBytes(TileKey key);

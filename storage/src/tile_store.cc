@@ -75,6 +75,14 @@ Status PutParams(rocksdb::WriteBatch& batch, StoreDb& db, const MapParams& param
   return Status::Ok();
 }
 
+Status PutGeoreference(rocksdb::WriteBatch& batch, StoreDb& db, const Georeference& g) {
+  for (const auto& [key, value] : GeoreferenceToKeyValues(g)) {
+    rocksdb::Status s = batch.Put(db.meta, std::string(kGeoreferencePrefix) + key, value);
+    if (!s.ok()) return FromRocks(s, "writing the map georeference");
+  }
+  return Status::Ok();
+}
+
 Result<uint64_t> MetaU64(const std::map<std::string, std::string, std::less<>>& meta,
                          std::string_view key) {
   auto it = meta.find(key);
@@ -99,21 +107,23 @@ TileStore::~TileStore() {
 
 Result<std::unique_ptr<TileStore>> TileStore::Open(const std::string& dir,
                                                    const StoreOptions& options,
-                                                   const MapParams& params) {
+                                                   const MapParams& params,
+                                                   const Georeference& georeference) {
   if (Status s = params.Validate(); !s.ok()) return s;
-  return OpenImpl(dir, options, &params);
+  return OpenImpl(dir, options, &params, georeference);
 }
 
 Result<std::unique_ptr<TileStore>> TileStore::OpenExisting(const std::string& dir,
                                                            const StoreOptions& options) {
   StoreOptions existing = options;
   existing.create_if_missing = false;
-  return OpenImpl(dir, existing, nullptr);
+  return OpenImpl(dir, existing, nullptr, Georeference{});
 }
 
 Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
                                                        const StoreOptions& options,
-                                                       const MapParams* params) {
+                                                       const MapParams* params,
+                                                       const Georeference& georeference) {
   auto guard = std::make_unique<FreeSpaceGuard>(dir, options.free_space);
   bool read_only = false;
   std::error_code ec;
@@ -132,6 +142,7 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
   if (!meta.ok()) return meta.status();
 
   MapParams effective;
+  Georeference stored_georeference;
   rocksdb::WriteBatch batch;
   auto format = meta->find(kFormatKey);
   if (format == meta->end()) {
@@ -143,6 +154,17 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
     if (options.retention.enabled()) batch.Put(sdb.meta, kBasesKey, EncodeVersionList({0}));
     if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
   } else {
+    std::map<std::string, std::string, std::less<>> geo;
+    for (const auto& [key, value] : *meta) {
+      if (key.starts_with(kGeoreferencePrefix))
+        geo.emplace(key.substr(kGeoreferencePrefix.size()), value);
+    }
+    Result<Georeference> stored_geo = GeoreferenceFromKeyValues(geo);
+    if (!stored_geo.ok()) return stored_geo.status();
+    if (Status s = CheckGeoreferenceCompatible(*stored_geo, georeference); !s.ok()) {
+      return Status::FailedPrecondition(dir + ": " + s.message());
+    }
+    stored_georeference = *stored_geo;
     uint32_t stored_format = 0;
     const std::string& text = format->second;
     if (std::from_chars(text.data(), text.data() + text.size(), stored_format).ec != std::errc()) {
@@ -171,6 +193,11 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
       if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
     }
   }
+  // The first georeference a map is given is kept (a new store, or one written before).
+  if (stored_georeference.empty() && !georeference.empty()) {
+    if (Status s = PutGeoreference(batch, sdb, georeference); !s.ok()) return s;
+    stored_georeference = georeference;
+  }
   if (batch.Count() > 0 &&
       !read_only) {  // (read-only: the parameters are updated at the next open)
     rocksdb::WriteOptions write;
@@ -183,6 +210,7 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
   std::unique_ptr<TileStore> store(new TileStore(dir, options, effective, nullptr));
   store->guard_ = std::move(guard);
   store->read_only_.store(read_only);
+  store->georeference_ = std::move(stored_georeference);
   if (Status s = store->Attach(std::move(*db)); !s.ok()) return s;
   return store;
 }
@@ -229,9 +257,37 @@ uint64_t TileStore::map_version() const {
   return std::max(checkpoint_version_.load(), log_->last_version());
 }
 
+Georeference TileStore::georeference() const {
+  std::lock_guard<std::mutex> lock(georeference_mu_);
+  return georeference_;
+}
+
+Status TileStore::AdoptGeoreference(const Georeference& georeference) {
+  std::lock_guard<std::mutex> lock(georeference_mu_);
+  if (Status s = CheckGeoreferenceCompatible(georeference_, georeference); !s.ok()) return s;
+  if (georeference.empty() || georeference == georeference_) return Status::Ok();
+  if (Status failed = log_->write_failure(); !failed.ok()) {
+    return Status::IoError("the store refuses writes since an earlier failure (" +
+                           failed.message() + "); TileStore::Resume() once it is fixed");
+  }
+  rocksdb::WriteBatch batch;
+  if (Status s = PutGeoreference(batch, *db_, georeference); !s.ok()) return s;
+  if (Status refused = log_->AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
+  rocksdb::WriteOptions write;
+  write.sync = true;
+  if (Status s = FromRocks(db_->db->Write(write, &batch), "writing the map georeference");
+      !s.ok()) {
+    log_->LatchFailure(s);  // every later write is refused until Resume()
+    return s;
+  }
+  georeference_ = georeference;
+  return Status::Ok();
+}
+
 MapMetadata TileStore::Metadata() const {
   MapMetadata m;
   m.params = params_;
+  m.georeference = georeference();
   m.checkpoint_version = checkpoint_version();
   m.map_version = map_version();
   m.robot_sequences = log_->RobotSequences();

@@ -201,5 +201,41 @@ TEST(CorrectCommandTest, CorrectsByLineNumberAndRefusesBadFilesWithOneLine) {
   fs::remove_all(dir);
 }
 
+// The georeference is the stored map's: a server restarted on the store with none configured
+// still writes its GeoTIFFs in the CRS, and GDAL reads the CRS and the shifted origin back.
+TEST(GeoreferencedQueryTest, TheStoredGeoreferenceOutlivesTheConfiguration) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("bgkmap_geo_store_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string store = (dir / "store").string();
+  {
+    testing::BgkmapdProcess server(
+        std::vector<std::string>{"--data-dir", store, "--set", "georeference.crs=EPSG:32610",
+                                 "--set", "georeference.origin=[551000, 4180000, 12.5]"});
+    ASSERT_TRUE(server.started());
+    ASSERT_EQ(Cli("insert " + kStreet + " --robot r1 --server " + server.target()).exit_code, 0);
+    server.Signal(SIGTERM);
+    ASSERT_EQ(server.Wait(), 0);
+  }
+  testing::BgkmapdProcess server(std::vector<std::string>{"--data-dir", store});
+  ASSERT_TRUE(server.started());
+  const std::string tif = (dir / "stored.tif").string();
+  ASSERT_EQ(
+      Cli("query --bbox -10,-10,10,10 --out " + tif + " --server " + server.target()).exit_code, 0);
+  const testing::CliRun info = testing::RunCommand("gdalinfo " + tif + " 2>&1");
+  EXPECT_NE(info.output.find("ID[\"EPSG\",32610]"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("Origin = (550990.000000000000000,4180010.000000000000000)"),
+            std::string::npos)
+      << info.output;
+  server.Signal(SIGTERM);
+  EXPECT_EQ(server.Wait(), 0);
+
+  // Restarting it with another CRS is refused, naming the key: the cells would be misplaced.
+  const auto [code, out] = testing::RunBgkmapd(
+      {"--listen", "127.0.0.1:0", "--data-dir", store, "--set", "georeference.crs=EPSG:2949"});
+  EXPECT_NE(code, 0);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace bgkmap

@@ -17,7 +17,7 @@ using testing_support::NonDefaultParams;
 TEST(ParamsCodecTest, EveryKeyIsAMapParametersFieldOfItsKind) {
   const google::protobuf::Descriptor* d = v1::MapParameters::descriptor();
   for (const MapParamInfo& info : MapParamTable()) {
-    const FieldDescriptor* f = d->FindFieldByName(std::string(info.key));
+    const FieldDescriptor* f = d->FindFieldByName(std::string(ProtoFieldName(info.key)));
     ASSERT_NE(f, nullptr) << "admin.proto MapParameters has no field " << info.key;
     switch (info.kind) {
       case MapParamKind::kDouble:
@@ -72,6 +72,21 @@ TEST(ParamsCodecTest, UnreadableFieldsKeepTheirDefaults) {
   EXPECT_EQ(p.method, MapParams{}.method);
   EXPECT_EQ(p.weights, MapParams{}.weights);
   EXPECT_EQ(p.observation, Observation::kMean);
+}
+
+// `lambda` is a Python keyword: its field is prior_weight, whose JSON name stays "lambda".
+TEST(ParamsCodecTest, LambdaTravelsAsPriorWeight) {
+  EXPECT_EQ(ProtoFieldName("lambda"), "prior_weight");
+  EXPECT_EQ(ProtoFieldName("kernel_length"), "kernel_length");
+  MapParams p;
+  p.lambda = 0.75;
+  v1::MapParameters m;
+  ToProto(p, &m);
+  EXPECT_EQ(m.prior_weight(), 0.75);
+  EXPECT_EQ(FromProto(m).lambda, 0.75);
+  const FieldDescriptor* f = v1::MapParameters::descriptor()->FindFieldByNumber(3);
+  EXPECT_EQ(f->name(), "prior_weight");
+  EXPECT_EQ(f->json_name(), "lambda");
 }
 
 }  // namespace

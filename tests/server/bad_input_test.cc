@@ -141,7 +141,8 @@ TEST_F(BadInputTest, AbsurdCoordinates) {
 TEST_F(BadInputTest, TooManyPoints) {
   OwnedScan s = Good();
   s.points.resize(60'000, Point3f{5, 5, -2});
-  ExpectRejected(s.Data(), RpcCode::kResourceExhausted,
+  // A fixed per-request limit: INVALID_ARGUMENT (no retry outlasts it), not RESOURCE_EXHAUSTED.
+  ExpectRejected(s.Data(), RpcCode::kInvalidArgument,
                  {"points", "60000", "server.max_points_per_scan = 50000"});
 }
 
@@ -187,7 +188,7 @@ TEST_F(BadInputTest, RejectedScanDoesNotAdvanceTheSequence) {
 TEST_F(BadInputTest, RegionTooLarge) {
   RpcResult<Raster> r = fixture_->client().QueryRegion({{0, 0, 200, 60}, {}, 1});
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.status().code(), RpcCode::kResourceExhausted);
+  EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument);  // fixed limit: a retry never fits
   EXPECT_NE(r.status().message().find("2000 x 600"), std::string::npos) << r.status().ToString();
   EXPECT_NE(r.status().message().find("server.max_region_cells = 1000000"), std::string::npos);
   // The same area at stride 4 is still 1.2M map cells: the limit counts map cells.
@@ -206,7 +207,7 @@ TEST_F(BadInputTest, MalformedQueries) {
             RpcCode::kInvalidArgument);
   std::vector<std::array<double, 2>> many(1001, {0.0, 0.0});
   RpcResult<PointValues> points = c.QueryPoints(many);
-  EXPECT_EQ(code(points), RpcCode::kResourceExhausted);
+  EXPECT_EQ(code(points), RpcCode::kInvalidArgument);  // fixed per-request limits
   EXPECT_NE(points.status().message().find("server.max_query_points = 1000"), std::string::npos);
   const std::array<double, 2> nan_point[] = {{std::nan(""), 1.0}};
   EXPECT_EQ(code(c.QueryPoints(nan_point)), RpcCode::kInvalidArgument);
@@ -214,7 +215,7 @@ TEST_F(BadInputTest, MalformedQueries) {
   PathQuery huge;
   huge.poses = {{0, 0, 0}};
   huge.radius = 1000;
-  EXPECT_EQ(code(c.CheckPath(huge)), RpcCode::kResourceExhausted);
+  EXPECT_EQ(code(c.CheckPath(huge)), RpcCode::kInvalidArgument);
   EXPECT_EQ(code(c.ClearRegion({0, 0, std::nan(""), 1})), RpcCode::kInvalidArgument);
   ExpectUnchanged();
 }
@@ -234,6 +235,41 @@ TEST_F(BadInputTest, ZzNonFinitePointsAreDroppedAndCounted) {
   EXPECT_EQ(ack->counts.dropped_nonfinite, 3u);
   std::vector<const OwnedScan*> order = {&(*scans_)[0], &(*scans_)[1], &s};
   EXPECT_TRUE(MapsEqual(*fixture_->server().SnapshotMap(), *OfflineMap(order)));
+}
+
+// Fixed per-request limits are INVALID_ARGUMENT naming the limit: the same request never fits
+// however long a client waits, so RESOURCE_EXHAUSTED, which clients retry, would mislead
+// (docs/api-review.md, status codes).
+TEST(FixedLimitTest, PosesWatchedTilesAndRasterRowsAreInvalidArgument) {
+  ServerConfig config = TestConfig();
+  config.limits.max_path_poses = 10;
+  config.limits.max_watch_tiles = 4;
+  config.limits.max_message_bytes = 1 << 20;
+  config.limits.max_points_per_scan = 50'000;  // a scan and a chunk must fit in a message
+  config.limits.region_chunk_bytes = 256 << 10;
+  ServerFixture fixture(config);
+  Client& c = fixture.client();
+  PathQuery path;
+  path.poses.assign(11, Pose2{0, 0, 0});
+  path.radius = 0.3;
+  RpcResult<PathCheck> p = c.CheckPath(path);
+  ASSERT_FALSE(p.ok());
+  EXPECT_EQ(p.status().code(), RpcCode::kInvalidArgument);
+  EXPECT_NE(p.status().message().find("server.max_path_poses = 10"), std::string::npos)
+      << p.status().ToString();
+
+  std::unique_ptr<WatchSubscription> watch =
+      c.Watch(WatchQuery{{-100, -100, 100, 100}, {}, false}, [](const TileUpdate&) {});
+  const RpcStatus w = watch->Wait();
+  EXPECT_EQ(w.code(), RpcCode::kInvalidArgument) << w.ToString();
+  EXPECT_NE(w.message().find("server.max_watch_tiles = 4"), std::string::npos) << w.ToString();
+
+  // One row of 50,000 cells x 6 layers is 1.2 MB, over a 1 MiB message.
+  RpcResult<Raster> row = c.QueryRegion({{0, 0, 5000, 0.1}, {}, 1});
+  ASSERT_FALSE(row.ok());
+  EXPECT_EQ(row.status().code(), RpcCode::kInvalidArgument);
+  EXPECT_NE(row.status().message().find("server.max_message_bytes"), std::string::npos)
+      << row.status().ToString();
 }
 
 TEST(RegionBudgetTest, RastersHeldInMemoryAreBounded) {

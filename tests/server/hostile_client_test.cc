@@ -91,10 +91,10 @@ TEST(HostileCheckPath, HugeRadiusIsRefusedUpFrontNamingTheLimit) {
   check(214748364.75, 1, grpc::StatusCode::INVALID_ARGUMENT, {"radius", "server.max_coordinate"});
   check(214748364.75, 1, grpc::StatusCode::INVALID_ARGUMENT, {"radius"});  // and again: no abort
   // A coordinate, but a footprint of 10^12 cells.
-  check(5e4, 1, grpc::StatusCode::RESOURCE_EXHAUSTED, {"radius", "server.max_footprint_cells"});
+  // Fixed per-request limits: INVALID_ARGUMENT, since no retry would fit.
+  check(5e4, 1, grpc::StatusCode::INVALID_ARGUMENT, {"radius", "server.max_footprint_cells"});
   // Each footprint fits, all of them do not: 10,000 poses x ~3,844 cells.
-  check(3.0, 10'000, grpc::StatusCode::RESOURCE_EXHAUSTED,
-        {"poses", "server.max_path_check_cells"});
+  check(3.0, 10'000, grpc::StatusCode::INVALID_ARGUMENT, {"poses", "server.max_path_check_cells"});
   // The server is up and answers a sane check.
   PathQuery ok;
   ok.poses = {{0, 0, 0}};
@@ -160,7 +160,7 @@ TEST(HostileLayers, PointAnswerSizeIsBoundedBeforeItIsBuilt) {
   std::vector<std::array<double, 2>> points(100'000, {0.0, 0.0});
   RpcResult<PointValues> r = f.client().QueryPoints(points);
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.status().code(), RpcCode::kResourceExhausted);
+  EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument);  // fixed limit: fewer layers fit
   EXPECT_TRUE(Mentions(r.status().message(), "server.max_message_bytes")) << r.status().ToString();
   EXPECT_TRUE(f.client().QueryPoints(points, {Layer::kElevation}).ok());  // 0.4 MB fits
 }

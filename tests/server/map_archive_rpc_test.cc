@@ -332,6 +332,69 @@ TEST(ArchiveMergeTest, OverlappingRobotsMergeElevationButNotTraversabilityExactl
   EXPECT_GT(d.ab_cells_differing, 0u);
 }
 
+// ---- The georeference travels with the map.
+
+// An archive carries the exporting map's georeference: a server in a local frame takes it and
+// its store keeps it across a restart (Info reports it with none configured); a server tied to
+// another CRS refuses the archive naming the key, and the store refuses to start with another.
+TEST(ArchiveGeoreferenceTest, ArchiveCarriesItAndADifferentOneIsRefused) {
+  TempDir dir{"bgkmap_archive_geo"};
+  const std::array<double, 3> origin = {551000.5, 4180000.25, 12.5};
+  ServerConfig geo = Config();
+  geo.georeference = {"EPSG:32610", origin};
+  {
+    ServerFixture source(geo);
+    Ingest(source.client(), {StreetScans().front()});
+    ASSERT_TRUE(source.client().ExportMap(std::nullopt, dir.Sub("geo.bgkmap")).ok());
+  }
+  auto expect_utm = [&](Client& client) {
+    RpcResult<MapInfo> info = client.Info();
+    ASSERT_TRUE(info.ok()) << info.status().ToString();
+    ASSERT_TRUE(info->georeference.has_value());
+    EXPECT_EQ(info->georeference->crs, "EPSG:32610");
+    EXPECT_EQ(info->georeference->origin, origin);
+  };
+  {
+    ServerFixture local(Config(dir.Sub("store")));
+    ASSERT_FALSE(local.client().Info()->georeference.has_value());
+    RpcResult<ImportResult> r = local.client().ImportMap(dir.Sub("geo.bgkmap"));
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    expect_utm(local.client());
+    // Its own export carries it on.
+    ASSERT_TRUE(local.client().ExportMap(std::nullopt, dir.Sub("again.bgkmap")).ok());
+  }
+  {
+    ServerFixture restarted(Config(dir.Sub("store")));
+    expect_utm(restarted.client());
+  }
+  ServerFixture local(Config());
+  ASSERT_TRUE(local.client().ImportMap(dir.Sub("again.bgkmap")).ok());
+  expect_utm(local.client());
+
+  ServerConfig other = Config();
+  other.georeference = {"EPSG:2949", origin};
+  ServerFixture server(other);
+  Ingest(server.client(), {StreetScans().front()});
+  const std::unique_ptr<TerrainMap> before = server.server().SnapshotMap();
+  RpcResult<ImportResult> refused = server.client().ImportMap(dir.Sub("geo.bgkmap"));
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), RpcCode::kFailedPrecondition);
+  EXPECT_NE(refused.status().message().find(
+                "georeference.crs differs: \"EPSG:2949\" vs \"EPSG:32610\" (served vs archive)"),
+            std::string::npos)
+      << refused.status().ToString();
+  EXPECT_TRUE(MapsEqual(*before, *server.server().SnapshotMap()));
+  EXPECT_EQ(server.client().Info()->georeference->crs, "EPSG:2949");
+
+  ServerConfig moved = Config(dir.Sub("store"));
+  moved.georeference = {"EPSG:32610", {551000.5, 4180000.25, 0}};
+  Result<std::unique_ptr<MapServer>> start = MapServer::Start(moved);
+  ASSERT_FALSE(start.ok());
+  EXPECT_EQ(start.status().code(), Status::Code::kFailedPrecondition);
+  EXPECT_NE(start.status().message().find("georeference.origin differs"), std::string::npos)
+      << start.status().message();
+}
+
 // ---- Bad input: a clear status, nothing changed, the server keeps serving.
 
 class ArchiveBadInputTest : public ::testing::Test {
@@ -420,7 +483,7 @@ TEST_F(ArchiveBadInputTest, UploadBeyondMaxImportBytesIsRefused) {
   ServerFixture server(small);
   Hold(server);
   const RpcStatus s = Upload(server, good_);
-  EXPECT_EQ(s.code(), RpcCode::kResourceExhausted) << s.ToString();
+  EXPECT_EQ(s.code(), RpcCode::kInvalidArgument) << s.ToString();  // a fixed limit
   EXPECT_NE(s.message().find("server.max_import_bytes"), std::string::npos) << s.ToString();
   EXPECT_TRUE(server.client().Info().ok());
 }

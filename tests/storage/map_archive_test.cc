@@ -49,6 +49,24 @@ TEST(MapArchiveTest, ExportImportRoundTripIsBitwise) {
   EXPECT_TRUE(MapsIdentical(*map, *imported));
 }
 
+TEST(MapArchiveTest, GeoreferenceRoundTrips) {
+  TempDir dir;
+  const auto map = RobotMap(0, 2);
+  MapMetadata metadata = MetadataOf(*map);
+  metadata.georeference = {"EPSG:32610", {551000.5, 4180000.25, 12.5}};
+  ASSERT_TRUE(ExportMap(*map, metadata, dir.Sub("geo")).ok());
+  auto imported = NewMap(SmallParams());
+  Result<ImportReport> report = ImportMap(dir.Sub("geo"), *imported);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->metadata.georeference, metadata.georeference);
+  EXPECT_TRUE(MapsIdentical(*map, *imported));
+  // An archive without one (as every archive before it was kept): a local frame.
+  ASSERT_TRUE(ExportMap(*map, MetadataOf(*map), dir.Sub("local")).ok());
+  report = ImportMap(dir.Sub("local"), *NewMap(SmallParams()));
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->metadata.georeference.empty());
+}
+
 TEST(MapArchiveTest, ImportingTwoArchivesMergesTheirSum) {
   TempDir dir;
   const auto a = RobotMap(0, 5), b = RobotMap(1, 5);  // overlapping lanes

@@ -76,5 +76,47 @@ TEST(MapMetadataTest, WholeMetadataRoundTrips) {
   EXPECT_EQ(back->params.prior_mean, m.params.prior_mean);
 }
 
+TEST(MapMetadataTest, GeoreferenceRoundTripsAndOlderBuildsSkipIt) {
+  MapMetadata m;
+  m.params = Unusual();
+  m.georeference = {"PROJCS[\"x\", GEOGCS[\"y\"]]", {0.1 + 0.2, -4180000.25, 1e-9}};
+  const std::string bytes = EncodeMetadata(m);
+  Result<MapMetadata> back = DecodeMetadata(bytes);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->georeference, m.georeference);  // bit-exact origin
+  // A build before georeferences reads the pairs with ParamsFromKeyValues alone, which
+  // ignores keys it does not know: its archives and ours stay readable both ways.
+  std::map<std::string, std::string, std::less<>> kv;
+  for (const auto& [k, v] : ParamsToKeyValues(m.params)) kv.emplace(k, v);
+  kv.emplace("georeference/crs", "EPSG:32610");
+  kv.emplace("georeference/origin", "1,2,3");
+  EXPECT_TRUE(ParamsFromKeyValues(kv).ok());
+  // Without one: no georeference pairs at all, as before.
+  m.georeference = {};
+  EXPECT_EQ(EncodeMetadata(m).find("georeference"), std::string::npos);
+  EXPECT_TRUE(DecodeMetadata(EncodeMetadata(m))->georeference.empty());
+}
+
+TEST(MapMetadataTest, MalformedGeoreferenceIsDataLossNamingTheKey) {
+  Result<Georeference> g = GeoreferenceFromKeyValues({{"crs", "EPSG:4326"}, {"origin", "1,2"}});
+  ASSERT_FALSE(g.ok());
+  EXPECT_EQ(g.status().code(), Status::Code::kDataLoss);
+  EXPECT_NE(g.status().message().find("georeference.origin"), std::string::npos);
+  g = GeoreferenceFromKeyValues({{"origin", "1,2,3"}});
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.status().message().find("georeference.crs"), std::string::npos);
+}
+
+TEST(MapMetadataTest, GeoreferencesDifferOnlyWhenBothAreSet) {
+  const Georeference utm{"EPSG:32610", {1, 2, 3}};
+  EXPECT_TRUE(CheckGeoreferenceCompatible({}, utm).ok());
+  EXPECT_TRUE(CheckGeoreferenceCompatible(utm, {}).ok());
+  EXPECT_TRUE(CheckGeoreferenceCompatible(utm, utm).ok());
+  Status s = CheckGeoreferenceCompatible(utm, {"EPSG:32610", {1, 2, 4}});
+  EXPECT_EQ(s.code(), Status::Code::kFailedPrecondition);
+  EXPECT_EQ(s.message().rfind("georeference.origin differs: [1,2,3] vs [1,2,4]", 0), 0u)
+      << s.message();
+}
+
 }  // namespace
 }  // namespace bgkmap::storage

@@ -167,7 +167,8 @@ class Client:
         pose: T_map_sensor, 4x4 (or 3x4) matrix. robot, seq: robot id and its increasing
         sequence number (an old number is acked "duplicate" and not applied again).
         stamp: seconds since the epoch or an aware datetime; None: now.
-        A rejected scan raises BgkmapError (INVALID_ARGUMENT or RESOURCE_EXHAUSTED)."""
+        A rejected scan raises BgkmapError (INVALID_ARGUMENT: malformed or over a fixed limit;
+        RESOURCE_EXHAUSTED: server load, retry later)."""
         request = _codec.scan_message(points, pose, robot, seq, stamp)
         return _codec.ack_from_proto(_rpc(self._stub.IngestScan, request, timeout=self.timeout))
 
@@ -389,7 +390,8 @@ class Client:
         """Admin: adds the archive at `path` into the served map (statistics are summed, so importing
         two robots' archives gives exactly their sum). Nothing changes unless the whole archive
         verifies: INVALID_ARGUMENT (not an archive), DATA_LOSS (damaged), FAILED_PRECONDITION
-        (incompatible parameters), RESOURCE_EXHAUSTED (too large, or another import running)."""
+        (incompatible parameters or georeference), INVALID_ARGUMENT (too large, not an archive),
+        RESOURCE_EXHAUSTED (another import running)."""
         path = os.fspath(path)
         try:
             f = open(path, "rb")

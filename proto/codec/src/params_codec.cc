@@ -11,10 +11,14 @@ using google::protobuf::FieldDescriptor;
 
 // Null only if admin.proto lacks the key, which params_codec_test rules out.
 const FieldDescriptor* FieldOf(const MapParamInfo& info) {
-  return v1::MapParameters::descriptor()->FindFieldByName(std::string(info.key));
+  return v1::MapParameters::descriptor()->FindFieldByName(std::string(ProtoFieldName(info.key)));
 }
 
 }  // namespace
+
+std::string_view ProtoFieldName(std::string_view yaml_key) {
+  return yaml_key == "lambda" ? "prior_weight" : yaml_key;
+}
 
 void ToProto(const MapParams& p, v1::MapParameters* out) {
   const google::protobuf::Reflection* r = out->GetReflection();

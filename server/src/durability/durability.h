@@ -176,6 +176,15 @@ class Durability : public TileBacking {
 
   // The store's state for Info and /metrics; nullopt for a map in memory.
   virtual std::optional<StoreStatus> store_status(bool with_disk_usage) const = 0;
+
+  // Where the map frame sits in a coordinate reference system (empty: a local frame): the
+  // store's, which keeps the first one it is given (storage.md, "Georeference"), or for a map
+  // in memory the configured one.
+  virtual storage::Georeference georeference() const = 0;
+  // Ties a map in a local frame to `georeference` (an import of a georeferenced archive): OK at
+  // once if it is empty or already the map's; FailedPrecondition naming the key if the map has
+  // another; a store's write error otherwise.
+  virtual Status AdoptGeoreference(const storage::Georeference& georeference) = 0;
 };
 
 }  // namespace bgkmap

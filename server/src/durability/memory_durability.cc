@@ -27,6 +27,15 @@ Result<std::unique_ptr<TileSource>> MemoryDurability::OpenTileSource(TileKey min
   return std::unique_ptr<TileSource>(new CopiedTiles(std::move(keys), std::move(tiles)));
 }
 
+Status MemoryDurability::AdoptGeoreference(const storage::Georeference& georeference) {
+  std::lock_guard lock(georeference_mu_);
+  if (Status s = storage::CheckGeoreferenceCompatible(georeference_, georeference); !s.ok()) {
+    return s;
+  }
+  if (georeference_.empty()) georeference_ = georeference;
+  return Status::Ok();
+}
+
 Durability::ScratchDirectory MemoryDurability::scratch_directory() const {
   return {std::filesystem::temp_directory_path().string(), /*exclusive=*/false};
 }

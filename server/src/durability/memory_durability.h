@@ -2,12 +2,18 @@
 // stored, every call succeeds, and an export reads copies of the tiles taken at its barrier.
 #pragma once
 
+#include <mutex>
+
 #include "durability/durability.h"
 
 namespace bgkmap {
 
 class MemoryDurability final : public Durability {
  public:
+  // `georeference`: the configured one (server config `georeference`), empty for a local frame.
+  explicit MemoryDurability(storage::Georeference georeference = {})
+      : georeference_(std::move(georeference)) {}
+
   bool persists() const override { return false; }
   uint64_t recovered_version() const override { return 0; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override { return {}; }
@@ -25,6 +31,11 @@ class MemoryDurability final : public Durability {
   ScratchDirectory scratch_directory() const override;
   VerifyReport VerifyStoredTiles(const std::atomic<bool>&) const override { return {}; }
   std::optional<StoreStatus> store_status(bool) const override { return std::nullopt; }
+  storage::Georeference georeference() const override {
+    std::lock_guard lock(georeference_mu_);
+    return georeference_;
+  }
+  Status AdoptGeoreference(const storage::Georeference& georeference) override;
 
   // TileBacking: nothing is stored, and nothing in memory is ever clean.
   bool IsStored(TileKey) const override { return false; }
@@ -33,6 +44,10 @@ class MemoryDurability final : public Durability {
   std::optional<TileSummary> StoredSummary(TileKey) const override { return std::nullopt; }
   Result<std::unique_ptr<Tile>> Load(TileKey) const override { return std::unique_ptr<Tile>(); }
   uint64_t durable_version() const override { return 0; }
+
+ private:
+  mutable std::mutex georeference_mu_;
+  storage::Georeference georeference_;  // guarded by georeference_mu_
 };
 
 }  // namespace bgkmap

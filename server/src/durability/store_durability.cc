@@ -26,9 +26,9 @@ class SnapshotTiles final : public TileSource {
 
 }  // namespace
 
-Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConfig& config,
-                                                               const MapParams& params,
-                                                               TerrainMap& map) {
+Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(
+    const StorageConfig& config, const MapParams& params, const storage::Georeference& georeference,
+    TerrainMap& map) {
   storage::StoreOptions options;
   Result<storage::Durability> durability = storage::ParseDurability(config.durability);
   if (!durability.ok()) return durability.status();
@@ -38,7 +38,7 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
   options.retention.max_bytes = config.retention_mb << 20;
   options.retention.max_age_ns = static_cast<int64_t>(config.retention_s * 1e9);
   Result<std::unique_ptr<storage::TileStore>> store =
-      storage::TileStore::Open(config.data_dir, options, params);
+      storage::TileStore::Open(config.data_dir, options, params, georeference);
   if (!store.ok()) return store.status();
   std::unique_ptr<StoreDurability> d(new StoreDurability(std::move(store).value()));
   storage::TileStore& ts = *d->store_;

@@ -24,9 +24,13 @@ class StoreDurability final : public Durability {
   // Opens (or creates) the store in config.data_dir and brings `map` (empty, created with
   // `params`) to the store's latest state: the tiles the log after the last checkpoint touches
   // are replayed into it and checkpointed at once; every other tile stays in the store until
-  // the served map loads it. The error is the store's own one-line message.
+  // the served map loads it. `georeference` is the configured one (empty: keep the stored
+  // one); a store tied to another refuses it (TileStore::Open). The error is the store's own
+  // one-line message.
   static Result<std::unique_ptr<StoreDurability>> Open(const StorageConfig& config,
-                                                       const MapParams& params, TerrainMap& map);
+                                                       const MapParams& params,
+                                                       const storage::Georeference& georeference,
+                                                       TerrainMap& map);
 
   bool persists() const override { return true; }
   uint64_t recovered_version() const override { return recovery_.map_version; }
@@ -56,6 +60,11 @@ class StoreDurability final : public Durability {
   std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
   ScratchDirectory scratch_directory() const override;
   std::optional<StoreStatus> store_status(bool with_disk_usage) const override;
+  storage::Georeference georeference() const override { return store_->georeference(); }
+  Status AdoptGeoreference(const storage::Georeference& georeference) override {
+    std::shared_lock lock(reopen_mu_);
+    return store_->AdoptGeoreference(georeference);
+  }
 
   // TileBacking: the stored tiles, as of the last written checkpoint.
   bool IsStored(TileKey key) const override { return index_.Contains(key); }

@@ -118,7 +118,7 @@ void RemoveStaleSpoolFiles(const std::string& dir) {
 }
 
 grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& params,
-                                 VerifiedArchive* out) {
+                                 const storage::Georeference& georeference, VerifiedArchive* out) {
   if (!StartsLikeAnArchive(path)) {
     return {grpc::StatusCode::INVALID_ARGUMENT,
             "archive: the upload is not a bgkmap map archive (it does not start with " +
@@ -135,6 +135,12 @@ grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& param
     return {grpc::StatusCode::FAILED_PRECONDITION,
             "archive: its map parameters are incompatible with the served map's: " + why +
                 " (served vs archive); statistics of one cannot be added to the other"};
+  }
+  if (Status s = storage::CheckGeoreferenceCompatible(georeference, out->metadata.georeference,
+                                                      "served vs archive");
+      !s.ok()) {
+    return {grpc::StatusCode::FAILED_PRECONDITION,
+            "archive: its georeference is not the served map's: " + s.message()};
   }
   std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;
   for (;;) {

@@ -54,9 +54,10 @@ struct VerifiedArchive {
 // Reads and checks every byte of the archive at `path` against the served map's `params`:
 // INVALID_ARGUMENT if it is not an archive, holds a tile twice, a tile beyond the map's range
 // or an impossible statistic (negative or non-finite weight); DATA_LOSS if it is damaged or
-// truncated (checksums); FAILED_PRECONDITION naming the first incompatible parameter. Messages
-// name the tile and never the spool file.
+// truncated (checksums); FAILED_PRECONDITION naming the first incompatible parameter, or the
+// georeference key if both the archive and the served map (`georeference`) have one and they
+// differ. Messages name the tile and never the spool file.
 grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& params,
-                                 VerifiedArchive* out);
+                                 const storage::Georeference& georeference, VerifiedArchive* out);
 
 }  // namespace bgkmap

@@ -99,9 +99,9 @@ grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
   }
   const size_t count = bytes.size() / kBytesPerPoint;
   if (count > limits.max_points_per_scan) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "points: " + std::to_string(count) + " points exceed server.max_points_per_scan = " +
-                std::to_string(limits.max_points_per_scan)};
+    return {grpc::StatusCode::INVALID_ARGUMENT, "points: " + std::to_string(count) +
+                                                    " points exceed server.max_points_per_scan = " +
+                                                    std::to_string(limits.max_points_per_scan)};
   }
   if (!scan.has_pose()) return Invalid("pose: missing");
   Pose pose;
@@ -154,7 +154,7 @@ grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
   const int64_t w = x1 - x0 + 1, h = y1 - y0 + 1;
   if (limit_cells &&
       static_cast<uint64_t>(w) * static_cast<uint64_t>(h) > limits.max_region_cells) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+    return {grpc::StatusCode::INVALID_ARGUMENT,
             field + ": " + std::to_string(w) + " x " + std::to_string(h) + " = " +
                 std::to_string(w * h) + " cells exceed server.max_region_cells = " +
                 std::to_string(limits.max_region_cells)};

@@ -154,6 +154,11 @@ class ServedMap {
   std::optional<StoreStatus> store_status(bool with_disk_usage = false) const {
     return durability_.store_status(with_disk_usage);
   }
+  // Where the map frame sits in a CRS (empty: a local frame); Durability::georeference().
+  storage::Georeference georeference() const { return durability_.georeference(); }
+  Status AdoptGeoreference(const storage::Georeference& georeference) {
+    return durability_.AdoptGeoreference(georeference);
+  }
   uint64_t applied_version() const { return scheduler_.applied_version(); }
   uint64_t scans_applied() const { return scans_applied_.load(); }
   RobotRegistry& robots() { return robots_; }

@@ -199,8 +199,9 @@ struct StorageInfo {
   std::string writes_paused_reason;
 };
 
-// Where the map frame sits in a coordinate reference system (server config `georeference`):
-// map point (x, y, z) is origin + (x, y, z) in `crs`.
+// Where the map frame sits in a coordinate reference system, as the map's store keeps it (the
+// first one given by the server config `georeference` or an imported archive): map point
+// (x, y, z) is origin + (x, y, z) in `crs`.
 struct Georeference {
   std::string crs;  // "EPSG:<code>", WKT or PROJ
   std::array<double, 3> origin{};

@@ -55,18 +55,18 @@ grpc::Status CheckFootprintCost(const v1::PathCheckRequest& req, size_t poses, d
   const double box = side * side;
   if (!(box <= static_cast<double>(limits.max_footprint_cells))) {
     return {
-        grpc::StatusCode::RESOURCE_EXHAUSTED,
+        grpc::StatusCode::INVALID_ARGUMENT,
         field + ": a reach of " + Num(reach) + " m is a footprint box of about " + Num(box) +
             " cells at resolution " + Num(resolution) +
             " m, over server.max_footprint_cells = " + std::to_string(limits.max_footprint_cells)};
   }
   const double total = box * static_cast<double>(poses);
   if (!(total <= static_cast<double>(limits.max_path_check_cells))) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "poses: " + std::to_string(poses) + " poses x about " + Num(box) +
-                " footprint box cells = " + Num(total) +
-                " cells exceed server.max_path_check_cells = " +
-                std::to_string(limits.max_path_check_cells)};
+    return {grpc::StatusCode::INVALID_ARGUMENT, "poses: " + std::to_string(poses) +
+                                                    " poses x about " + Num(box) +
+                                                    " footprint box cells = " + Num(total) +
+                                                    " cells exceed server.max_path_check_cells = " +
+                                                    std::to_string(limits.max_path_check_cells)};
   }
   return grpc::Status::OK;
 }
@@ -89,10 +89,9 @@ grpc::Status FootprintCells(const v1::PathCheckRequest& req, const v1::Pose2& po
   const uint64_t box_cells = static_cast<uint64_t>(int64_t{hi.x} - lo.x + 1) *
                              static_cast<uint64_t>(int64_t{hi.y} - lo.y + 1);
   if (box_cells > limits.max_footprint_cells) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "footprint: about " + std::to_string(box_cells) +
-                " cells exceed server.max_footprint_cells = " +
-                std::to_string(limits.max_footprint_cells)};
+    return {grpc::StatusCode::INVALID_ARGUMENT, "footprint: about " + std::to_string(box_cells) +
+                                                    " cells exceed server.max_footprint_cells = " +
+                                                    std::to_string(limits.max_footprint_cells)};
   }
   const size_t first = out->size();
   for (int iy = lo.y; iy <= hi.y; ++iy) {
@@ -119,7 +118,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
   const size_t n = static_cast<size_t>(req.poses_size());
   if (n == 0) return invalid("poses: at least one pose is required");
   if (n > limits.max_path_poses) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+    return {grpc::StatusCode::INVALID_ARGUMENT,
             "poses: " + std::to_string(n) +
                 " poses exceed server.max_path_poses = " + std::to_string(limits.max_path_poses)};
   }
@@ -171,7 +170,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
       return s;
     }
     if (cells.size() > limits.max_region_cells) {
-      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+      return {grpc::StatusCode::INVALID_ARGUMENT,
               "poses: the footprints cover more than server.max_region_cells = " +
                   std::to_string(limits.max_region_cells) + " cells"};
     }

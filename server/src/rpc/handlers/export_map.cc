@@ -101,6 +101,7 @@ class ExportStream final : public grpc::ServerWriteReactor<v1::ArchiveChunk> {
     }
     AuditLog(*who_, "export_map", AuditBox(), snapshot->version, peer_);
     metadata_.params = ctx_.map.params();
+    metadata_.georeference = ctx_.map.georeference();
     metadata_.map_version = snapshot->version;
     metadata_.checkpoint_version = snapshot->version;
     metadata_.robot_sequences = std::move(snapshot->robot_sequences);

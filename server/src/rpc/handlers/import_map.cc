@@ -6,7 +6,8 @@
 //   3. ServedMap::SubmitImport adds the tiles as one exclusive change with its own map version,
 //      checkpointed at once; if that write fails the tiles are put back as they were and the
 //      call answers UNAVAILABLE, nothing imported.
-// The spool file is removed in every outcome. Robots' sequence numbers are not touched.
+// The spool file is removed in every outcome. Robots' sequence numbers are not touched. A map in
+// a local frame takes the archive's georeference, if it has one (one that differs is refused).
 #include <spdlog/spdlog.h>
 
 #include <boost/asio/post.hpp>
@@ -76,9 +77,9 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
       return;
     }
     if (spool_->size() + chunk_.data().size() > ctx_.limits.max_import_bytes) {
-      End({grpc::StatusCode::RESOURCE_EXHAUSTED, "archive: more than server.max_import_bytes = " +
-                                                     std::to_string(ctx_.limits.max_import_bytes) +
-                                                     " bytes; nothing imported"});
+      End({grpc::StatusCode::INVALID_ARGUMENT, "archive: more than server.max_import_bytes = " +
+                                                   std::to_string(ctx_.limits.max_import_bytes) +
+                                                   " bytes; nothing imported"});
       return;
     }
     boost::asio::post(ctx_.query_pool, [this] {
@@ -156,7 +157,8 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
       End({grpc::StatusCode::UNAVAILABLE, "archive not imported: " + s.message()});
       return;
     }
-    grpc::Status verified = ReadVerifiedArchive(spool_->path(), ctx_.map.params(), &archive_);
+    grpc::Status verified =
+        ReadVerifiedArchive(spool_->path(), ctx_.map.params(), ctx_.map.georeference(), &archive_);
     spool_.reset();  // the tiles are in memory now
     if (!verified.ok()) {
       spdlog::warn("event=import_refused bytes={} reason=\"{}\"", bytes,
@@ -166,6 +168,14 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
     }
     if (cancelled_.load()) {
       End({grpc::StatusCode::CANCELLED, "import cancelled; nothing imported"});
+      return;
+    }
+    // A map in a local frame takes a georeferenced archive's frame, before its tiles: the
+    // tiles are placed by it (imports run one at a time, so nothing adopts another meanwhile).
+    if (Status s = ctx_.map.AdoptGeoreference(archive_.metadata.georeference); !s.ok()) {
+      End({s.code() == Status::Code::kFailedPrecondition ? grpc::StatusCode::FAILED_PRECONDITION
+                                                         : grpc::StatusCode::UNAVAILABLE,
+           "archive not imported: cannot keep its georeference: " + s.message()});
       return;
     }
     bytes_ = bytes;

@@ -50,7 +50,7 @@ grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
   lim->set_max_message_bytes(l.max_message_bytes);
   lim->set_max_inflight_scans_per_stream(l.max_inflight_scans_per_stream);
   response->set_server_version(BGKMAP_VERSION);
-  if (const GeoreferenceConfig& geo = ctx.config.georeference; !geo.crs.empty()) {
+  if (const storage::Georeference geo = ctx.map.georeference(); !geo.empty()) {
     v1::Georeference* g = response->mutable_georeference();
     g->set_crs(geo.crs);
     g->set_origin_easting(geo.origin[0]);

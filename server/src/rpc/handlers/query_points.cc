@@ -12,20 +12,20 @@ grpc::Status QueryPoints(ServiceContext& ctx, const QueryControl& control,
                          const v1::PointsRequest& request, v1::PointsResponse* response) {
   const size_t n = static_cast<size_t>(request.points_size());
   if (n > ctx.limits.max_query_points) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "points: " + std::to_string(n) +
-                                                      " points exceed server.max_query_points = " +
-                                                      std::to_string(ctx.limits.max_query_points)};
+    return {grpc::StatusCode::INVALID_ARGUMENT, "points: " + std::to_string(n) +
+                                                    " points exceed server.max_query_points = " +
+                                                    std::to_string(ctx.limits.max_query_points)};
   }
   std::vector<Layer> layers;
   if (grpc::Status s = LayersFromProto(request.layers(), "layers", &layers); !s.ok()) return s;
   // The answer's size is known now: refuse it before building it.
   const uint64_t answer_bytes = static_cast<uint64_t>(n) * layers.size() * sizeof(float) + 4096;
   if (answer_bytes > ctx.limits.max_message_bytes) {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "points: " + std::to_string(n) + " points x " + std::to_string(layers.size()) +
-                " layers take " + std::to_string(answer_bytes) +
-                " bytes, over server.max_message_bytes = " +
-                std::to_string(ctx.limits.max_message_bytes)};
+    return {grpc::StatusCode::INVALID_ARGUMENT, "points: " + std::to_string(n) + " points x " +
+                                                    std::to_string(layers.size()) +
+                                                    " layers take " + std::to_string(answer_bytes) +
+                                                    " bytes, over server.max_message_bytes = " +
+                                                    std::to_string(ctx.limits.max_message_bytes)};
   }
   const GridGeometry& g = ctx.map.geometry();
   std::vector<CellIndex> cells;

@@ -92,7 +92,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     // A chunk holds whole rows; one row must fit in a message.
     const uint64_t row_bytes = static_cast<uint64_t>(box_.width() / stride_) * layers_.size() * 4;
     if (row_bytes + 4096 > ctx_.limits.max_message_bytes) {
-      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+      return {grpc::StatusCode::INVALID_ARGUMENT,
               "box: one raster row takes " + std::to_string(row_bytes) +
                   " bytes, over server.max_message_bytes = " +
                   std::to_string(ctx_.limits.max_message_bytes)};

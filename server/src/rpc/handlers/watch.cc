@@ -92,9 +92,9 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     const uint64_t tiles = static_cast<uint64_t>(int64_t{max_.x} - min_.x + 1) *
                            static_cast<uint64_t>(int64_t{max_.y} - min_.y + 1);
     if (tiles > ctx_.limits.max_watch_tiles) {
-      return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-              "box: " + std::to_string(tiles) + " tiles exceed server.max_watch_tiles = " +
-                  std::to_string(ctx_.limits.max_watch_tiles)};
+      return {grpc::StatusCode::INVALID_ARGUMENT, "box: " + std::to_string(tiles) +
+                                                      " tiles exceed server.max_watch_tiles = " +
+                                                      std::to_string(ctx_.limits.max_watch_tiles)};
     }
     return grpc::Status::OK;
   }

@@ -1,11 +1,12 @@
 // What a store knows about its map besides the tiles: the store format, every map parameter,
-// the checkpoint and map versions, and each robot's last logged sequence number.
+// the georeference, the checkpoint and map versions, and each robot's last logged sequence number.
 //
 // Parameters are stored as text key/value pairs under their YAML names (MapParamKeys()), with
 // doubles written in shortest round-trip form, so a store reopens with bit-identical parameters
 // and stays readable with generic RocksDB tools.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -24,9 +25,22 @@ namespace bgkmap::storage {
 // and archives are read (their missing keys take MapParamInfo::legacy_text) and upgraded.
 inline constexpr uint32_t kStoreFormat = 3;
 
+// Where the map frame sits in a coordinate reference system (docs/configuration.md): map point
+// (x, y, z) is origin + (x, y, z) in `crs`, axes aligned. An empty crs: the frame is local.
+// Part of the map's identity, like the parameters: a store and its archives keep the one they
+// were given first, and a different one is refused rather than silently replaced.
+struct Georeference {
+  std::string crs;                           // any form GDAL reads: "EPSG:<code>", WKT, PROJ
+  std::array<double, 3> origin = {0, 0, 0};  // easting, northing, height of map (0, 0, 0)
+
+  bool empty() const { return crs.empty(); }
+  bool operator==(const Georeference&) const = default;
+};
+
 struct MapMetadata {
   uint32_t format = kStoreFormat;
   MapParams params;
+  Georeference georeference;  // empty for stores and archives written before it was kept
   // The stored tiles are exactly the map after every change with version <= this one.
   uint64_t checkpoint_version = 0;
   // Highest version checkpointed or logged: the next change gets map_version + 1.
@@ -48,7 +62,22 @@ Result<MapParams> ParamsFromKeyValues(const std::map<std::string, std::string, s
 // beta0, thresholds) may differ.
 Status CheckParamsCompatible(const MapParams& stored, const MapParams& requested);
 
-// Whole-metadata encoding (used by map archives): the key/value pairs, length-prefixed.
+// OK if a map georeferenced as `stored` may take `requested`: either is empty (local frame) or
+// they are equal. Otherwise FailedPrecondition naming the differing key (georeference.crs or
+// georeference.origin) and both values, stored first, as `roles` says.
+Status CheckGeoreferenceCompatible(const Georeference& stored, const Georeference& requested,
+                                   std::string_view roles = "stored vs requested");
+
+// The georeference as text key/value pairs ("crs", "origin" as "e,n,h" in shortest round-trip
+// form); none for an empty one. Inverse: GeoreferenceFromKeyValues, DataLoss naming a malformed
+// key; no keys give an empty georeference.
+std::vector<std::pair<std::string, std::string>> GeoreferenceToKeyValues(const Georeference& g);
+Result<Georeference> GeoreferenceFromKeyValues(
+    const std::map<std::string, std::string, std::less<>>& kv);
+
+// Whole-metadata encoding (used by map archives): the key/value pairs, length-prefixed. The
+// georeference rides among the parameters' pairs under "georeference/<key>", which builds
+// before it ignore, so archives stay readable both ways.
 std::string EncodeMetadata(const MapMetadata& metadata);
 Result<MapMetadata> DecodeMetadata(std::string_view bytes);
 

@@ -79,14 +79,18 @@ class TileStore {
   // options.create_if_missing. Reopening checks the stored parameters against `params`:
   // FailedPrecondition naming the first differing key if the statistics are incompatible
   // (CheckParamsCompatible); otherwise the stored derived-layer parameters are updated to
-  // `params`. FailedPrecondition as well for a store of a newer format or a directory in use
+  // `params`. A non-empty `georeference` is stored if the store has none (a new one, or one
+  // written before georeferences were kept); one that differs from the stored is refused with
+  // FailedPrecondition naming the key (CheckGeoreferenceCompatible); an empty one keeps the
+  // stored. FailedPrecondition as well for a store of a newer format or a directory in use
   // by another process; IoError/DataLoss if the database cannot be opened.
   // With a free-space reserve (options.free_space) and less than it free: an existing store
   // opens read-only (nothing is written, not even the parameters; every write is refused until
   // Resume() finds the space back), and creating a store is refused with IoError.
   static Result<std::unique_ptr<TileStore>> Open(const std::string& dir,
                                                  const StoreOptions& options,
-                                                 const MapParams& params);
+                                                 const MapParams& params,
+                                                 const Georeference& georeference = {});
   // Opens an existing store with the parameters it holds (FailedPrecondition if there is none).
   static Result<std::unique_ptr<TileStore>> OpenExisting(const std::string& dir,
                                                          const StoreOptions& options);
@@ -98,6 +102,12 @@ class TileStore {
 
   const std::string& directory() const { return dir_; }
   const MapParams& params() const { return params_; }
+  // Where the map frame sits (empty: a local frame).
+  Georeference georeference() const;
+  // Ties a map in a local frame to `georeference` for good (an import of a georeferenced
+  // archive): OK at once if it is empty or already the stored one; FailedPrecondition naming
+  // the key if the store has another; IoError if the write is refused or fails.
+  Status AdoptGeoreference(const Georeference& georeference);
   const StoreOptions& options() const { return options_; }
 
   // ---- Versions and robots
@@ -200,7 +210,8 @@ class TileStore {
             std::unique_ptr<StoreDb> db);
   static Result<std::unique_ptr<TileStore>> OpenImpl(const std::string& dir,
                                                      const StoreOptions& options,
-                                                     const MapParams* params);
+                                                     const MapParams* params,
+                                                     const Georeference& georeference);
   // Takes over an opened database: reads the versions and robots, starts the log.
   Status Attach(std::unique_ptr<StoreDb> db);
   void MarkCorrupt(TileKey key) const;
@@ -225,6 +236,8 @@ class TileStore {
   std::string dir_;
   StoreOptions options_;
   MapParams params_;
+  mutable std::mutex georeference_mu_;
+  Georeference georeference_;              // guarded by georeference_mu_
   std::unique_ptr<FreeSpaceGuard> guard_;  // outlives log_, which checks it
   std::atomic<bool> read_only_{false};
   std::unique_ptr<StoreDb> db_;
