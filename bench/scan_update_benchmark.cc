@@ -100,6 +100,8 @@ BENCHMARK_CAPTURE(BM_Vlp16, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillis
 BENCHMARK_CAPTURE(BM_Hdl32e, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vlp16, baseline, Method::kBaseline)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vlp16, one_step, Method::kOneStep)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vlp16, bgk_obstacle, Method::kBgkObstacle)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32e, bgk_obstacle, Method::kBgkObstacle)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vlp16, bgk_trav, Method::kBgkTrav)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Hdl32e, bgk_trav, Method::kBgkTrav)->Unit(benchmark::kMillisecond);
 

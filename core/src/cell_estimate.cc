@@ -89,8 +89,13 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
     e.traversability = static_cast<float>(a / ab);
     e.traversability_variance = 0.0f;
   }
+  // bgk-obstacle: an uncertain cell is not traversable; its Beta mean must clear the threshold
+  // by two standard deviations.
+  const double margin = p.method == Method::kBgkObstacle
+                            ? 2.0 * std::sqrt(static_cast<double>(e.traversability_variance))
+                            : 0.0;
   // NaN comparisons are false: a known cell without a traversability value is non-traversable.
-  const bool traversable = e.traversability < p.trav_threshold &&
+  const bool traversable = e.traversability + margin < p.trav_threshold &&
                            e.traversability_variance < p.variance_threshold &&
                            disagreement <= p.step_crit * p.step_crit;
   e.state = traversable ? CellState::kTraversable : CellState::kNonTraversable;

@@ -14,6 +14,8 @@ std::string_view MethodName(Method m) {
       return "baseline";
     case Method::kOneStep:
       return "one-step";
+    case Method::kBgkObstacle:
+      return "bgk-obstacle";
   }
   return "?";
 }
@@ -29,11 +31,13 @@ Result<Dynamics> ParseDynamics(std::string_view name) {
 }
 
 Result<Method> ParseMethod(std::string_view name) {
-  for (Method m : {Method::kBgkPlus, Method::kBgkTrav, Method::kBaseline, Method::kOneStep}) {
+  for (Method m : {Method::kBgkPlus, Method::kBgkTrav, Method::kBaseline, Method::kOneStep,
+                   Method::kBgkObstacle}) {
     if (name == MethodName(m)) return m;
   }
-  return Status::InvalidArgument("method = " + std::string(name) +
-                                 ": must be one of bgk+, bgk-trav, baseline, one-step");
+  return Status::InvalidArgument(
+      "method = " + std::string(name) +
+      ": must be one of bgk+, bgk-trav, baseline, one-step, bgk-obstacle");
 }
 
 Result<Observation> ParseObservation(std::string_view name) {
@@ -43,7 +47,9 @@ Result<Observation> ParseObservation(std::string_view name) {
                                  ": must be one of max, mean");
 }
 
-bool InfersTraversability(Method m) { return m == Method::kBgkPlus || m == Method::kOneStep; }
+bool InfersTraversability(Method m) {
+  return m == Method::kBgkPlus || m == Method::kOneStep || m == Method::kBgkObstacle;
+}
 bool InfersElevation(Method m) { return m == Method::kBgkPlus || m == Method::kBgkTrav; }
 
 }  // namespace bgkmap

@@ -73,6 +73,12 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       kernel_(params.resolution, params.kernel_length),
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
       neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
+  if (params.method == Method::kBgkObstacle) {
+    for (int r = 0; r < kernel_.row_count(); ++r) {
+      for (int j = 0; j <= 2 * kernel_.half_width(r); ++j)
+        direct_weight_ += kernel_.row_weights(r)[j];
+    }
+  }
   if (params.dynamics == Dynamics::kOn) {
     // A "full-kernel observation" is every cell within l observed once.
     double full_w = 0.0;
@@ -298,17 +304,19 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     // The traversability evidence within l of a contradicted cell was learnt from a surface that
     // is not there any more: it is re-learnt from this scan on.
     for (const auto& [c, count] : contradicted) {
-      impl.ForEachKernelRun<true>(
-          c, [&](Tile& tile, int start, const double*, const float*, int len) {
-            float* a = tile.a().data() + start;
-            float* b = tile.b().data() + start;
-            bool any = false;
-            for (int j = 0; j < len; ++j) any |= (a[j] != 0.0f) | (b[j] != 0.0f);
-            if (!any) return;
-            std::fill_n(a, len, 0.0f);
-            std::fill_n(b, len, 0.0f);
-            if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
-          });
+      impl.ForEachKernelRun<true>(c,
+                                  [&](Tile& tile, int start, const double*, const float*, int len) {
+                                    float* a = tile.a().data() + start;
+                                    float* b = tile.b().data() + start;
+                                    bool any = false;
+                                    for (int j = 0; j < len; ++j)
+                                      any |= (a[j] != 0.0f) | (b[j] != 0.0f);
+                                    if (!any) return;
+                                    std::fill_n(a, len, 0.0f);
+                                    std::fill_n(b, len, 0.0f);
+                                    if (touched.empty() || touched.back() != &tile)
+                                      touched.push_back(&tile);
+                                  });
     }
     for (const auto& [c, count] : contradicted) {
       Tile& tile = *impl.TileAt(c);
@@ -418,6 +426,7 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   const auto t2 = Clock::now();
   if (InfersTraversability(method)) {
     const float ab_cap = caps_.ab;
+    const float direct = direct_weight_;
     for (const auto& [cell, v] : values) {
       const float va = v, vb = 1.0f - v;
       impl.ForEachKernelRun(
@@ -430,6 +439,15 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
             }
             if (ab_cap > 0) CapBeta(a, b, len, ab_cap);
           });
+      if (direct > 0.0f) {
+        // bgk-obstacle: the cell's own evidence weighs as much as its whole neighbourhood's, so
+        // an obstacle seen at a cell is not averaged away by the ground seen around it.
+        Tile* tile = impl.TileAt(cell);
+        const int i = geometry_.LocalIndex(cell);
+        tile->a()[i] += direct * va;
+        tile->b()[i] += direct * vb;
+        if (ab_cap > 0) CapBeta(&tile->a()[i], &tile->b()[i], 1, ab_cap);
+      }
     }
   } else {
     for (const auto& [cell, v] : values) {

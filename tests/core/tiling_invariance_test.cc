@@ -88,7 +88,7 @@ TEST_P(TilingInvarianceTest, ShiftingAcrossTileBordersGivesTheShiftedMap) {
 
 INSTANTIATE_TEST_SUITE_P(AllMethods, TilingInvarianceTest,
                          ::testing::Values(Method::kBgkPlus, Method::kBgkTrav, Method::kBaseline,
-                                           Method::kOneStep),
+                                           Method::kOneStep, Method::kBgkObstacle),
                          [](const ::testing::TestParamInfo<Method>& param_info) {
                            std::string n(MethodName(param_info.param));
                            for (char& c : n) c = std::isalnum(c) ? c : '_';

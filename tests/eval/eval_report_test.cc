@@ -59,9 +59,12 @@ TEST(EvalReportTest, JsonEscapesStringsAndWritesNonFiniteAsNull) {
   EXPECT_EQ(jm["skipped"], 3);
   EXPECT_EQ(jm["mean_prepare_s"], 0.25);
   EXPECT_TRUE(jm["max_scan_s"].is_null());
-  const std::vector<std::string> score_keys = {"truth_cells",   "known_cells",   "coverage",
-                                               "mse_all_m2",    "mse_ground_m2", "auc",
-                                               "roc_positives", "roc_negatives", "state_accuracy"};
+  const std::vector<std::string> score_keys = {
+      "truth_cells",      "known_cells",         "coverage",
+      "mse_all_m2",       "mse_ground_m2",       "auc",
+      "roc_positives",    "roc_negatives",       "state_accuracy",
+      "dangerous_misses", "dangerous_miss_rate", "false_alarms",
+      "false_alarm_rate"};
   EXPECT_EQ(Keys(jm["realtime"]), score_keys);
   EXPECT_EQ(Keys(jm["offline"]), score_keys);
   EXPECT_EQ(jm["realtime"]["truth_cells"], 100);

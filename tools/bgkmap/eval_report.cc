@@ -32,7 +32,11 @@ Json ScoreJson(const eval::MapScore& s) {
           {"auc", JsonNumber<Json>(s.roc.auc)},
           {"roc_positives", s.roc.positives},
           {"roc_negatives", s.roc.negatives},
-          {"state_accuracy", JsonNumber<Json>(s.state_accuracy)}};
+          {"state_accuracy", JsonNumber<Json>(s.state_accuracy)},
+          {"dangerous_misses", s.dangerous_misses},
+          {"dangerous_miss_rate", JsonNumber<Json>(s.dangerous_miss_rate)},
+          {"false_alarms", s.false_alarms},
+          {"false_alarm_rate", JsonNumber<Json>(s.false_alarm_rate)}};
 }
 
 }  // namespace
@@ -65,9 +69,9 @@ std::string ToMarkdown(const EvalReport& r) {
   std::ostringstream o;
   o << "| Dataset | Method | Coverage (%) | Skipped scans | Elevation (s) | Trav. calculation (s) "
        "| "
-       "Trav. inference (s) | MSE all (m^2) | MSE ground (m^2) | AUC | Offline coverage (%) | "
-       "Offline AUC |\n"
-    << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+       "Trav. inference (s) | MSE all (m^2) | MSE ground (m^2) | AUC | "
+       "Dangerous miss (%) | False alarm (%) | Offline coverage (%) | Offline AUC |\n"
+    << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const MethodResult& m : r.methods) {
     const bool infers_elev = InfersElevation(m.method),
                infers_trav = InfersTraversability(m.method);
@@ -77,8 +81,11 @@ std::string ToMarkdown(const EvalReport& r) {
       << Cell(m.features_s, "%.4f") << " | "
       << (infers_trav ? Cell(m.traversability_s, "%.4f") : std::string("N/A")) << " | "
       << Cell(m.realtime.mse_all, "%.4f") << " | " << Cell(m.realtime.mse_ground, "%.2e") << " | "
-      << Cell(m.realtime.roc.auc, "%.4f") << " | " << Cell(100 * m.offline.coverage, "%.1f")
-      << " | " << Cell(m.offline.roc.auc, "%.4f") << " |\n";
+      << Cell(m.realtime.roc.auc, "%.4f") << " | "
+      << Cell(100 * m.realtime.dangerous_miss_rate, "%.2f") << " | "
+      << Cell(100 * m.realtime.false_alarm_rate, "%.2f") << " | "
+      << Cell(100 * m.offline.coverage, "%.1f") << " | " << Cell(m.offline.roc.auc, "%.4f")
+      << " |\n";
   }
   return o.str();
 }

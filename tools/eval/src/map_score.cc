@@ -37,6 +37,9 @@ MapScore ScoreMap(const TerrainMap& map, const Raster& truth) {
       scores.push_back(std::isnan(e.traversability) ? 1.0 : e.traversability);
       positive.push_back(blocked ? 1 : 0);
       agree += (e.state == truth_state);
+      const bool called_traversable = e.state == CellState::kTraversable;
+      s.dangerous_misses += (blocked && called_traversable);
+      s.false_alarms += (!blocked && !called_traversable);
     }
   }
   const double nan = std::nan("");
@@ -44,6 +47,9 @@ MapScore ScoreMap(const TerrainMap& map, const Raster& truth) {
   s.mse_all = n_all ? se_all / n_all : nan;
   s.mse_ground = s.ground_cells ? se_ground / s.ground_cells : nan;
   s.state_accuracy = s.known_cells ? static_cast<double>(agree) / s.known_cells : nan;
+  s.dangerous_miss_rate =
+      s.known_cells ? static_cast<double>(s.dangerous_misses) / s.known_cells : nan;
+  s.false_alarm_rate = s.known_cells ? static_cast<double>(s.false_alarms) / s.known_cells : nan;
   s.roc = ComputeRoc(scores, positive);
   return s;
 }

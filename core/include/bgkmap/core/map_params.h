@@ -11,12 +11,16 @@
 
 namespace bgkmap {
 
-// The mapping methods compared in the paper (Table 1, Fig. 5).
+// The mapping methods compared in the paper (Table 1, Fig. 5), and one beyond it.
 enum class Method {
   kBgkPlus,   // "bgk+": BGK elevation, v at observed cells, BGK traversability inference.
   kBgkTrav,   // "bgk-trav": BGK elevation, v computed directly at every cell within l.
   kBaseline,  // "baseline": no inference, v at observed cells from raw elevations.
   kOneStep,   // "one-step": raw elevations, v at observed cells, BGK traversability inference.
+  // "bgk-obstacle": as one-step, plus each observed cell's own v with the weight of a whole
+  // neighbourhood, and a state that needs the Beta mean two deviations below the threshold
+  // (docs/semantics.md, "bgk-obstacle").
+  kBgkObstacle,
 };
 
 // How the points of one scan falling in one cell become that cell's training value y.
@@ -33,7 +37,8 @@ Result<Method> ParseMethod(std::string_view name);
 Result<Observation> ParseObservation(std::string_view name);
 Result<Dynamics> ParseDynamics(std::string_view name);
 
-// True for the methods whose traversability is a Beta posterior (bgk+, one-step); the others
+// True for the methods whose traversability is a Beta posterior (bgk+, one-step, bgk-obstacle);
+// the others
 // keep the latest directly computed value per cell.
 bool InfersTraversability(Method m);
 // True for the methods whose elevation is BGK regression (bgk+, bgk-trav).

@@ -79,11 +79,14 @@ class ScanIntegrator {
     double forget_below = 0;  // a contradicted cell left with less weight is forgotten
   };
   Caps caps_;
+  // bgk-obstacle: the weight of a cell's own v, the kernel's sum over its stencil (the weight a
+  // cell gets when every cell within l is observed once), float as the Beta counts.
+  float direct_weight_ = 0.0f;
   MapParams params_;
   GridGeometry geometry_;
   KernelStencil kernel_;
-  std::vector<CellIndex> neighbourhood_;   // offsets within robot_radius, inclusive
-  int neighbourhood_radius_;               // largest |offset| in neighbourhood_
+  std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
+  int neighbourhood_radius_;              // largest |offset| in neighbourhood_
 };
 
 // Offsets (dx, dy) with dx^2 + dy^2 <= (radius/resolution)^2, with a relative tolerance of 1e-9

@@ -22,6 +22,13 @@ struct MapScore {
   // without a value scores 1 (the map calls it non-traversable).
   Roc roc;
   double state_accuracy = 0;  // fraction of known truth cells whose state equals the truth
+  // What a planner trusting the state layer gets wrong, both over the known truth cells:
+  // dangerous misses are truly non-traversable cells the map calls traversable (it would drive
+  // into them), false alarms truly traversable cells it calls non-traversable (detours).
+  int64_t dangerous_misses = 0;
+  int64_t false_alarms = 0;
+  double dangerous_miss_rate = 0;  // dangerous_misses / known_cells
+  double false_alarm_rate = 0;     // false_alarms / known_cells
 };
 
 // `truth` needs layers kElevation and kState (stride 1, the map's resolution).
