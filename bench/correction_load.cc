@@ -19,6 +19,7 @@
 #include "bgkmap/client/client.h"
 #include "bgkmap/sim/odometry_drift.h"
 #include "bgkmap/sim/ray_caster.h"
+#include "percentile.h"
 #include "street_world.h"
 
 namespace bgkmap {
@@ -28,12 +29,6 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
-}
-
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
 }
 
 // A drive along the street, 0.5 m per scan (10 Hz at 5 m/s), 24 distinct simulated scans reused
@@ -115,8 +110,8 @@ Load MeasureLoad(Client& client, const Drive& other, const std::function<void()>
   stop = true;
   robot.join();
   queries.join();
-  return {static_cast<double>(sent) / std::max(stream_s, 1e-9), Percentile(ms, 0.5),
-          Percentile(ms, 0.99)};
+  return {static_cast<double>(sent) / std::max(stream_s, 1e-9), bench::Percentile(ms, 0.5),
+          bench::Percentile(ms, 0.99)};
 }
 
 }  // namespace

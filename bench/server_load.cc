@@ -18,6 +18,7 @@
 
 #include "bgkmap/client/client.h"
 #include "bgkmap/sim/ray_caster.h"
+#include "percentile.h"
 #include "street_world.h"
 
 namespace bgkmap {
@@ -106,12 +107,6 @@ IngestResult Ingest(Client& client, const Drive& d, const std::string& tag, int 
   return {scans, points, rejected, std::chrono::duration<double>(Clock::now() - start).count()};
 }
 
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
-}
-
 }  // namespace
 }  // namespace bgkmap
 
@@ -193,7 +188,8 @@ int main(int argc, char** argv) {
         if (t >= 0) ms.push_back(t);
       }
       std::printf("| region %.0f x %.0f m, 0.1 m, all layers | %zu | %.2f | %.2f | %.2f |\n", side,
-                  side, ms.size(), Percentile(ms, 0.5), Percentile(ms, 0.99), Percentile(ms, 1.0));
+                  side, ms.size(), bench::Percentile(ms, 0.5), bench::Percentile(ms, 0.99),
+                  bench::Percentile(ms, 1.0));
       std::fflush(stdout);
     }
     std::mt19937 rng(3);
@@ -206,7 +202,8 @@ int main(int argc, char** argv) {
       if (t >= 0) ms.push_back(t);
     }
     std::printf("| 1,000 points, all layers | %zu | %.2f | %.2f | %.2f |\n", ms.size(),
-                Percentile(ms, 0.5), Percentile(ms, 0.99), Percentile(ms, 1.0));
+                bench::Percentile(ms, 0.5), bench::Percentile(ms, 0.99),
+                bench::Percentile(ms, 1.0));
     std::fflush(stdout);
     stop = true;
     load.join();

@@ -36,6 +36,7 @@
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/io/kitti_sequence.h"
 #include "bgkmap/storage/tile_store.h"
+#include "percentile.h"
 
 namespace bgkmap {
 namespace {
@@ -306,12 +307,6 @@ bool HttpGet(int port, const std::string& path) {
   return ok && response.rfind("HTTP/1.1 200", 0) == 0;
 }
 
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
-}
-
 // `with_readers`: a client calls Info at 20 Hz and scrapes /metrics at 1 Hz meanwhile.
 int RunInfo(const std::string& bgkmapd, const std::string& store, const std::string& street_dir,
             double cells, int port, double seconds, bool with_readers, int robot_nice,
@@ -427,9 +422,10 @@ int RunInfo(const std::string& bgkmapd, const std::string& store, const std::str
        (robot_hz > 0 ? ", robots at " + std::to_string(static_cast<int>(robot_hz)) + " Hz" : ""))
           .c_str(),
       static_cast<double>(start_info->known_cells), static_cast<double>(end_info->known_cells),
-      scans.load() / seconds, info_ms.size(), Percentile(info_ms, 0.5), Percentile(info_ms, 0.99),
+      scans.load() / seconds, info_ms.size(), bench::Percentile(info_ms, 0.5),
+      bench::Percentile(info_ms, 0.99),
       info_ms.empty() ? 0.0 : *std::max_element(info_ms.begin(), info_ms.end()), scrape_ms.size(),
-      Percentile(scrape_ms, 0.99));
+      bench::Percentile(scrape_ms, 0.99));
   std::fflush(stdout);
   return 0;
 }
