@@ -6,6 +6,7 @@
 
 #include "bgkmap/storage/crc32c.h"
 #include "byte_coding.h"
+#include "store_keys.h"
 
 namespace bgkmap::storage {
 namespace {
@@ -166,12 +167,7 @@ std::string EncodeLogRecord(const LogRecord& record) {
   } else {
     w.PutVarint(record.base_version);
     PutTileKeys(w, record.seed_tiles);
-    w.PutVarint(record.revised_versions.size());
-    uint64_t prev = 0;
-    for (uint64_t v : record.revised_versions) {
-      w.PutVarint(v - prev);
-      prev = v;
-    }
+    w.PutBytes(EncodeVersionList(record.revised_versions));  // last: it runs to the checksum
   }
   w.PutFixed32(Crc32c(out));
   return out;
@@ -213,17 +209,11 @@ Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
     }
   } else if (type == static_cast<uint8_t>(LogRecord::Type::kCorrection) && format >= 3) {
     record.type = LogRecord::Type::kCorrection;
-    uint64_t n;
+    std::string_view versions;
     if (!r.GetVarint(&record.base_version) || !GetTileKeys(r, &record.seed_tiles) ||
-        !r.GetVarint(&n) || n > r.remaining()) {
+        !r.GetBytes(r.remaining(), &versions) ||
+        !DecodeVersionList(versions, &record.revised_versions)) {
       return malformed;
-    }
-    uint64_t v = 0;
-    for (uint64_t i = 0; i < n; ++i) {
-      uint64_t delta;
-      if (!r.GetVarint(&delta) || delta > UINT64_MAX - v) return malformed;
-      v += delta;
-      record.revised_versions.push_back(v);
     }
   } else {
     return malformed;

@@ -2,6 +2,7 @@
 // the map re-integrates them in the background (ServedMap::SubmitCorrection).
 #include <spdlog/spdlog.h>
 
+#include <boost/asio/post.hpp>
 #include <set>
 
 #include "log_safe.h"
@@ -38,8 +39,8 @@ template <typename Response>
 void Submit(ServiceContext& ctx, grpc::ServerUnaryReactor* reactor, PrincipalRef who,
             const std::string& peer, CorrectionSpec spec, Response* response, const char* action) {
   const std::string robot = spec.robot_id;
-  ctx.map.SubmitCorrection(std::move(spec), [reactor, response, peer, who = std::move(who), robot,
-                                             action](CorrectionOutcome outcome) {
+  auto done = [reactor, response, peer, who = std::move(who), robot,
+               action](CorrectionOutcome outcome) {
     if (!outcome.status.ok()) {
       spdlog::warn("event={}_refused robot=\"{}\" reason=\"{}\"", action, LogSafe(robot, 128),
                    LogSafe(outcome.status.message()));
@@ -60,7 +61,12 @@ void Submit(ServiceContext& ctx, grpc::ServerUnaryReactor* reactor, PrincipalRef
     summary->set_tiles_changed(outcome.changed_tiles.size());
     summary->set_seconds(outcome.seconds);
     reactor->Finish(grpc::Status::OK);
-  });
+  };
+  // Planning reads the retained log and prepares the revised scans again: not on gRPC's thread.
+  boost::asio::post(ctx.query_pool,
+                    [&ctx, spec = std::move(spec), done = std::move(done)]() mutable {
+                      ctx.map.SubmitCorrection(std::move(spec), std::move(done));
+                    });
 }
 
 }  // namespace
