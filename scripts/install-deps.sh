@@ -15,6 +15,7 @@ PACKAGES=(
   libssl-dev openssl
   librocksdb-dev
   liboctomap-dev
+  nats-server libnats-dev
   gnuplot-nox
   python3-grpcio python3-protobuf python3-numpy python3-pytest
   chromium chromium-driver

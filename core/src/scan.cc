@@ -148,4 +148,18 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
   return scan;
 }
 
+PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep) {
+  PreparedScan out;
+  out.counts = scan.counts;
+  out.sensor_z = scan.sensor_z;
+  out.has_sensor = scan.has_sensor;
+  out.sensor_x = scan.sensor_x;
+  out.sensor_y = scan.sensor_y;
+  for (const ObservedCell& c : scan.cells) {
+    if (keep.Contains(c.cell)) out.cells.push_back(c);  // stays sorted
+  }
+  if (!out.cells.empty()) internal::ComputeFootprint(params, out);
+  return out;
+}
+
 }  // namespace bgkmap

@@ -16,6 +16,8 @@ std::string Status::ToString() const {
       return "data loss: " + message_;
     case Code::kIoError:
       return "I/O error: " + message_;
+    case Code::kUnavailable:
+      return "unavailable: " + message_;
   }
   return message_;
 }

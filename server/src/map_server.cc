@@ -24,7 +24,9 @@
 #include <thread>
 
 #include "auth/token_table.h"
+#include "bgkmap/config/map_params_yaml.h"
 #include "bgkmap/v1/map_service.pb.h"
+#include "cluster/cluster_node.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
 #include "host_port.h"
@@ -34,6 +36,7 @@
 #include "http/web_routes.h"
 #include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
+#include "rpc/request_checks.h"
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
@@ -115,7 +118,8 @@ size_t ThreadCount(int configured) {
 // destroyed in reverse.
 struct MapServer::Impl {
   Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map,
-       std::unique_ptr<Durability> durable, std::unique_ptr<TokenTable> token_table)
+       std::unique_ptr<Durability> durable, std::unique_ptr<TokenTable> token_table,
+       std::unique_ptr<cluster::ClusterNode> cluster_node)
       : config(cfg),
         tokens(std::move(token_table)),
         durability(std::move(durable)),
@@ -123,7 +127,9 @@ struct MapServer::Impl {
         query_pool(ThreadCount(cfg.query_threads)),
         map(std::move(map), *durability, ingest_pool, ServedMapOptionsFor(cfg)),
         maintenance(this->map, *durability, cfg.storage),
-        ctx(cfg, this->map, hub, ingest_pool, query_pool),
+        cluster(std::move(cluster_node)),
+        ctx(cfg, this->map, hub, ingest_pool, query_pool, cluster.get(),
+            cluster != nullptr ? &cluster->reads() : nullptr),
         service(ctx, tokens.get()) {}
 
   ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
@@ -144,6 +150,7 @@ struct MapServer::Impl {
   boost::asio::thread_pool query_pool;
   ServedMap map;
   MapMaintenance maintenance;
+  std::unique_ptr<cluster::ClusterNode> cluster;  // null: a single server
   ServiceContext ctx;
   MapService service;
   std::unique_ptr<grpc::Server> server;
@@ -171,6 +178,7 @@ MapServer::~MapServer() { Shutdown(); }
 Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) {
   if (Status s = ValidateServerConfig(config); !s.ok()) return s;
   if (Status s = ValidateSecurity(config); !s.ok()) return s;
+  if (Status s = ValidateCluster(config); !s.ok()) return s;
   // The security files first: a bad one fails the start before the store is opened.
   std::optional<TlsMaterial> tls;
   if (config.tls.enabled()) {
@@ -208,8 +216,22 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
         r.seconds);
     durability = std::move(opened).value();
   }
+  std::unique_ptr<cluster::ClusterNode> cluster_node;
+  if (config.cluster.enabled()) {
+    YAML::Emitter params_yaml;
+    params_yaml << MapParamsToYaml(config.map);
+    auto prepare = [params = config.map, limits = config.limits](const v1::Scan& scan,
+                                                                  PreparedScan* out) {
+      const grpc::Status s = PrepareScanMessage(scan, params, limits, out);
+      return s.ok() ? Status::Ok() : Status::InvalidArgument(s.error_message());
+    };
+    Result<std::unique_ptr<cluster::ClusterNode>> joined =
+        cluster::ClusterNode::Start(config.cluster, config.map, params_yaml.c_str(), prepare);
+    if (!joined.ok()) return joined.status();
+    cluster_node = std::move(joined).value();
+  }
   auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(durability),
-                                     std::move(tokens));
+                                     std::move(tokens), std::move(cluster_node));
   LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
   if (!config.metrics_address.empty()) {
     // Bound before any thread starts, so that a bad address fails the start cleanly; served

@@ -230,6 +230,26 @@ const std::vector<ServerKey>& GeoreferenceKeys() {
   return keys;
 }
 
+const std::vector<ServerKey>& ClusterKeys() {
+  static const std::vector<ServerKey> keys = {
+      Key<std::string>(
+          "nats", [](ServerConfig & c) -> auto& { return c.cluster.nats; }, "cluster"),
+      Key<std::string>(
+          "node", [](ServerConfig & c) -> auto& { return c.cluster.node; }, "cluster"),
+      Key<uint32_t>(
+          "partition_tiles", [](ServerConfig & c) -> auto& { return c.cluster.partition_tiles; },
+          "cluster"),
+      Key<uint32_t>(
+          "replicas", [](ServerConfig & c) -> auto& { return c.cluster.replicas; }, "cluster"),
+      Key<double>(
+          "lease_s", [](ServerConfig & c) -> auto& { return c.cluster.lease_s; }, "cluster"),
+      Key<double>(
+          "dedupe_window_s", [](ServerConfig & c) -> auto& { return c.cluster.dedupe_window_s; },
+          "cluster"),
+  };
+  return keys;
+}
+
 // Keys of a subsection ("tls.cert_file") are read from nested mappings (`tls: {cert_file: ..}`)
 // or as one dotted name (--set server.tls.cert_file=...).
 Status ReadSection(const YAML::Node& section, const std::string& section_name,
@@ -298,7 +318,7 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
   if (!root || root.IsNull()) return config;
   if (!root.IsMap()) return Status::InvalidArgument("config: the document must be a mapping");
   Result<MapParams> params =
-      MapParamsFromYaml(root, {"server", "storage", "georeference"}, base.map);
+      MapParamsFromYaml(root, {"server", "storage", "georeference", "cluster"}, base.map);
   if (!params.ok()) return params.status();
   config.map = *params;
   if (root["server"] && !root["server"].IsNull()) {  // "server:" alone means defaults
@@ -312,6 +332,11 @@ Result<ServerConfig> ServerConfigFromYaml(const YAML::Node& root, const ServerCo
   if (root["georeference"] && !root["georeference"].IsNull()) {
     if (Status s = ReadSection(root["georeference"], "georeference", GeoreferenceKeys(), config);
         !s.ok()) {
+      return s;
+    }
+  }
+  if (root["cluster"] && !root["cluster"].IsNull()) {
+    if (Status s = ReadSection(root["cluster"], "cluster", ClusterKeys(), config); !s.ok()) {
       return s;
     }
   }
@@ -330,6 +355,9 @@ std::string ServerConfigToYaml(const ServerConfig& config) {
   YAML::Node georeference(YAML::NodeType::Map);
   for (const ServerKey& k : GeoreferenceKeys()) georeference[k.name] = k.write(config);
   root["georeference"] = georeference;
+  YAML::Node cluster(YAML::NodeType::Map);
+  for (const ServerKey& k : ClusterKeys()) cluster[k.name] = k.write(config);
+  root["cluster"] = cluster;
   YAML::Emitter out;
   out << root;
   return std::string(out.c_str()) + "\n";
@@ -350,7 +378,8 @@ Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment) 
   YAML::Node root(YAML::NodeType::Map);
   const size_t dot = key.find('.');
   const std::string section = dot == std::string::npos ? "" : key.substr(0, dot);
-  if (section == "server" || section == "storage" || section == "georeference") {
+  if (section == "server" || section == "storage" || section == "georeference" ||
+      section == "cluster") {
     root[section][key.substr(dot + 1)] = value;
   } else {
     root[key] = value;
@@ -454,6 +483,35 @@ Status ValidateServerConfig(const ServerConfig& c) {
   if (geo.crs.empty() && geo.origin != std::array<double, 3>{0, 0, 0}) {
     return Status::InvalidArgument(
         "georeference.origin: needs georeference.crs (the system the origin is given in)");
+  }
+  return Status::Ok();
+}
+
+Status ValidateCluster(const ServerConfig& c) {
+  if (!c.cluster.enabled()) return Status::Ok();
+  auto bad_cluster = [](const std::string& key, const std::string& why) {
+    return Status::InvalidArgument("cluster." + key + ": " + why);
+  };
+  if (c.cluster.node.empty()) return bad_cluster("node", "must name this shard (unique)");
+  if (c.cluster.node.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                       "0123456789-_") != std::string::npos) {
+    return bad_cluster("node", "'" + c.cluster.node + "' may hold only letters, digits, - and _");
+  }
+  if (c.cluster.partition_tiles < 1 || c.cluster.partition_tiles > 1024) {
+    return bad_cluster("partition_tiles", "must be in [1, 1024]");
+  }
+  if (c.cluster.replicas < 1 || c.cluster.replicas > 5) {
+    return bad_cluster("replicas", "must be in [1, 5] (JetStream's limit)");
+  }
+  if (!(c.cluster.lease_s >= 0.5 && c.cluster.lease_s <= 60)) {
+    return bad_cluster("lease_s", "must be in [0.5, 60] seconds");
+  }
+  if (!(c.cluster.dedupe_window_s >= 1 && c.cluster.dedupe_window_s <= 86400 * 7)) {
+    return bad_cluster("dedupe_window_s", "must be in [1, 604800] seconds");
+  }
+  if (!c.storage.data_dir.empty()) {
+    return bad_cluster("nats", "a shard keeps its partitions in memory and rebuilds them from "
+                               "the cluster's log; storage.data_dir must be empty");
   }
   return Status::Ok();
 }

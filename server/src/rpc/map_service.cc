@@ -34,6 +34,14 @@ grpc::ServerUnaryReactor* RefusedUnary(grpc::CallbackServerContext* call,
   return reactor;
 }
 
+// The calls a cluster node does not take yet (docs/scale-out.md, "What is not distributed yet").
+grpc::Status NotInCluster(const ServiceContext& ctx, const std::string& rpc) {
+  if (ctx.cluster == nullptr) return grpc::Status::OK;
+  return {grpc::StatusCode::UNIMPLEMENTED,
+          rpc + " is not available on a cluster node yet (cluster.nats is set); ingest, "
+                "QueryRegion, QueryPoints, CheckPath and Info are"};
+}
+
 }  // namespace
 
 grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>* MapService::Ingest(
@@ -89,6 +97,9 @@ grpc::ServerWriteReactor<v1::TileUpdate>* MapService::Watch(grpc::CallbackServer
   if (grpc::Status s = access_.Admit(*call, "Watch", &who); !s.ok()) {
     return new RefusedWrite<v1::TileUpdate>(s);
   }
+  if (grpc::Status s = NotInCluster(ctx_, "Watch"); !s.ok()) {
+    return new RefusedWrite<v1::TileUpdate>(s);
+  }
   return StartWatch(ctx_, call, std::move(who), request);
 }
 
@@ -107,6 +118,9 @@ grpc::ServerUnaryReactor* MapService::ClearRegion(grpc::CallbackServerContext* c
   if (grpc::Status s = access_.Admit(*call, "ClearRegion", &who); !s.ok()) {
     return RefusedUnary(call, s);
   }
+  if (grpc::Status s = NotInCluster(ctx_, "ClearRegion"); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
   return StartClearRegion(ctx_, call, std::move(who), request, response);
 }
 
@@ -116,6 +130,9 @@ grpc::ServerWriteReactor<v1::ArchiveChunk>* MapService::ExportMap(
   if (grpc::Status s = access_.Admit(*call, "ExportMap", &who); !s.ok()) {
     return new RefusedWrite<v1::ArchiveChunk>(s);
   }
+  if (grpc::Status s = NotInCluster(ctx_, "ExportMap"); !s.ok()) {
+    return new RefusedWrite<v1::ArchiveChunk>(s);
+  }
   return StartExportMap(ctx_, call, std::move(who), request);
 }
 
@@ -123,6 +140,9 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(grpc::CallbackS
                                                                  v1::ImportResponse* response) {
   PrincipalRef who;
   if (grpc::Status s = access_.Admit(*call, "ImportMap", &who); !s.ok()) {
+    return new RefusedRead<v1::ArchiveChunk>(s);
+  }
+  if (grpc::Status s = NotInCluster(ctx_, "ImportMap"); !s.ok()) {
     return new RefusedRead<v1::ArchiveChunk>(s);
   }
   return StartImportMap(ctx_, call, std::move(who), response);
@@ -135,6 +155,9 @@ grpc::ServerUnaryReactor* MapService::CorrectPoses(grpc::CallbackServerContext* 
   if (grpc::Status s = access_.Admit(*call, "CorrectPoses", &who); !s.ok()) {
     return RefusedUnary(call, s);
   }
+  if (grpc::Status s = NotInCluster(ctx_, "CorrectPoses"); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
   return StartCorrectPoses(ctx_, call, std::move(who), request, response);
 }
 
@@ -145,6 +168,9 @@ grpc::ServerUnaryReactor* MapService::RemoveScans(grpc::CallbackServerContext* c
   if (grpc::Status s = access_.Admit(*call, "RemoveScans", &who); !s.ok()) {
     return RefusedUnary(call, s);
   }
+  if (grpc::Status s = NotInCluster(ctx_, "RemoveScans"); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
   return StartRemoveScans(ctx_, call, std::move(who), request, response);
 }
 
@@ -153,6 +179,9 @@ grpc::ServerUnaryReactor* MapService::RetireRobot(grpc::CallbackServerContext* c
                                                   v1::RetireRobotResponse* response) {
   PrincipalRef who;
   if (grpc::Status s = access_.Admit(*call, "RetireRobot", &who); !s.ok()) {
+    return RefusedUnary(call, s);
+  }
+  if (grpc::Status s = NotInCluster(ctx_, "RetireRobot"); !s.ok()) {
     return RefusedUnary(call, s);
   }
   return StartRetireRobot(ctx_, call, std::move(who), request, response);

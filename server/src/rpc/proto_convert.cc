@@ -16,6 +16,8 @@ grpc::Status ToGrpcStatus(const Status& status) {
       return {grpc::StatusCode::DATA_LOSS, status.message()};
     case Status::Code::kIoError:
       return {grpc::StatusCode::INTERNAL, status.message()};
+    case Status::Code::kUnavailable:
+      return {grpc::StatusCode::UNAVAILABLE, status.message()};
   }
   return {grpc::StatusCode::UNKNOWN, status.message()};
 }

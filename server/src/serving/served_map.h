@@ -30,6 +30,7 @@
 #include "durability/durability.h"
 #include "serving/change_scheduler.h"
 #include "serving/correction_stats.h"
+#include "serving/map_reads.h"
 #include "serving/map_summary.h"
 #include "serving/robot_registry.h"
 #include "serving/tile_residency.h"
@@ -94,7 +95,7 @@ struct ServedMapOptions {
   ChangeScheduler::TilesChanged on_tiles_changed;
 };
 
-class ServedMap {
+class ServedMap final : public MapReads {
  public:
   // `map` holds what the durability recovered; `durability` outlives the served map.
   ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
@@ -140,8 +141,9 @@ class ServedMap {
   Status Checkpoint();
 
   // Reads: IoError if the store cannot be read, DataLoss naming a corrupt tile.
-  Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers, int stride);
-  Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells);
+  Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                            int stride) override;
+  Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
   Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers);
   // Keys of the tiles with min <= key <= max, in memory or stored, sorted.
   std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
@@ -159,7 +161,7 @@ class ServedMap {
   Status AdoptGeoreference(const storage::Georeference& georeference) {
     return durability_.AdoptGeoreference(georeference);
   }
-  uint64_t applied_version() const { return scheduler_.applied_version(); }
+  uint64_t applied_version() const override { return scheduler_.applied_version(); }
   uint64_t scans_applied() const { return scans_applied_.load(); }
   RobotRegistry& robots() { return robots_; }
   const RobotRegistry& robots() const { return robots_; }

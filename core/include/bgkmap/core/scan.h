@@ -74,4 +74,11 @@ struct PreparedScan {
 Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3f> points,
                                  const Pose& T_map_sensor, bool frame_is_map = false);
 
+// The part of `scan` whose observed cells lie in `keep`, with its tile lists recomputed: what a
+// map that holds only the cells near `keep` needs. A cell's statistics depend only on the
+// observed cells within the kernel's, the robot radius' and the free-space rays' reach of it, so
+// integrating the restricted scan changes every cell far enough inside `keep` exactly as the
+// whole scan would, bit for bit (a cluster shard's halo, docs/scale-out.md).
+PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep);
+
 }  // namespace bgkmap

@@ -16,7 +16,8 @@ class Status {
     kOutOfRange,
     kFailedPrecondition,
     kDataLoss,
-    kIoError
+    kIoError,
+    kUnavailable  // a remote part (a cluster peer) cannot be reached now; a retry may succeed
   };
 
   Status() = default;
@@ -30,6 +31,7 @@ class Status {
   }
   static Status DataLoss(std::string msg) { return {Code::kDataLoss, std::move(msg)}; }
   static Status IoError(std::string msg) { return {Code::kIoError, std::move(msg)}; }
+  static Status Unavailable(std::string msg) { return {Code::kUnavailable, std::move(msg)}; }
 
   bool ok() const { return code_ == Code::kOk; }
   Code code() const { return code_; }

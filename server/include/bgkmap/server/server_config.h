@@ -92,6 +92,18 @@ struct GeoreferenceConfig {
   std::array<double, 3> origin = {0, 0, 0};  // origin: [easting, northing, height] of map (0,0,0)
 };
 
+// The `cluster:` section: a shard of a map cluster on NATS JetStream (docs/scale-out.md). Off
+// while `nats` is empty.
+struct ClusterConfig {
+  std::string nats;          // nats: the NATS servers, comma-separated ("nats://h:4222,...")
+  std::string node;          // node: this shard's name, unique in the cluster
+  uint32_t partition_tiles = 8;  // partition_tiles: a partition is this many tiles square
+  uint32_t replicas = 1;         // replicas: JetStream copies of the log and the KV buckets
+  double lease_s = 3.0;          // lease_s: a shard silent this long loses its partitions
+  double dedupe_window_s = 3600; // dedupe_window_s: a retried scan inside it is stored once
+  bool enabled() const { return !nats.empty(); }
+};
+
 // `server.tls`: TLS on the gRPC port and the HTTP (metrics) port (docs/server.md, Security).
 struct TlsConfig {
   std::string cert_file;  // tls.cert_file: the server's certificate chain (PEM); "" = plaintext
@@ -133,6 +145,7 @@ struct ServerConfig {
   ServerLimits limits;
   StorageConfig storage;
   GeoreferenceConfig georeference;
+  ClusterConfig cluster;
 };
 
 // The keys of the `server:` section, in documentation order.
@@ -160,6 +173,9 @@ Status ValidateServerConfig(const ServerConfig& config);
 // cert and key come as a pair, and a non-loopback address needs TLS and tokens unless
 // server.insecure. Files are read by the server at start, not here.
 Status ValidateSecurity(const ServerConfig& config);
+
+// Checks the `cluster:` keys together, once every override is applied (MapServer::Start).
+Status ValidateCluster(const ServerConfig& config);
 
 // True for a loopback address ("127.x.x.x:p", "localhost:p", "[::1]:p") or a unix socket.
 bool IsLoopbackAddress(const std::string& address);

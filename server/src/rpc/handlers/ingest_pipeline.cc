@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include "cluster/cluster_node.h"
 #include "log_safe.h"
 #include "rpc/access_control.h"
 #include "rpc/proto_convert.h"
@@ -39,6 +40,30 @@ grpc::Status SequenceJump(const ServiceContext& ctx, const v1::Scan& scan, uint6
               std::to_string(last) + " (a robot's sequence numbers increase by small steps)"};
 }
 
+// A cluster node: the scan goes to the cluster's log, and the ack says it is there (durable on
+// a majority of the log's replicas). The map version is its log sequence number.
+void AppendToCluster(ServiceContext& ctx, const v1::Scan& scan, const PreparedScan& prepared,
+                     const AckCallback& done) {
+  Result<cluster::Appended> appended = ctx.cluster->Append(scan, prepared);
+  if (!appended.ok()) {
+    const grpc::Status s = ToGrpcStatus(appended.status());
+    done(RejectedAck(ctx, scan, s), s);
+    return;
+  }
+  v1::ScanAck ack = BaseAck(scan);
+  if (appended->duplicate) {
+    ack.set_status(v1::ACK_DUPLICATE);
+    ack.set_message("duplicate: robot '" + scan.robot_id() + "' sequence " +
+                    std::to_string(scan.sequence()) +
+                    " is already in the cluster's log; not applied again");
+  } else {
+    ack.set_status(v1::ACK_APPLIED);
+    ToProto(prepared.counts, ack.mutable_counts());
+  }
+  ack.set_map_version(appended->sequence);
+  done(std::move(ack), grpc::Status::OK);
+}
+
 }  // namespace
 
 v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::Status& status) {
@@ -66,7 +91,7 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
     return;
   }
   // Retries after a lost ack are common: answer them before paying for preparation.
-  if (uint64_t last = 0; ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence(), &last)) {
+  if (uint64_t last = 0; ctx.cluster == nullptr && ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence(), &last)) {
     ctx.map.robots().CountDuplicate(scan.robot_id());
     done(DuplicateAck(ctx, scan, last), grpc::Status::OK);
     return;
@@ -78,6 +103,10 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
       !s.ok()) {
     ctx.map.robots().CountRejected(scan.robot_id());
     done(RejectedAck(ctx, scan, s), s);
+    return;
+  }
+  if (ctx.cluster != nullptr) {
+    AppendToCluster(ctx, scan, *prepared, done);
     return;
   }
   const Stamp stamp{scan.stamp().seconds(), scan.stamp().nanos()};

@@ -1,0 +1,126 @@
+#include "cluster/cluster_log.h"
+
+#include <algorithm>
+#include <charconv>
+#include <sstream>
+
+namespace bgkmap::cluster {
+namespace {
+
+constexpr const char* kRobotHeader = "Bgkmap-Robot";
+constexpr const char* kSequenceHeader = "Bgkmap-Sequence";
+constexpr const char* kTouchedHeader = "Bgkmap-Partitions";
+
+}  // namespace
+
+Status EnsureLogStream(const NatsClient& nats, const LogStreamOptions& options) {
+  jsStreamConfig cfg;
+  jsStreamConfig_Init(&cfg);
+  cfg.Name = kLogStream;
+  const char* subjects[] = {"bgkmap.log.>"};
+  cfg.Subjects = subjects;
+  cfg.SubjectsLen = 1;
+  cfg.Storage = js_FileStorage;
+  cfg.Replicas = options.replicas;
+  cfg.Duplicates = static_cast<int64_t>(options.dedupe_window_s * 1e9);
+  cfg.MaxMsgSize = -1;
+  jsStreamInfo* info = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  natsStatus st = js_AddStream(&info, nats.jetstream(), &cfg, nullptr, &jerr);
+  NatsPtr<jsStreamInfo> owned(info);
+  if (st == NATS_OK) return Status::Ok();
+  // Already there (another node made it): it must match.
+  jsStreamInfo* existing = nullptr;
+  jsErrCode jerr2 = static_cast<jsErrCode>(0);
+  const natsStatus got = js_GetStreamInfo(&existing, nats.jetstream(), kLogStream, nullptr, &jerr2);
+  NatsPtr<jsStreamInfo> owned_existing(existing);
+  if (got != NATS_OK)
+    return NatsStatus(st, "cluster: cannot create the stream " + std::string(kLogStream), jerr);
+  if (existing->Config->Replicas != options.replicas) {
+    return Status::FailedPrecondition("cluster.replicas: " + std::to_string(options.replicas) +
+                                      " but the stream " + kLogStream + " already has " +
+                                      std::to_string(existing->Config->Replicas));
+  }
+  return Status::Ok();
+}
+
+Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
+                            const std::vector<PartitionKey>& touched) {
+  std::string payload;
+  if (!scan.SerializeToString(&payload)) return Status::InvalidArgument("scan: cannot encode");
+  if (static_cast<int64_t>(payload.size()) + 1024 > nats.max_payload()) {
+    return Status::OutOfRange("scan: " + std::to_string(payload.size()) +
+                              " bytes exceed the NATS servers' max_payload of " +
+                              std::to_string(nats.max_payload()) + " bytes");
+  }
+  natsMsg* raw = nullptr;
+  natsStatus st =
+      natsMsg_Create(&raw, kScanSubject, nullptr, payload.data(), static_cast<int>(payload.size()));
+  if (st != NATS_OK) return NatsStatus(st, "cluster: message");
+  NatsPtr<natsMsg> msg(raw);
+  std::string parts;
+  for (PartitionKey p : touched) {
+    if (!parts.empty()) parts += ' ';
+    parts += PartitionName(p);
+  }
+  const std::string sequence = std::to_string(scan.sequence());
+  st = natsMsgHeader_Set(msg.get(), kRobotHeader, scan.robot_id().c_str());
+  if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
+  if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
+  if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
+  // The robot's own id and sequence: a retry, through this node or another, is stored once.
+  const std::string msg_id = scan.robot_id() + "/" + sequence;
+  jsPubOptions po;
+  jsPubOptions_Init(&po);
+  po.MsgId = msg_id.c_str();
+  po.ExpectStream = kLogStream;
+  jsPubAck* ack_raw = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  st = js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
+  NatsPtr<jsPubAck> ack(ack_raw);
+  if (st != NATS_OK) {
+    Status s = NatsStatus(st, "scan not stored in the cluster log", jerr);
+    // Whatever the cause, the robot may send it again: the message id keeps it single.
+    return Status::Unavailable(s.message());
+  }
+  return Appended{ack->Sequence, ack->Duplicate};
+}
+
+Result<uint64_t> LastSequence(const NatsClient& nats) {
+  jsStreamInfo* info = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = js_GetStreamInfo(&info, nats.jetstream(), kLogStream, nullptr, &jerr);
+  NatsPtr<jsStreamInfo> owned(info);
+  if (st != NATS_OK) {
+    return Status::Unavailable(NatsStatus(st, "cluster log", jerr).message());
+  }
+  return info->State.LastSeq;
+}
+
+Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
+  const char* robot = nullptr;
+  const char* sequence = nullptr;
+  const char* touched = nullptr;
+  if (natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK ||
+      natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK ||
+      natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK) {
+    return Status::DataLoss("cluster log entry without bgkmap headers");
+  }
+  LogEntryHeader h;
+  h.robot_id = robot;
+  const std::string_view seq(sequence);
+  if (auto [end, ec] = std::from_chars(seq.data(), seq.data() + seq.size(), h.robot_sequence);
+      ec != std::errc() || end != seq.data() + seq.size()) {
+    return Status::DataLoss("cluster log entry: bad " + std::string(kSequenceHeader));
+  }
+  std::istringstream parts{std::string(touched)};
+  for (std::string name; parts >> name;) {
+    std::optional<PartitionKey> p = ParsePartitionName(name);
+    if (!p) return Status::DataLoss("cluster log entry: bad partition '" + name + "'");
+    h.touched.push_back(*p);
+  }
+  std::sort(h.touched.begin(), h.touched.end());
+  return h;
+}
+
+}  // namespace bgkmap::cluster

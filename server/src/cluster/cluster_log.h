@@ -1,0 +1,53 @@
+// The cluster's log: one JetStream stream whose order is the map's order. Every shard reads it
+// in the same order, so every replica of a partition integrates the same scans in the same order
+// and holds the bitwise same tiles. A robot's (robot id, sequence) is the message id, so a retry
+// within the stream's de-duplication window is stored once whatever node it reaches.
+//
+// Each entry carries headers a shard reads without decoding the scan: the robot, its sequence
+// number and the partitions the scan can change (PartitionLayout::Touched).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/v1/ingest.pb.h"
+#include "cluster/nats_client.h"
+#include "cluster/partition_layout.h"
+
+namespace bgkmap::cluster {
+
+inline constexpr const char* kLogStream = "BGKMAP_LOG";
+inline constexpr const char* kScanSubject = "bgkmap.log.scan";
+
+struct LogStreamOptions {
+  int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
+  double dedupe_window_s = 3600;  // cluster.dedupe_window_s: retries inside it are stored once
+};
+
+// Creates the stream, or checks that the existing one has `options.replicas` copies.
+Status EnsureLogStream(const NatsClient& nats, const LogStreamOptions& options);
+
+struct Appended {
+  uint64_t sequence = 0;   // the entry's position in the log (the map version in the cluster)
+  bool duplicate = false;  // already in the log: not stored again
+};
+
+// Appends `scan` once JetStream has stored it on a majority of its replicas (the durability
+// point of a cluster ack). Unavailable when the log cannot be reached in time.
+Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
+                            const std::vector<PartitionKey>& touched);
+
+// The sequence number of the log's last entry (0: empty).
+Result<uint64_t> LastSequence(const NatsClient& nats);
+
+struct LogEntryHeader {
+  std::string robot_id;
+  uint64_t robot_sequence = 0;
+  std::vector<PartitionKey> touched;  // sorted
+};
+// DataLoss if the headers are missing or malformed (an entry not written by AppendScan).
+Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg);
+
+}  // namespace bgkmap::cluster

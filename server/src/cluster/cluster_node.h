@@ -1,0 +1,78 @@
+// A bgkmapd running as a shard of a cluster (docs/scale-out.md): it appends the scans it
+// receives to the cluster's log, serves the partitions it owns from the log, and answers queries
+// by gathering tiles from their owners. The gRPC service in front is the single server's
+// (rpc/): it calls Append() instead of the served map's SubmitScan(), and reads through
+// reads() instead of the served map.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bgkmap/server/server_config.h"
+#include "cluster/cluster_log.h"
+#include "cluster/cluster_reads.h"
+#include "cluster/membership.h"
+#include "cluster/nats_client.h"
+#include "cluster/partition_layout.h"
+#include "cluster/partition_replica.h"
+
+namespace bgkmap::cluster {
+
+struct ClusterStatus {
+  std::string node;
+  std::vector<std::string> live_nodes;
+  uint64_t partitions_known = 0;
+  std::vector<ReplicaStats> replicas;  // the partitions this node serves or is catching up
+};
+
+class ClusterNode {
+ public:
+  // Connects, creates or checks the log and the buckets, and starts taking partitions.
+  static Result<std::unique_ptr<ClusterNode>> Start(const ClusterConfig& config,
+                                                    const MapParams& params,
+                                                    const std::string& params_yaml,
+                                                    ScanPreparer prepare);
+  ~ClusterNode();  // leaves: stops the heartbeat (its partitions move when the lease expires)
+
+  // Appends a checked and prepared scan to the log (durable on a majority of the log's replicas
+  // when OK). Unavailable if the log cannot be reached.
+  Result<Appended> Append(const v1::Scan& scan, const PreparedScan& prepared);
+  MapReads& reads() { return *reads_; }
+  ClusterStatus Describe() const;
+  const PartitionLayout& layout() const { return layout_; }
+
+ private:
+  ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
+              std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members);
+  void Run();        // the membership loop
+  void Rebalance();  // starts the partitions this node owns, stops those it no longer does
+
+  const ClusterConfig config_;
+  const MapParams params_;
+  const ScanPreparer prepare_;
+  const PartitionLayout layout_;
+  std::unique_ptr<NatsClient> nats_;
+  std::unique_ptr<Membership> members_;
+  std::unique_ptr<ClusterReads> reads_;
+
+  mutable std::mutex mu_;
+  std::map<PartitionKey, std::unique_ptr<PartitionReplica>> replicas_;
+  // Partitions served although another node owns them now, and since when (kept for a grace
+  // period so the new owner can catch up before this one stops answering).
+  std::map<PartitionKey, std::chrono::steady_clock::time_point> leaving_;
+  std::vector<std::string> live_;
+  uint64_t partitions_known_ = 0;
+
+  std::mutex stop_mu_;
+  std::condition_variable stop_cv_;
+  bool stop_ = false;
+  std::thread loop_;
+};
+
+}  // namespace bgkmap::cluster

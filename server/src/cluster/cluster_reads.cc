@@ -1,0 +1,146 @@
+#include "cluster/cluster_reads.h"
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+#include <thread>
+
+#include "bgkmap/storage/tile_codec.h"
+#include "bgkmap/v1/cluster.pb.h"
+#include "cluster/cluster_log.h"
+#include "serving/tile_table.h"
+
+namespace bgkmap::cluster {
+namespace {
+
+// One request's wait for its reply; a partition being taken over is asked again until
+// fetch_timeout_ms.
+constexpr int64_t kRequestTimeoutMs = 3000;
+
+}  // namespace
+
+ClusterReads::ClusterReads(const NatsClient& nats, const PartitionLayout& layout,
+                           const Membership& members, const MapParams& params,
+                           int64_t fetch_timeout_ms)
+    : nats_(nats),
+      layout_(layout),
+      members_(members),
+      params_(params),
+      fetch_timeout_ms_(fetch_timeout_ms) {}
+
+uint64_t ClusterReads::applied_version() const {
+  Result<uint64_t> last = LastSequence(nats_);
+  if (last.ok()) last_sequence_ = *last;
+  return last_sequence_;
+}
+
+Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
+                                    TerrainMap& into) const {
+  const std::string subject = "bgkmap.tiles." + PartitionName(p);
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(fetch_timeout_ms_);
+  v1::TileFetchRequest request;
+  request.mutable_min()->set_x(min.x);
+  request.mutable_min()->set_y(min.y);
+  request.mutable_max()->set_x(max.x);
+  request.mutable_max()->set_y(max.y);
+  request.set_min_log_sequence(sequence);
+  std::string why;
+  while (true) {
+    const std::string bytes = request.SerializeAsString();
+    natsMsg* raw = nullptr;
+    const natsStatus st =
+        natsConnection_Request(&raw, nats_.connection(), subject.c_str(), bytes.data(),
+                               static_cast<int>(bytes.size()), kRequestTimeoutMs);
+    NatsPtr<natsMsg> reply_msg(raw);
+    v1::TileFetchReply reply;
+    if (st == NATS_NO_RESPONDERS) {
+      // Nobody serves it: a partition without data has nothing to serve; one with data is
+      // being taken over.
+      Result<bool> has = members_.HasPartition(p);
+      if (!has.ok()) return has.status();
+      if (!*has) return Status::Ok();
+      why = "no shard serves it";
+    } else if (st != NATS_OK) {
+      why = natsStatus_GetText(st);
+    } else if (!reply.ParseFromArray(natsMsg_GetData(reply_msg.get()),
+                                     natsMsg_GetDataLength(reply_msg.get()))) {
+      return Status::DataLoss("partition " + PartitionName(p) + ": the reply does not decode");
+    } else if (!reply.error().empty()) {
+      why = reply.error();
+    } else {
+      if (reply.keys_size() != reply.tiles_size()) {
+        return Status::DataLoss("partition " + PartitionName(p) + ": keys and tiles differ");
+      }
+      for (int i = 0; i < reply.keys_size(); ++i) {
+        Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(reply.tiles(i), params_.tile_size);
+        if (!tile.ok()) {
+          return Status::DataLoss("partition " + PartitionName(p) + ": " + tile.status().message());
+        }
+        into.SetTile({reply.keys(i).x(), reply.keys(i).y()}, **tile);
+      }
+      if (!reply.more()) return Status::Ok();
+      request.set_skip(request.skip() + static_cast<uint32_t>(reply.keys_size()));
+      continue;
+    }
+    if (std::chrono::steady_clock::now() >= deadline) {
+      return Status::Unavailable("partition " + PartitionName(p) + ": " + why + " (waited " +
+                                 std::to_string(fetch_timeout_ms_) + " ms)");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+}
+
+Result<std::unique_ptr<TerrainMap>> ClusterReads::Gather(TileKey min, TileKey max,
+                                                         uint64_t sequence) const {
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+  if (!map.ok()) return map.status();
+  const CellBox cells{layout_.geometry().TileBox(min).min, layout_.geometry().TileBox(max).max};
+  for (PartitionKey p : layout_.Covering(cells)) {
+    const TileKey lo{std::max(min.x, layout_.MinTile(p).x), std::max(min.y, layout_.MinTile(p).y)};
+    const TileKey hi{std::min(max.x, layout_.MaxTile(p).x), std::min(max.y, layout_.MaxTile(p).y)};
+    if (Status s = FetchPartition(p, lo, hi, sequence, **map); !s.ok()) return s;
+  }
+  return map;
+}
+
+Result<Raster> ClusterReads::ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                                        int stride) {
+  Result<uint64_t> last = LastSequence(nats_);
+  if (!last.ok()) return last.status();
+  last_sequence_ = *last;
+  const GridGeometry& g = layout_.geometry();
+  Result<std::unique_ptr<TerrainMap>> map = Gather(g.TileOf(box.min), g.TileOf(box.max), *last);
+  if (!map.ok()) return map.status();
+  // The single server's own banded read, over the gathered tiles: the same answer, bit for bit.
+  TileTable table(std::move(map).value(), /*keep_cleared=*/false);
+  return table.ReadRegion(box, layers, stride);
+}
+
+Result<std::vector<CellEstimate>> ClusterReads::ReadCells(std::span<const CellIndex> cells) {
+  Result<uint64_t> last = LastSequence(nats_);
+  if (!last.ok()) return last.status();
+  last_sequence_ = *last;
+  const GridGeometry& g = layout_.geometry();
+  // The tiles needed, as one range per partition.
+  std::map<PartitionKey, std::pair<TileKey, TileKey>> ranges;
+  for (CellIndex c : cells) {
+    const TileKey t = g.TileOf(c);
+    auto [it, is_new] = ranges.try_emplace(layout_.PartitionOf(t), t, t);
+    if (!is_new) {
+      it->second.first = {std::min(it->second.first.x, t.x), std::min(it->second.first.y, t.y)};
+      it->second.second = {std::max(it->second.second.x, t.x), std::max(it->second.second.y, t.y)};
+    }
+  }
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+  if (!map.ok()) return map.status();
+  for (const auto& [p, range] : ranges) {
+    if (Status s = FetchPartition(p, range.first, range.second, *last, **map); !s.ok()) return s;
+  }
+  std::vector<CellEstimate> out;
+  out.reserve(cells.size());
+  for (CellIndex c : cells) out.push_back((*map)->Estimate(c));
+  return out;
+}
+
+}  // namespace bgkmap::cluster

@@ -1,0 +1,45 @@
+// Queries on any node of a cluster: the reads gather the statistics of the tiles a query needs
+// from the owners of their partitions (NATS request bgkmap.tiles.<partition>), as of at least
+// the log's last entry when the query began, put them in a map of their own and answer from it
+// with the engine's own estimates, so the answer is bitwise a single server's.
+#pragma once
+
+#include <atomic>
+#include <memory>
+
+#include "bgkmap/core/terrain_map.h"
+#include "cluster/membership.h"
+#include "cluster/nats_client.h"
+#include "cluster/partition_layout.h"
+#include "serving/map_reads.h"
+
+namespace bgkmap::cluster {
+
+class ClusterReads final : public MapReads {
+ public:
+  // `fetch_timeout_ms`: how long a partition may have no shard serving it (a takeover) before
+  // the read is Unavailable.
+  ClusterReads(const NatsClient& nats, const PartitionLayout& layout, const Membership& members,
+               const MapParams& params, int64_t fetch_timeout_ms);
+
+  uint64_t applied_version() const override;
+  Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                            int stride) override;
+  Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
+
+  // The tiles with min <= key <= max as of at least log entry `sequence`, in a map of their own.
+  Result<std::unique_ptr<TerrainMap>> Gather(TileKey min, TileKey max, uint64_t sequence) const;
+
+ private:
+  Status FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
+                        TerrainMap& into) const;
+
+  const NatsClient& nats_;
+  const PartitionLayout& layout_;
+  const Membership& members_;
+  const MapParams params_;
+  const int64_t fetch_timeout_ms_;
+  mutable std::atomic<uint64_t> last_sequence_{0};
+};
+
+}  // namespace bgkmap::cluster

@@ -1,0 +1,162 @@
+#include "cluster/membership.h"
+
+#include <algorithm>
+#include <mutex>
+#include <sstream>
+
+namespace bgkmap::cluster {
+namespace {
+
+Result<NatsPtr<kvStore>> OpenBucket(const NatsClient& nats, const char* name, int replicas,
+                                    int64_t ttl_ns) {
+  kvConfig cfg;
+  kvConfig_Init(&cfg);
+  cfg.Bucket = name;
+  cfg.History = 1;
+  cfg.Replicas = replicas;
+  cfg.StorageType = js_FileStorage;
+  cfg.TTL = ttl_ns;  // nats.c 3.4: nanoseconds
+  kvStore* kv = nullptr;
+  const natsStatus created = js_CreateKeyValue(&kv, nats.jetstream(), &cfg);
+  if (created == NATS_OK) return NatsPtr<kvStore>(kv);
+  const std::string why = nats_GetLastError(nullptr);
+  // Made by another node first.
+  if (js_KeyValue(&kv, nats.jetstream(), name) != NATS_OK) {
+    return NatsStatus(created, std::string("cluster: key-value bucket ") + name + " (" + why + ")");
+  }
+  return NatsPtr<kvStore>(kv);
+}
+
+Result<std::vector<std::string>> Keys(kvStore* kv) {
+  kvKeysList list{};
+  kvWatchOptions o;
+  kvWatchOptions_Init(&o);
+  o.Timeout = 2000;
+  const natsStatus st = kvStore_Keys(&list, kv, &o);
+  if (st == NATS_NOT_FOUND) return std::vector<std::string>{};
+  if (st != NATS_OK) return NatsStatus(st, "cluster: list keys");
+  std::vector<std::string> out(list.Keys, list.Keys + list.Count);
+  kvKeysList_Destroy(&list);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+uint64_t Fnv1a(const std::string& s) {
+  uint64_t h = 1469598103934665603ULL;
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 1099511628211ULL;
+  }
+  // A final mix: FNV's low bits alone spread nearby names poorly.
+  h ^= h >> 33;
+  h *= 0xff51afd7ed558ccdULL;
+  h ^= h >> 33;
+  return h;
+}
+
+std::string FirstDifference(const std::string& a, const std::string& b) {
+  std::istringstream sa(a), sb(b);
+  std::string la, lb;
+  while (true) {
+    const bool ga = static_cast<bool>(std::getline(sa, la));
+    const bool gb = static_cast<bool>(std::getline(sb, lb));
+    if (!ga && !gb) return "";
+    if (!ga || !gb || la != lb) return "this node has '" + la + "', the cluster '" + lb + "'";
+  }
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Membership>> Membership::Open(const NatsClient& nats,
+                                                     const MembershipOptions& options,
+                                                     const std::string& params_yaml) {
+  Result<NatsPtr<kvStore>> cluster = OpenBucket(nats, "bgkmap_cluster", options.replicas, 0);
+  if (!cluster.ok()) return cluster.status();
+  // The first node sets the parameters; every other one must have the same.
+  uint64_t rev = 0;
+  natsStatus st = kvStore_Create(&rev, cluster->get(), "params", params_yaml.data(),
+                                 static_cast<int>(params_yaml.size()));
+  if (st != NATS_OK) {
+    kvEntry* e = nullptr;
+    st = kvStore_Get(&e, cluster->get(), "params");
+    NatsPtr<kvEntry> entry(e);
+    if (st != NATS_OK) return NatsStatus(st, "cluster: read the cluster's map parameters");
+    const std::string theirs(static_cast<const char*>(kvEntry_Value(entry.get())),
+                             static_cast<size_t>(kvEntry_ValueLen(entry.get())));
+    if (theirs != params_yaml) {
+      return Status::FailedPrecondition("cluster: the map parameters differ from the cluster's: " +
+                                        FirstDifference(params_yaml, theirs));
+    }
+  }
+  Result<NatsPtr<kvStore>> nodes = OpenBucket(nats, "bgkmap_nodes", options.replicas,
+                                              static_cast<int64_t>(options.lease_s * 1e9));
+  if (!nodes.ok()) return nodes.status();
+  Result<NatsPtr<kvStore>> partitions = OpenBucket(nats, "bgkmap_partitions", options.replicas, 0);
+  if (!partitions.ok()) return partitions.status();
+  return std::unique_ptr<Membership>(new Membership(options, std::move(nodes).value().release(),
+                                                    std::move(partitions).value().release()));
+}
+
+Status Membership::Heartbeat() {
+  uint64_t rev = 0;
+  const natsStatus st = kvStore_PutString(&rev, nodes_.get(), options_.node.c_str(), "alive");
+  if (st != NATS_OK) return NatsStatus(st, "cluster: heartbeat");
+  return Status::Ok();
+}
+
+Result<std::vector<std::string>> Membership::LiveNodes() const { return Keys(nodes_.get()); }
+
+Result<std::vector<PartitionKey>> Membership::Partitions() const {
+  Result<std::vector<std::string>> keys = Keys(partitions_.get());
+  if (!keys.ok()) return keys.status();
+  std::vector<PartitionKey> out;
+  for (const std::string& k : *keys) {
+    if (std::optional<PartitionKey> p = ParsePartitionName(k)) out.push_back(*p);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+Status Membership::AddPartition(PartitionKey p) {
+  {
+    std::lock_guard lock(known_mu_);
+    if (known_.count(p) != 0) return Status::Ok();
+  }
+  uint64_t rev = 0;
+  const std::string name = PartitionName(p);
+  natsStatus st = kvStore_CreateString(&rev, partitions_.get(), name.c_str(), "1");
+  if (st != NATS_OK) {
+    // Another node recorded it first: fine, if it is really there.
+    Result<bool> has = HasPartition(p);
+    if (!has.ok()) return has.status();
+    if (!*has) return NatsStatus(st, "cluster: record partition " + name);
+  }
+  std::lock_guard lock(known_mu_);
+  known_.insert(p);
+  return Status::Ok();
+}
+
+Result<bool> Membership::HasPartition(PartitionKey p) const {
+  kvEntry* e = nullptr;
+  const natsStatus st = kvStore_Get(&e, partitions_.get(), PartitionName(p).c_str());
+  NatsPtr<kvEntry> entry(e);
+  if (st == NATS_NOT_FOUND) return false;
+  if (st != NATS_OK) return NatsStatus(st, "cluster: look up partition " + PartitionName(p));
+  return true;
+}
+
+std::string Membership::OwnerOf(PartitionKey p, const std::vector<std::string>& live) {
+  std::string best;
+  uint64_t best_hash = 0;
+  const std::string name = PartitionName(p);
+  for (const std::string& node : live) {
+    const uint64_t h = Fnv1a(node + "/" + name);
+    if (best.empty() || h > best_hash) {
+      best = node;
+      best_hash = h;
+    }
+  }
+  return best;
+}
+
+}  // namespace bgkmap::cluster

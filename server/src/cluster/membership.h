@@ -1,0 +1,65 @@
+// Who serves which partition, decided through JetStream's key-value store, not by an election
+// of our own:
+//   - bucket bgkmap_nodes (TTL = cluster.lease_s): each node puts its name every lease_s / 4; a
+//     node that stops (crash, partition from NATS) disappears when its key expires;
+//   - bucket bgkmap_partitions: every partition that ever received a scan (created by the node
+//     that appended it, before the append);
+//   - bucket bgkmap_cluster: the map parameters every node must share.
+// A partition's owner is the live node with the highest rendezvous hash of (node, partition):
+// every node computes the same owner from the same keys, and a node's death moves only its
+// partitions. Two nodes may briefly both serve a partition while the keys propagate; that is
+// harmless, because a partition is a deterministic function of the log.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+#include "cluster/nats_client.h"
+#include "cluster/partition_layout.h"
+
+namespace bgkmap::cluster {
+
+struct MembershipOptions {
+  std::string node;
+  int replicas = 1;
+  double lease_s = 3;
+};
+
+class Membership {
+ public:
+  // Opens (or creates) the buckets and checks that `params_yaml` equals the cluster's
+  // (FailedPrecondition naming the first line that differs).
+  static Result<std::unique_ptr<Membership>> Open(const NatsClient& nats,
+                                                  const MembershipOptions& options,
+                                                  const std::string& params_yaml);
+
+  // This node is alive: call every lease_s / 4.
+  Status Heartbeat();
+  // The nodes whose heartbeat has not expired, sorted.
+  Result<std::vector<std::string>> LiveNodes() const;
+  // Every partition that has data, sorted.
+  Result<std::vector<PartitionKey>> Partitions() const;
+  // Records that `p` has data (idempotent, cached).
+  Status AddPartition(PartitionKey p);
+  // Whether `p` has data, asked of the bucket (not the cache).
+  Result<bool> HasPartition(PartitionKey p) const;
+
+  // The owner of `p` among `live` ("" if none).
+  static std::string OwnerOf(PartitionKey p, const std::vector<std::string>& live);
+
+ private:
+  Membership(const MembershipOptions& options, kvStore* nodes, kvStore* partitions)
+      : options_(options), nodes_(nodes), partitions_(partitions) {}
+  const MembershipOptions options_;
+  NatsPtr<kvStore> nodes_;
+  NatsPtr<kvStore> partitions_;
+  std::mutex known_mu_;
+  std::set<PartitionKey> known_;  // partitions this node has recorded
+};
+
+}  // namespace bgkmap::cluster

@@ -1,0 +1,55 @@
+// A connection to a NATS cluster with JetStream, owned, and the nats.c handles the cluster code
+// uses wrapped so they are released on every path. nats.c reconnects by itself (to any server
+// of the cluster it knows of); calls made while it is reconnecting fail with a timeout, which
+// the callers treat as "retry".
+#pragma once
+
+#include <nats/nats.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+
+namespace bgkmap::cluster {
+
+struct NatsDeleter {
+  void operator()(natsMsg* m) const { natsMsg_Destroy(m); }
+  void operator()(natsSubscription* s) const { natsSubscription_Destroy(s); }
+  void operator()(kvEntry* e) const { kvEntry_Destroy(e); }
+  void operator()(kvStore* kv) const { kvStore_Destroy(kv); }
+  void operator()(jsPubAck* a) const { jsPubAck_Destroy(a); }
+  void operator()(jsMsgMetaData* m) const { jsMsgMetaData_Destroy(m); }
+  void operator()(jsStreamInfo* i) const { jsStreamInfo_Destroy(i); }
+};
+template <typename T>
+using NatsPtr = std::unique_ptr<T, NatsDeleter>;
+
+// `what`: what failed, then nats.c's text for `s` and JetStream's error code if any.
+Status NatsStatus(natsStatus s, const std::string& what,
+                  jsErrCode js_error = static_cast<jsErrCode>(0));
+
+class NatsClient {
+ public:
+  // Connects to any of `servers` ("nats://host:port"), reconnecting forever afterwards.
+  // Unavailable naming the servers if none answers within `timeout_ms`.
+  static Result<std::unique_ptr<NatsClient>> Connect(const std::vector<std::string>& servers,
+                                                     const std::string& name,
+                                                     int64_t timeout_ms = 5000);
+  ~NatsClient();
+  NatsClient(const NatsClient&) = delete;
+  NatsClient& operator=(const NatsClient&) = delete;
+
+  natsConnection* connection() const { return nc_; }
+  jsCtx* jetstream() const { return js_; }
+  // The largest message the servers accept (their max_payload).
+  int64_t max_payload() const { return natsConnection_GetMaxPayload(nc_); }
+
+ private:
+  NatsClient(natsConnection* nc, jsCtx* js) : nc_(nc), js_(js) {}
+  natsConnection* nc_;
+  jsCtx* js_;
+};
+
+}  // namespace bgkmap::cluster

@@ -1,0 +1,245 @@
+#include "cluster/partition_replica.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+#include "bgkmap/storage/tile_codec.h"
+#include "bgkmap/v1/cluster.pb.h"
+#include "cluster/cluster_log.h"
+
+namespace bgkmap::cluster {
+namespace {
+
+// Past this, a fetch that asks for entries the replica has not read yet is answered with an
+// error: the asking node retries (another replica, or later).
+constexpr int64_t kFetchWaitMs = 2000;
+
+std::string FetchSubject(PartitionKey key) { return "bgkmap.tiles." + PartitionName(key); }
+
+}  // namespace
+
+PartitionReplica::PartitionReplica(const NatsClient& nats, const PartitionLayout& layout,
+                                   PartitionKey key, std::unique_ptr<TerrainMap> map,
+                                   ScanPreparer prepare)
+    : nats_(nats),
+      layout_(layout),
+      key_(key),
+      halo_(layout.HaloCells(key)),
+      prepare_(std::move(prepare)),
+      map_(std::move(map)) {}
+
+Result<std::unique_ptr<PartitionReplica>> PartitionReplica::Start(const NatsClient& nats,
+                                                                  const PartitionLayout& layout,
+                                                                  PartitionKey key,
+                                                                  const MapParams& params,
+                                                                  ScanPreparer prepare) {
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params);
+  if (!map.ok()) return map.status();
+  // Caught up once every entry logged before the start is read: then it serves.
+  Result<uint64_t> end = LastSequence(nats);
+  if (!end.ok()) return end.status();
+  std::unique_ptr<PartitionReplica> replica(
+      new PartitionReplica(nats, layout, key, std::move(map).value(), std::move(prepare)));
+  jsSubOptions so;
+  jsSubOptions_Init(&so);
+  so.Ordered = true;  // one reader, in the log's order, recreated by nats.c after a failure
+  so.Config.DeliverPolicy = js_DeliverAll;
+  natsSubscription* sub = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = js_SubscribeSync(&sub, nats.jetstream(), kScanSubject, nullptr, &so, &jerr);
+  if (st != NATS_OK) {
+    return NatsStatus(st, "partition " + PartitionName(key) + ": cannot read the log", jerr);
+  }
+  replica->consumer_ = std::thread([r = replica.get(), sub, from = *end] { r->Run(sub, from); });
+  return replica;
+}
+
+PartitionReplica::~PartitionReplica() {
+  stop_ = true;
+  if (consumer_.joinable()) consumer_.join();
+  if (fetch_sub_) {
+    // Drained: no fetch callback runs on this object once it is gone.
+    if (natsSubscription_Drain(fetch_sub_.get()) == NATS_OK) {
+      natsSubscription_WaitForDrainCompletion(fetch_sub_.get(), 5000);
+    }
+  }
+  fetch_sub_.reset();
+}
+
+void PartitionReplica::Run(natsSubscription* log, uint64_t serve_from) {
+  NatsPtr<natsSubscription> owned(log);
+  while (!stop_) {
+    if (!serving_ && Stats().log_sequence >= serve_from) {
+      if (Status s = StartServing(); !s.ok()) {
+        spdlog::warn("event=partition_serve_failed partition={} reason=\"{}\"", PartitionName(key_),
+                     s.message());
+      }
+    }
+    natsMsg* raw = nullptr;
+    const natsStatus st = natsSubscription_NextMsg(&raw, log, 100);
+    if (st == NATS_TIMEOUT) continue;
+    if (st != NATS_OK) {
+      if (!stop_) {
+        spdlog::warn("event=partition_log_read_failed partition={} reason=\"{}\"",
+                     PartitionName(key_), natsStatus_GetText(st));
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      continue;
+    }
+    NatsPtr<natsMsg> msg(raw);
+    Apply(msg.get());
+  }
+  natsSubscription_Unsubscribe(log);
+}
+
+void PartitionReplica::Apply(natsMsg* msg) {
+  jsMsgMetaData* meta_raw = nullptr;
+  if (natsMsg_GetMetaData(&meta_raw, msg) != NATS_OK) return;  // not a log entry
+  NatsPtr<jsMsgMetaData> meta(meta_raw);
+  const uint64_t sequence = meta->Sequence.Stream;
+  std::unique_lock map_lock(map_mu_, std::defer_lock);
+  bool integrated = false;
+  Result<LogEntryHeader> header = ReadEntryHeader(msg);
+  if (!header.ok()) {
+    spdlog::error("event=log_entry_skipped sequence={} reason=\"{}\"", sequence,
+                  header.status().message());
+  } else if (auto [it, is_new] = robot_last_.try_emplace(header->robot_id, 0);
+             is_new || header->robot_sequence > it->second) {
+    // A scan at or below its robot's last sequence is a duplicate, as on a single server.
+    it->second = header->robot_sequence;
+    if (std::binary_search(header->touched.begin(), header->touched.end(), key_)) {
+      v1::Scan scan;
+      PreparedScan prepared;
+      Status s = Status::Ok();
+      if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
+        s = Status::DataLoss("the scan does not decode");
+      } else {
+        s = prepare_(scan, &prepared);
+      }
+      if (!s.ok()) {
+        spdlog::error("event=log_entry_skipped sequence={} partition={} reason=\"{}\"", sequence,
+                      PartitionName(key_), s.message());
+      } else {
+        const PreparedScan restricted = RestrictScan(map_->params(), prepared, halo_);
+        if (!restricted.cells.empty()) {
+          map_lock.lock();
+          const TileWindow window = map_->MakeWindow(restricted);
+          map_->Integrate(restricted, window, sequence);
+          integrated = true;
+        }
+      }
+    }
+  }
+  // Under the map's lock when it changed: a reader sees the tiles and their sequence together.
+  std::lock_guard progress(progress_mu_);
+  applied_ = sequence;
+  if (integrated) ++scans_integrated_;
+  progress_cv_.notify_all();
+}
+
+Status PartitionReplica::StartServing() {
+  natsSubscription* sub = nullptr;
+  const natsStatus st =
+      natsConnection_QueueSubscribe(&sub, nats_.connection(), FetchSubject(key_).c_str(), "owners",
+                                    &PartitionReplica::OnFetch, this);
+  if (st != NATS_OK) return NatsStatus(st, "subscribe " + FetchSubject(key_));
+  fetch_sub_.reset(sub);
+  {
+    std::lock_guard progress(progress_mu_);
+    catch_up_seconds_ =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  }
+  serving_ = true;
+  const ReplicaStats stats = Stats();
+  spdlog::info("event=partition_serving partition={} log_sequence={} catch_up_s={:.3f}",
+               PartitionName(key_), stats.log_sequence, stats.catch_up_seconds);
+  return Status::Ok();
+}
+
+void PartitionReplica::OnFetch(natsConnection*, natsSubscription*, natsMsg* msg, void* self) {
+  NatsPtr<natsMsg> owned(msg);
+  static_cast<PartitionReplica*>(self)->ServeFetch(msg);
+}
+
+void PartitionReplica::ServeFetch(natsMsg* msg) {
+  const char* reply_to = natsMsg_GetReply(msg);
+  if (reply_to == nullptr) return;
+  v1::TileFetchRequest request;
+  v1::TileFetchReply reply;
+  if (!request.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
+    reply.set_error("tile fetch: the request does not decode");
+  } else if (!WaitFor(request.min_log_sequence(), kFetchWaitMs)) {
+    reply.set_error("partition " + PartitionName(key_) + " has read the log up to " +
+                    std::to_string(Stats().log_sequence) + ", not yet " +
+                    std::to_string(request.min_log_sequence()));
+  } else {
+    const TileKey lo{std::max(request.min().x(), layout_.MinTile(key_).x),
+                     std::max(request.min().y(), layout_.MinTile(key_).y)};
+    const TileKey hi{std::min(request.max().x(), layout_.MaxTile(key_).x),
+                     std::min(request.max().y(), layout_.MaxTile(key_).y)};
+    const int64_t budget = nats_.max_payload() - 4096;
+    int64_t bytes = 0;
+    uint32_t skipped = 0;
+    std::shared_lock map_lock(map_mu_);
+    {
+      std::lock_guard progress(progress_mu_);
+      reply.set_log_sequence(applied_);
+    }
+    for (int x = lo.x; x <= hi.x && !reply.more(); ++x) {
+      for (int y = lo.y; y <= hi.y; ++y) {
+        const Tile* tile = map_->FindTile({x, y});
+        if (tile == nullptr) continue;
+        if (skipped < request.skip()) {
+          ++skipped;
+          continue;
+        }
+        std::string encoded = storage::EncodeTile(*tile);
+        if (bytes + static_cast<int64_t>(encoded.size()) + 16 > budget && reply.keys_size() > 0) {
+          reply.set_more(true);
+          break;
+        }
+        bytes += static_cast<int64_t>(encoded.size()) + 16;
+        v1::TileKey* k = reply.add_keys();
+        k->set_x(x);
+        k->set_y(y);
+        reply.add_tiles(std::move(encoded));
+      }
+    }
+  }
+  const std::string out = reply.SerializeAsString();
+  natsConnection_Publish(nats_.connection(), reply_to, out.data(), static_cast<int>(out.size()));
+}
+
+bool PartitionReplica::WaitFor(uint64_t sequence, int64_t timeout_ms) const {
+  std::unique_lock lock(progress_mu_);
+  return progress_cv_.wait_for(lock, std::chrono::milliseconds(timeout_ms),
+                               [&] { return applied_ >= sequence; });
+}
+
+ReplicaStats PartitionReplica::Stats() const {
+  ReplicaStats s;
+  s.key = key_;
+  {
+    std::lock_guard progress(progress_mu_);
+    s.log_sequence = applied_;
+    s.scans_integrated = scans_integrated_;
+    s.catch_up_seconds = catch_up_seconds_;
+  }
+  s.serving = serving_;
+  std::shared_lock map_lock(map_mu_);
+  s.tiles = map_->tile_count();
+  return s;
+}
+
+std::unique_ptr<TerrainMap> PartitionReplica::Snapshot() const {
+  std::unique_ptr<TerrainMap> out = TerrainMap::Create(map_->params()).value();
+  std::shared_lock map_lock(map_mu_);
+  const TileKey lo = layout_.MinTile(key_), hi = layout_.MaxTile(key_);
+  map_->ForEachTile([&](TileKey k, const Tile& t) {
+    if (k.x >= lo.x && k.x <= hi.x && k.y >= lo.y && k.y <= hi.y) out->SetTile(k, t);
+  });
+  return out;
+}
+
+}  // namespace bgkmap::cluster

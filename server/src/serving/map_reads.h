@@ -1,0 +1,30 @@
+// The reads a query handler makes: answered by the served map on a single server, or by a
+// cluster node that gathers the tiles from the partitions' owners (cluster/cluster_reads.h).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "bgkmap/core/cell_estimate.h"
+#include "bgkmap/core/grid.h"
+#include "bgkmap/core/raster.h"
+#include "bgkmap/core/status.h"
+
+namespace bgkmap {
+
+class MapReads {
+ public:
+  // The version the next reads will be at least at (the cluster: its log's last sequence).
+  virtual uint64_t applied_version() const = 0;
+  // IoError if the store cannot be read, DataLoss naming a corrupt tile, Unavailable if a
+  // cluster partition has no shard serving it.
+  virtual Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                                    int stride) = 0;
+  virtual Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) = 0;
+
+ protected:
+  ~MapReads() = default;
+};
+
+}  // namespace bgkmap
