@@ -31,11 +31,21 @@ int DecodeStatus(int status) {
 BgkmapdProcess::BgkmapdProcess(const std::vector<std::string>& extra) {
   std::vector<std::string> args = {BGKMAPD_PATH, "--listen", "127.0.0.1:0"};
   args.insert(args.end(), extra.begin(), extra.end());
+  Spawn(std::move(args), "event=listening .*port=([0-9]+)", /*with_stdout=*/false);
+}
+
+BgkmapdProcess::BgkmapdProcess(std::vector<std::string> argv, const std::string& ready) {
+  Spawn(std::move(argv), ready, /*with_stdout=*/true);
+}
+
+void BgkmapdProcess::Spawn(std::vector<std::string> args, const std::string& ready,
+                           bool with_stdout) {
   int fds[2];
   if (pipe(fds) != 0) return;
   pid_ = fork();
   if (pid_ == 0) {
     dup2(fds[1], STDERR_FILENO);
+    if (with_stdout) dup2(fds[1], STDOUT_FILENO);
     close(fds[0]);
     close(fds[1]);
     std::vector<char*> argv = Argv(args);
@@ -45,12 +55,12 @@ BgkmapdProcess::BgkmapdProcess(const std::vector<std::string>& extra) {
   close(fds[1]);
   reader_ = std::thread([this, fd = fds[0]] { ReadLog(fd); });
   std::unique_lock lock(mu_);
-  const std::regex listening("event=listening .*port=([0-9]+)");
+  const std::regex ready_line(ready);
   cv_.wait_for(lock, std::chrono::seconds(30), [&] {
     for (const std::string& l : lines_) {
       std::smatch m;
-      if (std::regex_search(l, m, listening)) {
-        port_ = std::stoi(m[1]);
+      if (std::regex_search(l, m, ready_line)) {
+        port_ = m.size() > 1 ? std::stoi(m[1]) : 1;
         return true;
       }
     }

@@ -16,6 +16,9 @@ class BgkmapdProcess {
  public:
   // Starts `bgkmapd --listen 127.0.0.1:0 <args>` and waits for its "event=listening" log line.
   explicit BgkmapdProcess(const std::vector<std::string>& args = {});
+  // Any program (`argv[0]` a path), started once a line of its output (stdout and stderr)
+  // matches `ready`; its first group, if any, is the port.
+  BgkmapdProcess(std::vector<std::string> argv, const std::string& ready);
   ~BgkmapdProcess();  // SIGKILL if still running
 
   bool started() const { return port_ > 0; }
@@ -36,6 +39,7 @@ class BgkmapdProcess {
   std::string WaitForLine(const std::string& needle, double seconds);
 
  private:
+  void Spawn(std::vector<std::string> args, const std::string& ready, bool with_stdout);
   void ReadLog(int fd);
   pid_t pid_ = -1;
   int port_ = 0;

@@ -10,6 +10,8 @@ namespace {
 constexpr const char* kRobotHeader = "Bgkmap-Robot";
 constexpr const char* kSequenceHeader = "Bgkmap-Sequence";
 constexpr const char* kTouchedHeader = "Bgkmap-Partitions";
+// How long an append or a read of the log's end waits out a stream leader's election.
+constexpr int64_t kElectionMs = 10000;
 
 }  // namespace
 
@@ -76,7 +78,13 @@ Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
   po.ExpectStream = kLogStream;
   jsPubAck* ack_raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
-  st = js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
+  // Repeating is safe: the message id stores it once.
+  st = RetryWhileElecting(
+      [&] {
+        jerr = static_cast<jsErrCode>(0);
+        return js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
+      },
+      kElectionMs);
   NatsPtr<jsPubAck> ack(ack_raw);
   if (st != NATS_OK) {
     Status s = NatsStatus(st, "scan not stored in the cluster log", jerr);
@@ -89,7 +97,9 @@ Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
 Result<uint64_t> LastSequence(const NatsClient& nats) {
   jsStreamInfo* info = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
-  const natsStatus st = js_GetStreamInfo(&info, nats.jetstream(), kLogStream, nullptr, &jerr);
+  const natsStatus st = RetryWhileElecting(
+      [&] { return js_GetStreamInfo(&info, nats.jetstream(), kLogStream, nullptr, &jerr); },
+      kElectionMs);
   NatsPtr<jsStreamInfo> owned(info);
   if (st != NATS_OK) {
     return Status::Unavailable(NatsStatus(st, "cluster log", jerr).message());

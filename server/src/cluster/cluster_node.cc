@@ -43,7 +43,17 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
   LogStreamOptions log;
   log.replicas = static_cast<int>(config.replicas);
   log.dedupe_window_s = config.dedupe_window_s;
-  if (Status s = EnsureLogStream(**nats, log); !s.ok()) return s;
+  // NATS may be starting with us (a clustered JetStream answers once it has elected its meta
+  // leader): wait for it a while rather than fail the start.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  for (Status s = EnsureLogStream(**nats, log); !s.ok(); s = EnsureLogStream(**nats, log)) {
+    if (s.code() == Status::Code::kFailedPrecondition ||
+        std::chrono::steady_clock::now() > deadline) {
+      return s;
+    }
+    spdlog::info("event=cluster_waiting_for_jetstream reason=\"{}\"", s.message());
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
   MembershipOptions mo;
   mo.node = config.node;
   mo.replicas = static_cast<int>(config.replicas);
@@ -55,6 +65,7 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
   if (Status s = node->members_->Heartbeat(); !s.ok()) return s;
   node->Rebalance();
   node->loop_ = std::thread([n = node.get()] { n->Run(); });
+  node->reader_ = std::thread([n = node.get()] { n->ReadLog(); });
   spdlog::info("event=cluster_joined node={} partition_tiles={} halo_cells={}", config.node,
                config.partition_tiles, node->layout_.halo_cells());
   return node;
@@ -67,7 +78,9 @@ ClusterNode::~ClusterNode() {
   }
   stop_cv_.notify_all();
   if (loop_.joinable()) loop_.join();
+  if (reader_.joinable()) reader_.join();
   std::lock_guard lock(mu_);
+  for (auto& [p, r] : replicas_) r->BeginStop();
   replicas_.clear();
 }
 
@@ -102,13 +115,10 @@ void ClusterNode::Run() {
 }
 
 void ClusterNode::Rebalance() {
-  Result<std::vector<std::string>> live = members_->LiveNodes();
-  Result<std::vector<PartitionKey>> partitions = members_->Partitions();
-  if (!live.ok() || !partitions.ok()) {
-    spdlog::warn("event=cluster_membership_unreadable reason=\"{}\"",
-                 (!live.ok() ? live.status() : partitions.status()).message());
-    return;
-  }
+  std::vector<std::string> live_nodes = members_->LiveNodes();
+  const std::vector<PartitionKey> known = members_->Partitions();
+  std::vector<std::string>* live = &live_nodes;
+  const std::vector<PartitionKey>* partitions = &known;
   // A node always counts itself: its own key may lag its first heartbeat.
   if (std::find(live->begin(), live->end(), config_.node) == live->end()) {
     live->push_back(config_.node);
@@ -116,7 +126,7 @@ void ClusterNode::Rebalance() {
   }
   const auto now = std::chrono::steady_clock::now();
   const auto grace = std::chrono::milliseconds(static_cast<int64_t>(config_.lease_s * 2000));
-  std::vector<std::unique_ptr<PartitionReplica>> stopped;
+  std::vector<std::shared_ptr<PartitionReplica>> stopped;
   {
     std::lock_guard lock(mu_);
     live_ = *live;
@@ -129,25 +139,130 @@ void ClusterNode::Rebalance() {
     if (mine) {
       leaving_.erase(p);
       if (running) continue;
-      Result<std::unique_ptr<PartitionReplica>> r =
-          PartitionReplica::Start(*nats_, layout_, p, params_, prepare_);
-      if (!r.ok()) {
+      // It serves once it has read the log up to its end as of now.
+      Result<uint64_t> end = LastSequence(*nats_);
+      Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+      if (!end.ok() || !map.ok()) {
         spdlog::warn("event=partition_start_failed partition={} reason=\"{}\"", PartitionName(p),
-                     r.status().message());
+                     (!end.ok() ? end.status() : map.status()).message());
         continue;
       }
       spdlog::info("event=partition_taken partition={} node={}", PartitionName(p), config_.node);
-      replicas_[p] = std::move(r).value();
+      replicas_[p] =
+          std::make_shared<PartitionReplica>(*nats_, layout_, p, std::move(map).value(), *end);
     } else if (running) {
       auto [it, is_new] = leaving_.try_emplace(p, now);
       if (now - it->second < grace) continue;
       spdlog::info("event=partition_released partition={} node={}", PartitionName(p), config_.node);
+      replicas_[p]->BeginStop();
       stopped.push_back(std::move(replicas_[p]));
       replicas_.erase(p);
       leaving_.erase(it);
     }
   }
   stopped.clear();  // outside the lock: a replica's stop waits for its threads
+}
+
+std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
+  std::lock_guard lock(mu_);
+  std::vector<std::shared_ptr<PartitionReplica>> out;
+  for (const auto& [p, r] : replicas_) out.push_back(r);
+  return out;
+}
+
+void ClusterNode::ReadLog() {
+  NatsPtr<natsSubscription> sub;
+  uint64_t passed = 0;  // the last entry the current reader delivered (its start - 1 at first)
+  auto stopping = [this] {
+    std::lock_guard lock(stop_mu_);
+    return stop_;
+  };
+  while (!stopping()) {
+    const std::vector<std::shared_ptr<PartitionReplica>> replicas = Replicas();
+    if (replicas.empty()) {
+      sub.reset();
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      continue;
+    }
+    uint64_t need = UINT64_MAX;
+    for (const auto& r : replicas) need = std::min(need, r->applied() + 1);
+    // A partition that needs an entry the reader has passed (a new one): read again from
+    // there; the others skip what they have.
+    if (!sub || need <= passed) {
+      sub.reset();
+      jsSubOptions so;
+      jsSubOptions_Init(&so);
+      so.Ordered = true;  // in the log's order, recreated by nats.c after a failure
+      so.Config.DeliverPolicy = js_DeliverByStartSequence;
+      so.Config.OptStartSeq = need;
+      natsSubscription* raw = nullptr;
+      jsErrCode jerr = static_cast<jsErrCode>(0);
+      const natsStatus st =
+          js_SubscribeSync(&raw, nats_->jetstream(), kScanSubject, nullptr, &so, &jerr);
+      if (st != NATS_OK) {
+        spdlog::warn("event=cluster_log_open_failed reason=\"{}\"",
+                     NatsStatus(st, "read the log", jerr).message());
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        continue;
+      }
+      sub.reset(raw);
+      passed = need - 1;
+    }
+    natsMsg* raw = nullptr;
+    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
+    if (st == NATS_TIMEOUT) continue;
+    if (st != NATS_OK) {
+      spdlog::warn("event=cluster_log_read_failed reason=\"{}\"", natsStatus_GetText(st));
+      sub.reset();
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      continue;
+    }
+    NatsPtr<natsMsg> msg(raw);
+    jsMsgMetaData* meta_raw = nullptr;
+    if (natsMsg_GetMetaData(&meta_raw, msg.get()) != NATS_OK) continue;
+    NatsPtr<jsMsgMetaData> meta(meta_raw);
+    const uint64_t sequence = meta->Sequence.Stream;
+    // Only the partitions that have every entry this reader delivered before this one.
+    std::vector<std::shared_ptr<PartitionReplica>> to;
+    for (const auto& r : replicas) {
+      const uint64_t applied = r->applied();
+      if (applied >= passed && applied < sequence) to.push_back(r);
+    }
+    passed = sequence;
+    Dispatch(sequence, msg.get(), to);
+  }
+}
+
+void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
+                           const std::vector<std::shared_ptr<PartitionReplica>>& to) {
+  Result<LogEntryHeader> header = ReadEntryHeader(msg);
+  std::vector<bool> integrate(to.size(), false);
+  bool any = false;
+  if (!header.ok()) {
+    spdlog::error("event=log_entry_skipped sequence={} reason=\"{}\"", sequence,
+                  header.status().message());
+  } else {
+    for (size_t i = 0; i < to.size(); ++i)
+      any = (integrate[i] = to[i]->Admit(sequence, *header)) || any;
+  }
+  PreparedScan prepared;
+  bool ready = false;
+  if (any) {
+    v1::Scan scan;
+    Status s = Status::Ok();
+    if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
+      s = Status::DataLoss("the scan does not decode");
+    } else {
+      s = prepare_(scan, &prepared);
+    }
+    ready = s.ok();
+    if (!ready) {
+      spdlog::error("event=log_entry_skipped sequence={} reason=\"{}\"", sequence, s.message());
+    }
+  }
+  for (size_t i = 0; i < to.size(); ++i) {
+    to[i]->Apply(sequence, integrate[i] && ready ? &prepared : nullptr);
+  }
 }
 
 ClusterStatus ClusterNode::Describe() const {

@@ -1,5 +1,6 @@
 // A bgkmapd running as a shard of a cluster (docs/scale-out.md): it appends the scans it
-// receives to the cluster's log, serves the partitions it owns from the log, and answers queries
+// receives to the cluster's log, builds the partitions it owns from the log (one reader for all
+// of them) and serves their tiles, and answers queries
 // by gathering tiles from their owners. The gRPC service in front is the single server's
 // (rpc/): it calls Append() instead of the served map's SubmitScan(), and reads through
 // reads() instead of the served map.
@@ -7,6 +8,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -23,6 +25,9 @@
 #include "cluster/partition_replica.h"
 
 namespace bgkmap::cluster {
+
+// Checks and prepares a scan exactly as the node that accepted it did (the same parameters).
+using ScanPreparer = std::function<Status(const v1::Scan&, PreparedScan*)>;
 
 struct ClusterStatus {
   std::string node;
@@ -52,6 +57,13 @@ class ClusterNode {
               std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members);
   void Run();        // the membership loop
   void Rebalance();  // starts the partitions this node owns, stops those it no longer does
+  // The log reader: one ordered reader of the log for all of this node's partitions, started
+  // again from an earlier entry when a new partition needs the log from its start.
+  void ReadLog();
+  std::vector<std::shared_ptr<PartitionReplica>> Replicas() const;
+  // Decodes and prepares entry `msg` once for every replica that integrates it.
+  void Dispatch(uint64_t sequence, natsMsg* msg,
+                const std::vector<std::shared_ptr<PartitionReplica>>& to);
 
   const ClusterConfig config_;
   const MapParams params_;
@@ -62,7 +74,7 @@ class ClusterNode {
   std::unique_ptr<ClusterReads> reads_;
 
   mutable std::mutex mu_;
-  std::map<PartitionKey, std::unique_ptr<PartitionReplica>> replicas_;
+  std::map<PartitionKey, std::shared_ptr<PartitionReplica>> replicas_;
   // Partitions served although another node owns them now, and since when (kept for a grace
   // period so the new owner can catch up before this one stops answering).
   std::map<PartitionKey, std::chrono::steady_clock::time_point> leaving_;
@@ -73,6 +85,7 @@ class ClusterNode {
   std::condition_variable stop_cv_;
   bool stop_ = false;
   std::thread loop_;
+  std::thread reader_;
 };
 
 }  // namespace bgkmap::cluster

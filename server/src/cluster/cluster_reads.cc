@@ -58,9 +58,8 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
       // Nobody serves it: a partition without data has nothing to serve; one with data is
       // being taken over.
       Result<bool> has = members_.HasPartition(p);
-      if (!has.ok()) return has.status();
-      if (!*has) return Status::Ok();
-      why = "no shard serves it";
+      if (has.ok() && !*has) return Status::Ok();
+      why = has.ok() ? "no shard serves it" : has.status().message();
     } else if (st != NATS_OK) {
       why = natsStatus_GetText(st);
     } else if (!reply.ParseFromArray(natsMsg_GetData(reply_msg.get()),

@@ -27,20 +27,6 @@ Result<NatsPtr<kvStore>> OpenBucket(const NatsClient& nats, const char* name, in
   return NatsPtr<kvStore>(kv);
 }
 
-Result<std::vector<std::string>> Keys(kvStore* kv) {
-  kvKeysList list{};
-  kvWatchOptions o;
-  kvWatchOptions_Init(&o);
-  o.Timeout = 2000;
-  const natsStatus st = kvStore_Keys(&list, kv, &o);
-  if (st == NATS_NOT_FOUND) return std::vector<std::string>{};
-  if (st != NATS_OK) return NatsStatus(st, "cluster: list keys");
-  std::vector<std::string> out(list.Keys, list.Keys + list.Count);
-  kvKeysList_Destroy(&list);
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 uint64_t Fnv1a(const std::string& s) {
   uint64_t h = 1469598103934665603ULL;
   for (unsigned char c : s) {
@@ -93,8 +79,58 @@ Result<std::unique_ptr<Membership>> Membership::Open(const NatsClient& nats,
   if (!nodes.ok()) return nodes.status();
   Result<NatsPtr<kvStore>> partitions = OpenBucket(nats, "bgkmap_partitions", options.replicas, 0);
   if (!partitions.ok()) return partitions.status();
-  return std::unique_ptr<Membership>(new Membership(options, std::move(nodes).value().release(),
-                                                    std::move(partitions).value().release()));
+  std::unique_ptr<Membership> m(new Membership(options, std::move(nodes).value().release(),
+                                               std::move(partitions).value().release()));
+  if (Status s = m->StartWatching(); !s.ok()) return s;
+  return m;
+}
+
+Membership::~Membership() {
+  stop_ = true;
+  for (std::thread& t : watchers_) t.join();
+}
+
+Status Membership::StartWatching() {
+  for (const bool nodes : {true, false}) {
+    kvStore* bucket = nodes ? nodes_.get() : partitions_.get();
+    watchers_.emplace_back([this, bucket, nodes] { Watch(bucket, nodes); });
+  }
+  return Status::Ok();
+}
+
+void Membership::Watch(kvStore* bucket, bool nodes) {
+  kvWatcher* watcher = nullptr;
+  while (!stop_ && watcher == nullptr) {
+    kvWatchOptions o;
+    kvWatchOptions_Init(&o);
+    o.MetaOnly = true;  // the keys are the news
+    if (kvStore_WatchAll(&watcher, bucket, &o) != NATS_OK) {
+      watcher = nullptr;
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+  }
+  while (!stop_) {
+    kvEntry* raw = nullptr;
+    const natsStatus st = kvWatcher_Next(&raw, watcher, 100);
+    if (st != NATS_OK || raw == nullptr) continue;  // timeout, or "initial values done"
+    NatsPtr<kvEntry> entry(raw);
+    const std::string key = kvEntry_Key(raw);
+    const bool put = kvEntry_Operation(raw) == kvOp_Put;
+    std::lock_guard lock(mu_);
+    if (nodes) {
+      if (put) {
+        seen_[key] = std::chrono::steady_clock::now();
+      } else {
+        seen_.erase(key);
+      }
+    } else if (std::optional<PartitionKey> p = ParsePartitionName(key); p && put) {
+      known_.insert(*p);
+    }
+  }
+  if (watcher != nullptr) {
+    kvWatcher_Stop(watcher);
+    kvWatcher_Destroy(watcher);
+  }
 }
 
 Status Membership::Heartbeat() {
@@ -104,22 +140,25 @@ Status Membership::Heartbeat() {
   return Status::Ok();
 }
 
-Result<std::vector<std::string>> Membership::LiveNodes() const { return Keys(nodes_.get()); }
-
-Result<std::vector<PartitionKey>> Membership::Partitions() const {
-  Result<std::vector<std::string>> keys = Keys(partitions_.get());
-  if (!keys.ok()) return keys.status();
-  std::vector<PartitionKey> out;
-  for (const std::string& k : *keys) {
-    if (std::optional<PartitionKey> p = ParsePartitionName(k)) out.push_back(*p);
+std::vector<std::string> Membership::LiveNodes() const {
+  const auto now = std::chrono::steady_clock::now();
+  const auto lease = std::chrono::duration<double>(options_.lease_s);
+  std::vector<std::string> out;
+  std::lock_guard lock(mu_);
+  for (const auto& [node, seen] : seen_) {
+    if (now - seen < lease) out.push_back(node);
   }
-  std::sort(out.begin(), out.end());
   return out;
+}
+
+std::vector<PartitionKey> Membership::Partitions() const {
+  std::lock_guard lock(mu_);
+  return {known_.begin(), known_.end()};
 }
 
 Status Membership::AddPartition(PartitionKey p) {
   {
-    std::lock_guard lock(known_mu_);
+    std::lock_guard lock(mu_);
     if (known_.count(p) != 0) return Status::Ok();
   }
   uint64_t rev = 0;
@@ -131,12 +170,16 @@ Status Membership::AddPartition(PartitionKey p) {
     if (!has.ok()) return has.status();
     if (!*has) return NatsStatus(st, "cluster: record partition " + name);
   }
-  std::lock_guard lock(known_mu_);
+  std::lock_guard lock(mu_);
   known_.insert(p);
   return Status::Ok();
 }
 
 Result<bool> Membership::HasPartition(PartitionKey p) const {
+  {
+    std::lock_guard lock(mu_);
+    if (known_.count(p) != 0) return true;
+  }
   kvEntry* e = nullptr;
   const natsStatus st = kvStore_Get(&e, partitions_.get(), PartitionName(p).c_str());
   NatsPtr<kvEntry> entry(e);

@@ -1,21 +1,27 @@
 // Who serves which partition, decided through JetStream's key-value store, not by an election
 // of our own:
 //   - bucket bgkmap_nodes (TTL = cluster.lease_s): each node puts its name every lease_s / 4; a
-//     node that stops (crash, partition from NATS) disappears when its key expires;
+//     node whose put has not been seen for lease_s (crash, cut off from NATS) is not live;
 //   - bucket bgkmap_partitions: every partition that ever received a scan (created by the node
 //     that appended it, before the append);
 //   - bucket bgkmap_cluster: the map parameters every node must share.
+// Both buckets are followed by one watcher each (a JetStream ordered consumer kept for the
+// node's life), so asking who is live or which partitions exist costs no request.
 // A partition's owner is the live node with the highest rendezvous hash of (node, partition):
 // every node computes the same owner from the same keys, and a node's death moves only its
 // partitions. Two nodes may briefly both serve a partition while the keys propagate; that is
 // harmless, because a partition is a deterministic function of the log.
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bgkmap/core/status.h"
@@ -40,10 +46,11 @@ class Membership {
 
   // This node is alive: call every lease_s / 4.
   Status Heartbeat();
-  // The nodes whose heartbeat has not expired, sorted.
-  Result<std::vector<std::string>> LiveNodes() const;
+  ~Membership();
+  // The nodes whose heartbeat was seen within lease_s, sorted.
+  std::vector<std::string> LiveNodes() const;
   // Every partition that has data, sorted.
-  Result<std::vector<PartitionKey>> Partitions() const;
+  std::vector<PartitionKey> Partitions() const;
   // Records that `p` has data (idempotent, cached).
   Status AddPartition(PartitionKey p);
   // Whether `p` has data, asked of the bucket (not the cache).
@@ -55,11 +62,17 @@ class Membership {
  private:
   Membership(const MembershipOptions& options, kvStore* nodes, kvStore* partitions)
       : options_(options), nodes_(nodes), partitions_(partitions) {}
+  Status StartWatching();
+  void Watch(kvStore* bucket, bool nodes);
+
   const MembershipOptions options_;
   NatsPtr<kvStore> nodes_;
   NatsPtr<kvStore> partitions_;
-  std::mutex known_mu_;
-  std::set<PartitionKey> known_;  // partitions this node has recorded
+  mutable std::mutex mu_;
+  std::map<std::string, std::chrono::steady_clock::time_point> seen_;  // node -> last put
+  std::set<PartitionKey> known_;                                       // partitions with data
+  std::atomic<bool> stop_{false};
+  std::vector<std::thread> watchers_;
 };
 
 }  // namespace bgkmap::cluster

@@ -6,8 +6,10 @@
 
 #include <nats/nats.h>
 
+#include <chrono>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bgkmap/core/status.h"
@@ -29,6 +31,22 @@ using NatsPtr = std::unique_ptr<T, NatsDeleter>;
 // `what`: what failed, then nats.c's text for `s` and JetStream's error code if any.
 Status NatsStatus(natsStatus s, const std::string& what,
                   jsErrCode js_error = static_cast<jsErrCode>(0));
+
+// Runs `call` (returning natsStatus) until it succeeds or `timeout_ms` passed, pausing between
+// tries: a JetStream cluster answers "no responders" or times out while it elects a new leader
+// for a stream whose leader died (a few seconds). Only for calls that are safe to repeat.
+template <typename Call>
+natsStatus RetryWhileElecting(Call call, int64_t timeout_ms) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
+  for (;;) {
+    const natsStatus st = call();
+    // NOT_FOUND is an answer (no such key), not a failure to get one.
+    if (st == NATS_OK || st == NATS_NOT_FOUND || std::chrono::steady_clock::now() >= deadline) {
+      return st;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+}
 
 class NatsClient {
  public:

@@ -6,12 +6,11 @@
 
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/v1/cluster.pb.h"
-#include "cluster/cluster_log.h"
 
 namespace bgkmap::cluster {
 namespace {
 
-// Past this, a fetch that asks for entries the replica has not read yet is answered with an
+// Past this, a fetch that asks for entries the replica has not applied yet is answered with an
 // error: the asking node retries (another replica, or later).
 constexpr int64_t kFetchWaitMs = 2000;
 
@@ -21,140 +20,91 @@ std::string FetchSubject(PartitionKey key) { return "bgkmap.tiles." + PartitionN
 
 PartitionReplica::PartitionReplica(const NatsClient& nats, const PartitionLayout& layout,
                                    PartitionKey key, std::unique_ptr<TerrainMap> map,
-                                   ScanPreparer prepare)
+                                   uint64_t serve_from)
     : nats_(nats),
       layout_(layout),
       key_(key),
       halo_(layout.HaloCells(key)),
-      prepare_(std::move(prepare)),
-      map_(std::move(map)) {}
+      serve_from_(serve_from),
+      map_(std::move(map)) {
+  if (serve_from_ == 0) StartServing();
+}
 
-Result<std::unique_ptr<PartitionReplica>> PartitionReplica::Start(const NatsClient& nats,
-                                                                  const PartitionLayout& layout,
-                                                                  PartitionKey key,
-                                                                  const MapParams& params,
-                                                                  ScanPreparer prepare) {
-  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params);
-  if (!map.ok()) return map.status();
-  // Caught up once every entry logged before the start is read: then it serves.
-  Result<uint64_t> end = LastSequence(nats);
-  if (!end.ok()) return end.status();
-  std::unique_ptr<PartitionReplica> replica(
-      new PartitionReplica(nats, layout, key, std::move(map).value(), std::move(prepare)));
-  jsSubOptions so;
-  jsSubOptions_Init(&so);
-  so.Ordered = true;  // one reader, in the log's order, recreated by nats.c after a failure
-  so.Config.DeliverPolicy = js_DeliverAll;
-  natsSubscription* sub = nullptr;
-  jsErrCode jerr = static_cast<jsErrCode>(0);
-  const natsStatus st = js_SubscribeSync(&sub, nats.jetstream(), kScanSubject, nullptr, &so, &jerr);
-  if (st != NATS_OK) {
-    return NatsStatus(st, "partition " + PartitionName(key) + ": cannot read the log", jerr);
+void PartitionReplica::BeginStop() {
+  std::lock_guard serve(serve_mu_);
+  if (stopped_) return;
+  stopped_ = true;
+  // Drained: no fetch callback runs on this object once the drain completes.
+  if (fetch_sub_ && natsSubscription_Drain(fetch_sub_.get()) != NATS_OK) {
+    natsSubscription_Unsubscribe(fetch_sub_.get());
   }
-  replica->consumer_ = std::thread([r = replica.get(), sub, from = *end] { r->Run(sub, from); });
-  return replica;
 }
 
 PartitionReplica::~PartitionReplica() {
-  stop_ = true;
-  if (consumer_.joinable()) consumer_.join();
-  if (fetch_sub_) {
-    // Drained: no fetch callback runs on this object once it is gone.
-    if (natsSubscription_Drain(fetch_sub_.get()) == NATS_OK) {
-      natsSubscription_WaitForDrainCompletion(fetch_sub_.get(), 5000);
-    }
-  }
+  BeginStop();
+  std::lock_guard serve(serve_mu_);
+  if (fetch_sub_) natsSubscription_WaitForDrainCompletion(fetch_sub_.get(), 5000);
   fetch_sub_.reset();
 }
 
-void PartitionReplica::Run(natsSubscription* log, uint64_t serve_from) {
-  NatsPtr<natsSubscription> owned(log);
-  while (!stop_) {
-    if (!serving_ && Stats().log_sequence >= serve_from) {
-      if (Status s = StartServing(); !s.ok()) {
-        spdlog::warn("event=partition_serve_failed partition={} reason=\"{}\"", PartitionName(key_),
-                     s.message());
-      }
-    }
-    natsMsg* raw = nullptr;
-    const natsStatus st = natsSubscription_NextMsg(&raw, log, 100);
-    if (st == NATS_TIMEOUT) continue;
-    if (st != NATS_OK) {
-      if (!stop_) {
-        spdlog::warn("event=partition_log_read_failed partition={} reason=\"{}\"",
-                     PartitionName(key_), natsStatus_GetText(st));
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      continue;
-    }
-    NatsPtr<natsMsg> msg(raw);
-    Apply(msg.get());
-  }
-  natsSubscription_Unsubscribe(log);
+uint64_t PartitionReplica::applied() const {
+  std::lock_guard progress(progress_mu_);
+  return applied_;
 }
 
-void PartitionReplica::Apply(natsMsg* msg) {
-  jsMsgMetaData* meta_raw = nullptr;
-  if (natsMsg_GetMetaData(&meta_raw, msg) != NATS_OK) return;  // not a log entry
-  NatsPtr<jsMsgMetaData> meta(meta_raw);
-  const uint64_t sequence = meta->Sequence.Stream;
+bool PartitionReplica::Admit(uint64_t /*sequence*/, const LogEntryHeader& header) {
+  // A scan at or below its robot's last sequence is a duplicate, as on a single server.
+  auto [it, is_new] = robot_last_.try_emplace(header.robot_id, 0);
+  if (!is_new && header.robot_sequence <= it->second) return false;
+  it->second = header.robot_sequence;
+  return std::binary_search(header.touched.begin(), header.touched.end(), key_);
+}
+
+void PartitionReplica::Apply(uint64_t sequence, const PreparedScan* prepared) {
   std::unique_lock map_lock(map_mu_, std::defer_lock);
   bool integrated = false;
-  Result<LogEntryHeader> header = ReadEntryHeader(msg);
-  if (!header.ok()) {
-    spdlog::error("event=log_entry_skipped sequence={} reason=\"{}\"", sequence,
-                  header.status().message());
-  } else if (auto [it, is_new] = robot_last_.try_emplace(header->robot_id, 0);
-             is_new || header->robot_sequence > it->second) {
-    // A scan at or below its robot's last sequence is a duplicate, as on a single server.
-    it->second = header->robot_sequence;
-    if (std::binary_search(header->touched.begin(), header->touched.end(), key_)) {
-      v1::Scan scan;
-      PreparedScan prepared;
-      Status s = Status::Ok();
-      if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
-        s = Status::DataLoss("the scan does not decode");
-      } else {
-        s = prepare_(scan, &prepared);
-      }
-      if (!s.ok()) {
-        spdlog::error("event=log_entry_skipped sequence={} partition={} reason=\"{}\"", sequence,
-                      PartitionName(key_), s.message());
-      } else {
-        const PreparedScan restricted = RestrictScan(map_->params(), prepared, halo_);
-        if (!restricted.cells.empty()) {
-          map_lock.lock();
-          const TileWindow window = map_->MakeWindow(restricted);
-          map_->Integrate(restricted, window, sequence);
-          integrated = true;
-        }
-      }
+  if (prepared != nullptr) {
+    const PreparedScan restricted = RestrictScan(map_->params(), *prepared, halo_);
+    if (!restricted.cells.empty()) {
+      map_lock.lock();
+      const TileWindow window = map_->MakeWindow(restricted);
+      map_->Integrate(restricted, window, sequence);
+      integrated = true;
     }
   }
-  // Under the map's lock when it changed: a reader sees the tiles and their sequence together.
-  std::lock_guard progress(progress_mu_);
-  applied_ = sequence;
-  if (integrated) ++scans_integrated_;
-  progress_cv_.notify_all();
+  {
+    // Under the map's lock when it changed: a reader sees the tiles and their sequence together.
+    std::lock_guard progress(progress_mu_);
+    applied_ = sequence;
+    if (integrated) ++scans_integrated_;
+    progress_cv_.notify_all();
+  }
+  if (map_lock.owns_lock()) map_lock.unlock();
+  if (!serving_ && sequence >= serve_from_) StartServing();
 }
 
-Status PartitionReplica::StartServing() {
+void PartitionReplica::StartServing() {
+  std::lock_guard serve(serve_mu_);
+  if (stopped_ || serving_) return;
   natsSubscription* sub = nullptr;
   const natsStatus st =
       natsConnection_QueueSubscribe(&sub, nats_.connection(), FetchSubject(key_).c_str(), "owners",
                                     &PartitionReplica::OnFetch, this);
-  if (st != NATS_OK) return NatsStatus(st, "subscribe " + FetchSubject(key_));
+  if (st != NATS_OK) {
+    // Tried again after the next entry (or by the reader when idle).
+    spdlog::warn("event=partition_serve_failed partition={} reason=\"{}\"", PartitionName(key_),
+                 natsStatus_GetText(st));
+    return;
+  }
   fetch_sub_.reset(sub);
   {
     std::lock_guard progress(progress_mu_);
     catch_up_seconds_ =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - created_).count();
   }
   serving_ = true;
-  const ReplicaStats stats = Stats();
   spdlog::info("event=partition_serving partition={} log_sequence={} catch_up_s={:.3f}",
-               PartitionName(key_), stats.log_sequence, stats.catch_up_seconds);
-  return Status::Ok();
+               PartitionName(key_), serve_from_, catch_up_seconds_);
 }
 
 void PartitionReplica::OnFetch(natsConnection*, natsSubscription*, natsMsg* msg, void* self) {

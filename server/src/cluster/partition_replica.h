@@ -1,11 +1,12 @@
-// One partition of the map on a shard: its tiles (with the halo its cells need), built by reading
-// the cluster's log from the start in the log's order, and served to any node that asks
-// (subject bgkmap.tiles.<partition>, queue group "owners") once it has caught up.
+// One partition of the map on a shard: its tiles (with the halo its cells need), built from the
+// cluster's log in the log's order, and served to any node that asks (subject
+// bgkmap.tiles.<partition>, queue group "owners") once it has caught up with the log's end as
+// of its start.
 //
-// Every entry of the log passes through, so the robots' sequence numbers are judged as a single
-// server judges them (a scan at or below its robot's last sequence is not applied); only the
-// scans whose halo holds this partition are decoded, prepared, cut to the halo (RestrictScan)
-// and integrated. Tiles are stamped with the entry's log sequence number.
+// The node's log reader (LogReader) hands it every entry after the last it applied, so the robots'
+// sequence numbers are judged as a single server judges them (a scan at or below its robot's
+// last sequence is not applied); only the scans whose halo holds this partition are cut to the
+// halo (RestrictScan) and integrated. Tiles are stamped with the entry's log sequence number.
 #pragma once
 
 #include <atomic>
@@ -17,39 +18,45 @@
 #include <mutex>
 #include <shared_mutex>
 #include <string>
-#include <thread>
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/v1/ingest.pb.h"
+#include "cluster/cluster_log.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 
 namespace bgkmap::cluster {
 
-// Checks and prepares a scan exactly as the node that accepted it did (the same parameters).
-using ScanPreparer = std::function<Status(const v1::Scan&, PreparedScan*)>;
-
 struct ReplicaStats {
   PartitionKey key;
-  uint64_t log_sequence = 0;  // entries read
+  uint64_t log_sequence = 0;  // entries applied
   uint64_t scans_integrated = 0;
   uint64_t tiles = 0;
   bool serving = false;
-  double catch_up_seconds = 0;  // from start to serving
+  double catch_up_seconds = 0;  // from creation to serving
 };
 
 class PartitionReplica {
  public:
-  static Result<std::unique_ptr<PartitionReplica>> Start(const NatsClient& nats,
-                                                         const PartitionLayout& layout,
-                                                         PartitionKey key, const MapParams& params,
-                                                         ScanPreparer prepare);
-  ~PartitionReplica();  // stops reading and serving
+  // `serve_from`: the log's last sequence at creation; it serves once it has applied that.
+  PartitionReplica(const NatsClient& nats, const PartitionLayout& layout, PartitionKey key,
+                   std::unique_ptr<TerrainMap> map, uint64_t serve_from);
+  ~PartitionReplica();  // BeginStop, then waits for running fetches
   PartitionReplica(const PartitionReplica&) = delete;
   PartitionReplica& operator=(const PartitionReplica&) = delete;
 
   PartitionKey key() const { return key_; }
+  uint64_t applied() const;
+  // Entry `sequence` (after applied()): records its robot's sequence and says whether its scan
+  // is to be integrated here (not a duplicate, and it touches this partition).
+  bool Admit(uint64_t sequence, const LogEntryHeader& header);
+  // Applies entry `sequence`: integrates `prepared` (the whole scan; null: nothing here) cut to
+  // the halo. Then serves, once caught up.
+  void Apply(uint64_t sequence, const PreparedScan* prepared);
+  // Stops taking fetches without waiting: many replicas stop in parallel.
+  void BeginStop();
+
   ReplicaStats Stats() const;
   // Blocks until every entry up to `sequence` is applied, or `timeout_ms` passed (false).
   bool WaitFor(uint64_t sequence, int64_t timeout_ms) const;
@@ -57,11 +64,7 @@ class PartitionReplica {
   std::unique_ptr<TerrainMap> Snapshot() const;
 
  private:
-  PartitionReplica(const NatsClient& nats, const PartitionLayout& layout, PartitionKey key,
-                   std::unique_ptr<TerrainMap> map, ScanPreparer prepare);
-  void Run(natsSubscription* log, uint64_t serve_from);
-  void Apply(natsMsg* msg);
-  Status StartServing();
+  void StartServing();
   static void OnFetch(natsConnection* nc, natsSubscription* sub, natsMsg* msg, void* self);
   void ServeFetch(natsMsg* msg);
 
@@ -69,10 +72,10 @@ class PartitionReplica {
   const PartitionLayout& layout_;
   const PartitionKey key_;
   const CellBox halo_;
-  const ScanPreparer prepare_;
-  const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  const uint64_t serve_from_;
+  const std::chrono::steady_clock::time_point created_ = std::chrono::steady_clock::now();
 
-  mutable std::shared_mutex map_mu_;  // the consumer writes, fetches read
+  mutable std::shared_mutex map_mu_;  // the log reader writes, fetches read
   std::unique_ptr<TerrainMap> map_;
 
   mutable std::mutex progress_mu_;
@@ -80,12 +83,12 @@ class PartitionReplica {
   uint64_t applied_ = 0;
   uint64_t scans_integrated_ = 0;
   double catch_up_seconds_ = 0;
-  std::map<std::string, uint64_t> robot_last_;  // consumer thread only
+  std::map<std::string, uint64_t> robot_last_;  // the log reader's thread only
 
-  std::atomic<bool> stop_{false};
+  std::mutex serve_mu_;  // guards fetch_sub_ and stopping
+  bool stopped_ = false;
   std::atomic<bool> serving_{false};
   NatsPtr<natsSubscription> fetch_sub_;
-  std::thread consumer_;
 };
 
 }  // namespace bgkmap::cluster

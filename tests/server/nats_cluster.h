@@ -1,0 +1,37 @@
+// Real nats-server processes with JetStream on loopback ports for the cluster tests: one
+// server, or a cluster of several (routes between them, so streams can have replicas).
+// Each server can be killed (SIGKILL) and restarted on the same ports and store.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmapd_process.h"
+
+namespace bgkmap::testing {
+
+class NatsCluster {
+ public:
+  // `dir`: where configs and JetStream stores go (one subdirectory per server).
+  NatsCluster(int servers, const std::string& dir);
+  // Every server is up and, for a cluster, JetStream has a meta leader.
+  bool started() const { return started_; }
+  // Every client URL, comma-separated (what cluster.nats takes).
+  std::string urls() const;
+  std::string url(int i) const;
+  void Kill(int i);
+  bool Restart(int i);  // true once the server is up again
+
+ private:
+  bool Launch(int i);
+  std::string dir_;
+  std::vector<int> client_ports_, route_ports_;
+  std::vector<std::unique_ptr<BgkmapdProcess>> servers_;
+  bool started_ = false;
+};
+
+// A free TCP port on 127.0.0.1 (bound, then released).
+int FreeLoopbackPort();
+
+}  // namespace bgkmap::testing
