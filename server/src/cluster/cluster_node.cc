@@ -63,7 +63,6 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
   std::unique_ptr<ClusterNode> node(new ClusterNode(
       config, params, std::move(prepare), std::move(nats).value(), std::move(members).value()));
   if (Status s = node->members_->Heartbeat(); !s.ok()) return s;
-  node->Rebalance();
   node->loop_ = std::thread([n = node.get()] { n->Run(); });
   node->reader_ = std::thread([n = node.get()] { n->ReadLog(); });
   spdlog::info("event=cluster_joined node={} partition_tiles={} halo_cells={}", config.node,
@@ -103,13 +102,18 @@ Result<Appended> ClusterNode::Append(const v1::Scan& scan, const PreparedScan& p
 
 void ClusterNode::Run() {
   const auto period = std::chrono::milliseconds(static_cast<int64_t>(config_.lease_s * 250));
+  // Partitions are taken only after one lease: by then this node has seen every live node's
+  // heartbeat, so nodes started together split the partitions instead of each taking all.
+  const auto first_rebalance =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(
+                                             static_cast<int64_t>(config_.lease_s * 1000));
   std::unique_lock lock(stop_mu_);
   while (!stop_cv_.wait_for(lock, period, [this] { return stop_; })) {
     lock.unlock();
     if (Status s = members_->Heartbeat(); !s.ok()) {
       spdlog::warn("event=cluster_heartbeat_failed reason=\"{}\"", s.message());
     }
-    Rebalance();
+    if (std::chrono::steady_clock::now() >= first_rebalance) Rebalance();
     lock.lock();
   }
 }
