@@ -246,6 +246,9 @@ const std::vector<ServerKey>& ClusterKeys() {
       Key<double>(
           "dedupe_window_s", [](ServerConfig & c) -> auto& { return c.cluster.dedupe_window_s; },
           "cluster"),
+      Key<uint32_t>(
+          "checkpoint_scans",
+          [](ServerConfig & c) -> auto& { return c.cluster.checkpoint_scans; }, "cluster"),
   };
   return keys;
 }

@@ -2,9 +2,10 @@
 // (PartitionLayout::HaloCells, RestrictScan). The claim: its partitions' tiles are then bitwise
 // those of the whole map. Checked on the real street scans, with dynamics on (free-space rays)
 // and off, and shown to fail with a halo that is too small (so the test can see a wrong halo).
+#include "cluster/partition_layout.h"
+
 #include <gtest/gtest.h>
 
-#include "cluster/partition_layout.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -94,7 +95,10 @@ TEST_P(RestrictScanTest, PartitionTilesEqualTheWholeMapsBitwise) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Dynamics, RestrictScanTest,
-                         ::testing::Values(Dynamics::kOn, Dynamics::kOff));
+                         ::testing::Values(Dynamics::kOn, Dynamics::kOff),
+                         [](const ::testing::TestParamInfo<Dynamics>& p) {
+                           return std::string(p.param == Dynamics::kOn ? "On" : "Off");
+                         });
 
 TEST(RestrictScanTest, TooSmallAHaloIsSeen) {
   // Mutation check of the test above: a halo without the free-space rays' reach (2 l + r + 2

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <future>
 #include <sstream>
 
 namespace bgkmap::cluster {
@@ -54,6 +55,9 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
     spdlog::info("event=cluster_waiting_for_jetstream reason=\"{}\"", s.message());
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
   }
+  if (Status s = EnsureCheckpointStream(**nats, static_cast<int>(config.replicas)); !s.ok()) {
+    return s;
+  }
   MembershipOptions mo;
   mo.node = config.node;
   mo.replicas = static_cast<int>(config.replicas);
@@ -64,6 +68,7 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
       config, params, std::move(prepare), std::move(nats).value(), std::move(members).value()));
   if (Status s = node->members_->Heartbeat(); !s.ok()) return s;
   node->loop_ = std::thread([n = node.get()] { n->Run(); });
+  node->checkpoint_writer_ = std::thread([n = node.get()] { n->WriteCheckpoints(); });
   node->reader_ = std::thread([n = node.get()] { n->ReadLog(); });
   spdlog::info("event=cluster_joined node={} partition_tiles={} halo_cells={}", config.node,
                config.partition_tiles, node->layout_.halo_cells());
@@ -78,6 +83,8 @@ ClusterNode::~ClusterNode() {
   stop_cv_.notify_all();
   if (loop_.joinable()) loop_.join();
   if (reader_.joinable()) reader_.join();
+  checkpoint_cv_.notify_all();
+  if (checkpoint_writer_.joinable()) checkpoint_writer_.join();
   std::lock_guard lock(mu_);
   for (auto& [p, r] : replicas_) r->BeginStop();
   replicas_.clear();
@@ -105,8 +112,8 @@ void ClusterNode::Run() {
   // Partitions are taken only after one lease: by then this node has seen every live node's
   // heartbeat, so nodes started together split the partitions instead of each taking all.
   const auto first_rebalance =
-      std::chrono::steady_clock::now() + std::chrono::milliseconds(
-                                             static_cast<int64_t>(config_.lease_s * 1000));
+      std::chrono::steady_clock::now() +
+      std::chrono::milliseconds(static_cast<int64_t>(config_.lease_s * 1000));
   std::unique_lock lock(stop_mu_);
   while (!stop_cv_.wait_for(lock, period, [this] { return stop_; })) {
     lock.unlock();
@@ -119,52 +126,82 @@ void ClusterNode::Run() {
 }
 
 void ClusterNode::Rebalance() {
-  std::vector<std::string> live_nodes = members_->LiveNodes();
+  std::vector<std::string> live = members_->LiveNodes();
   const std::vector<PartitionKey> known = members_->Partitions();
-  std::vector<std::string>* live = &live_nodes;
-  const std::vector<PartitionKey>* partitions = &known;
   // A node always counts itself: its own key may lag its first heartbeat.
-  if (std::find(live->begin(), live->end(), config_.node) == live->end()) {
-    live->push_back(config_.node);
-    std::sort(live->begin(), live->end());
+  if (std::find(live.begin(), live.end(), config_.node) == live.end()) {
+    live.push_back(config_.node);
+    std::sort(live.begin(), live.end());
   }
   const auto now = std::chrono::steady_clock::now();
   const auto grace = std::chrono::milliseconds(static_cast<int64_t>(config_.lease_s * 2000));
   std::vector<std::shared_ptr<PartitionReplica>> stopped;
+  std::vector<PartitionKey> to_take;
   {
     std::lock_guard lock(mu_);
-    live_ = *live;
-    partitions_known_ = partitions->size();
-  }
-  for (PartitionKey p : *partitions) {
-    const bool mine = Membership::OwnerOf(p, *live) == config_.node;
-    std::lock_guard lock(mu_);
-    const bool running = replicas_.count(p) != 0;
-    if (mine) {
-      leaving_.erase(p);
-      if (running) continue;
-      // It serves once it has read the log up to its end as of now.
-      Result<uint64_t> end = LastSequence(*nats_);
-      Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
-      if (!end.ok() || !map.ok()) {
-        spdlog::warn("event=partition_start_failed partition={} reason=\"{}\"", PartitionName(p),
-                     (!end.ok() ? end.status() : map.status()).message());
-        continue;
+    live_ = live;
+    partitions_known_ = known.size();
+    for (PartitionKey p : known) {
+      const bool mine = Membership::OwnerOf(p, live) == config_.node;
+      const bool running = replicas_.count(p) != 0;
+      if (mine) {
+        leaving_.erase(p);
+        if (!running) to_take.push_back(p);
+      } else if (running) {
+        auto [it, is_new] = leaving_.try_emplace(p, now);
+        if (now - it->second < grace) continue;
+        spdlog::info("event=partition_released partition={} node={}", PartitionName(p),
+                     config_.node);
+        replicas_[p]->BeginStop();
+        stopped.push_back(std::move(replicas_[p]));
+        replicas_.erase(p);
+        leaving_.erase(it);
       }
-      spdlog::info("event=partition_taken partition={} node={}", PartitionName(p), config_.node);
-      replicas_[p] =
-          std::make_shared<PartitionReplica>(*nats_, layout_, p, std::move(map).value(), *end);
-    } else if (running) {
-      auto [it, is_new] = leaving_.try_emplace(p, now);
-      if (now - it->second < grace) continue;
-      spdlog::info("event=partition_released partition={} node={}", PartitionName(p), config_.node);
-      replicas_[p]->BeginStop();
-      stopped.push_back(std::move(replicas_[p]));
-      replicas_.erase(p);
-      leaving_.erase(it);
     }
   }
   stopped.clear();  // outside the lock: a replica's stop waits for its threads
+  if (to_take.empty()) return;
+  // Without the lock (the log reader goes on): each new partition serves once it has read the
+  // log up to its end as of now, starting from its newest checkpoint if there is one. The
+  // checkpoints are read a few at a time.
+  Result<uint64_t> end = LastSequence(*nats_);
+  if (!end.ok()) {
+    spdlog::warn("event=partition_start_failed reason=\"{}\"", end.status().message());
+    return;
+  }
+  constexpr size_t kParallelReads = 8;
+  for (size_t first = 0; first < to_take.size(); first += kParallelReads) {
+    std::vector<std::future<std::shared_ptr<PartitionReplica>>> started;
+    for (size_t i = first; i < std::min(to_take.size(), first + kParallelReads); ++i) {
+      started.push_back(std::async(std::launch::async, [this, p = to_take[i], end = *end] {
+        return TakePartition(p, end);
+      }));
+    }
+    std::lock_guard lock(mu_);
+    for (auto& f : started) {
+      std::shared_ptr<PartitionReplica> r = f.get();
+      if (r != nullptr) replicas_[r->key()] = std::move(r);
+    }
+  }
+}
+
+std::shared_ptr<PartitionReplica> ClusterNode::TakePartition(PartitionKey p, uint64_t end) {
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+  if (!map.ok()) return nullptr;
+  Result<std::optional<PartitionCheckpoint>> restored =
+      ReadCheckpoint(*nats_, p, params_.tile_size);
+  if (!restored.ok()) {
+    // The log is whole: the partition is rebuilt from its start instead.
+    spdlog::warn("event=partition_checkpoint_unreadable partition={} reason=\"{}\"",
+                 PartitionName(p), restored.status().message());
+    restored = std::optional<PartitionCheckpoint>();
+  }
+  const uint64_t from = *restored ? (*restored)->log_sequence : 0;
+  const size_t tiles = *restored ? (*restored)->tiles.size() : 0;
+  spdlog::info("event=partition_taken partition={} node={} restored_from={} tiles={}",
+               PartitionName(p), config_.node, from, tiles);
+  return std::make_shared<PartitionReplica>(*nats_, layout_, p, std::move(map).value(), end,
+                                            std::move(restored).value());
 }
 
 std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
@@ -234,6 +271,56 @@ void ClusterNode::ReadLog() {
     }
     passed = sequence;
     Dispatch(sequence, msg.get(), to);
+    QueueCheckpoints(to);
+  }
+}
+
+void ClusterNode::QueueCheckpoints(const std::vector<std::shared_ptr<PartitionReplica>>& to) {
+  for (const auto& r : to) {
+    {
+      // A partition on its way to another owner is checkpointed by that owner.
+      std::lock_guard lock(mu_);
+      if (leaving_.count(r->key()) != 0) continue;
+    }
+    std::optional<PartitionCheckpoint> c = r->CheckpointIfDue(config_.checkpoint_scans);
+    if (!c) continue;
+    std::lock_guard lock(checkpoint_mu_);
+    pending_checkpoints_.insert_or_assign(r->key(), std::move(*c));
+    checkpoint_cv_.notify_one();
+  }
+}
+
+void ClusterNode::WriteCheckpoints() {
+  for (;;) {
+    PartitionKey key;
+    PartitionCheckpoint c;
+    {
+      std::unique_lock lock(checkpoint_mu_);
+      checkpoint_cv_.wait_for(lock, std::chrono::milliseconds(200),
+                              [this] { return !pending_checkpoints_.empty(); });
+      {
+        std::lock_guard stop(stop_mu_);
+        if (stop_) return;
+      }
+      if (pending_checkpoints_.empty()) continue;
+      auto first = pending_checkpoints_.begin();
+      key = first->first;
+      c = std::move(first->second);
+      pending_checkpoints_.erase(first);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const Status s = WriteCheckpoint(*nats_, key, c);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (s.ok()) {
+      spdlog::info(
+          "event=partition_checkpointed partition={} log_sequence={} tiles={} "
+          "seconds={:.3f}",
+          PartitionName(key), c.log_sequence, c.tiles.size(), seconds);
+    } else {
+      spdlog::warn("event=partition_checkpoint_failed partition={} reason=\"{}\"",
+                   PartitionName(key), s.message());
+    }
   }
 }
 

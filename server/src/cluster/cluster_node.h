@@ -57,6 +57,8 @@ class ClusterNode {
               std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members);
   void Run();        // the membership loop
   void Rebalance();  // starts the partitions this node owns, stops those it no longer does
+  // A replica of `p` from its newest checkpoint (or empty), serving once it reads `end`.
+  std::shared_ptr<PartitionReplica> TakePartition(PartitionKey p, uint64_t end);
   // The log reader: one ordered reader of the log for all of this node's partitions, started
   // again from an earlier entry when a new partition needs the log from its start.
   void ReadLog();
@@ -64,6 +66,9 @@ class ClusterNode {
   // Decodes and prepares entry `msg` once for every replica that integrates it.
   void Dispatch(uint64_t sequence, natsMsg* msg,
                 const std::vector<std::shared_ptr<PartitionReplica>>& to);
+  // Copies the owned partitions of `to` that are due (cluster.checkpoint_scans) for the writer.
+  void QueueCheckpoints(const std::vector<std::shared_ptr<PartitionReplica>>& to);
+  void WriteCheckpoints();  // the checkpoint writer's loop
 
   const ClusterConfig config_;
   const MapParams params_;
@@ -86,6 +91,11 @@ class ClusterNode {
   bool stop_ = false;
   std::thread loop_;
   std::thread reader_;
+
+  std::mutex checkpoint_mu_;
+  std::condition_variable checkpoint_cv_;
+  std::map<PartitionKey, PartitionCheckpoint> pending_checkpoints_;  // newest per partition
+  std::thread checkpoint_writer_;
 };
 
 }  // namespace bgkmap::cluster

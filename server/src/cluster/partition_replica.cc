@@ -20,14 +20,40 @@ std::string FetchSubject(PartitionKey key) { return "bgkmap.tiles." + PartitionN
 
 PartitionReplica::PartitionReplica(const NatsClient& nats, const PartitionLayout& layout,
                                    PartitionKey key, std::unique_ptr<TerrainMap> map,
-                                   uint64_t serve_from)
+                                   uint64_t serve_from, std::optional<PartitionCheckpoint> restored)
     : nats_(nats),
       layout_(layout),
       key_(key),
       halo_(layout.HaloCells(key)),
       serve_from_(serve_from),
       map_(std::move(map)) {
-  if (serve_from_ == 0) StartServing();
+  if (restored) {
+    for (auto& [k, tile] : restored->tiles) map_->SetTile(k, *tile);
+    robot_last_ = std::move(restored->robot_sequences);
+    applied_ = restored_from_ = restored->log_sequence;
+  }
+  if (applied_ >= serve_from_) StartServing();
+}
+
+std::optional<PartitionCheckpoint> PartitionReplica::CheckpointIfDue(uint32_t every_scans) {
+  uint64_t integrated = 0;
+  PartitionCheckpoint c;
+  {
+    std::lock_guard progress(progress_mu_);
+    integrated = scans_integrated_;
+    c.log_sequence = applied_;
+  }
+  if (every_scans == 0 || integrated - checkpointed_scans_ < every_scans) {
+    return std::nullopt;
+  }
+  checkpointed_scans_ = integrated;
+  c.robot_sequences = robot_last_;
+  std::shared_lock map_lock(map_mu_);
+  map_->ForEachTile(
+      [&](TileKey k, const Tile& t) { c.tiles.emplace_back(k, std::make_unique<Tile>(t)); });
+  std::sort(c.tiles.begin(), c.tiles.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  return c;
 }
 
 void PartitionReplica::BeginStop() {
@@ -177,6 +203,7 @@ ReplicaStats PartitionReplica::Stats() const {
     s.catch_up_seconds = catch_up_seconds_;
   }
   s.serving = serving_;
+  s.restored_from = restored_from_;
   std::shared_lock map_lock(map_mu_);
   s.tiles = map_->tile_count();
   return s;

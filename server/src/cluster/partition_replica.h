@@ -16,6 +16,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <string>
 
@@ -24,6 +25,7 @@
 #include "bgkmap/v1/ingest.pb.h"
 #include "cluster/cluster_log.h"
 #include "cluster/nats_client.h"
+#include "cluster/partition_checkpoint.h"
 #include "cluster/partition_layout.h"
 
 namespace bgkmap::cluster {
@@ -35,13 +37,16 @@ struct ReplicaStats {
   uint64_t tiles = 0;
   bool serving = false;
   double catch_up_seconds = 0;  // from creation to serving
+  uint64_t restored_from = 0;   // the checkpoint's log sequence it started from (0: none)
 };
 
 class PartitionReplica {
  public:
   // `serve_from`: the log's last sequence at creation; it serves once it has applied that.
+  // `restored` (optional): the checkpoint it starts from (its tiles are moved into `map`).
   PartitionReplica(const NatsClient& nats, const PartitionLayout& layout, PartitionKey key,
-                   std::unique_ptr<TerrainMap> map, uint64_t serve_from);
+                   std::unique_ptr<TerrainMap> map, uint64_t serve_from,
+                   std::optional<PartitionCheckpoint> restored = std::nullopt);
   ~PartitionReplica();  // BeginStop, then waits for running fetches
   PartitionReplica(const PartitionReplica&) = delete;
   PartitionReplica& operator=(const PartitionReplica&) = delete;
@@ -56,6 +61,9 @@ class PartitionReplica {
   void Apply(uint64_t sequence, const PreparedScan* prepared);
   // Stops taking fetches without waiting: many replicas stop in parallel.
   void BeginStop();
+  // On the log reader's thread, between entries: a copy of the partition's state when
+  // `every_scans` scans were integrated since the last one, else nullopt.
+  std::optional<PartitionCheckpoint> CheckpointIfDue(uint32_t every_scans);
 
   ReplicaStats Stats() const;
   // Blocks until every entry up to `sequence` is applied, or `timeout_ms` passed (false).
@@ -84,6 +92,8 @@ class PartitionReplica {
   uint64_t scans_integrated_ = 0;
   double catch_up_seconds_ = 0;
   std::map<std::string, uint64_t> robot_last_;  // the log reader's thread only
+  uint64_t restored_from_ = 0;
+  uint64_t checkpointed_scans_ = 0;  // scans_integrated_ at the last checkpoint
 
   std::mutex serve_mu_;  // guards fetch_sub_ and stopping
   bool stopped_ = false;

@@ -1,0 +1,163 @@
+#include "cluster/partition_checkpoint.h"
+
+#include "bgkmap/storage/tile_codec.h"
+#include "bgkmap/v1/cluster.pb.h"
+
+namespace bgkmap::cluster {
+namespace {
+
+std::string Subject(PartitionKey p, const char* what) {
+  return "bgkmap.ckpt." + PartitionName(p) + "." + what;
+}
+
+Result<uint64_t> Publish(const NatsClient& nats, const std::string& subject,
+                         const std::string& bytes) {
+  jsPubAck* ack_raw = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = RetryWhileElecting(
+      [&] {
+        return js_Publish(&ack_raw, nats.jetstream(), subject.c_str(), bytes.data(),
+                          static_cast<int>(bytes.size()), nullptr, &jerr);
+      },
+      10000);
+  NatsPtr<jsPubAck> ack(ack_raw);
+  if (st != NATS_OK) return NatsStatus(st, "checkpoint: publish " + subject, jerr);
+  return ack->Sequence;
+}
+
+void Purge(const NatsClient& nats, const std::string& subject, uint64_t below, uint64_t keep) {
+  jsOptions o;
+  jsOptions_Init(&o);
+  o.Stream.Purge.Subject = subject.c_str();
+  o.Stream.Purge.Sequence = below;
+  o.Stream.Purge.Keep = keep;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  js_PurgeStream(nats.jetstream(), kCheckpointStream, &o, &jerr);  // best effort: space only
+}
+
+}  // namespace
+
+Status EnsureCheckpointStream(const NatsClient& nats, int replicas) {
+  jsStreamConfig cfg;
+  jsStreamConfig_Init(&cfg);
+  cfg.Name = kCheckpointStream;
+  const char* subjects[] = {"bgkmap.ckpt.>"};
+  cfg.Subjects = subjects;
+  cfg.SubjectsLen = 1;
+  cfg.Storage = js_FileStorage;
+  cfg.Replicas = replicas;
+  cfg.AllowDirect = true;
+  jsStreamInfo* info = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = js_AddStream(&info, nats.jetstream(), &cfg, nullptr, &jerr);
+  NatsPtr<jsStreamInfo> owned(info);
+  if (st == NATS_OK) return Status::Ok();
+  jsStreamInfo* existing = nullptr;
+  const natsStatus got =
+      js_GetStreamInfo(&existing, nats.jetstream(), kCheckpointStream, nullptr, &jerr);
+  NatsPtr<jsStreamInfo> owned_existing(existing);
+  if (got != NATS_OK) return NatsStatus(st, std::string("cluster: stream ") + kCheckpointStream);
+  return Status::Ok();
+}
+
+Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
+                       const PartitionCheckpoint& checkpoint) {
+  const int64_t budget = nats.max_payload() - 4096;
+  v1::CheckpointManifest manifest;
+  manifest.set_log_sequence(checkpoint.log_sequence);
+  manifest.set_tiles(checkpoint.tiles.size());
+  for (const auto& [robot, sequence] : checkpoint.robot_sequences) {
+    (*manifest.mutable_robot_sequences())[robot] = sequence;
+  }
+  v1::CheckpointChunk chunk;
+  int64_t bytes = 0;
+  auto flush = [&]() -> Status {
+    if (chunk.keys_size() == 0) return Status::Ok();
+    Result<uint64_t> seq = Publish(nats, Subject(p, "chunk"), chunk.SerializeAsString());
+    if (!seq.ok()) return seq.status();
+    manifest.add_chunk_sequences(*seq);
+    chunk.Clear();
+    bytes = 0;
+    return Status::Ok();
+  };
+  for (const auto& [key, tile] : checkpoint.tiles) {
+    std::string encoded = storage::EncodeTile(*tile);
+    if (bytes + static_cast<int64_t>(encoded.size()) + 16 > budget) {
+      if (Status s = flush(); !s.ok()) return s;
+    }
+    bytes += static_cast<int64_t>(encoded.size()) + 16;
+    v1::TileKey* k = chunk.add_keys();
+    k->set_x(key.x);
+    k->set_y(key.y);
+    chunk.add_tiles(std::move(encoded));
+  }
+  if (Status s = flush(); !s.ok()) return s;
+  Result<uint64_t> written = Publish(nats, Subject(p, "manifest"), manifest.SerializeAsString());
+  if (!written.ok()) return written.status();
+  // The previous checkpoint's chunks and manifests are no longer needed.
+  const uint64_t first =
+      manifest.chunk_sequences_size() > 0 ? manifest.chunk_sequences(0) : *written;
+  Purge(nats, Subject(p, "chunk"), first, 0);
+  Purge(nats, Subject(p, "manifest"), 0, 1);
+  return Status::Ok();
+}
+
+Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
+                                                          int tile_size) {
+  natsMsg* raw = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const std::string subject = Subject(p, "manifest");
+  const natsStatus st = RetryWhileElecting(
+      [&] {
+        return js_GetLastMsg(&raw, nats.jetstream(), kCheckpointStream, subject.c_str(), nullptr,
+                             &jerr);
+      },
+      5000);
+  NatsPtr<natsMsg> last(raw);
+  if (st == NATS_NOT_FOUND) return std::optional<PartitionCheckpoint>();
+  if (st != NATS_OK) return NatsStatus(st, "checkpoint: read " + subject, jerr);
+  v1::CheckpointManifest manifest;
+  if (!manifest.ParseFromArray(natsMsg_GetData(last.get()), natsMsg_GetDataLength(last.get()))) {
+    return Status::DataLoss("checkpoint of partition " + PartitionName(p) +
+                            ": the manifest does not decode");
+  }
+  PartitionCheckpoint out;
+  out.log_sequence = manifest.log_sequence();
+  for (const auto& [robot, sequence] : manifest.robot_sequences()) {
+    out.robot_sequences[robot] = sequence;
+  }
+  for (uint64_t seq : manifest.chunk_sequences()) {
+    natsMsg* chunk_raw = nullptr;
+    const natsStatus got = RetryWhileElecting(
+        [&] {
+          return js_GetMsg(&chunk_raw, nats.jetstream(), kCheckpointStream, seq, nullptr, &jerr);
+        },
+        10000);
+    NatsPtr<natsMsg> chunk_msg(chunk_raw);
+    if (got != NATS_OK) return NatsStatus(got, "checkpoint: chunk " + std::to_string(seq), jerr);
+    v1::CheckpointChunk chunk;
+    if (!chunk.ParseFromArray(natsMsg_GetData(chunk_msg.get()),
+                              natsMsg_GetDataLength(chunk_msg.get())) ||
+        chunk.keys_size() != chunk.tiles_size()) {
+      return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": chunk " +
+                              std::to_string(seq) + " does not decode");
+    }
+    for (int i = 0; i < chunk.keys_size(); ++i) {
+      Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(chunk.tiles(i), tile_size);
+      if (!tile.ok()) {
+        return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": " +
+                                tile.status().message());
+      }
+      out.tiles.emplace_back(TileKey{chunk.keys(i).x(), chunk.keys(i).y()},
+                             std::move(tile).value());
+    }
+  }
+  if (out.tiles.size() != manifest.tiles()) {
+    return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": " +
+                            std::to_string(out.tiles.size()) + " tiles of " +
+                            std::to_string(manifest.tiles()));
+  }
+  return std::optional<PartitionCheckpoint>(std::move(out));
+}
+
+}  // namespace bgkmap::cluster

@@ -1,0 +1,39 @@
+// A partition's checkpoint: its tiles (the halo's included) and each robot's last sequence, as of
+// one log sequence number, kept in JetStream (stream BGKMAP_CHECKPOINTS, `replicas` copies). A
+// shard taking a partition over restores the newest checkpoint and reads the log from the entry
+// after it, instead of from the log's start. Written as chunks and then a manifest, so a writer
+// that dies half way leaves the previous checkpoint whole; older chunks are purged afterwards.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/status.h"
+#include "bgkmap/core/terrain_map.h"
+#include "cluster/nats_client.h"
+#include "cluster/partition_layout.h"
+
+namespace bgkmap::cluster {
+
+inline constexpr const char* kCheckpointStream = "BGKMAP_CHECKPOINTS";
+
+struct PartitionCheckpoint {
+  uint64_t log_sequence = 0;
+  std::map<std::string, uint64_t> robot_sequences;
+  std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;
+};
+
+Status EnsureCheckpointStream(const NatsClient& nats, int replicas);
+// Stores `checkpoint` of `p`; the tiles are encoded here.
+Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
+                       const PartitionCheckpoint& checkpoint);
+// The newest checkpoint of `p` (nullopt: none), its tiles decoded for maps of `tile_size`.
+// DataLoss if a chunk fails its checksum.
+Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
+                                                          int tile_size);
+
+}  // namespace bgkmap::cluster
