@@ -40,6 +40,7 @@ wait_up() {
 shard() {  # shard <name> <port> <core>: a shard pinned to one core, in the background
   taskset -c "$3" build/server/bgkmapd --listen "127.0.0.1:$2" --set "cluster.node=$1" \
     --set "cluster.nats=$NATS" --set "cluster.lease_s=$LEASE" --set server.worker_threads=1 \
+    --set "cluster.checkpoint_scans=${CHECKPOINT_SCANS:-100}" \
     --set server.query_threads=1 >"$OUT/shard-$1.log" 2>&1 &
   PIDS+=($!)
   LAST_PID=$!
@@ -115,6 +116,11 @@ build/bench/region_latency --server "127.0.0.1:$((PORT + 3))" --bbox -25 0 25 42
   --repetitions 1 --label takeover >/dev/null
 K1=$(date +%s.%N)
 
+RESTORED=$(grep "event=partition_taken" "$OUT/shard-a.log" | grep -vc "restored_from=0 " || true)
+CKPT=$(cat "$OUT"/shard-*.log | grep -o "event=partition_checkpointed.*" | grep -o "seconds=[0-9.]*" |
+  cut -d= -f2 | sort -g | awk '{a[NR]=$1} END {if (NR) printf "%d checkpoints written, median %.3f s, max %.3f s", NR, a[int((NR+1)/2)], a[NR]}')
+echo "checkpoints: $CKPT; partitions a restored from a checkpoint at the takeover: $RESTORED" |
+  tee "$OUT/checkpoints.txt"
 python3 - "$SCANS" "$T1" "$T2" "$P1" "$PA" "$PB" "$K0" "$K1" "$LEASE" <<'PY' | tee "$OUT/summary.md"
 import sys
 scans, t1, t2, p1, pa, pb, k0, k1, lease = sys.argv[1:]
