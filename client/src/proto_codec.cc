@@ -183,6 +183,19 @@ MapInfo FromProto(const v1::InfoResponse& r) {
     info.georeference =
         Georeference{g.crs(), {g.origin_easting(), g.origin_northing(), g.origin_height()}};
   }
+  if (r.has_cluster()) {
+    const v1::ClusterInfo& c = r.cluster();
+    ClusterInfo out{c.node(),
+                    {c.live_nodes().begin(), c.live_nodes().end()},
+                    c.partitions(),
+                    c.partition_tiles(),
+                    {}};
+    for (const v1::PartitionInfo& p : c.owned()) {
+      out.owned.push_back({p.name(), p.log_sequence(), p.scans_integrated(), p.tiles(), p.serving(),
+                           p.restored_from()});
+    }
+    info.cluster = std::move(out);
+  }
   return info;
 }
 

@@ -142,6 +142,34 @@ TEST(ClusterTest, AnswersEqualSingleServer) {
   EXPECT_TRUE(SameAnswers(b.client(), ref));
 }
 
+// Mutation: a shard clearing only its own partition's cells, not its halo's copies (the
+// traversability of later scans near the partition's edge differs).
+TEST(ClusterTest, ClearsAreOrderedWithTheScans) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  const size_t half = scans.size() / 2;
+  // A box across four partitions (12.8 m) and their halos, cleared between the halves.
+  const MetricBox box{-6.0, -6.0, 7.0, 7.0};
+  ServerFixture single;
+  InsertAll(single.client(), scans, 0, half);
+  ASSERT_TRUE(single.client().ClearRegion(box).ok());
+  InsertAll(single.client(), scans, half, scans.size());
+  ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
+  InsertAll(a.client(), scans, 0, half);
+  RpcResult<ClearResult> cleared = b.client().ClearRegion(box);
+  ASSERT_TRUE(cleared.ok()) << cleared.status().message();
+  EXPECT_EQ(cleared->map_version, half + 1);  // the log's sequence of the clear
+  InsertAll(b.client(), scans, half, scans.size());
+  const MetricBox street = KnownBox(*single.server().SnapshotMap());
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<Raster> got = via->QueryRegion({street, {}, 1});
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_TRUE(SameBits(*got, single.client().QueryRegion({street, {}, 1}).value()));
+  }
+}
+
 TEST(ClusterTest, RetriesAndDuplicatesChangeNothing) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());

@@ -75,6 +75,23 @@ int RunInfo(const ServerTarget& server) {
                       {"free_space_reserve_bytes", st.free_space_reserve_bytes},
                       {"writes_paused_reason", st.writes_paused_reason}};
   }
+  if (r->cluster.has_value()) {
+    const ClusterInfo& c = *r->cluster;
+    nlohmann::json owned = nlohmann::json::array();
+    for (const ClusterPartitionInfo& p : c.owned) {
+      owned.push_back({{"name", p.name},
+                       {"log_sequence", p.log_sequence},
+                       {"scans_integrated", p.scans_integrated},
+                       {"tiles", p.tiles},
+                       {"serving", p.serving},
+                       {"restored_from", p.restored_from}});
+    }
+    out["cluster"] = {{"node", c.node},
+                      {"live_nodes", c.live_nodes},
+                      {"partitions", c.partitions},
+                      {"partition_tiles", c.partition_tiles},
+                      {"owned", owned}};
+  }
   std::printf("%s\n", out.dump(2).c_str());
   return 0;
 }

@@ -4,6 +4,8 @@
 #include <charconv>
 #include <sstream>
 
+#include "bgkmap/v1/types.pb.h"
+
 namespace bgkmap::cluster {
 namespace {
 
@@ -94,6 +96,46 @@ Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
   return Appended{ack->Sequence, ack->Duplicate};
 }
 
+Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
+                             const std::vector<PartitionKey>& touched) {
+  v1::CellBox cells;
+  cells.set_min_x(box.min.x);
+  cells.set_min_y(box.min.y);
+  cells.set_max_x(box.max.x);
+  cells.set_max_y(box.max.y);
+  const std::string payload = cells.SerializeAsString();
+  natsMsg* raw = nullptr;
+  natsStatus st = natsMsg_Create(&raw, kClearSubject, nullptr, payload.data(),
+                                 static_cast<int>(payload.size()));
+  if (st != NATS_OK) return NatsStatus(st, "cluster: message");
+  NatsPtr<natsMsg> msg(raw);
+  std::string parts;
+  for (PartitionKey p : touched) {
+    if (!parts.empty()) parts += ' ';
+    parts += PartitionName(p);
+  }
+  st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
+  if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
+  jsPubOptions po;
+  jsPubOptions_Init(&po);
+  po.ExpectStream = kLogStream;
+  jsPubAck* ack_raw = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  // A clear applied twice clears the same cells: repeating is harmless.
+  st = RetryWhileElecting(
+      [&] {
+        jerr = static_cast<jsErrCode>(0);
+        return js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
+      },
+      kElectionMs);
+  NatsPtr<jsPubAck> ack(ack_raw);
+  if (st != NATS_OK) {
+    return Status::Unavailable(
+        NatsStatus(st, "clear not stored in the cluster log", jerr).message());
+  }
+  return ack->Sequence;
+}
+
 Result<uint64_t> LastSequence(const NatsClient& nats) {
   jsStreamInfo* info = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
@@ -111,17 +153,20 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
   const char* robot = nullptr;
   const char* sequence = nullptr;
   const char* touched = nullptr;
-  if (natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK ||
-      natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK ||
-      natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK) {
+  LogEntryHeader h;
+  h.clear = std::string_view(natsMsg_GetSubject(msg)) == kClearSubject;
+  if (natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK ||
+      (!h.clear && (natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK ||
+                    natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK))) {
     return Status::DataLoss("cluster log entry without bgkmap headers");
   }
-  LogEntryHeader h;
-  h.robot_id = robot;
-  const std::string_view seq(sequence);
-  if (auto [end, ec] = std::from_chars(seq.data(), seq.data() + seq.size(), h.robot_sequence);
-      ec != std::errc() || end != seq.data() + seq.size()) {
-    return Status::DataLoss("cluster log entry: bad " + std::string(kSequenceHeader));
+  if (!h.clear) {
+    h.robot_id = robot;
+    const std::string_view seq(sequence);
+    if (auto [end, ec] = std::from_chars(seq.data(), seq.data() + seq.size(), h.robot_sequence);
+        ec != std::errc() || end != seq.data() + seq.size()) {
+      return Status::DataLoss("cluster log entry: bad " + std::string(kSequenceHeader));
+    }
   }
   std::istringstream parts{std::string(touched)};
   for (std::string name; parts >> name;) {

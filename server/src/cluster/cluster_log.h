@@ -19,7 +19,9 @@
 namespace bgkmap::cluster {
 
 inline constexpr const char* kLogStream = "BGKMAP_LOG";
+inline constexpr const char* kLogSubjects = "bgkmap.log.>";
 inline constexpr const char* kScanSubject = "bgkmap.log.scan";
+inline constexpr const char* kClearSubject = "bgkmap.log.clear";  // a v1::CellBox of cells
 
 struct LogStreamOptions {
   int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
@@ -39,10 +41,15 @@ struct Appended {
 Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
                             const std::vector<PartitionKey>& touched);
 
+// Appends a clear of `box` (map cells), ordered with the scans like a single server's clear.
+Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
+                             const std::vector<PartitionKey>& touched);
+
 // The sequence number of the log's last entry (0: empty).
 Result<uint64_t> LastSequence(const NatsClient& nats);
 
 struct LogEntryHeader {
+  bool clear = false;  // a clear (no robot), else a scan
   std::string robot_id;
   uint64_t robot_sequence = 0;
   std::vector<PartitionKey> touched;  // sorted

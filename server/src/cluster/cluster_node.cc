@@ -5,6 +5,8 @@
 #include <future>
 #include <sstream>
 
+#include "bgkmap/v1/types.pb.h"
+
 namespace bgkmap::cluster {
 namespace {
 
@@ -105,6 +107,15 @@ Result<Appended> ClusterNode::Append(const v1::Scan& scan, const PreparedScan& p
     if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
   }
   return AppendScan(*nats_, scan, touched);
+}
+
+Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
+  // Every partition whose halo meets the box keeps copies of its cells.
+  CellBox reach = box;
+  const int h = layout_.halo_cells();
+  reach.min = {reach.min.x - h, reach.min.y - h};
+  reach.max = {reach.max.x + h, reach.max.y + h};
+  return cluster::AppendClear(*nats_, box, layout_.Covering(reach));
 }
 
 void ClusterNode::Run() {
@@ -239,7 +250,7 @@ void ClusterNode::ReadLog() {
       natsSubscription* raw = nullptr;
       jsErrCode jerr = static_cast<jsErrCode>(0);
       const natsStatus st =
-          js_SubscribeSync(&raw, nats_->jetstream(), kScanSubject, nullptr, &so, &jerr);
+          js_SubscribeSync(&raw, nats_->jetstream(), kLogSubjects, nullptr, &so, &jerr);
       if (st != NATS_OK) {
         spdlog::warn("event=cluster_log_open_failed reason=\"{}\"",
                      NatsStatus(st, "read the log", jerr).message());
@@ -327,6 +338,18 @@ void ClusterNode::WriteCheckpoints() {
 void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
                            const std::vector<std::shared_ptr<PartitionReplica>>& to) {
   Result<LogEntryHeader> header = ReadEntryHeader(msg);
+  if (header.ok() && header->clear) {
+    v1::CellBox cells;
+    CellBox box;  // empty: nothing is cleared, the entry is passed
+    if (!cells.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
+      spdlog::error("event=log_entry_skipped sequence={} reason=\"the clear does not decode\"",
+                    sequence);
+    } else {
+      box = {{cells.min_x(), cells.min_y()}, {cells.max_x(), cells.max_y()}};
+    }
+    for (const auto& r : to) r->ApplyClear(sequence, box);
+    return;
+  }
   std::vector<bool> integrate(to.size(), false);
   bool any = false;
   if (!header.ok()) {

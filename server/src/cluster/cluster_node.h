@@ -48,6 +48,8 @@ class ClusterNode {
   // Appends a checked and prepared scan to the log (durable on a majority of the log's replicas
   // when OK). Unavailable if the log cannot be reached.
   Result<Appended> Append(const v1::Scan& scan, const PreparedScan& prepared);
+  // Appends a clear of `box` (map cells); its log sequence number once stored.
+  Result<uint64_t> AppendClear(const CellBox& box);
   MapReads& reads() { return *reads_; }
   ClusterStatus Describe() const;
   const PartitionLayout& layout() const { return layout_; }

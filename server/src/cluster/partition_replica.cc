@@ -109,6 +109,21 @@ void PartitionReplica::Apply(uint64_t sequence, const PreparedScan* prepared) {
   if (!serving_ && sequence >= serve_from_) StartServing();
 }
 
+void PartitionReplica::ApplyClear(uint64_t sequence, const CellBox& box) {
+  CellBox cut;
+  cut.min = {std::max(box.min.x, halo_.min.x), std::max(box.min.y, halo_.min.y)};
+  cut.max = {std::min(box.max.x, halo_.max.x), std::min(box.max.y, halo_.max.y)};
+  std::unique_lock map_lock(map_mu_);
+  if (!cut.empty()) map_->ClearBox(cut, sequence);
+  {
+    std::lock_guard progress(progress_mu_);
+    applied_ = sequence;
+    progress_cv_.notify_all();
+  }
+  map_lock.unlock();
+  if (!serving_ && sequence >= serve_from_) StartServing();
+}
+
 void PartitionReplica::StartServing() {
   std::lock_guard serve(serve_mu_);
   if (stopped_ || serving_) return;

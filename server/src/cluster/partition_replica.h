@@ -59,6 +59,9 @@ class PartitionReplica {
   // Applies entry `sequence`: integrates `prepared` (the whole scan; null: nothing here) cut to
   // the halo. Then serves, once caught up.
   void Apply(uint64_t sequence, const PreparedScan* prepared);
+  // Applies entry `sequence`, a clear of `box` (map cells): the cells of the box in this
+  // partition and its halo are forgotten, as a single server forgets them.
+  void ApplyClear(uint64_t sequence, const CellBox& box);
   // Stops taking fetches without waiting: many replicas stop in parallel.
   void BeginStop();
   // On the log reader's thread, between entries: a copy of the partition's state when

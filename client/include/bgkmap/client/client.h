@@ -207,6 +207,23 @@ struct Georeference {
   std::array<double, 3> origin{};
 };
 
+// A cluster shard's view (docs/scale-out.md), in Info from a shard.
+struct ClusterPartitionInfo {
+  std::string name;  // "x.y"
+  uint64_t log_sequence = 0;
+  uint64_t scans_integrated = 0;
+  uint64_t tiles = 0;
+  bool serving = false;
+  uint64_t restored_from = 0;  // the checkpoint's log sequence (0: rebuilt from the log's start)
+};
+struct ClusterInfo {
+  std::string node;
+  std::vector<std::string> live_nodes;
+  uint64_t partitions = 0;  // with data, cluster-wide
+  uint32_t partition_tiles = 0;
+  std::vector<ClusterPartitionInfo> owned;
+};
+
 struct MapInfo {
   MapParams params;
   std::string params_yaml;
@@ -221,6 +238,7 @@ struct MapInfo {
   std::string server_version;
   std::optional<StorageInfo> storage;
   std::optional<Georeference> georeference;  // absent: the map frame is local
+  std::optional<ClusterInfo> cluster;        // present on a cluster shard
   const RobotInfo* FindRobot(const std::string& id) const;
 };
 

@@ -1,15 +1,36 @@
 // Info: parameters, counts, bounds, version and per-robot progress.
 #include <yaml-cpp/yaml.h>
 
+#include <boost/asio/post.hpp>
+
 #include "bgkmap/config/map_params_yaml.h"
+#include "cluster/cluster_node.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
 
 namespace bgkmap {
 namespace {
 
+void ClusterToProto(const cluster::ClusterNode& node, v1::ClusterInfo* out) {
+  const cluster::ClusterStatus s = node.Describe();
+  out->set_node(s.node);
+  for (const std::string& n : s.live_nodes) out->add_live_nodes(n);
+  out->set_partitions(s.partitions_known);
+  out->set_partition_tiles(static_cast<uint32_t>(node.layout().partition_tiles()));
+  for (const cluster::ReplicaStats& r : s.replicas) {
+    v1::PartitionInfo* p = out->add_owned();
+    p->set_name(cluster::PartitionName(r.key));
+    p->set_log_sequence(r.log_sequence);
+    p->set_scans_integrated(r.scans_integrated);
+    p->set_tiles(r.tiles);
+    p->set_serving(r.serving);
+    p->set_restored_from(r.restored_from);
+  }
+}
+
 grpc::Status Info(ServiceContext& ctx, v1::InfoResponse* response) {
-  const uint64_t version = ctx.map.applied_version();
+  const uint64_t version = ctx.reads.applied_version();
+  if (ctx.cluster != nullptr) ClusterToProto(*ctx.cluster, response->mutable_cluster());
   const uint64_t applied = ctx.map.scans_applied();
   const MapSummary summary = ctx.map.Summary();
   ToProto(ctx.map.params(), response->mutable_params());
@@ -93,6 +114,12 @@ grpc::ServerUnaryReactor* StartInfo(ServiceContext& ctx, grpc::CallbackServerCon
   // Answered on gRPC's thread: Info reads counters kept per change and takes no map-wide lock
   // (~0.2 ms), so a hop to the query pool would only add scheduling delay on a busy machine.
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
+  if (ctx.cluster != nullptr) {
+    // A shard asks the log for its last sequence (a NATS round trip): not on gRPC's thread.
+    boost::asio::post(ctx.query_pool,
+                      [&ctx, response, reactor] { reactor->Finish(Info(ctx, response)); });
+    return reactor;
+  }
   reactor->Finish(Info(ctx, response));
   return reactor;
 }

@@ -91,7 +91,8 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
     return;
   }
   // Retries after a lost ack are common: answer them before paying for preparation.
-  if (uint64_t last = 0; ctx.cluster == nullptr && ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence(), &last)) {
+  if (uint64_t last = 0; ctx.cluster == nullptr &&
+                         ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence(), &last)) {
     ctx.map.robots().CountDuplicate(scan.robot_id());
     done(DuplicateAck(ctx, scan, last), grpc::Status::OK);
     return;
