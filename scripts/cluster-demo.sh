@@ -102,12 +102,19 @@ same() {  # same <label> <shard address> [bbox]: a region through a shard equals
   fi
 }
 
-# A partition of the street and its owner (from the shards' logs); ask a shard that owns none of
-# that partition for it, then for the whole street.
-sleep 1
-OWNED_LINE=$(grep -h "event=partition_taken" "$OUT"/shard-*.log | head -1)
-PART=$(sed -E 's/.*partition=([^ ]+).*/\1/' <<<"$OWNED_LINE")
-OWNER=$(sed -E 's/.*node=([^ ]+).*/\1/' <<<"$OWNED_LINE")
+# A partition of the street and its owner (bgkmap info on a shard lists what it serves); ask a
+# shard that owns none of that partition for it, then for the whole street.
+PART=""
+for _ in $(seq 100); do
+  for n in a b c; do
+    PART=$("$BIN" info --server "${SHARD_ADDR[$n]}" | python3 -c '
+import json, sys
+owned = [p["name"] for p in json.load(sys.stdin)["cluster"]["owned"] if p["serving"]]
+print(owned[0] if owned else "")')
+    if [ -n "$PART" ]; then OWNER=$n; break 2; fi
+  done
+  sleep 0.1
+done
 OTHER=a
 [ "$OWNER" = a ] && OTHER=b
 echo "cluster-demo: partition $PART is owned by shard $OWNER; asking shard $OTHER"
