@@ -170,6 +170,41 @@ TEST(ClusterTest, ClearsAreOrderedWithTheScans) {
   }
 }
 
+// An archive of one map imported (merged) into the cluster between scans, as into a single
+// server. Mutation: a shard adding only the tiles of its own partition, not its halo's (the
+// traversability of later scans near the partition's edge differs).
+TEST(ClusterTest, ImportsAreOrderedWithTheScans) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  const size_t half = scans.size() / 2;
+  // The archive: another robot's map of the street.
+  const std::string archive = dir.Sub("other.bgkmap");
+  {
+    ServerFixture other;
+    const std::vector<OwnedScan> r3 = SubScans("r3", 3);
+    InsertAll(other.client(), r3, 0, r3.size());
+    ASSERT_TRUE(other.client().ExportMap(std::nullopt, archive).ok());
+  }
+  ServerFixture single;
+  InsertAll(single.client(), scans, 0, half);
+  ASSERT_TRUE(single.client().ImportMap(archive).ok());
+  InsertAll(single.client(), scans, half, scans.size());
+  ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
+  InsertAll(a.client(), scans, 0, half);
+  RpcResult<ImportResult> imported = b.client().ImportMap(archive);
+  ASSERT_TRUE(imported.ok()) << imported.status().message();
+  EXPECT_EQ(imported->map_version, half + 1);  // one entry of the log
+  InsertAll(b.client(), scans, half, scans.size());
+  const MetricBox street = KnownBox(*single.server().SnapshotMap());
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<Raster> got = via->QueryRegion({street, {}, 1});
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_TRUE(SameBits(*got, single.client().QueryRegion({street, {}, 1}).value()));
+  }
+}
+
 TEST(ClusterTest, RetriesAndDuplicatesChangeNothing) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());

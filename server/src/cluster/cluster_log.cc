@@ -96,17 +96,14 @@ Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
   return Appended{ack->Sequence, ack->Duplicate};
 }
 
-Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
-                             const std::vector<PartitionKey>& touched) {
-  v1::CellBox cells;
-  cells.set_min_x(box.min.x);
-  cells.set_min_y(box.min.y);
-  cells.set_max_x(box.max.x);
-  cells.set_max_y(box.max.y);
-  const std::string payload = cells.SerializeAsString();
+namespace {
+
+// Appends an entry that has no robot (a clear, an import): `payload` on `subject`.
+Result<uint64_t> AppendEntry(const NatsClient& nats, const char* subject,
+                             const std::string& payload, const std::vector<PartitionKey>& touched) {
   natsMsg* raw = nullptr;
-  natsStatus st = natsMsg_Create(&raw, kClearSubject, nullptr, payload.data(),
-                                 static_cast<int>(payload.size()));
+  natsStatus st =
+      natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
   if (st != NATS_OK) return NatsStatus(st, "cluster: message");
   NatsPtr<natsMsg> msg(raw);
   std::string parts;
@@ -121,7 +118,7 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
   po.ExpectStream = kLogStream;
   jsPubAck* ack_raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
-  // A clear applied twice clears the same cells: repeating is harmless.
+  // Only after an ack is the entry known to be in the log: the caller answers the client then.
   st = RetryWhileElecting(
       [&] {
         jerr = static_cast<jsErrCode>(0);
@@ -131,9 +128,27 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
   NatsPtr<jsPubAck> ack(ack_raw);
   if (st != NATS_OK) {
     return Status::Unavailable(
-        NatsStatus(st, "clear not stored in the cluster log", jerr).message());
+        NatsStatus(st, std::string(subject) + " not stored in the cluster log", jerr).message());
   }
   return ack->Sequence;
+}
+
+}  // namespace
+
+Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
+                             const std::vector<PartitionKey>& touched) {
+  v1::CellBox cells;
+  cells.set_min_x(box.min.x);
+  cells.set_min_y(box.min.y);
+  cells.set_max_x(box.max.x);
+  cells.set_max_y(box.max.y);
+  // A clear applied twice clears the same cells: a repeated append is harmless.
+  return AppendEntry(nats, kClearSubject, cells.SerializeAsString(), touched);
+}
+
+Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& manifest,
+                              const std::vector<PartitionKey>& touched) {
+  return AppendEntry(nats, kImportSubject, manifest, touched);
 }
 
 Result<uint64_t> LastSequence(const NatsClient& nats) {
@@ -154,13 +169,17 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
   const char* sequence = nullptr;
   const char* touched = nullptr;
   LogEntryHeader h;
-  h.clear = std::string_view(natsMsg_GetSubject(msg)) == kClearSubject;
+  const std::string_view subject(natsMsg_GetSubject(msg));
+  h.kind = subject == kClearSubject    ? LogEntryHeader::Kind::kClear
+           : subject == kImportSubject ? LogEntryHeader::Kind::kImport
+                                       : LogEntryHeader::Kind::kScan;
+  const bool scan = h.kind == LogEntryHeader::Kind::kScan;
   if (natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK ||
-      (!h.clear && (natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK ||
-                    natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK))) {
+      (scan && (natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK ||
+                natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK))) {
     return Status::DataLoss("cluster log entry without bgkmap headers");
   }
-  if (!h.clear) {
+  if (scan) {
     h.robot_id = robot;
     const std::string_view seq(sequence);
     if (auto [end, ec] = std::from_chars(seq.data(), seq.data() + seq.size(), h.robot_sequence);

@@ -22,6 +22,10 @@ inline constexpr const char* kLogStream = "BGKMAP_LOG";
 inline constexpr const char* kLogSubjects = "bgkmap.log.>";
 inline constexpr const char* kScanSubject = "bgkmap.log.scan";
 inline constexpr const char* kClearSubject = "bgkmap.log.clear";  // a v1::CellBox of cells
+// An import: a v1::CheckpointManifest naming the chunks of tiles (v1::CheckpointChunk) stored
+// beforehand in the checkpoint stream, so the log entry itself stays small and the import is one
+// entry (atomic in the log's order, as a single server's import is one change).
+inline constexpr const char* kImportSubject = "bgkmap.log.import";
 
 struct LogStreamOptions {
   int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
@@ -45,11 +49,16 @@ Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
 Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
                              const std::vector<PartitionKey>& touched);
 
+// Appends an import whose tiles are in the checkpoint stream's chunks `manifest` names.
+Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& manifest,
+                              const std::vector<PartitionKey>& touched);
+
 // The sequence number of the log's last entry (0: empty).
 Result<uint64_t> LastSequence(const NatsClient& nats);
 
 struct LogEntryHeader {
-  bool clear = false;  // a clear (no robot), else a scan
+  enum class Kind { kScan, kClear, kImport };
+  Kind kind = Kind::kScan;  // clears and imports have no robot
   std::string robot_id;
   uint64_t robot_sequence = 0;
   std::vector<PartitionKey> touched;  // sorted

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <future>
+#include <set>
 #include <sstream>
 
 #include "bgkmap/v1/types.pb.h"
@@ -116,6 +117,32 @@ Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
   reach.min = {reach.min.x - h, reach.min.y - h};
   reach.max = {reach.max.x + h, reach.max.y + h};
   return cluster::AppendClear(*nats_, box, layout_.Covering(reach));
+}
+
+Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
+                                           std::span<const std::unique_ptr<Tile>> tiles) {
+  std::vector<const Tile*> adding;
+  std::set<PartitionKey> own, touched;
+  const GridGeometry& g = layout_.geometry();
+  const int h = layout_.halo_cells();
+  for (size_t i = 0; i < keys.size(); ++i) {
+    adding.push_back(tiles[i].get());
+    const CellBox box = g.TileBox(keys[i]);
+    own.insert(layout_.PartitionOf(keys[i]));
+    const CellBox reach{{box.min.x - h, box.min.y - h}, {box.max.x + h, box.max.y + h}};
+    for (PartitionKey p : layout_.Covering(reach)) touched.insert(p);
+  }
+  // The partitions that now have data get owners before the entry is read.
+  for (PartitionKey p : own) {
+    if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
+  }
+  const std::string id =
+      config_.node + "-" +
+      std::to_string(std::chrono::system_clock::now().time_since_epoch().count()) + "-" +
+      std::to_string(imports_++);
+  Result<std::string> manifest = StoreImportTiles(*nats_, id, keys, adding);
+  if (!manifest.ok()) return Status::Unavailable(manifest.status().message());
+  return cluster::AppendImport(*nats_, *manifest, {touched.begin(), touched.end()});
 }
 
 void ClusterNode::Run() {
@@ -338,7 +365,24 @@ void ClusterNode::WriteCheckpoints() {
 void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
                            const std::vector<std::shared_ptr<PartitionReplica>>& to) {
   Result<LogEntryHeader> header = ReadEntryHeader(msg);
-  if (header.ok() && header->clear) {
+  if (header.ok() && header->kind == LogEntryHeader::Kind::kImport) {
+    std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;
+    if (!to.empty()) {
+      const std::string manifest(natsMsg_GetData(msg),
+                                 static_cast<size_t>(natsMsg_GetDataLength(msg)));
+      Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> read =
+          ReadImportTiles(*nats_, manifest, params_.tile_size);
+      if (read.ok()) {
+        tiles = std::move(read).value();
+      } else {
+        spdlog::error("event=log_entry_skipped sequence={} reason=\"import: {}\"", sequence,
+                      read.status().message());
+      }
+    }
+    for (const auto& r : to) r->ApplyImport(sequence, tiles);
+    return;
+  }
+  if (header.ok() && header->kind == LogEntryHeader::Kind::kClear) {
     v1::CellBox cells;
     CellBox box;  // empty: nothing is cleared, the entry is passed
     if (!cells.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {

@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -50,6 +51,10 @@ class ClusterNode {
   Result<Appended> Append(const v1::Scan& scan, const PreparedScan& prepared);
   // Appends a clear of `box` (map cells); its log sequence number once stored.
   Result<uint64_t> AppendClear(const CellBox& box);
+  // Appends an import (a merge) of `tiles` at `keys`: the tiles are stored first, then one
+  // log entry names them. Its log sequence number once stored.
+  Result<uint64_t> AppendImport(std::span<const TileKey> keys,
+                                std::span<const std::unique_ptr<Tile>> tiles);
   MapReads& reads() { return *reads_; }
   ClusterStatus Describe() const;
   const PartitionLayout& layout() const { return layout_; }
@@ -98,6 +103,7 @@ class ClusterNode {
   std::condition_variable checkpoint_cv_;
   std::map<PartitionKey, PartitionCheckpoint> pending_checkpoints_;  // newest per partition
   std::thread checkpoint_writer_;
+  std::atomic<uint64_t> imports_{0};  // names this node's imports' chunks
 };
 
 }  // namespace bgkmap::cluster

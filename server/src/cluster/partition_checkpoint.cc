@@ -1,5 +1,7 @@
 #include "cluster/partition_checkpoint.h"
 
+#include <span>
+
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/v1/cluster.pb.h"
 
@@ -60,38 +62,53 @@ Status EnsureCheckpointStream(const NatsClient& nats, int replicas) {
   return Status::Ok();
 }
 
-Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
-                       const PartitionCheckpoint& checkpoint) {
+// Publishes `tiles` in chunks on `subject`; their sequence numbers go to `manifest`.
+static Status PublishChunks(const NatsClient& nats, const std::string& subject,
+                            std::span<const TileKey> keys, std::span<const Tile* const> tiles,
+                            v1::CheckpointManifest& manifest) {
   const int64_t budget = nats.max_payload() - 4096;
-  v1::CheckpointManifest manifest;
-  manifest.set_log_sequence(checkpoint.log_sequence);
-  manifest.set_tiles(checkpoint.tiles.size());
-  for (const auto& [robot, sequence] : checkpoint.robot_sequences) {
-    (*manifest.mutable_robot_sequences())[robot] = sequence;
-  }
   v1::CheckpointChunk chunk;
   int64_t bytes = 0;
   auto flush = [&]() -> Status {
     if (chunk.keys_size() == 0) return Status::Ok();
-    Result<uint64_t> seq = Publish(nats, Subject(p, "chunk"), chunk.SerializeAsString());
+    Result<uint64_t> seq = Publish(nats, subject, chunk.SerializeAsString());
     if (!seq.ok()) return seq.status();
     manifest.add_chunk_sequences(*seq);
     chunk.Clear();
     bytes = 0;
     return Status::Ok();
   };
-  for (const auto& [key, tile] : checkpoint.tiles) {
-    std::string encoded = storage::EncodeTile(*tile);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    std::string encoded = storage::EncodeTile(*tiles[i]);
     if (bytes + static_cast<int64_t>(encoded.size()) + 16 > budget) {
       if (Status s = flush(); !s.ok()) return s;
     }
     bytes += static_cast<int64_t>(encoded.size()) + 16;
     v1::TileKey* k = chunk.add_keys();
-    k->set_x(key.x);
-    k->set_y(key.y);
+    k->set_x(keys[i].x);
+    k->set_y(keys[i].y);
     chunk.add_tiles(std::move(encoded));
   }
-  if (Status s = flush(); !s.ok()) return s;
+  manifest.set_tiles(manifest.tiles() + keys.size());
+  return flush();
+}
+
+Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
+                       const PartitionCheckpoint& checkpoint) {
+  v1::CheckpointManifest manifest;
+  manifest.set_log_sequence(checkpoint.log_sequence);
+  for (const auto& [robot, sequence] : checkpoint.robot_sequences) {
+    (*manifest.mutable_robot_sequences())[robot] = sequence;
+  }
+  std::vector<TileKey> keys;
+  std::vector<const Tile*> tiles;
+  for (const auto& [key, tile] : checkpoint.tiles) {
+    keys.push_back(key);
+    tiles.push_back(tile.get());
+  }
+  if (Status s = PublishChunks(nats, Subject(p, "chunk"), keys, tiles, manifest); !s.ok()) {
+    return s;
+  }
   Result<uint64_t> written = Publish(nats, Subject(p, "manifest"), manifest.SerializeAsString());
   if (!written.ok()) return written.status();
   // The previous checkpoint's chunks and manifests are no longer needed.
@@ -100,6 +117,48 @@ Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
   Purge(nats, Subject(p, "chunk"), first, 0);
   Purge(nats, Subject(p, "manifest"), 0, 1);
   return Status::Ok();
+}
+
+Result<std::string> StoreImportTiles(const NatsClient& nats, const std::string& id,
+                                     std::span<const TileKey> keys,
+                                     std::span<const Tile* const> tiles) {
+  v1::CheckpointManifest manifest;
+  if (Status s = PublishChunks(nats, "bgkmap.ckpt.import." + id, keys, tiles, manifest); !s.ok()) {
+    return s;
+  }
+  return manifest.SerializeAsString();
+}
+
+static Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadChunks(
+    const NatsClient& nats, const v1::CheckpointManifest& manifest, int tile_size) {
+  std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> out;
+  for (uint64_t seq : manifest.chunk_sequences()) {
+    natsMsg* chunk_raw = nullptr;
+    jsErrCode jerr = static_cast<jsErrCode>(0);
+    const natsStatus got = RetryWhileElecting(
+        [&] {
+          return js_GetMsg(&chunk_raw, nats.jetstream(), kCheckpointStream, seq, nullptr, &jerr);
+        },
+        10000);
+    NatsPtr<natsMsg> chunk_msg(chunk_raw);
+    if (got != NATS_OK) return NatsStatus(got, "chunk " + std::to_string(seq), jerr);
+    v1::CheckpointChunk chunk;
+    if (!chunk.ParseFromArray(natsMsg_GetData(chunk_msg.get()),
+                              natsMsg_GetDataLength(chunk_msg.get())) ||
+        chunk.keys_size() != chunk.tiles_size()) {
+      return Status::DataLoss("chunk " + std::to_string(seq) + " does not decode");
+    }
+    for (int i = 0; i < chunk.keys_size(); ++i) {
+      Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(chunk.tiles(i), tile_size);
+      if (!tile.ok()) return Status::DataLoss(tile.status().message());
+      out.emplace_back(TileKey{chunk.keys(i).x(), chunk.keys(i).y()}, std::move(tile).value());
+    }
+  }
+  if (out.size() != manifest.tiles()) {
+    return Status::DataLoss(std::to_string(out.size()) + " tiles of " +
+                            std::to_string(manifest.tiles()));
+  }
+  return out;
 }
 
 Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
@@ -126,38 +185,22 @@ Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats
   for (const auto& [robot, sequence] : manifest.robot_sequences()) {
     out.robot_sequences[robot] = sequence;
   }
-  for (uint64_t seq : manifest.chunk_sequences()) {
-    natsMsg* chunk_raw = nullptr;
-    const natsStatus got = RetryWhileElecting(
-        [&] {
-          return js_GetMsg(&chunk_raw, nats.jetstream(), kCheckpointStream, seq, nullptr, &jerr);
-        },
-        10000);
-    NatsPtr<natsMsg> chunk_msg(chunk_raw);
-    if (got != NATS_OK) return NatsStatus(got, "checkpoint: chunk " + std::to_string(seq), jerr);
-    v1::CheckpointChunk chunk;
-    if (!chunk.ParseFromArray(natsMsg_GetData(chunk_msg.get()),
-                              natsMsg_GetDataLength(chunk_msg.get())) ||
-        chunk.keys_size() != chunk.tiles_size()) {
-      return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": chunk " +
-                              std::to_string(seq) + " does not decode");
-    }
-    for (int i = 0; i < chunk.keys_size(); ++i) {
-      Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(chunk.tiles(i), tile_size);
-      if (!tile.ok()) {
-        return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": " +
-                                tile.status().message());
-      }
-      out.tiles.emplace_back(TileKey{chunk.keys(i).x(), chunk.keys(i).y()},
-                             std::move(tile).value());
-    }
-  }
-  if (out.tiles.size() != manifest.tiles()) {
+  Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> tiles =
+      ReadChunks(nats, manifest, tile_size);
+  if (!tiles.ok()) {
     return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": " +
-                            std::to_string(out.tiles.size()) + " tiles of " +
-                            std::to_string(manifest.tiles()));
+                            tiles.status().message());
   }
+  out.tiles = std::move(tiles).value();
   return std::optional<PartitionCheckpoint>(std::move(out));
+}
+
+Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadImportTiles(
+    const NatsClient& nats, const std::string& manifest, int tile_size) {
+  v1::CheckpointManifest m;
+  if (!m.ParseFromString(manifest))
+    return Status::DataLoss("the import's manifest does not decode");
+  return ReadChunks(nats, m, tile_size);
 }
 
 }  // namespace bgkmap::cluster

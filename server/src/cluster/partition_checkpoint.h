@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -35,5 +36,14 @@ Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
 // DataLoss if a chunk fails its checksum.
 Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
                                                           int tile_size);
+
+// An import's tiles, stored in chunks (subject bgkmap.ckpt.import.<id>) before the import's
+// log entry; returns the encoded v1::CheckpointManifest naming them (the entry's payload).
+Result<std::string> StoreImportTiles(const NatsClient& nats, const std::string& id,
+                                     std::span<const TileKey> keys,
+                                     std::span<const Tile* const> tiles);
+// The tiles of the chunks an encoded manifest names. DataLoss if one fails its checksum.
+Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadImportTiles(
+    const NatsClient& nats, const std::string& manifest, int tile_size);
 
 }  // namespace bgkmap::cluster

@@ -124,6 +124,25 @@ void PartitionReplica::ApplyClear(uint64_t sequence, const CellBox& box) {
   if (!serving_ && sequence >= serve_from_) StartServing();
 }
 
+void PartitionReplica::ApplyImport(
+    uint64_t sequence, const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& tiles) {
+  const GridGeometry& g = layout_.geometry();
+  const TileKey lo = g.TileOf(halo_.min), hi = g.TileOf(halo_.max);
+  std::unique_lock map_lock(map_mu_);
+  for (const auto& [key, tile] : tiles) {
+    if (key.x < lo.x || key.x > hi.x || key.y < lo.y || key.y > hi.y) continue;
+    map_->AddTile(key, *tile);
+    map_->FindMutableTile(key)->set_version(sequence);
+  }
+  {
+    std::lock_guard progress(progress_mu_);
+    applied_ = sequence;
+    progress_cv_.notify_all();
+  }
+  map_lock.unlock();
+  if (!serving_ && sequence >= serve_from_) StartServing();
+}
+
 void PartitionReplica::StartServing() {
   std::lock_guard serve(serve_mu_);
   if (stopped_ || serving_) return;

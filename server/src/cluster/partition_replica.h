@@ -62,6 +62,10 @@ class PartitionReplica {
   // Applies entry `sequence`, a clear of `box` (map cells): the cells of the box in this
   // partition and its halo are forgotten, as a single server forgets them.
   void ApplyClear(uint64_t sequence, const CellBox& box);
+  // Applies entry `sequence`, an import: adds the statistics of every tile that meets this
+  // partition's halo (a merge, as a single server's import: caps applied after the sum).
+  void ApplyImport(uint64_t sequence,
+                   const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& tiles);
   // Stops taking fetches without waiting: many replicas stop in parallel.
   void BeginStop();
   // On the log reader's thread, between entries: a copy of the partition's state when

@@ -17,6 +17,7 @@
 #include <mutex>
 #include <optional>
 
+#include "cluster/cluster_node.h"
 #include "log_safe.h"
 #include "rpc/archive_upload.h"
 #include "rpc/handlers/handlers.h"
@@ -179,6 +180,14 @@ class ImportStream final : public grpc::ServerReadReactor<v1::ArchiveChunk>, pub
       return;
     }
     bytes_ = bytes;
+    if (ctx_.cluster != nullptr) {
+      // One entry of the cluster's log (the tiles stored beside it): every shard adds them in
+      // the log's order. Not checked here for sums that overflow (no shard holds every tile).
+      Result<uint64_t> appended = ctx_.cluster->AppendImport(archive_.keys, archive_.tiles);
+      Done(appended.ok() ? ImportOutcome{*appended, Status::Ok()}
+                         : ImportOutcome{0, appended.status()});
+      return;
+    }
     ctx_.map.SubmitImport(archive_.keys, archive_.tiles,
                           [this](const ImportOutcome& outcome) { Done(outcome); });
   }
