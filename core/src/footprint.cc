@@ -54,6 +54,13 @@ void ComputeFootprint(const MapParams& p, PreparedScan& scan) {
         writes);
   }
 
+  // The robot's footprint: its cells' own tiles.
+  if (!scan.footprint_cells.empty()) {
+    for (const CellIndex& c : scan.footprint_cells) writes.push_back(geo.TileOf(c));
+    std::sort(writes.begin(), writes.end());
+    writes.erase(std::unique(writes.begin(), writes.end()), writes.end());
+  }
+
   // Reads: the robot-radius patch of every cell whose v is computed.
   std::vector<TileKey> reads;
   if (p.method == Method::kBgkTrav) {

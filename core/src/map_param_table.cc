@@ -131,6 +131,20 @@ constexpr bool kStats = true;     // shapes the stored statistics
 constexpr bool kDerived = false;  // enters derived layers only
 using Check = Status (*)(std::string_view, double, const MapParams&);
 
+// Sensor height above the footprint: 0 (off) up to 10 m.
+Status SensorHeight(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 10) return Bad(key, v, "must be <= 10 metres (0: off)");
+  return Status::Ok();
+}
+
+// The footprint's weight: real returns must win, so at most one observation.
+Status FootprintWeight(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Positive(key, v, p); !s.ok()) return s;
+  if (v > 1) return Bad(key, v, "must lie in (0, 1]: a real return must outweigh the footprint");
+  return Status::Ok();
+}
+
 MapParamInfo Real(std::string_view key, double MapParams::*field, bool shapes, Check check,
                   std::string_view doc) {
   MapParamInfo info{key, MapParamKind::kDouble, shapes, doc};
@@ -206,8 +220,8 @@ const std::vector<MapParamInfo>& Table() {
       Enum<&P::observation, ObservationName, ParseObservation>(
           "observation", kStats, "max | mean of a scan's points in a cell, its training value"),
       Integer("tile_size", &P::tile_size, kStats, TileSize, "cells per tile edge"),
-      Enum<&P::method, MethodName, ParseMethod>("method", kStats,
-                                                "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle"),
+      Enum<&P::method, MethodName, ParseMethod>(
+          "method", kStats, "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle"),
       // Dynamics (docs/semantics.md); stores and archives from before them were built "off".
       Legacy(Enum<&P::dynamics, DynamicsName, ParseDynamics>(
                  "dynamics", kStats, "on | off: follow a changing world, or accumulate (paper)"),
@@ -225,6 +239,14 @@ const std::vector<MapParamInfo>& Table() {
       Legacy(Real("clear_ray_length", &P::clear_ray_length, kStats, RayLength,
                   "free-space rays are walked over this many metres before their return"),
              "2"),
+      // The robot's footprint; maps from before it were built without (0).
+      Legacy(Real("sensor_height", &P::sensor_height, kStats, SensorHeight,
+                  "sensor above the ground under the robot, metres; > 0: the footprint is "
+                  "traversable-ground evidence (dynamics on), 0: off"),
+             "0"),
+      Legacy(Real("footprint_weight", &P::footprint_weight, kStats, FootprintWeight,
+                  "weight of the footprint evidence per scan, in observations at a cell"),
+             "0.1"),
   };
   return table;
 }

@@ -133,7 +133,32 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
     binned.push_back(b);
   }
   c.kept = binned.size();
-  if (binned.empty()) return scan;
+  // The ground the robot stands on, which its lidar never sees (min_range): the cells whose
+  // centres lie within robot_radius of the sensor (a path check's rule for a disk), at least the
+  // cell under it.
+  if (!frame_is_map && params.dynamics == Dynamics::kOn && params.sensor_height > 0) {
+    const double r = params.robot_radius, r2 = r * r * (1.0 + 1e-9);
+    const int x0 = static_cast<int>(std::floor((t.x() - r) * inv_res));
+    const int x1 = static_cast<int>(std::floor((t.x() + r) * inv_res));
+    const int y0 = static_cast<int>(std::floor((t.y() - r) * inv_res));
+    const int y1 = static_cast<int>(std::floor((t.y() + r) * inv_res));
+    for (int ix = x0; ix <= x1; ++ix) {
+      for (int iy = y0; iy <= y1; ++iy) {
+        const double dx = (ix + 0.5) * params.resolution - t.x();
+        const double dy = (iy + 0.5) * params.resolution - t.y();
+        if (dx * dx + dy * dy <= r2) scan.footprint_cells.push_back({ix, iy});
+      }
+    }
+    if (scan.footprint_cells.empty()) {
+      scan.footprint_cells.push_back({static_cast<int>(std::floor(t.x() * inv_res)),
+                                      static_cast<int>(std::floor(t.y() * inv_res))});
+    }
+    scan.footprint_y = t.z() - params.sensor_height;
+  }
+  if (binned.empty()) {
+    if (!scan.footprint_cells.empty()) internal::ComputeFootprint(params, scan);
+    return scan;
+  }
 
   // Sort points by (ix, iy): a canonical order that makes every later sum independent of how
   // the map is cut into tiles.
@@ -158,7 +183,11 @@ PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, con
   for (const ObservedCell& c : scan.cells) {
     if (keep.Contains(c.cell)) out.cells.push_back(c);  // stays sorted
   }
-  if (!out.cells.empty()) internal::ComputeFootprint(params, out);
+  for (const CellIndex& c : scan.footprint_cells) {
+    if (keep.Contains(c)) out.footprint_cells.push_back(c);
+  }
+  out.footprint_y = scan.footprint_y;
+  if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeFootprint(params, out);
   return out;
 }
 

@@ -457,6 +457,30 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
       tile->b()[i] = 1.0f - v;
     }
   }
+  // 4. The robot's footprint (dynamics, sensor_height > 0): each cell under the robot gains
+  // footprint_weight of an observation of ground at footprint_y, and as much traversable
+  // evidence; at the cell only, so a real return there outweighs it (semantics "Dynamics").
+  if (!scan.footprint_cells.empty()) {
+    const double wf = params_.footprint_weight, y = scan.footprint_y;
+    const float bf = static_cast<float>(params_.footprint_weight);
+    for (const CellIndex& c : scan.footprint_cells) {
+      Tile* tile = impl.TileAt(c);
+      const int i = geometry_.LocalIndex(c);
+      double* w = &tile->w()[i];
+      double* s = &tile->s()[i];
+      double* q = &tile->q()[i];
+      *w += wf;
+      *s += wf * y;
+      *q += wf * y * y;
+      CapElevation(w, s, q, 1, caps_.w);
+      if (InfersTraversability(method)) {
+        tile->b()[i] += bf;
+        if (caps_.ab > 0) CapBeta(&tile->a()[i], &tile->b()[i], 1, caps_.ab);
+      } else if (tile->a()[i] == 0.0f && tile->b()[i] == 0.0f) {
+        tile->b()[i] = 1.0f;  // the latest direct value: none yet, the robot stands here
+      }
+    }
+  }
   const auto t3 = Clock::now();
 
   for (const TileKey& key : scan.write_tiles) window.at(key)->set_version(version);

@@ -184,3 +184,35 @@ TEST(ChangingWorldTest, WithoutDynamicsTheMapDoesNotFollow) {
 
 }  // namespace
 }  // namespace bgkmap::testing
+
+namespace bgkmap::testing {
+namespace {
+
+// The robot stands on its footprint: a VLP-16 1.5 m up never sees the ground within ~5.6 m, so a
+// path check from the robot's own pose was "unsafe, 100 % unknown". With map.sensor_height set,
+// each scan's pose says the ground under the robot is there and traversable.
+TEST(ChangingWorldTest, APathFromTheRobotsOwnPoseIsKnownWithItsFootprint) {
+  PathQuery here;  // where the robot stands (ahead of it is the lidar's blind disk: unknown)
+  here.poses = {{0.0, 0.0, 0.0}};
+  here.radius = 0.3;  // the map's robot_radius
+  for (double sensor_height : {0.0, kSensorHeight}) {
+    ServerConfig config = TestConfig();
+    config.map.sensor_height = sensor_height;
+    ServerFixture server(config);
+    Robot robot(server.client());
+    robot.Send(1, false);
+    RpcResult<PathCheck> check = server.client().CheckPath(here);
+    ASSERT_TRUE(check.ok()) << check.status().ToString();
+    ASSERT_EQ(check->poses.size(), 1u);
+    if (sensor_height == 0.0) {
+      EXPECT_FALSE(check->safe);
+      EXPECT_EQ(check->poses[0].unknown_fraction, 1.0f);
+    } else {
+      EXPECT_TRUE(check->safe);
+      EXPECT_EQ(check->poses[0].unknown_fraction, 0.0f);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace bgkmap::testing

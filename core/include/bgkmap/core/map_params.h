@@ -72,6 +72,10 @@ struct MapParams {
   double clear_margin = 0.2;
   double clear_decay = 0.05;
   double clear_ray_length = 2.0;
+  // The robot's footprint (dynamics on): > 0 makes each scan's pose evidence of traversable
+  // ground sensor_height below the sensor, within robot_radius (docs/semantics.md).
+  double sensor_height = 0.0;
+  double footprint_weight = 0.1;
 
   // Checks every field (MapParamInfo::check); the message names the key, the value and the rule
   // broken.

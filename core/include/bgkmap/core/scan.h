@@ -63,6 +63,11 @@ struct PreparedScan {
   // the map frame (frame_is_map) has no sensor.
   bool has_sensor = false;
   double sensor_x = 0.0, sensor_y = 0.0;
+  // The robot's footprint (sensor_height > 0, dynamics on, a sensor): the cells whose centres
+  // lie within robot_radius of the sensor, sorted, and the ground's height there (sensor z -
+  // sensor_height).
+  std::vector<CellIndex> footprint_cells;
+  double footprint_y = 0.0;
 
   // write_tiles and clear_tiles, merged: every tile the scan may change.
   std::vector<TileKey> ChangeableTiles() const;
