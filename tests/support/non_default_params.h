@@ -36,6 +36,8 @@ inline MapParams NonDefaultParams() {
   p.clear_margin = 0.35;
   p.clear_decay = 0.25;
   p.clear_ray_length = 4.5;
+  p.sensor_height = 0.75;
+  p.footprint_weight = 0.3;
   return p;
 }
 
