@@ -48,59 +48,14 @@ Status EnsureLogStream(const NatsClient& nats, const LogStreamOptions& options) 
   return Status::Ok();
 }
 
-Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
-                            const std::vector<PartitionKey>& touched) {
-  std::string payload;
-  if (!scan.SerializeToString(&payload)) return Status::InvalidArgument("scan: cannot encode");
-  if (static_cast<int64_t>(payload.size()) + 1024 > nats.max_payload()) {
-    return Status::OutOfRange("scan: " + std::to_string(payload.size()) +
-                              " bytes exceed the NATS servers' max_payload of " +
-                              std::to_string(nats.max_payload()) + " bytes");
-  }
-  natsMsg* raw = nullptr;
-  natsStatus st =
-      natsMsg_Create(&raw, kScanSubject, nullptr, payload.data(), static_cast<int>(payload.size()));
-  if (st != NATS_OK) return NatsStatus(st, "cluster: message");
-  NatsPtr<natsMsg> msg(raw);
-  std::string parts;
-  for (PartitionKey p : touched) {
-    if (!parts.empty()) parts += ' ';
-    parts += PartitionName(p);
-  }
-  const std::string sequence = std::to_string(scan.sequence());
-  st = natsMsgHeader_Set(msg.get(), kRobotHeader, scan.robot_id().c_str());
-  if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
-  if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
-  if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
-  // The robot's own id and sequence: a retry, through this node or another, is stored once.
-  const std::string msg_id = scan.robot_id() + "/" + sequence;
-  jsPubOptions po;
-  jsPubOptions_Init(&po);
-  po.MsgId = msg_id.c_str();
-  po.ExpectStream = kLogStream;
-  jsPubAck* ack_raw = nullptr;
-  jsErrCode jerr = static_cast<jsErrCode>(0);
-  // Repeating is safe: the message id stores it once.
-  st = RetryWhileElecting(
-      [&] {
-        jerr = static_cast<jsErrCode>(0);
-        return js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
-      },
-      kElectionMs);
-  NatsPtr<jsPubAck> ack(ack_raw);
-  if (st != NATS_OK) {
-    Status s = NatsStatus(st, "scan not stored in the cluster log", jerr);
-    // Whatever the cause, the robot may send it again: the message id keeps it single.
-    return Status::Unavailable(s.message());
-  }
-  return Appended{ack->Sequence, ack->Duplicate};
-}
-
 namespace {
 
-// Appends an entry that has no robot (a clear, an import): `payload` on `subject`.
-Result<uint64_t> AppendEntry(const NatsClient& nats, const char* subject,
-                             const std::string& payload, const std::vector<PartitionKey>& touched) {
+// Appends `payload` on `subject` with the partitions it touches, the robot's headers when
+// `robot` is set and message id `msg_id` when not empty; retried through a leader's election
+// (a scan's message id stores it once). Unavailable when the log cannot be reached in time.
+Result<Appended> Append(const NatsClient& nats, const char* subject, const std::string& payload,
+                        const std::vector<PartitionKey>& touched, const v1::Scan* robot,
+                        const std::string& msg_id) {
   natsMsg* raw = nullptr;
   natsStatus st =
       natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
@@ -112,13 +67,18 @@ Result<uint64_t> AppendEntry(const NatsClient& nats, const char* subject,
     parts += PartitionName(p);
   }
   st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
+  if (robot != nullptr) {
+    const std::string sequence = std::to_string(robot->sequence());
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kRobotHeader, robot->robot_id().c_str());
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
+  }
   if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
   jsPubOptions po;
   jsPubOptions_Init(&po);
+  if (!msg_id.empty()) po.MsgId = msg_id.c_str();
   po.ExpectStream = kLogStream;
   jsPubAck* ack_raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
-  // Only after an ack is the entry known to be in the log: the caller answers the client then.
   st = RetryWhileElecting(
       [&] {
         jerr = static_cast<jsErrCode>(0);
@@ -127,13 +87,28 @@ Result<uint64_t> AppendEntry(const NatsClient& nats, const char* subject,
       kElectionMs);
   NatsPtr<jsPubAck> ack(ack_raw);
   if (st != NATS_OK) {
+    // Whatever the cause, the client may send it again.
     return Status::Unavailable(
         NatsStatus(st, std::string(subject) + " not stored in the cluster log", jerr).message());
   }
-  return ack->Sequence;
+  return Appended{ack->Sequence, ack->Duplicate};
 }
 
 }  // namespace
+
+Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
+                            const std::vector<PartitionKey>& touched) {
+  std::string payload;
+  if (!scan.SerializeToString(&payload)) return Status::InvalidArgument("scan: cannot encode");
+  if (static_cast<int64_t>(payload.size()) + 1024 > nats.max_payload()) {
+    return Status::OutOfRange("scan: " + std::to_string(payload.size()) +
+                              " bytes exceed the NATS servers' max_payload of " +
+                              std::to_string(nats.max_payload()) + " bytes");
+  }
+  // The robot's own id and sequence: a retry, through this node or another, is stored once.
+  return Append(nats, kScanSubject, payload, touched, &scan,
+                scan.robot_id() + "/" + std::to_string(scan.sequence()));
+}
 
 Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
                              const std::vector<PartitionKey>& touched) {
@@ -143,12 +118,18 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
   cells.set_max_x(box.max.x);
   cells.set_max_y(box.max.y);
   // A clear applied twice clears the same cells: a repeated append is harmless.
-  return AppendEntry(nats, kClearSubject, cells.SerializeAsString(), touched);
+  Result<Appended> a = Append(nats, kClearSubject, cells.SerializeAsString(), touched, nullptr, "");
+  if (!a.ok()) return a.status();
+  return a->sequence;
 }
 
-Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& manifest,
+Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
+                              const std::string& manifest,
                               const std::vector<PartitionKey>& touched) {
-  return AppendEntry(nats, kImportSubject, manifest, touched);
+  // Its id as the message id: an import retried through an election is stored once.
+  Result<Appended> a = Append(nats, kImportSubject, manifest, touched, nullptr, "import/" + id);
+  if (!a.ok()) return a.status();
+  return a->sequence;
 }
 
 Result<uint64_t> LastSequence(const NatsClient& nats) {

@@ -50,7 +50,8 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
                              const std::vector<PartitionKey>& touched);
 
 // Appends an import whose tiles are in the checkpoint stream's chunks `manifest` names.
-Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& manifest,
+Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
+                              const std::string& manifest,
                               const std::vector<PartitionKey>& touched);
 
 // The sequence number of the log's last entry (0: empty).

@@ -142,7 +142,7 @@ Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
       std::to_string(imports_++);
   Result<std::string> manifest = StoreImportTiles(*nats_, id, keys, adding);
   if (!manifest.ok()) return Status::Unavailable(manifest.status().message());
-  return cluster::AppendImport(*nats_, *manifest, {touched.begin(), touched.end()});
+  return cluster::AppendImport(*nats_, id, *manifest, {touched.begin(), touched.end()});
 }
 
 void ClusterNode::Run() {
