@@ -8,7 +8,16 @@
     status.textContent = 'Leaflet is missing from this build: run scripts/install-deps.sh and rebuild bgkmapd';
     return;
   }
-  const info = await (await fetch('/map.json')).json();
+  // A busy server answers 503 with Retry-After: ask again, a few times, as it says.
+  const fetchRetrying = async (url) => {
+    for (let attempt = 0; ; attempt++) {
+      const reply = await fetch(url);
+      if (reply.status !== 503 || attempt >= 5) return reply;
+      const after = Number(reply.headers.get('Retry-After')) || 1;
+      await new Promise((resolve) => setTimeout(resolve, 1000 * Math.min(after, 5)));
+    }
+  };
+  const info = await (await fetchRetrying('/map.json')).json();
   const res = info.resolution;
   // Map-local metres, y up (Leaflet's lat = y, lng = x); zoom 0 draws one map cell per pixel.
   const crs = L.extend({}, L.CRS.Simple, {
@@ -17,11 +26,32 @@
   const map = L.map('map', {
     crs, minZoom: info.min_zoom, maxZoom: info.max_zoom, zoomSnap: 1, attributionControl: false,
   });
-  const hook = { map, info, events: 0, version: info.map_version, lastPoint: null, layers: {} };
+  const hook = { map, info, events: 0, version: info.map_version, lastPoint: null, layers: {},
+    tileRetries: 0 };
   window.bgkmap = hook;  // for the browser test and the curious
 
   // A tile layer that can reload the tiles meeting a box of metres.
   const LiveTiles = L.TileLayer.extend({
+    // A busy server answers 503 with Retry-After (docs/webmap.md); a tile that failed is asked for
+    // again a few times, backing off, before Leaflet is told it failed.
+    createTile(coords, done) {
+      let attempt = 0;
+      const key = this._tileCoordsToKey(coords);
+      const tile = L.TileLayer.prototype.createTile.call(this, coords, (err, el) => {
+        if (!err || attempt >= 5) {
+          done(err, el);
+          return;
+        }
+        attempt += 1;
+        hook.tileRetries += 1;
+        const url = this.getTileUrl(coords);
+        setTimeout(() => {
+          const live = this._tiles[key];
+          if (live && live.el === el) el.src = url + (url.includes('?') ? '&' : '?') + 'retry=' + attempt;
+        }, 250 * 2 ** (attempt - 1));
+      });
+      return tile;
+    },
     refreshBox(box, version) {
       for (const key in this._tiles) {
         const tile = this._tiles[key];
@@ -34,11 +64,22 @@
     refreshAll(version) {
       for (const key in this._tiles) this.reload(this._tiles[key], version);
     },
-    reload(tile, version) {
-      // Swapped in once loaded: the old picture stays until the new one is there.
+    reload(tile, version, attempt = 0) {
+      // Swapped in once loaded: the old picture stays until the new one is there. A refused
+      // reload is retried like a first load, unless a newer version has been asked for since.
+      tile.wanted = version;
       const url = this.getTileUrl(tile.coords) + '?v=' + version;
       const img = new Image();
-      img.onload = () => { tile.el.src = url; };
+      img.onload = () => { if (tile.wanted === version) tile.el.src = url; };
+      img.onerror = () => {
+        if (attempt >= 5 || tile.wanted !== version) return;
+        hook.tileRetries += 1;
+        setTimeout(() => {
+          if (tile.wanted === version && this._tiles[this._tileCoordsToKey(tile.coords)] === tile) {
+            this.reload(tile, version, attempt + 1);
+          }
+        }, 250 * 2 ** attempt);
+      };
       img.src = url;
     },
   });
@@ -95,7 +136,7 @@
   const marker = L.circleMarker([0, 0], { radius: 5, color: '#fff', weight: 2, fillOpacity: 0 });
   map.on('click', async (e) => {
     const x = e.latlng.lng, y = e.latlng.lat;
-    const reply = await fetch('/points?x=' + x + '&y=' + y);
+    const reply = await fetchRetrying('/points?x=' + x + '&y=' + y);
     if (!reply.ok) {
       document.getElementById('cell-where').textContent = 'error: ' + (await reply.text());
       panel.hidden = false;
