@@ -1,8 +1,10 @@
 #include "cluster/membership.h"
 
 #include <algorithm>
+#include <chrono>
 #include <mutex>
 #include <sstream>
+#include <thread>
 
 namespace bgkmap::cluster {
 namespace {
@@ -161,14 +163,21 @@ Status Membership::AddPartition(PartitionKey p) {
     std::lock_guard lock(mu_);
     if (known_.count(p) != 0) return Status::Ok();
   }
-  uint64_t rev = 0;
   const std::string name = PartitionName(p);
-  natsStatus st = kvStore_CreateString(&rev, partitions_.get(), name.c_str(), "1");
-  if (st != NATS_OK) {
+  // Through the bucket's leader election after a NATS server's death (no responders for a
+  // while), as the log's appends are.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  for (;;) {
+    uint64_t rev = 0;
+    const natsStatus st = kvStore_CreateString(&rev, partitions_.get(), name.c_str(), "1");
+    if (st == NATS_OK) break;
     // Another node recorded it first: fine, if it is really there.
     Result<bool> has = HasPartition(p);
-    if (!has.ok()) return has.status();
-    if (!*has) return NatsStatus(st, "cluster: record partition " + name);
+    if (has.ok() && *has) break;
+    if (std::chrono::steady_clock::now() >= deadline) {
+      return has.ok() ? NatsStatus(st, "cluster: record partition " + name) : has.status();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
   std::lock_guard lock(mu_);
   known_.insert(p);
