@@ -130,7 +130,15 @@ struct MapServer::Impl {
         cluster(std::move(cluster_node)),
         ctx(cfg, this->map, hub, ingest_pool, query_pool, cluster.get(),
             cluster != nullptr ? &cluster->reads() : nullptr),
-        service(ctx, tokens.get()) {}
+        service(ctx, tokens.get()) {
+    // A shard's watchers learn of changes anywhere in the cluster from the log.
+    if (cluster != nullptr) {
+      cluster->FollowChanges([this](uint64_t, const CellBox& cells) {
+        const GridGeometry& g = cluster->layout().geometry();
+        hub.PublishBox(g.TileOf(cells.min), g.TileOf(cells.max));
+      });
+    }
+  }
 
   ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
     ServedMapOptions o;
@@ -221,7 +229,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     YAML::Emitter params_yaml;
     params_yaml << MapParamsToYaml(config.map);
     auto prepare = [params = config.map, limits = config.limits](const v1::Scan& scan,
-                                                                  PreparedScan* out) {
+                                                                 PreparedScan* out) {
       const grpc::Status s = PrepareScanMessage(scan, params, limits, out);
       return s.ok() ? Status::Ok() : Status::InvalidArgument(s.error_message());
     };

@@ -12,6 +12,7 @@ namespace {
 constexpr const char* kRobotHeader = "Bgkmap-Robot";
 constexpr const char* kSequenceHeader = "Bgkmap-Sequence";
 constexpr const char* kTouchedHeader = "Bgkmap-Partitions";
+constexpr const char* kChangesHeader = "Bgkmap-Cells";  // "min_x min_y max_x max_y"
 // How long an append or a read of the log's end waits out a stream leader's election.
 constexpr int64_t kElectionMs = 10000;
 
@@ -54,8 +55,8 @@ namespace {
 // `robot` is set and message id `msg_id` when not empty; retried through a leader's election
 // (a scan's message id stores it once). Unavailable when the log cannot be reached in time.
 Result<Appended> Append(const NatsClient& nats, const char* subject, const std::string& payload,
-                        const std::vector<PartitionKey>& touched, const v1::Scan* robot,
-                        const std::string& msg_id) {
+                        const std::vector<PartitionKey>& touched, const CellBox& changes,
+                        const v1::Scan* robot, const std::string& msg_id) {
   natsMsg* raw = nullptr;
   natsStatus st =
       natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
@@ -67,6 +68,14 @@ Result<Appended> Append(const NatsClient& nats, const char* subject, const std::
     parts += PartitionName(p);
   }
   st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
+  if (st == NATS_OK && !changes.empty()) {
+    std::string cells = std::to_string(changes.min.x);
+    for (int v : {changes.min.y, changes.max.x, changes.max.y}) {
+      cells += ' ';
+      cells += std::to_string(v);
+    }
+    st = natsMsgHeader_Set(msg.get(), kChangesHeader, cells.c_str());
+  }
   if (robot != nullptr) {
     const std::string sequence = std::to_string(robot->sequence());
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kRobotHeader, robot->robot_id().c_str());
@@ -97,7 +106,7 @@ Result<Appended> Append(const NatsClient& nats, const char* subject, const std::
 }  // namespace
 
 Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
-                            const std::vector<PartitionKey>& touched) {
+                            const std::vector<PartitionKey>& touched, const CellBox& changes) {
   std::string payload;
   if (!scan.SerializeToString(&payload)) return Status::InvalidArgument("scan: cannot encode");
   if (static_cast<int64_t>(payload.size()) + 1024 > nats.max_payload()) {
@@ -106,7 +115,7 @@ Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
                               std::to_string(nats.max_payload()) + " bytes");
   }
   // The robot's own id and sequence: a retry, through this node or another, is stored once.
-  return Append(nats, kScanSubject, payload, touched, &scan,
+  return Append(nats, kScanSubject, payload, touched, changes, &scan,
                 scan.robot_id() + "/" + std::to_string(scan.sequence()));
 }
 
@@ -118,16 +127,18 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
   cells.set_max_x(box.max.x);
   cells.set_max_y(box.max.y);
   // A clear applied twice clears the same cells: a repeated append is harmless.
-  Result<Appended> a = Append(nats, kClearSubject, cells.SerializeAsString(), touched, nullptr, "");
+  Result<Appended> a =
+      Append(nats, kClearSubject, cells.SerializeAsString(), touched, box, nullptr, "");
   if (!a.ok()) return a.status();
   return a->sequence;
 }
 
 Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
-                              const std::string& manifest,
-                              const std::vector<PartitionKey>& touched) {
+                              const std::string& manifest, const std::vector<PartitionKey>& touched,
+                              const CellBox& changes) {
   // Its id as the message id: an import retried through an election is stored once.
-  Result<Appended> a = Append(nats, kImportSubject, manifest, touched, nullptr, "import/" + id);
+  Result<Appended> a =
+      Append(nats, kImportSubject, manifest, touched, changes, nullptr, "import/" + id);
   if (!a.ok()) return a.status();
   return a->sequence;
 }
@@ -175,6 +186,16 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
     h.touched.push_back(*p);
   }
   std::sort(h.touched.begin(), h.touched.end());
+  // Entries written before this header existed: the changes are not known.
+  const char* changes = nullptr;
+  if (natsMsgHeader_Get(msg, kChangesHeader, &changes) == NATS_OK) {
+    std::istringstream in{std::string(changes)};
+    CellBox box;
+    if (!(in >> box.min.x >> box.min.y >> box.max.x >> box.max.y) || box.empty()) {
+      return Status::DataLoss("cluster log entry: bad " + std::string(kChangesHeader));
+    }
+    h.changes = box;
+  }
   return h;
 }
 

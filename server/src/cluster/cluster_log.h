@@ -4,7 +4,8 @@
 // within the stream's de-duplication window is stored once whatever node it reaches.
 //
 // Each entry carries headers a shard reads without decoding the scan: the robot, its sequence
-// number and the partitions the scan can change (PartitionLayout::Touched).
+// number, the partitions the scan can change (PartitionLayout::Touched) and the box of cells it
+// can change (what a Watch on any node learns from a headers-only reader of the log).
 #pragma once
 
 #include <cstdint>
@@ -43,7 +44,7 @@ struct Appended {
 // Appends `scan` once JetStream has stored it on a majority of its replicas (the durability
 // point of a cluster ack). Unavailable when the log cannot be reached in time.
 Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
-                            const std::vector<PartitionKey>& touched);
+                            const std::vector<PartitionKey>& touched, const CellBox& changes);
 
 // Appends a clear of `box` (map cells), ordered with the scans like a single server's clear.
 Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
@@ -51,8 +52,8 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
 
 // Appends an import whose tiles are in the checkpoint stream's chunks `manifest` names.
 Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
-                              const std::string& manifest,
-                              const std::vector<PartitionKey>& touched);
+                              const std::string& manifest, const std::vector<PartitionKey>& touched,
+                              const CellBox& changes);
 
 // The sequence number of the log's last entry (0: empty).
 Result<uint64_t> LastSequence(const NatsClient& nats);
@@ -63,6 +64,7 @@ struct LogEntryHeader {
   std::string robot_id;
   uint64_t robot_sequence = 0;
   std::vector<PartitionKey> touched;  // sorted
+  CellBox changes;                    // the cells the entry can change (empty if unknown)
 };
 // DataLoss if the headers are missing or malformed (an entry not written by AppendScan).
 Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg);

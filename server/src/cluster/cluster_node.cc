@@ -78,7 +78,12 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
   return node;
 }
 
+void ClusterNode::FollowChanges(LogChangeFeed::OnChange on_change) {
+  if (!feed_) feed_ = std::make_unique<LogChangeFeed>(*nats_, layout_, std::move(on_change));
+}
+
 ClusterNode::~ClusterNode() {
+  feed_.reset();
   {
     std::lock_guard lock(stop_mu_);
     stop_ = true;
@@ -101,13 +106,14 @@ Result<Appended> ClusterNode::Append(const v1::Scan& scan, const PreparedScan& p
                               std::to_string(nats_->max_payload()) +
                               " bytes (nats-server: max_payload, up to 64 MB)");
   }
-  const std::vector<PartitionKey> touched = layout_.Touched(prepared);
+  const CellBox reach = layout_.Reach(prepared);
+  const std::vector<PartitionKey> touched = layout_.Covering(reach);
   // Recorded before the append: an owner that learns of the partition reads the log from its
   // start, so it finds the scan whenever it learns.
   for (PartitionKey p : touched) {
     if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
   }
-  return AppendScan(*nats_, scan, touched);
+  return AppendScan(*nats_, scan, touched, reach);
 }
 
 Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
@@ -123,11 +129,14 @@ Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
                                            std::span<const std::unique_ptr<Tile>> tiles) {
   std::vector<const Tile*> adding;
   std::set<PartitionKey> own, touched;
+  CellBox changes;  // an import changes its own tiles' cells only
   const GridGeometry& g = layout_.geometry();
   const int h = layout_.halo_cells();
   for (size_t i = 0; i < keys.size(); ++i) {
     adding.push_back(tiles[i].get());
     const CellBox box = g.TileBox(keys[i]);
+    changes.Extend(box.min);
+    changes.Extend(box.max);
     own.insert(layout_.PartitionOf(keys[i]));
     const CellBox reach{{box.min.x - h, box.min.y - h}, {box.max.x + h, box.max.y + h}};
     for (PartitionKey p : layout_.Covering(reach)) touched.insert(p);
@@ -142,7 +151,7 @@ Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
       std::to_string(imports_++);
   Result<std::string> manifest = StoreImportTiles(*nats_, id, keys, adding);
   if (!manifest.ok()) return Status::Unavailable(manifest.status().message());
-  return cluster::AppendImport(*nats_, id, *manifest, {touched.begin(), touched.end()});
+  return cluster::AppendImport(*nats_, id, *manifest, {touched.begin(), touched.end()}, changes);
 }
 
 void ClusterNode::Run() {

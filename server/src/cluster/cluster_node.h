@@ -20,6 +20,7 @@
 #include "bgkmap/server/server_config.h"
 #include "cluster/cluster_log.h"
 #include "cluster/cluster_reads.h"
+#include "cluster/log_change_feed.h"
 #include "cluster/membership.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
@@ -56,6 +57,8 @@ class ClusterNode {
   Result<uint64_t> AppendImport(std::span<const TileKey> keys,
                                 std::span<const std::unique_ptr<Tile>> tiles);
   MapReads& reads() { return *reads_; }
+  // Reports every later log entry's changed cells to `on_change` (Watch on this node); once.
+  void FollowChanges(LogChangeFeed::OnChange on_change);
   ClusterStatus Describe() const;
   const PartitionLayout& layout() const { return layout_; }
 
@@ -103,7 +106,8 @@ class ClusterNode {
   std::condition_variable checkpoint_cv_;
   std::map<PartitionKey, PartitionCheckpoint> pending_checkpoints_;  // newest per partition
   std::thread checkpoint_writer_;
-  std::atomic<uint64_t> imports_{0};  // names this node's imports' chunks
+  std::atomic<uint64_t> imports_{0};     // names this node's imports' chunks
+  std::unique_ptr<LogChangeFeed> feed_;  // stopped first when the node leaves
 };
 
 }  // namespace bgkmap::cluster

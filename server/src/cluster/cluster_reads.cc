@@ -35,7 +35,7 @@ uint64_t ClusterReads::applied_version() const {
 }
 
 Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
-                                    TerrainMap& into) const {
+                                    TerrainMap& into, std::vector<TileKey>* keys) const {
   const std::string subject = "bgkmap.tiles." + PartitionName(p);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(fetch_timeout_ms_);
@@ -45,6 +45,7 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
   request.mutable_max()->set_x(max.x);
   request.mutable_max()->set_y(max.y);
   request.set_min_log_sequence(sequence);
+  request.set_keys_only(keys != nullptr);
   std::string why;
   while (true) {
     const std::string bytes = request.SerializeAsString();
@@ -68,10 +69,12 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
     } else if (!reply.error().empty()) {
       why = reply.error();
     } else {
-      if (reply.keys_size() != reply.tiles_size()) {
+      if (keys != nullptr) {
+        for (const v1::TileKey& k : reply.keys()) keys->push_back({k.x(), k.y()});
+      } else if (reply.keys_size() != reply.tiles_size()) {
         return Status::DataLoss("partition " + PartitionName(p) + ": keys and tiles differ");
       }
-      for (int i = 0; i < reply.keys_size(); ++i) {
+      for (int i = 0; keys == nullptr && i < reply.keys_size(); ++i) {
         Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(reply.tiles(i), params_.tile_size);
         if (!tile.ok()) {
           return Status::DataLoss("partition " + PartitionName(p) + ": " + tile.status().message());
@@ -140,6 +143,38 @@ Result<std::vector<CellEstimate>> ClusterReads::ReadCells(std::span<const CellIn
   out.reserve(cells.size());
   for (CellIndex c : cells) out.push_back((*map)->Estimate(c));
   return out;
+}
+
+Result<TileContent> ClusterReads::ReadTile(TileKey key, const std::vector<Layer>& layers) {
+  Result<uint64_t> last = LastSequence(nats_);
+  if (!last.ok()) return last.status();
+  last_sequence_ = *last;
+  Result<std::unique_ptr<TerrainMap>> map = Gather(key, key, *last);
+  if (!map.ok()) return map.status();
+  const bool exists = (*map)->FindTile(key) != nullptr;
+  TileTable table(std::move(map).value(), /*keep_cleared=*/false);
+  TileContent out;
+  out.raster = table.ReadRegion(layout_.geometry().TileBox(key), layers, 1);
+  out.version = exists ? *last : 0;
+  return out;
+}
+
+Result<std::vector<TileKey>> ClusterReads::ListKnownTiles(TileKey min, TileKey max) {
+  Result<uint64_t> last = LastSequence(nats_);
+  if (!last.ok()) return last.status();
+  last_sequence_ = *last;
+  const GridGeometry& g = layout_.geometry();
+  const CellBox cells{g.TileBox(min).min, g.TileBox(max).max};
+  std::vector<TileKey> keys;
+  Result<std::unique_ptr<TerrainMap>> unused = TerrainMap::Create(params_);
+  if (!unused.ok()) return unused.status();
+  for (PartitionKey p : layout_.Covering(cells)) {
+    const TileKey lo{std::max(min.x, layout_.MinTile(p).x), std::max(min.y, layout_.MinTile(p).y)};
+    const TileKey hi{std::min(max.x, layout_.MaxTile(p).x), std::min(max.y, layout_.MaxTile(p).y)};
+    if (Status s = FetchPartition(p, lo, hi, *last, **unused, &keys); !s.ok()) return s;
+  }
+  std::sort(keys.begin(), keys.end());
+  return keys;
 }
 
 }  // namespace bgkmap::cluster

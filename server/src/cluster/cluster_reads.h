@@ -26,13 +26,16 @@ class ClusterReads final : public MapReads {
   Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                             int stride) override;
   Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
+  Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) override;
+  Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) override;
 
   // The tiles with min <= key <= max as of at least log entry `sequence`, in a map of their own.
   Result<std::unique_ptr<TerrainMap>> Gather(TileKey min, TileKey max, uint64_t sequence) const;
 
  private:
+  // The partition's tiles in [min, max] into `into`, or only their keys into `keys` if set.
   Status FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
-                        TerrainMap& into) const;
+                        TerrainMap& into, std::vector<TileKey>* keys = nullptr) const;
 
   const NatsClient& nats_;
   const PartitionLayout& layout_;

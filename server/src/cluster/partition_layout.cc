@@ -65,15 +65,15 @@ std::vector<PartitionKey> PartitionLayout::Covering(const CellBox& box) const {
   return out;
 }
 
-std::vector<PartitionKey> PartitionLayout::Touched(const PreparedScan& scan) const {
+CellBox PartitionLayout::Reach(const PreparedScan& scan) const {
   CellBox reach;
   for (const ObservedCell& c : scan.cells) reach.Extend(c.cell);
   if (scan.has_sensor) reach.Extend(geometry_.CellAt(scan.sensor_x, scan.sensor_y));
-  if (reach.empty()) return {};
+  if (reach.empty()) return reach;
   // A partition's halo holds a cell iff the cell, grown by the halo, meets the partition.
   reach.min = {reach.min.x - halo_cells_, reach.min.y - halo_cells_};
   reach.max = {reach.max.x + halo_cells_, reach.max.y + halo_cells_};
-  return Covering(reach);
+  return reach;
 }
 
 }  // namespace bgkmap::cluster

@@ -44,9 +44,14 @@ class PartitionLayout {
   TileKey MaxTile(PartitionKey p) const;
   // Partitions with a cell in `box`, sorted.
   std::vector<PartitionKey> Covering(const CellBox& box) const;
+  // The cells `scan` can change: its observed cells and its sensor's cell, grown by the halo
+  // (empty for a scan with neither).
+  CellBox Reach(const PreparedScan& scan) const;
   // Partitions whose cells `scan` can change: those whose halo holds one of its observed cells
   // or its sensor's cell. Sorted.
-  std::vector<PartitionKey> Touched(const PreparedScan& scan) const;
+  std::vector<PartitionKey> Touched(const PreparedScan& scan) const {
+    return Covering(Reach(scan));
+  }
 
  private:
   GridGeometry geometry_;

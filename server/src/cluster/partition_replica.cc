@@ -204,7 +204,7 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
           ++skipped;
           continue;
         }
-        std::string encoded = storage::EncodeTile(*tile);
+        std::string encoded = request.keys_only() ? std::string() : storage::EncodeTile(*tile);
         if (bytes + static_cast<int64_t>(encoded.size()) + 16 > budget && reply.keys_size() > 0) {
           reply.set_more(true);
           break;
@@ -213,7 +213,7 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
         v1::TileKey* k = reply.add_keys();
         k->set_x(x);
         k->set_y(y);
-        reply.add_tiles(std::move(encoded));
+        if (!request.keys_only()) reply.add_tiles(std::move(encoded));
       }
     }
   }

@@ -13,6 +13,11 @@
 
 namespace bgkmap {
 
+struct TileContent {
+  Raster raster;         // the tile's cells at stride 1
+  uint64_t version = 0;  // of the tile's last change (0: the tile does not exist)
+};
+
 class MapReads {
  public:
   // The version the next reads will be at least at (the cluster: its log's last sequence).
@@ -22,6 +27,11 @@ class MapReads {
   virtual Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                                     int stride) = 0;
   virtual Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) = 0;
+  // One tile's cells (what Watch sends). A cluster knows no per-tile version: it gives the log
+  // sequence the tile was read at, which is at or after the tile's last change.
+  virtual Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) = 0;
+  // Keys of the tiles that exist with min <= key <= max, sorted.
+  virtual Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) = 0;
 
  protected:
   ~MapReads() = default;

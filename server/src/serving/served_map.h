@@ -80,11 +80,6 @@ struct MapSnapshot {
   std::unique_ptr<TileSource> tiles;
 };
 
-struct TileContent {
-  Raster raster;         // the tile's cells at stride 1
-  uint64_t version = 0;  // of the tile's last change (0: the tile does not exist)
-};
-
 struct ServedMapOptions {
   uint32_t max_robots = 0;
   uint64_t max_sequence_jump = 0;        // 0: no limit (RobotRegistry)
@@ -144,9 +139,12 @@ class ServedMap final : public MapReads {
   Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                             int stride) override;
   Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
-  Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers);
+  Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) override;
   // Keys of the tiles with min <= key <= max, in memory or stored, sorted.
   std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
+  Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) override {
+    return ListTiles(min, max);
+  }
 
   MapSummary Summary();
   Durability::ScratchDirectory scratch_directory() const { return durability_.scratch_directory(); }

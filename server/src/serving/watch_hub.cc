@@ -1,5 +1,7 @@
 #include "serving/watch_hub.h"
 
+#include <algorithm>
+
 namespace bgkmap {
 
 uint64_t WatchHub::Subscribe(TileKey min, TileKey max, Wake wake,
@@ -19,6 +21,12 @@ void WatchHub::Unsubscribe(uint64_t id) {
   subscribers_.erase(id);
 }
 
+void WatchHub::AddPending(uint64_t id, const std::vector<TileKey>& keys) {
+  std::lock_guard lock(mu_);
+  auto it = subscribers_.find(id);
+  if (it != subscribers_.end()) it->second.pending.insert(keys.begin(), keys.end());
+}
+
 void WatchHub::Publish(const std::vector<TileKey>& changed) {
   std::lock_guard lock(mu_);
   for (auto& [id, s] : subscribers_) {
@@ -26,6 +34,20 @@ void WatchHub::Publish(const std::vector<TileKey>& changed) {
     for (TileKey k : changed) {
       if (k.x < s.min.x || k.x > s.max.x || k.y < s.min.y || k.y > s.max.y) continue;
       added |= s.pending.insert(k).second;
+    }
+    if (added) s.wake();
+  }
+}
+
+void WatchHub::PublishBox(TileKey min, TileKey max) {
+  std::lock_guard lock(mu_);
+  for (auto& [id, s] : subscribers_) {
+    // The part of the box the subscriber watches: at most its own tiles.
+    const int x0 = std::max(min.x, s.min.x), x1 = std::min(max.x, s.max.x);
+    const int y0 = std::max(min.y, s.min.y), y1 = std::min(max.y, s.max.y);
+    bool added = false;
+    for (int x = x0; x <= x1; ++x) {
+      for (int y = y0; y <= y1; ++y) added |= s.pending.insert({x, y}).second;
     }
     if (added) s.wake();
   }

@@ -29,7 +29,12 @@ class WatchHub {
   // After this returns, `wake` of `id` is never called again.
   void Unsubscribe(uint64_t id);
 
+  // Makes `keys` pending for `id` alone, without a wake (its own cycle takes them).
+  void AddPending(uint64_t id, const std::vector<TileKey>& keys);
+
   void Publish(const std::vector<TileKey>& changed);
+  // Every tile in [min, max] changed (or may have): what a cluster's log tells each node.
+  void PublishBox(TileKey min, TileKey max);
 
   // The next pending tile of `id` (smallest key first), removing it; false if none.
   bool Take(uint64_t id, TileKey* key);

@@ -37,12 +37,19 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     // A watcher that stops reading gives its slot back.
     stalled_registered_ = ctx_.sessions.Add(&stalled_, SessionRegistry::Kind::kStream,
                                             UINT32_MAX) == SessionRegistry::Admit::kOk;
-    std::vector<TileKey> initial;
-    if (request.initial_snapshot()) initial = ctx_.map.ListTiles(min_, max_);
-    id_ = ctx_.hub.Subscribe(
-        min_, max_, [this] { Wake(); }, initial);
-    // A wake that ran before id_ was known found nothing to take: start a cycle now.
-    Wake();
+    id_ = ctx_.hub.Subscribe(min_, max_, [this] { Wake(); }, {});
+    if (request.initial_snapshot()) {
+      // Listed on the query pool (on a cluster it asks the partitions' owners), as the first
+      // cycle; changes published meanwhile are pending already.
+      {
+        std::lock_guard lock(mu_);
+        active_ = true;
+      }
+      boost::asio::post(ctx_.query_pool, [this] { ListInitial(); });
+    } else {
+      // A wake that ran before id_ was known found nothing to take: start a cycle now.
+      Wake();
+    }
   }
 
   void OnWriteDone(bool ok) override {
@@ -111,6 +118,17 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     boost::asio::post(ctx_.query_pool, [this] { SendNext(); });
   }
 
+  // On the query pool, with active_ set: the tiles that exist in the box start pending.
+  void ListInitial() {
+    Result<std::vector<TileKey>> known = ctx_.reads.ListKnownTiles(min_, max_);
+    if (!known.ok()) {
+      Stop(ToGrpcStatus(known.status()), /*was_active=*/true);
+      return;
+    }
+    ctx_.hub.AddPending(id_, *known);
+    SendNext();
+  }
+
   // On the query pool, with active_ set: send the next pending tile or go idle.
   void SendNext() {
     TileKey key;
@@ -135,8 +153,8 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
         return;
       }
     }
-    const uint64_t version = ctx_.map.applied_version();
-    Result<TileContent> read = ctx_.map.ReadTile(key, layers_);
+    const uint64_t version = ctx_.reads.applied_version();
+    Result<TileContent> read = ctx_.reads.ReadTile(key, layers_);
     if (!read.ok()) {
       Stop(ToGrpcStatus(read.status()), /*was_active=*/true);
       return;

@@ -1,0 +1,80 @@
+#include "cluster/log_change_feed.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+
+#include "cluster/cluster_log.h"
+
+namespace bgkmap::cluster {
+
+LogChangeFeed::LogChangeFeed(const NatsClient& nats, const PartitionLayout& layout,
+                             OnChange on_change)
+    : nats_(nats), layout_(layout), on_change_(std::move(on_change)) {
+  // From the log's end as it is now: what a Watch started later must see comes after it.
+  Result<uint64_t> end = LastSequence(nats_);
+  if (end.ok()) last_ = *end;
+  reader_ = std::thread([this] { Run(); });
+}
+
+LogChangeFeed::~LogChangeFeed() {
+  stop_ = true;
+  reader_.join();
+}
+
+void LogChangeFeed::Run() {
+  NatsPtr<natsSubscription> sub;
+  while (!stop_) {
+    if (!sub) {
+      // After a failure, from the entry after the last one reported: no change is skipped.
+      jsSubOptions so;
+      jsSubOptions_Init(&so);
+      so.Ordered = true;
+      so.Config.HeadersOnly = true;
+      so.Config.DeliverPolicy = js_DeliverByStartSequence;
+      so.Config.OptStartSeq = last_ + 1;
+      natsSubscription* raw = nullptr;
+      jsErrCode jerr = static_cast<jsErrCode>(0);
+      const natsStatus st =
+          js_SubscribeSync(&raw, nats_.jetstream(), kLogSubjects, nullptr, &so, &jerr);
+      if (st != NATS_OK) {
+        spdlog::warn("event=cluster_change_feed_open_failed reason=\"{}\"",
+                     NatsStatus(st, "read the log's headers", jerr).message());
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        continue;
+      }
+      sub.reset(raw);
+    }
+    natsMsg* raw = nullptr;
+    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
+    if (st == NATS_TIMEOUT) continue;
+    if (st != NATS_OK) {
+      sub.reset();
+      continue;
+    }
+    NatsPtr<natsMsg> msg(raw);
+    jsMsgMetaData* meta_raw = nullptr;
+    if (natsMsg_GetMetaData(&meta_raw, msg.get()) != NATS_OK) continue;
+    NatsPtr<jsMsgMetaData> meta(meta_raw);
+    const uint64_t sequence = meta->Sequence.Stream;
+    if (sequence <= last_) continue;
+    last_ = sequence;
+    Result<LogEntryHeader> header = ReadEntryHeader(msg.get());
+    if (!header.ok()) {
+      spdlog::warn("event=cluster_change_feed_bad_entry sequence={} reason=\"{}\"", sequence,
+                   header.status().message());
+      continue;
+    }
+    CellBox cells = header->changes;
+    if (cells.empty()) {  // an entry older than the header: its partitions, halos included
+      for (PartitionKey p : header->touched) {
+        const CellBox h = layout_.HaloCells(p);
+        cells.Extend(h.min);
+        cells.Extend(h.max);
+      }
+    }
+    if (!cells.empty()) on_change_(sequence, cells);
+  }
+}
+
+}  // namespace bgkmap::cluster
