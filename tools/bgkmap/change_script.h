@@ -5,7 +5,7 @@
 //     - name: crate          # optional; default "object N"
 //       center: [5.0, 0.0]   # world frame, metres
 //       size: [2.0, 2.0]     # x and y extent, metres
-//       height: 1.0          # flat top this far above the ground at the centre, metres
+//       height: 1.0          # flat top this far above the surface at the centre, metres
 //       disappear: 10        # first scan without it; or appear: K, the first scan with it
 //
 // An object has at most one event (appear or disappear); one with neither stands throughout.
