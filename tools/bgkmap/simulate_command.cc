@@ -340,7 +340,7 @@ void RegisterSimulateCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--config", o->config, "YAML map parameters used for the ground truth");
   cmd->add_option("--dem", o->dem, "aerial: ESRI ASCII grid of the terrain");
   cmd->add_option("--truth-spacing", o->truth_spacing,
-                  "Metres between ground-truth scans (default: city 0.1, aerial 2.5)");
+                  "Metres between ground-truth scans (default: city 0.1, aerial 2.5, flat 0.5)");
   CLI::Option* length = cmd->add_option(
       "--length", o->length,
       "city: metres of road (default 210); flat: metres driven along +x (default 0: "
