@@ -1,5 +1,6 @@
 #include "eval_report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -39,11 +40,31 @@ Json ScoreJson(const eval::MapScore& s) {
           {"false_alarm_rate", JsonNumber<Json>(s.false_alarm_rate)}};
 }
 
+Json ChangeJson(const std::vector<eval::ChangeCounts>& curve, const char* wrong) {
+  Json points = Json::array();
+  for (size_t j = 0; j < curve.size(); ++j) {
+    const eval::ChangeCounts& c = curve[j];
+    Json p;
+    p["scans_after"] = j;
+    p["judged_cells"] = c.judged;
+    p[std::string(wrong) + "_cells"] = c.wrong;
+    p["unknown_cells"] = c.unknown;
+    p[std::string(wrong) + "_rate"] = JsonNumber<Json>(c.rate());
+    points.push_back(std::move(p));
+  }
+  return points;
+}
+
 }  // namespace
 
 std::string ToJson(const EvalReport& r) {
   Json methods = Json::array();
   for (const MethodResult& m : r.methods) {
+    Json change;
+    if (r.has_changes) {
+      change["removed"] = ChangeJson(m.removed, "stale");
+      change["appeared"] = ChangeJson(m.appeared, "missed");
+    }
     methods.push_back({{"method", std::string(MethodName(m.method))},
                        {"scans", m.scans},
                        {"skipped", m.skipped},
@@ -54,6 +75,7 @@ std::string ToJson(const EvalReport& r) {
                        {"max_scan_s", JsonNumber<Json>(m.max_scan_s)},
                        {"realtime", ScoreJson(m.realtime)},
                        {"offline", ScoreJson(m.offline)}});
+    if (r.has_changes) methods.back()["change"] = std::move(change);
   }
   Json j;
   j["dataset"] = r.name;
@@ -86,6 +108,26 @@ std::string ToMarkdown(const EvalReport& r) {
       << Cell(100 * m.realtime.false_alarm_rate, "%.2f") << " | "
       << Cell(100 * m.offline.coverage, "%.1f") << " | " << Cell(m.offline.roc.auc, "%.4f")
       << " |\n";
+  }
+  if (!r.has_changes) return o.str();
+  // The changing world: per scan after the change, the share of the judged cells of removed
+  // objects the map still shows (stale) and of appeared objects it does not show (missed).
+  o << "\n| Dataset | Method | Scans after change | Stale obstacle (%) | Removed: judged cells | "
+       "Missed new obstacle (%) | Missed: unknown (%) | Appeared: judged cells |\n"
+    << "|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    const size_t n = std::max(m.removed.size(), m.appeared.size());
+    for (size_t j = 0; j < n; ++j) {
+      const eval::ChangeCounts none;
+      const eval::ChangeCounts& rm = j < m.removed.size() ? m.removed[j] : none;
+      const eval::ChangeCounts& ap = j < m.appeared.size() ? m.appeared[j] : none;
+      const double unknown =
+          ap.judged ? static_cast<double>(ap.unknown) / static_cast<double>(ap.judged) : NAN;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | " << j << " | "
+        << Cell(100 * rm.rate(), "%.1f") << " | " << rm.judged << " | "
+        << Cell(100 * ap.rate(), "%.1f") << " | " << Cell(100 * unknown, "%.1f") << " | "
+        << ap.judged << " |\n";
+    }
   }
   return o.str();
 }

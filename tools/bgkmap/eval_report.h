@@ -8,6 +8,7 @@
 
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/raster.h"
+#include "bgkmap/eval/change_score.h"
 #include "bgkmap/eval/map_score.h"
 
 namespace bgkmap::cli {
@@ -23,6 +24,10 @@ struct MethodResult {
   eval::MapScore realtime;  // map built from the admitted scans only
   eval::MapScore offline;   // map built from every scan
   Raster maps;              // realtime map over the truth box: kState, kTraversabilityVariance
+  // With a changes.json: the map of every scan up to `scans_after` scans past each change
+  // (offline pass), pooled over the objects; index j = scans after the change (0: just before).
+  std::vector<eval::ChangeCounts> removed;   // stale cells of removed objects
+  std::vector<eval::ChangeCounts> appeared;  // missed cells of appeared objects
 };
 
 struct EvalReport {
@@ -30,6 +35,7 @@ struct EvalReport {
   std::string sequence;
   double rate_hz = 10;
   MapParams params;
+  bool has_changes = false;  // a changes.json was scored: eval.json and table.md report it
   std::vector<MethodResult> methods;
 };
 

@@ -1,10 +1,14 @@
-// `bgkmap simulate`: renders one of the paper's simulated experiments (city, aerial) into a
-// KITTI-like sequence plus its ground truth (docs/results.md explains the worlds).
+// `bgkmap simulate`: renders one of the paper's simulated experiments (city, aerial), or flat
+// ground, into a KITTI-like sequence plus its ground truth (docs/results.md explains the worlds).
+// With --change FILE (change_script.h) boxes appear and disappear at given scans: each scan sees
+// the world as it is at that scan, and the ground truth is the world after the last change.
 //   <out>/velodyne/NNNNNN.bin, <out>/poses.txt   the mapping scans, sensor frame
 //   <out>/odometry_poses.txt                     with --drift: the same scans' poses as a
 //                                                drifting odometry would report them
 //   <out>/ground_truth.tif                       true elevation, traversability, state
-//   <out>/scenario.json                          what was simulated
+//   <out>/scenario.json                          what was simulated (with --change: the
+//                                                objects and their scans, for bgkmap eval)
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -14,6 +18,7 @@
 #include <thread>
 
 #include "bgkmap/config/map_params_yaml.h"
+#include "bgkmap/eval/change_score.h"
 #include "bgkmap/io/esri_ascii_grid.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/kitti_sequence.h"
@@ -22,6 +27,8 @@
 #include "bgkmap/sim/odometry_drift.h"
 #include "bgkmap/sim/ray_caster.h"
 #include "bgkmap/sim/scenario.h"
+#include "bgkmap/sim/scripted_objects.h"
+#include "change_script.h"
 #include "commands.h"
 #include "json_output.h"
 
@@ -33,9 +40,12 @@ struct SimulateOptions {
   std::string out;
   std::string config;
   std::string dem;
-  double truth_spacing = 0;  // 0 = the scenario's default
-  double length = 210.0;     // city only
-  int grid = 13;             // aerial only
+  double truth_spacing = 0;   // 0 = the scenario's default
+  double length = 0;          // city: metres of road; flat: metres driven
+  bool length_given = false;  // else city 210, flat 0
+  int grid = 13;              // aerial only
+  int scans = -1;             // flat only (default 20)
+  std::string change;         // change script (change_script.h)
   int threads = 2;
   bool truth = true;  // false: the mapping scans only (e.g. a cloud for bgkmap regress)
   double drift = 0;   // > 0: also odometry_poses.txt (sim/odometry_drift.h)
@@ -68,6 +78,66 @@ void ParallelFor(size_t n, int threads, io::ProgressBar& progress, Fn fn) {
   for (std::thread& th : pool) th.join();
 }
 
+// changes.json: for each object that appears or disappears, the cells `bgkmap eval` judges its
+// change on (eval/change_score.h), with their truth just before and just after it. An object is
+// seen by the truth scans in the world that has it: the first scan's if it disappears, the last
+// scan's if it appears. Compact JSON: one row [ix, iy, z_before, z_after, state_before,
+// state_after] per cell.
+Status WriteChanges(const sim::Scenario& scenario, const std::vector<sim::ScriptedObject>& objects,
+                    const MapParams& params, const sim::VisibilityMask& visible_first,
+                    const sim::VisibilityMask& visible_last, const std::string& path) {
+  using Json = nlohmann::ordered_json;
+  const GridGeometry geometry(params.resolution, params.tile_size);
+  const double r = params.robot_radius;
+  Json list = Json::array();
+  for (const sim::ScriptedObject& obj : objects) {
+    const bool removed = obj.disappear != sim::ScriptedObject::kNever;
+    if (!removed && obj.appear == 0) continue;  // stands throughout
+    const int scan = removed ? obj.disappear : obj.appear;
+    const sim::Box b = obj.Placed(*scenario.world);
+    // The cells whose centre lies within robot_radius of the footprint.
+    sim::VisibilityMask region(
+        params, geometry.BoxCovering(b.xmin - r, b.ymin - r, b.xmax + r, b.ymax + r));
+    for (int iy = region.box().min.y; iy <= region.box().max.y; ++iy) {
+      for (int ix = region.box().min.x; ix <= region.box().max.x; ++ix) {
+        const double x = (ix + 0.5) * params.resolution, y = (iy + 0.5) * params.resolution;
+        const double dx = std::max({b.xmin - x, 0.0, x - b.xmax});
+        const double dy = std::max({b.ymin - y, 0.0, y - b.ymax});
+        if (dx * dx + dy * dy <= r * r) region.Mark({ix, iy});
+      }
+    }
+    const Raster before =
+        sim::MakeGroundTruth(*sim::WorldAtScan(scenario.world, objects, scan - 1), params, region);
+    const Raster after =
+        sim::MakeGroundTruth(*sim::WorldAtScan(scenario.world, objects, scan), params, region);
+    const sim::VisibilityMask& seen = removed ? visible_first : visible_last;
+    const eval::ChangeKind kind =
+        removed ? eval::ChangeKind::kRemoved : eval::ChangeKind::kAppeared;
+    const std::vector<eval::ChangedCell> cells = eval::JudgedCells(
+        before, after, kind, obj.height, [&](CellIndex c) { return seen.visible(c); });
+    Json rows = Json::array();
+    for (const eval::ChangedCell& c : cells) {
+      rows.push_back({c.cell.x, c.cell.y, c.z_before, c.z_after, static_cast<int>(c.before),
+                      static_cast<int>(c.after)});
+    }
+    Json j;
+    j["name"] = obj.name;
+    j["event"] = removed ? "removed" : "appeared";
+    j["scan"] = scan;
+    j["height"] = JsonNumber<Json>(obj.height);
+    j["cells"] = std::move(rows);
+    list.push_back(std::move(j));
+  }
+  Json root;
+  root["resolution"] = JsonNumber<Json>(params.resolution);
+  root["robot_radius"] = JsonNumber<Json>(params.robot_radius);
+  root["objects"] = std::move(list);
+  std::ofstream out(path);
+  out << root.dump() << "\n";
+  if (!out) return Status::IoError(path + ": cannot write");
+  return Status::Ok();
+}
+
 int RunSimulate(const SimulateOptions& o) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
@@ -78,9 +148,16 @@ int RunSimulate(const SimulateOptions& o) {
 
   sim::Scenario scenario;
   double origin_x = 0, origin_y = 0;  // world frame = georeferenced frame minus this
+  if (o.scans >= 0 && o.world != "flat") return Usage("--scans is for the flat world only");
   if (o.world == "city") {
-    if (!(o.length > 0)) return Usage("--length must be > 0");
-    scenario = sim::MakeCityScenario(o.length, 1.0, o.truth_spacing > 0 ? o.truth_spacing : 0.1);
+    const double length = o.length_given ? o.length : 210.0;
+    if (!(length > 0)) return Usage("--length must be > 0");
+    scenario = sim::MakeCityScenario(length, 1.0, o.truth_spacing > 0 ? o.truth_spacing : 0.1);
+  } else if (o.world == "flat") {
+    const int scans = o.scans < 0 ? 20 : o.scans;
+    if (scans < 1) return Usage("--scans must be at least 1");
+    if (!(o.length >= 0)) return Usage("--length must be >= 0");
+    scenario = sim::MakeFlatScenario(scans, o.length, o.truth_spacing > 0 ? o.truth_spacing : 0.5);
   } else if (o.world == "aerial") {
     if (o.dem.empty()) return Usage("aerial needs --dem (an ESRI ASCII grid)");
     if (o.grid < 2) return Usage("--grid must be at least 2");
@@ -92,8 +169,19 @@ int RunSimulate(const SimulateOptions& o) {
     scenario = sim::MakeAerialScenario(std::move(grid), o.grid, 10.0,
                                        o.truth_spacing > 0 ? o.truth_spacing : 2.5);
   } else {
-    return Usage("unknown world '" + o.world + "' (expected city or aerial)");
+    return Usage("unknown world '" + o.world + "' (expected city, aerial or flat)");
   }
+  const size_t n = scenario.mapping_poses.size();
+  std::vector<sim::ScriptedObject> objects;
+  if (!o.change.empty()) {
+    Result<std::vector<sim::ScriptedObject>> script =
+        LoadChangeScript(o.change, static_cast<int>(n));
+    if (!script.ok()) return Fail(script.status().message());
+    objects = std::move(script).value();
+  }
+  // The ground truth's world: as it is after the last change (at the last scan).
+  const std::shared_ptr<const sim::World> final_world =
+      sim::WorldAtScan(scenario.world, objects, static_cast<int>(n) - 1);
 
   std::error_code ec;
   fs::create_directories(fs::path(o.out) / "velodyne", ec);
@@ -104,14 +192,14 @@ int RunSimulate(const SimulateOptions& o) {
   // Mapping scans: one file each, poses appended in order afterwards.
   std::mutex error_mu;
   std::string error;
-  const size_t n = scenario.mapping_poses.size();
   {
     io::ProgressBar progress("simulating " + scenario.name, n, "scans");
     ParallelFor(n, o.threads, progress, [&](size_t k, int) {
       sim::RayCastOptions rc;
       rc.seed = static_cast<unsigned>(k + 1);
-      const auto pts =
-          sim::SimulateScan(*scenario.world, scenario.beams, scenario.mapping_poses[k], rc);
+      const std::shared_ptr<const sim::World> world =
+          sim::WorldAtScan(scenario.world, objects, static_cast<int>(k));
+      const auto pts = sim::SimulateScan(*world, scenario.beams, scenario.mapping_poses[k], rc);
       const std::string path = (fs::path(o.out) / "velodyne" / io::KittiScanFileName(k)).string();
       if (Status s = io::WriteKittiScan(path, pts); !s.ok()) {
         std::lock_guard lock(error_mu);
@@ -135,30 +223,51 @@ int RunSimulate(const SimulateOptions& o) {
   }
 
   if (!o.truth) scenario.truth_poses.clear();
-  // Ground-truth visibility from the dense scan set, one mask per worker.
+  // Ground-truth visibility of a world from the dense scan set, one mask per worker.
   const CellBox box =
       GridGeometry(params.resolution, params.tile_size)
           .BoxCovering(scenario.xmin, scenario.ymin, scenario.xmax - 1e-9, scenario.ymax - 1e-9);
-  std::vector<sim::VisibilityMask> masks(o.threads, sim::VisibilityMask(params, box));
-  {
-    io::ProgressBar progress("ground-truth scans", scenario.truth_poses.size(), "scans");
+  auto visibility = [&](const sim::World& world, const std::string& label) {
+    std::vector<sim::VisibilityMask> masks(o.threads, sim::VisibilityMask(params, box));
+    io::ProgressBar progress(label, scenario.truth_poses.size(), "scans");
     ParallelFor(scenario.truth_poses.size(), o.threads, progress, [&](size_t k, int t) {
       sim::RayCastOptions rc;
       rc.seed = static_cast<unsigned>(1'000'000 + k);
-      const auto pts =
-          sim::SimulateScan(*scenario.world, scenario.beams, scenario.truth_poses[k], rc);
+      const auto pts = sim::SimulateScan(world, scenario.beams, scenario.truth_poses[k], rc);
       if (Status s = masks[t].AddScan(pts, scenario.truth_poses[k]); !s.ok()) {
         std::lock_guard lock(error_mu);
         error = s.message();
       }
     });
-  }
+    for (int t = 1; t < o.threads; ++t) masks[0].Merge(masks[t]);
+    return std::move(masks[0]);
+  };
+  const sim::VisibilityMask visible = visibility(*final_world, "ground-truth scans");
   if (!error.empty()) return Fail(error);
-  for (int t = 1; t < o.threads; ++t) masks[0].Merge(masks[t]);
   if (o.truth) {
-    const Raster truth = sim::MakeGroundTruth(*scenario.world, params, masks[0]);
+    const Raster truth = sim::MakeGroundTruth(*final_world, params, visible);
     const std::string truth_path = (fs::path(o.out) / "ground_truth.tif").string();
     if (Status s = io::WriteGeoTiff(truth, truth_path); !s.ok()) return Fail(s.message());
+  }
+  bool has_events = false;
+  for (const sim::ScriptedObject& obj : objects) {
+    has_events |= obj.appear > 0 || obj.disappear != sim::ScriptedObject::kNever;
+  }
+  if (o.truth && has_events) {
+    // The world of the first scan, and the cells each change is judged on (eval/change_score.h).
+    const std::shared_ptr<const sim::World> first_world =
+        sim::WorldAtScan(scenario.world, objects, 0);
+    const sim::VisibilityMask visible_first =
+        visibility(*first_world, "ground-truth scans, world of scan 0");
+    if (!error.empty()) return Fail(error);
+    const Raster before = sim::MakeGroundTruth(*first_world, params, visible_first);
+    const std::string before_path = (fs::path(o.out) / "ground_truth_before.tif").string();
+    if (Status s = io::WriteGeoTiff(before, before_path); !s.ok()) return Fail(s.message());
+    if (Status s = WriteChanges(scenario, objects, params, visible_first, visible,
+                                (fs::path(o.out) / "changes.json").string());
+        !s.ok()) {
+      return Fail(s.message());
+    }
   }
 
   const double seconds =
@@ -172,20 +281,49 @@ int RunSimulate(const SimulateOptions& o) {
   scenario_json["area_m"] = {JsonNumber<Json>(scenario.xmin), JsonNumber<Json>(scenario.ymin),
                              JsonNumber<Json>(scenario.xmax), JsonNumber<Json>(scenario.ymax)};
   scenario_json["resolution"] = JsonNumber<Json>(params.resolution);
-  scenario_json["truth_visible_cells"] = masks[0].count();
+  scenario_json["truth_visible_cells"] = visible.count();
   scenario_json["area_cells"] = box.cell_count();
   scenario_json["world_origin_in_source_crs"] = {JsonNumber<Json>(origin_x),
                                                  JsonNumber<Json>(origin_y)};
+  if (!o.change.empty()) {
+    // What `bgkmap eval` needs to score the change: each object's footprint, height and scans.
+    Json list = Json::array();
+    for (const sim::ScriptedObject& obj : objects) {
+      const sim::Box b = obj.Placed(*scenario.world);
+      Json j;
+      j["name"] = obj.name;
+      j["center"] = {JsonNumber<Json>(obj.center_x), JsonNumber<Json>(obj.center_y)};
+      j["size"] = {JsonNumber<Json>(obj.size_x), JsonNumber<Json>(obj.size_y)};
+      j["height"] = JsonNumber<Json>(obj.height);
+      j["top_z"] = JsonNumber<Json>(b.height);
+      j["box_m"] = {JsonNumber<Json>(b.xmin), JsonNumber<Json>(b.ymin), JsonNumber<Json>(b.xmax),
+                    JsonNumber<Json>(b.ymax)};
+      j["appear"] = obj.appear > 0 ? Json(obj.appear) : Json(nullptr);
+      j["disappear"] =
+          obj.disappear != sim::ScriptedObject::kNever ? Json(obj.disappear) : Json(nullptr);
+      list.push_back(std::move(j));
+    }
+    scenario_json["change_script"] = o.change;
+    scenario_json["objects"] = std::move(list);
+    scenario_json["truth_world_scan"] = n - 1;  // the ground truth is the world of the last scan
+  }
   scenario_json["seconds"] = JsonNumber<Json>(seconds);
   std::ofstream js(fs::path(o.out) / "scenario.json");
   js << JsonText(scenario_json);
   if (!js) return Fail("cannot write scenario.json in " + o.out);
+  std::string scripted;
+  if (!objects.empty()) {
+    scripted += ", ";
+    scripted += std::to_string(objects.size());
+    scripted += " scripted objects";
+  }
   std::printf(
-      "bgkmap simulate: %s, %zu %s scans, ground truth from %zu scans sees %lld of %lld cells%s, "
-      "%.1f s -> %s\n",
-      scenario.name.c_str(), n, scenario.beams.name.c_str(), scenario.truth_poses.size(),
-      static_cast<long long>(masks[0].count()), static_cast<long long>(box.cell_count()),
-      o.truth ? "" : " (--no-truth: not written)", seconds, o.out.c_str());
+      "bgkmap simulate: %s, %zu %s scans%s, ground truth from %zu scans sees %lld of %lld "
+      "cells%s, %.1f s -> %s\n",
+      scenario.name.c_str(), n, scenario.beams.name.c_str(), scripted.c_str(),
+      scenario.truth_poses.size(), static_cast<long long>(visible.count()),
+      static_cast<long long>(box.cell_count()), o.truth ? "" : " (--no-truth: not written)",
+      seconds, o.out.c_str());
   return 0;
 }
 
@@ -194,15 +332,23 @@ int RunSimulate(const SimulateOptions& o) {
 void RegisterSimulateCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<SimulateOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "simulate", "Simulate the paper's City or Aerial lidar experiment with ground truth");
-  cmd->add_option("world", o->world, "city | aerial")->required();
+      "simulate",
+      "Simulate the paper's City or Aerial lidar experiment, or flat ground, with ground truth");
+  cmd->add_option("world", o->world, "city | aerial | flat")->required();
   cmd->add_option("--out", o->out, "Output directory (KITTI-like sequence + ground truth)")
       ->required();
   cmd->add_option("--config", o->config, "YAML map parameters used for the ground truth");
   cmd->add_option("--dem", o->dem, "aerial: ESRI ASCII grid of the terrain");
   cmd->add_option("--truth-spacing", o->truth_spacing,
-                  "Metres between ground-truth scans (default: city 0.1, aerial 2.5)");
-  cmd->add_option("--length", o->length, "city: metres of road (default 210)");
+                  "Metres between ground-truth scans (default: city 0.1, aerial 2.5, flat 0.5)");
+  CLI::Option* length = cmd->add_option(
+      "--length", o->length,
+      "city: metres of road (default 210); flat: metres driven along +x (default 0: "
+      "standing still)");
+  cmd->add_option("--scans", o->scans, "flat: number of scans (default 20)");
+  cmd->add_option("--change", o->change,
+                  "YAML/JSON script of boxes that appear or disappear at given scans "
+                  "(docs/results.md, \"Changing worlds\")");
   cmd->add_option("--grid", o->grid, "aerial: n for n x n scan positions 10 m apart (default 13)");
   cmd->add_option("--threads", o->threads, "Worker threads for ray casting (default 2)");
   cmd->add_flag("!--no-truth", o->truth, "Only the mapping scans, no ground truth");
@@ -210,7 +356,10 @@ void RegisterSimulateCommand(CLI::App& app, int& exit_code) {
                   "Also write odometry_poses.txt: the poses a drifting odometry reports, with "
                   "this position error per metre moved (e.g. 0.01; heading a fifth of it in rad/m)")
       ->check(CLI::Range(0.0, 1.0));
-  cmd->callback([o, &exit_code] { exit_code = RunSimulate(*o); });
+  cmd->callback([o, length, &exit_code] {
+    o->length_given = length->count() > 0;
+    exit_code = RunSimulate(*o);
+  });
 }
 
 }  // namespace bgkmap::cli

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "bgkmap/sim/box_world.h"
 #include "bgkmap/sim/city_world.h"
 
 namespace bgkmap::sim {
@@ -89,6 +90,26 @@ Scenario MakeAerialScenario(HeightGrid dem, int n, double spacing, double truth_
   s.xmax = cx + half;
   s.ymin = cy - half;
   s.ymax = cy + half;
+  return s;
+}
+
+Scenario MakeFlatScenario(int scans, double length, double truth_spacing) {
+  Scenario s;
+  s.name = "flat";
+  s.world = std::make_shared<BoxWorld>();
+  s.beams = Vlp16();
+  for (int k = 0; k < scans; ++k) {
+    const double x = scans > 1 ? length * k / (scans - 1) : 0.0;
+    s.mapping_poses.push_back(At(x, 0.0, kFlatSensorHeight, 0.0));
+  }
+  const std::vector<double> stations =
+      length > 0 ? Stations(length, truth_spacing) : std::vector<double>{0.0};
+  for (double x : stations) s.truth_poses.push_back(At(x, 0.0, kFlatSensorHeight, 0.0));
+  constexpr double kMargin = 20.0;
+  s.xmin = -kMargin;
+  s.xmax = length + kMargin;
+  s.ymin = -kMargin;
+  s.ymax = kMargin;
   return s;
 }
 

@@ -1,6 +1,6 @@
 // Flat ground at z = 0 with axis-aligned boxes standing on it: the smallest world in which
-// something appears or disappears (the changing-world tests and `bgkmap simulate --world
-// change`).
+// something appears or disappears (the changing-world tests; `bgkmap simulate flat` is this
+// world without boxes, its objects come from a change script).
 #pragma once
 
 #include <algorithm>

@@ -23,6 +23,10 @@ class VisibilityMask {
   // Fails only on an invalid pose.
   Status AddScan(std::span<const Point3f> points, const Pose& T_map_sensor);
   void Merge(const VisibilityMask& other);  // same params and box
+  void Mark(CellIndex c) {                  // counts `c` as seen (nothing outside the box)
+    if (box_.Contains(c))
+      seen_[static_cast<size_t>(c.y - box_.min.y) * box_.width() + (c.x - box_.min.x)] = 1;
+  }
 
   const CellBox& box() const { return box_; }
   bool visible(CellIndex c) const {

@@ -36,4 +36,12 @@ Scenario MakeCityScenario(double length = 210.0, double mapping_spacing = 1.0,
 Scenario MakeAerialScenario(HeightGrid dem, int n = 13, double spacing = 10.0,
                             double truth_spacing = 2.5, double clearance = 4.0);
 
+// Flat: level ground at z = 0 and nothing else (objects come from a change script), a VLP-16
+// kFlatSensorHeight above it heading along +x. `scans` scans evenly spaced over `length` metres
+// from the origin (0: a robot standing still); ground-truth scans every `truth_spacing` metres
+// along the same path (one, at the origin, when standing still). Evaluated area: 20 m around the
+// path.
+inline constexpr double kFlatSensorHeight = 1.5;
+Scenario MakeFlatScenario(int scans, double length = 0.0, double truth_spacing = 0.5);
+
 }  // namespace bgkmap::sim
