@@ -77,9 +77,24 @@ for n in a b c; do wait_up "${SHARD_ADDR[$n]}"; done
 wait_up "$SINGLE"
 echo "cluster-demo: NATS cluster of 3 (JetStream, replicas 3) and shards a, b, c are up"
 
+# A watch of the street's middle on shard c, which takes no scan: it learns of them from the log.
+"$BIN" watch --server "${SHARD_ADDR[c]}" --bbox -20 -20 20 20 >"$OUT/watch-c.jsonl" \
+  2>"$OUT/watch-c.err" &
+WATCH_PID=$!
+PIDS+=($!)
+sleep 0.5
+
 # --- Two robots: r1 through shard a, r2 through shard b; the same order to the single server.
 "$BIN" insert --server "${SHARD_ADDR[a]}" --robot r1 "$DATA" 2>&1 | tail -1
 "$BIN" insert --server "${SHARD_ADDR[b]}" --robot r2 "$DATA" 2>&1 | tail -1
+sleep 1
+kill "$WATCH_PID" 2>/dev/null || true
+UPDATES=$(wc -l <"$OUT/watch-c.jsonl")
+if [ "$UPDATES" -eq 0 ]; then
+  echo "cluster-demo: the watch on shard c received nothing ($OUT/watch-c.err)" >&2
+  exit 1
+fi
+echo "cluster-demo: a watch on shard c received $UPDATES tile updates of the scans sent to a and b"
 "$BIN" insert --server "$SINGLE" --robot r1 "$DATA" >/dev/null
 "$BIN" insert --server "$SINGLE" --robot r2 "$DATA" >/dev/null
 
