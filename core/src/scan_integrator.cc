@@ -390,6 +390,7 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
       if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
     }
     report.contradicted_cells = contradicted.size();
+    impl.read_tile = nullptr;  // a clear tile read above may have been brought to the scan's time
     std::sort(touched.begin(), touched.end());
     for (const TileKey& key : scan.clear_tiles) {
       const Tile* tile = window.at(key);
