@@ -3,6 +3,7 @@
 // tiles to the later stamp, then add; half_life_s = 0 changes nothing, bit for bit.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <vector>
@@ -259,6 +260,75 @@ TEST(ForgettingTest, SensorScansReplayBitwiseAndOldEvidenceBecomesUncertain) {
               1e-6 * fresh.elevation_weight * std::exp2(-20.0));
   EXPECT_GT(old.elevation_variance, p.variance_threshold);
   EXPECT_EQ(old.state, CellState::kNonTraversable);
+}
+
+// A tile a scan only reads (its v's patch, its free-space rays) is read as of the scan's time:
+// bringing those tiles to that time beforehand changes nothing the scan computes, bit for bit.
+// With a prior (lambda > 0) an aged elevation moves toward prior_mean, so the reads matter.
+// Mutations checked: the ray walk reading old tiles as if fresh (last_f = 1) fails it, and so
+// does Elevation() doing so (f = 1).
+TEST(ForgettingTest, TilesAScanOnlyReadsAreReadAsOfItsTime) {
+  for (auto [method, block] :
+       {std::pair{Method::kBgkPlus, true}, std::pair{Method::kBaseline, true},
+        std::pair{Method::kBaseline, false}}) {
+    SCOPED_TRACE(::testing::Message() << MethodName(method) << (block ? " block" : ""));
+    MapParams p;
+    p.method = method;
+    p.half_life_s = 5.0;
+    p.lambda = 0.1;
+    // Without the block, a prior near the ground: aged cells are not contradicted, so nothing
+    // brings tile (0, 0) to the scan's time and its patches are read aged.
+    p.prior_mean = block ? -0.5 : 0.1;
+    std::unique_ptr<TerrainMap> one = TerrainMap::Create(p).value();
+    std::unique_ptr<TerrainMap> two = TerrainMap::Create(p).value();
+    // A 1 m block in tile (0, 0) next to the border with tile (1, 0).
+    auto surface = [block = block](double x, double y) {
+      const bool in = block && x > 5.8 && x < 6.3 && y > 2.0 && y < 4.0;
+      return RollingWithStep(x, y) + (in ? 1.0 : 0.0);
+    };
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d sensor(3.2 + k, 3.2, 1.0);
+      const std::vector<Point3f> pts = SampleSurface(surface, sensor, 8.0, 40000, 40 + k);
+      for (TerrainMap* m : {one.get(), two.get()}) {
+        ASSERT_TRUE(m->IntegrateScan(pts, At(sensor), false, (k + 1) * kSecond).ok());
+      }
+    }
+    // 40.7 s (8.1 half-lives) later: ground returns only in a strip of tile (1, 0), the sensor over
+    // tile (0, 0), so tile (0, 0) is crossed by rays (passing under the block's top as it was,
+    // over it as it is now) and (baseline) read by patches near the border, not written.
+    const Eigen::Vector3d sensor(5.5, 3.0, 1.0);
+    std::vector<Point3f> strip;
+    std::mt19937 rng(7);
+    // bgk+ writes within l of a return, baseline only at it and reads within robot_radius.
+    const double x0 = method == Method::kBaseline ? 6.45 : 6.8;
+    std::uniform_real_distribution<double> ux(x0, 9.0), uy(0.5, 5.5);
+    for (int i = 0; i < 20000; ++i) {
+      const double x = ux(rng), y = uy(rng);
+      strip.push_back({static_cast<float>(x - sensor.x()), static_cast<float>(y - sensor.y()),
+                       static_cast<float>(RollingWithStep(x, y) - sensor.z())});
+    }
+    const int64_t t = 43 * kSecond + 7 * kSecond / 10;  // not whole half-lives: f is no power of 2
+    const PreparedScan scan = PrepareScan(p, strip, At(sensor)).value();
+    std::vector<TileKey> aged = scan.read_tiles;
+    aged.insert(aged.end(), scan.clear_tiles.begin(), scan.clear_tiles.end());
+    ASSERT_TRUE(std::find(aged.begin(), aged.end(), TileKey{0, 0}) != aged.end());
+    for (const TileKey& k : aged) {
+      if (Tile* tile = two->FindMutableTile(k)) two->integrator().Advance(*tile, t);
+    }
+    ASSERT_TRUE(one->IntegrateScan(strip, At(sensor), false, t).ok());
+    ASSERT_TRUE(two->IntegrateScan(strip, At(sensor), false, t).ok());
+    int compared = 0;
+    one->ForEachTile([&](TileKey key, const Tile& tile) {
+      Tile expected(tile);
+      if (std::find(aged.begin(), aged.end(), key) != aged.end()) {
+        one->integrator().Advance(expected, t);
+      }
+      ASSERT_NE(two->FindTile(key), nullptr);
+      EXPECT_TRUE(expected == *two->FindTile(key)) << key.x << "," << key.y;
+      ++compared;
+    });
+    EXPECT_EQ(compared, static_cast<int>(two->tile_count()));
+  }
 }
 
 }  // namespace
