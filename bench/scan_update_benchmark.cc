@@ -40,7 +40,8 @@ const Sequence& Drive(const sim::BeamModel& beams, double sensor_height) {
 }
 
 void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double kernel_length,
-                   Method method, int tile_size = 64, Dynamics dynamics = Dynamics::kOn) {
+                   Method method, int tile_size = 64, Dynamics dynamics = Dynamics::kOn,
+                   double half_life_s = 0) {
   const Sequence& seq = Drive(beams, 0.8);
   MapParams p;
   p.resolution = 0.1;
@@ -49,6 +50,7 @@ void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double 
   p.method = method;
   p.tile_size = tile_size;
   p.dynamics = dynamics;
+  p.half_life_s = half_life_s;
   std::unique_ptr<TerrainMap> map;
   size_t next = 0;
   StageTimes sum;
@@ -64,7 +66,9 @@ void RunScanUpdate(benchmark::State& state, const sim::BeamModel& beams, double 
       state.ResumeTiming();
     }
     const size_t k = next++ % seq.scans.size();
-    Result<ScanReport> r = map->IntegrateScan(seq.scans[k], seq.poses[k]);
+    // With forgetting, stamped at 10 Hz: every write tile is aged at every scan.
+    const int64_t stamp = half_life_s > 0 ? static_cast<int64_t>(next) * 100'000'000 : 0;
+    Result<ScanReport> r = map->IntegrateScan(seq.scans[k], seq.poses[k], false, stamp);
     benchmark::DoNotOptimize(r);
     sum.elevation += r->times.elevation;
     sum.features += r->times.features;
@@ -93,6 +97,15 @@ void BM_Vlp16Paper(benchmark::State& s, Method m) {
 void BM_Hdl32ePaper(benchmark::State& s, Method m) {
   RunScanUpdate(s, sim::Hdl32e(), 1.0, m, 64, Dynamics::kOff);
 }
+// Forgetting on (half_life_s 10, scans at 10 Hz): the cost of ageing the tiles each scan writes.
+void BM_Vlp16Forget(benchmark::State& s, Method m) {
+  RunScanUpdate(s, sim::Vlp16(), 0.3, m, 64, Dynamics::kOn, 10.0);
+}
+void BM_Hdl32eForget(benchmark::State& s, Method m) {
+  RunScanUpdate(s, sim::Hdl32e(), 1.0, m, 64, Dynamics::kOn, 10.0);
+}
+BENCHMARK_CAPTURE(BM_Vlp16Forget, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32eForget, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vlp16Paper, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Hdl32ePaper, bgk_plus, Method::kBgkPlus)->Unit(benchmark::kMillisecond);
 

@@ -247,6 +247,11 @@ const std::vector<MapParamInfo>& Table() {
       Legacy(Real("footprint_weight", &P::footprint_weight, kStats, FootprintWeight,
                   "weight of the footprint evidence per scan, in observations at a cell"),
              "0.1"),
+      // Forgetting; maps from before it were built without (0).
+      Legacy(Real("half_life_s", &P::half_life_s, kStats, FiniteNonNegative,
+                  "seconds of map time (scan stamps) in which a statistic's weight halves "
+                  "(dynamics on); 0: no forgetting"),
+             "0"),
   };
   return table;
 }

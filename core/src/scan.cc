@@ -187,6 +187,7 @@ PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, con
     if (keep.Contains(c)) out.footprint_cells.push_back(c);
   }
   out.footprint_y = scan.footprint_y;
+  out.stamp_ns = scan.stamp_ns;
   if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeFootprint(params, out);
   return out;
 }

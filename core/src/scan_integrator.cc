@@ -96,7 +96,29 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
     if (InfersTraversability(params.method)) {
       caps_.ab = static_cast<float>(params.max_confidence_scans * full_ab);
     }
+    half_life_ns_ = params.half_life_s * 1e9;
   }
+}
+
+double ScanIntegrator::DecayFactor(int64_t dt_ns) const {
+  if (!(half_life_ns_ > 0) || dt_ns <= 0) return 1.0;
+  return std::exp2(-static_cast<double>(dt_ns) / half_life_ns_);
+}
+
+void ScanIntegrator::Advance(Tile& tile, int64_t t) const {
+  if (!(half_life_ns_ > 0) || t == 0 || t <= tile.stamp_ns()) return;
+  if (tile.stamp_ns() != 0) tile.Scale(DecayFactor(t - tile.stamp_ns()));
+  tile.set_stamp_ns(t);
+}
+
+double ScanIntegrator::Gain(const Tile& tile, int64_t t) const {
+  if (t == 0 || tile.stamp_ns() <= t) return 1.0;
+  return DecayFactor(tile.stamp_ns() - t);
+}
+
+double ScanIntegrator::ReadFactor(const Tile& tile, int64_t t) const {
+  if (t == 0 || tile.stamp_ns() == 0 || tile.stamp_ns() >= t) return 1.0;
+  return DecayFactor(t - tile.stamp_ns());
 }
 
 namespace {
@@ -139,9 +161,34 @@ void ScanIntegrator::Saturate(Tile& tile) const {
 struct ScanIntegrator::Impl {
   const ScanIntegrator& self;
   const TileWindow& window;
-  const int T;  // tile size
+  const int T;          // tile size
+  const int64_t stamp;  // the scan's map time (forgetting)
+  const bool forget;    // forgetting on and the scan stamped
 
   Tile* TileAt(CellIndex c) const { return window.at(self.geometry_.TileOf(c)); }
+
+  // Forgetting's per-tile factors, remembered for the last tile asked (runs come tile by tile);
+  // 1 without forgetting, so every sum is bitwise the one without it.
+  mutable const Tile* gain_tile = nullptr;
+  mutable double gain = 1.0;
+  double GainOf(const Tile& tile) const {
+    if (!forget) return 1.0;
+    if (&tile != gain_tile) {
+      gain_tile = &tile;
+      gain = self.Gain(tile, stamp);
+    }
+    return gain;
+  }
+  mutable const Tile* read_tile = nullptr;
+  mutable double read_factor = 1.0;
+  double ReadFactorOf(const Tile& tile) const {
+    if (!forget) return 1.0;
+    if (&tile != read_tile) {
+      read_tile = &tile;
+      read_factor = self.ReadFactor(tile, stamp);
+    }
+    return read_factor;
+  }
 
   // Calls row(tile, start, k_double, k_float, len) for every contiguous run of the kernel
   // stencil around `c` that lies in one tile. The same runs in the same order whatever the tile
@@ -189,10 +236,11 @@ struct ScanIntegrator::Impl {
     const Tile* tile = TileAt(c);
     if (tile == nullptr) return std::numeric_limits<double>::quiet_NaN();
     const int i = self.geometry_.LocalIndex(c);
-    const double w = tile->w()[i];
+    const double f = ReadFactorOf(*tile);  // a tile the scan does not change, as of its stamp
+    const double w = f * tile->w()[i];
     if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
     const MapParams& p = self.params_;
-    return (p.lambda * p.prior_mean + tile->s()[i]) / (p.lambda + w);
+    return (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w);
   }
 
   // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
@@ -216,6 +264,7 @@ struct ScanIntegrator::Impl {
       const double skip = p.kernel_length / res;
       TileKey last_key{0, 0};
       const Tile* last_tile = nullptr;
+      double last_f = 1.0;
       bool have_last = false;
       for (const ObservedCell& oc : scan.cells) {
         const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
@@ -227,16 +276,18 @@ struct ScanIntegrator::Impl {
           if (!have_last || key != last_key) {  // the footprint holds every tile a ray crosses
             last_key = key;
             last_tile = window.at(key);
+            last_f = last_tile != nullptr ? ReadFactorOf(*last_tile) : 1.0;
             have_last = true;
           }
           if (last_tile == nullptr) return;
           const int i = self.geometry_.LocalIndex(c);
-          const double w = last_tile->w()[i];
+          const double w = last_f * last_tile->w()[i];
           if (!(w > 0.0)) return;
+          const double s = last_f * last_tile->s()[i];
           // The top of what the cell has seen: its mean plus its disagreement's deviation, so
           // an old object's remains, mixed with new ground, still stand above a grazing ray.
-          const double m = (p.lambda * p.prior_mean + last_tile->s()[i]) / (p.lambda + w);
-          const double top = m + std::sqrt(Disagreement(w, last_tile->s()[i], last_tile->q()[i]));
+          const double m = (p.lambda * p.prior_mean + s) / (p.lambda + w);
+          const double top = m + std::sqrt(Disagreement(w, s, last_f * last_tile->q()[i]));
           if (oc.y + rise * t < top - margin) out.push_back(c);
         });
       }
@@ -281,11 +332,17 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   ScanReport report;
   report.counts = scan.counts;
   report.observed_cells = scan.cells.size();
-  const Impl impl{*this, window, params_.tile_size};
+  const bool forget = forgetting() && scan.stamp_ns != 0;
+  const Impl impl{*this, window, params_.tile_size, scan.stamp_ns, forget};
   const Method method = params_.method;
 
   const bool dynamic = params_.dynamics == Dynamics::kOn;
   const auto t0 = Clock::now();
+  // Forgetting: the tiles the scan writes are brought to its time first; the others it may
+  // change when it does (Advance is idempotent); the ones it only reads are read as of it.
+  if (forget) {
+    for (const TileKey& key : scan.write_tiles) Advance(*window.at(key), scan.stamp_ns);
+  }
   std::vector<TileKey> cleared;  // clear_tiles the evidence changed
   // 0. Free-space evidence (dynamics): contradicted cells keep clear_decay of their statistics.
   if (dynamic && scan.has_sensor) {
@@ -312,6 +369,7 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
                                     for (int j = 0; j < len; ++j)
                                       any |= (a[j] != 0.0f) | (b[j] != 0.0f);
                                     if (!any) return;
+                                    if (forget) Advance(tile, scan.stamp_ns);
                                     std::fill_n(a, len, 0.0f);
                                     std::fill_n(b, len, 0.0f);
                                     if (touched.empty() || touched.back() != &tile)
@@ -320,6 +378,7 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     }
     for (const auto& [c, count] : contradicted) {
       Tile& tile = *impl.TileAt(c);
+      if (forget) Advance(tile, scan.stamp_ns);
       const int i = geometry_.LocalIndex(c);
       // Independent rays are independent evidence: each keeps clear_decay of what is left.
       double keep = 1.0;
@@ -331,6 +390,7 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
       if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
     }
     report.contradicted_cells = contradicted.size();
+    impl.read_tile = nullptr;  // a clear tile read above may have been brought to the scan's time
     std::sort(touched.begin(), touched.end());
     for (const TileKey& key : scan.clear_tiles) {
       const Tile* tile = window.at(key);
@@ -355,6 +415,25 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
                               }
                             });
     }
+  } else if (InfersElevation(method) && forget) {
+    // A late scan's contribution to a tile already at a later time is aged by Gain.
+    for (const ObservedCell& oc : scan.cells) {
+      const double y = oc.y, yy = oc.y * oc.y;
+      impl.ForEachKernelRun(oc.cell, [&impl, y, yy, w_cap](Tile& tile, int start, const double* k,
+                                                           const float*, int len) {
+        const double g = impl.GainOf(tile);
+        double* __restrict w = tile.w().data() + start;
+        double* __restrict s = tile.s().data() + start;
+        double* __restrict q = tile.q().data() + start;
+        for (int j = 0; j < len; ++j) {
+          const double kg = k[j] * g;
+          w[j] += kg;
+          s[j] += kg * y;
+          q[j] += kg * yy;
+        }
+        CapElevation(w, s, q, len, w_cap);
+      });
+    }
   } else if (InfersElevation(method)) {
     for (const ObservedCell& oc : scan.cells) {
       const double y = oc.y, yy = oc.y * oc.y;
@@ -375,10 +454,11 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     for (const ObservedCell& oc : scan.cells) {
       Tile* tile = impl.TileAt(oc.cell);
       const int i = geometry_.LocalIndex(oc.cell);
-      tile->w()[i] += 1.0;
-      tile->s()[i] += oc.y;
+      const double g = impl.GainOf(*tile);  // 1 without forgetting: the sums are unchanged
+      tile->w()[i] += g;
+      tile->s()[i] += g * oc.y;
       if (dynamic) {
-        tile->q()[i] += oc.y * oc.y;
+        tile->q()[i] += g * oc.y * oc.y;
         CapElevation(&tile->w()[i], &tile->s()[i], &tile->q()[i], 1, w_cap);
       }
     }
@@ -429,23 +509,39 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     const float direct = direct_weight_;
     for (const auto& [cell, v] : values) {
       const float va = v, vb = 1.0f - v;
-      impl.ForEachKernelRun(
-          cell, [va, vb, ab_cap](Tile& tile, int start, const double*, const float* k, int len) {
-            float* __restrict a = tile.a().data() + start;
-            float* __restrict b = tile.b().data() + start;
-            for (int j = 0; j < len; ++j) {
-              a[j] += k[j] * va;
-              b[j] += k[j] * vb;
-            }
-            if (ab_cap > 0) CapBeta(a, b, len, ab_cap);
-          });
+      if (!forget) {
+        impl.ForEachKernelRun(
+            cell, [va, vb, ab_cap](Tile& tile, int start, const double*, const float* k, int len) {
+              float* __restrict a = tile.a().data() + start;
+              float* __restrict b = tile.b().data() + start;
+              for (int j = 0; j < len; ++j) {
+                a[j] += k[j] * va;
+                b[j] += k[j] * vb;
+              }
+              if (ab_cap > 0) CapBeta(a, b, len, ab_cap);
+            });
+      } else {
+        impl.ForEachKernelRun(cell, [&impl, va, vb, ab_cap](Tile& tile, int start, const double*,
+                                                            const float* k, int len) {
+          const float g = static_cast<float>(impl.GainOf(tile));
+          float* __restrict a = tile.a().data() + start;
+          float* __restrict b = tile.b().data() + start;
+          for (int j = 0; j < len; ++j) {
+            const float kg = k[j] * g;
+            a[j] += kg * va;
+            b[j] += kg * vb;
+          }
+          if (ab_cap > 0) CapBeta(a, b, len, ab_cap);
+        });
+      }
       if (direct > 0.0f) {
         // bgk-obstacle: the cell's own evidence weighs as much as its whole neighbourhood's, so
         // an obstacle seen at a cell is not averaged away by the ground seen around it.
         Tile* tile = impl.TileAt(cell);
         const int i = geometry_.LocalIndex(cell);
-        tile->a()[i] += direct * va;
-        tile->b()[i] += direct * vb;
+        const float dg = direct * static_cast<float>(impl.GainOf(*tile));
+        tile->a()[i] += dg * va;
+        tile->b()[i] += dg * vb;
         if (ab_cap > 0) CapBeta(&tile->a()[i], &tile->b()[i], 1, ab_cap);
       }
     }
@@ -461,11 +557,12 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   // footprint_weight of an observation of ground at footprint_y, and as much traversable
   // evidence; at the cell only, so a real return there outweighs it (semantics "Dynamics").
   if (!scan.footprint_cells.empty()) {
-    const double wf = params_.footprint_weight, y = scan.footprint_y;
-    const float bf = static_cast<float>(params_.footprint_weight);
+    const double y = scan.footprint_y;
     for (const CellIndex& c : scan.footprint_cells) {
       Tile* tile = impl.TileAt(c);
       const int i = geometry_.LocalIndex(c);
+      const double wf = params_.footprint_weight * impl.GainOf(*tile);
+      const float bf = static_cast<float>(wf);
       double* w = &tile->w()[i];
       double* s = &tile->s()[i];
       double* q = &tile->q()[i];

@@ -16,9 +16,10 @@ TerrainMap::TerrainMap(const MapParams& params)
     : params_(params), geometry_(params.resolution, params.tile_size), integrator_(params) {}
 
 Result<ScanReport> TerrainMap::IntegrateScan(std::span<const Point3f> points, const Pose& pose,
-                                             bool frame_is_map) {
+                                             bool frame_is_map, int64_t stamp_ns) {
   Result<PreparedScan> scan = PrepareScan(params_, points, pose, frame_is_map);
   if (!scan.ok()) return scan.status();
+  scan->stamp_ns = stamp_ns;
   const TileWindow window = MakeWindow(*scan);
   return Integrate(*scan, window, ++version_);
 }
@@ -65,7 +66,19 @@ void TerrainMap::ForEachTile(const std::function<void(TileKey, const Tile&)>& fn
 
 void TerrainMap::AddTile(TileKey key, const Tile& tile) {
   Tile& dst = GetOrCreateTile(key);
-  dst.Add(tile);
+  // Forgetting: both brought to the later stamp, then added (docs/semantics.md "Forgetting").
+  if (integrator_.forgetting() && tile.stamp_ns() != dst.stamp_ns()) {
+    integrator_.Advance(dst, tile.stamp_ns());
+    if (tile.stamp_ns() < dst.stamp_ns()) {
+      Tile aged(tile);
+      integrator_.Advance(aged, dst.stamp_ns());
+      dst.Add(aged);
+    } else {
+      dst.Add(tile);
+    }
+  } else {
+    dst.Add(tile);
+  }
   integrator_.Saturate(dst);
   dst.set_version(std::max(dst.version(), tile.version()));
 }
@@ -78,6 +91,7 @@ void TerrainMap::SetTile(TileKey key, const Tile& tile) {
   std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
   std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
   dst.set_version(tile.version());
+  dst.set_stamp_ns(tile.stamp_ns());
 }
 
 CellEstimate TerrainMap::Estimate(CellIndex cell) const {

@@ -15,6 +15,7 @@ Tile::Tile(int tile_size)
 
 Tile::Tile(const Tile& o) : Tile(o.size_) {
   version_ = o.version_;
+  stamp_ns_ = o.stamp_ns_;
   std::copy_n(o.w_.get(), n(), w_.get());
   std::copy_n(o.s_.get(), n(), s_.get());
   std::copy_n(o.q_.get(), n(), q_.get());
@@ -56,6 +57,19 @@ void Tile::Add(const Tile& o) {
   }
 }
 
+void Tile::Scale(double f) {
+  for (size_t i = 0; i < n(); ++i) {
+    w_[i] *= f;
+    s_[i] *= f;
+    q_[i] *= f;
+  }
+  // The Beta counts in double, as ScaleCell: a product rounded once to float.
+  for (size_t i = 0; i < n(); ++i) {
+    a_[i] = static_cast<float>(a_[i] * f);
+    b_[i] = static_cast<float>(b_[i] * f);
+  }
+}
+
 void Tile::Clear() {
   std::fill_n(w_.get(), n(), 0.0);
   std::fill_n(s_.get(), n(), 0.0);
@@ -66,7 +80,8 @@ void Tile::Clear() {
 
 bool Tile::operator==(const Tile& o) const {
   // Bitwise comparison: "identical maps" means identical statistics, not merely close ones.
-  return size_ == o.size_ && std::memcmp(w_.get(), o.w_.get(), n() * sizeof(double)) == 0 &&
+  return size_ == o.size_ && stamp_ns_ == o.stamp_ns_ &&
+         std::memcmp(w_.get(), o.w_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(s_.get(), o.s_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(q_.get(), o.q_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(a_.get(), o.a_.get(), n() * sizeof(float)) == 0 &&

@@ -197,6 +197,7 @@ Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
   if (type == static_cast<uint8_t>(LogRecord::Type::kScan)) {
     auto scan = std::make_shared<PreparedScan>();
     if (!GetScan(r, format, scan.get())) return malformed;
+    scan->stamp_ns = record.stamp_ns;  // the map time forgetting replays with
     record.type = LogRecord::Type::kScan;
     record.scan = std::move(scan);
   } else if (type == static_cast<uint8_t>(LogRecord::Type::kClear)) {

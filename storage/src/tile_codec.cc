@@ -83,16 +83,18 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
   }
   bool moments = false;  // a map without dynamics keeps Q at zero: not stored
   for (int i : present) moments |= std::bit_cast<uint64_t>(tile.q()[i]) != 0;
-  const uint8_t flags =
-      static_cast<uint8_t>((options.shuffle ? kTileShuffled : 0) |
-                           (options.xor_delta ? kTileXorDelta : 0) | (moments ? kTileMoments : 0));
+  const bool stamped = tile.stamp_ns() != 0;  // a map without forgetting has none: not stored
+  const uint8_t flags = static_cast<uint8_t>(
+      (options.shuffle ? kTileShuffled : 0) | (options.xor_delta ? kTileXorDelta : 0) |
+      (moments ? kTileMoments : 0) | (stamped ? kTileStamp : 0));
   std::string out;
   out.reserve(16 + cell_count / 8 + present.size() * Tile::kBytesPerCell);
   ByteWriter w(&out);
-  w.PutU8(kTileFormat);
+  w.PutU8(stamped ? kTileFormat : 2);
   w.PutU8(flags);
   w.PutVarint(static_cast<uint64_t>(tile.tile_size()));
   w.PutVarint(tile.version());
+  if (stamped) w.PutSignedVarint(tile.stamp_ns());
   w.PutVarint(present.size());
   if (!present.empty() && static_cast<int>(present.size()) < cell_count) {
     std::string bitmap((cell_count + 7) / 8, '\0');
@@ -126,12 +128,16 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
                                       " is newer than this build reads (" +
                                       std::to_string(kTileFormat) + ")");
   }
-  // Format 1 is format 2 without moments (written before dynamics): still read.
-  const uint8_t known_flags = kTileShuffled | kTileXorDelta | (format >= 2 ? kTileMoments : 0);
+  // Format 1 is format 2 without moments (written before dynamics), format 2 format 3 without
+  // a stamp (written before forgetting): both still read.
+  const uint8_t known_flags = kTileShuffled | kTileXorDelta | (format >= 2 ? kTileMoments : 0) |
+                              (format >= 3 ? kTileStamp : 0);
   if (format < 1 || (flags & ~known_flags) != 0) {
     return Malformed("unknown format or flags");
   }
-  if (!r.GetVarint(&size) || !r.GetVarint(&version) || !r.GetVarint(&n)) {
+  int64_t stamp = 0;
+  if (!r.GetVarint(&size) || !r.GetVarint(&version) ||
+      ((flags & kTileStamp) && !r.GetSignedVarint(&stamp)) || !r.GetVarint(&n)) {
     return Malformed("truncated header");
   }
   if (size != static_cast<uint64_t>(tile_size)) {
@@ -140,6 +146,7 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
   }
   auto tile = std::make_unique<Tile>(tile_size);
   tile->set_version(version);
+  tile->set_stamp_ns(stamp);
   const int cell_count = tile->cell_count();
   if (n > static_cast<uint64_t>(cell_count)) return Malformed("more present cells than cells");
   std::vector<int> present;

@@ -180,6 +180,72 @@ TEST(PersistenceTest, PeriodicCheckpointLeavesNothingToReplay) {
 
 // A clear replayed from the log after kill -9 erases its tiles for good: they must not come back
 // from the stored checkpoint when the other tiles are loaded, at this start or the next.
+// Forgetting (map.half_life_s > 0, docs/semantics.md "Forgetting"): two robots share the place,
+// the second's stamps 1.5 s behind (late scans, aged on arrival). The served map is the offline
+// map of the same scans with the same stamps, bitwise; after kill -9 (nothing checkpointed) the
+// replayed log gives it again, bitwise: the log keeps each scan's map time.
+// Mutations checked: ingest not setting PreparedScan::stamp_ns (request_checks.cc) fails the
+// offline comparison; the log decoder not putting the stamp back on the scan fails the restart.
+TEST(PersistenceTest, ForgettingReplaysBitwiseAfterSigkill) {
+  TempDir dir("bgkmap_persist");
+  const std::vector<std::string> args = {"--data-dir", dir.str(),
+                                         "--set",      "half_life_s=1",
+                                         "--set",      "storage.checkpoint_interval_s=3600"};
+  const std::vector<OwnedScan> alpha = RobotScans("alpha", 0.0, 4, 8);
+  const std::vector<OwnedScan> beta = RobotScans("beta", 0.0, 4, 8);
+  const int64_t base = int64_t{1'764'000'000} * 1'000'000'000;
+  std::vector<ScanData> data;
+  std::vector<std::pair<const OwnedScan*, int64_t>> order;
+  for (size_t k = 0; k < alpha.size(); ++k) {
+    const int64_t t = base + static_cast<int64_t>(k) * 100'000'000;
+    for (auto [scan, stamp] : {std::pair{&alpha[k], t}, std::pair{&beta[k], t - 1'500'000'000}}) {
+      data.push_back(scan->Data());
+      data.back().stamp_ns = stamp;
+      order.emplace_back(scan, stamp);
+    }
+  }
+  const MetricBox box = BoxAround(alpha.front(), 20.0);
+  Raster before;
+  {
+    BgkmapdProcess server(args);
+    ASSERT_TRUE(server.started());
+    Client client(server.target());
+    for (const ScanData& d : data) {  // one at a time: the map version order is this order
+      RpcResult<ScanAck> ack = client.Insert(d);
+      ASSERT_TRUE(ack.ok() && ack->status == AckStatus::kApplied);
+    }
+    RpcResult<Raster> r = client.QueryRegion({box, {}, 1});
+    ASSERT_TRUE(r.ok());
+    before = *r;
+    server.Signal(SIGKILL);  // every scan only in the log
+    server.Wait();
+  }
+  MapParams params;
+  params.half_life_s = 1;
+  std::unique_ptr<TerrainMap> offline = TerrainMap::Create(params).value();
+  for (const auto& [scan, stamp] : order) {
+    ASSERT_TRUE(offline->IntegrateScan(scan->points, WirePose(scan->pose), false, stamp).ok());
+  }
+  const Raster want = OfflineRegion(*offline, box);
+  EXPECT_TRUE(RastersMatch(before, want, 0.0));
+  EXPECT_TRUE(BitwiseEqual(before, want));
+  // Forgetting changed the map: without it the same scans give another one.
+  std::unique_ptr<TerrainMap> plain = TerrainMap::Create(MapParams{}).value();
+  for (const auto& [scan, stamp] : order) {
+    ASSERT_TRUE(plain->IntegrateScan(scan->points, WirePose(scan->pose), false, stamp).ok());
+  }
+  EXPECT_FALSE(BitwiseEqual(before, OfflineRegion(*plain, box)));
+
+  BgkmapdProcess server(args);
+  ASSERT_TRUE(server.started());
+  const std::string line = server.FindLine("event=recovered");
+  EXPECT_NE(line.find("scans_replayed=" + std::to_string(data.size())), std::string::npos) << line;
+  Client client(server.target());
+  RpcResult<Raster> after = client.QueryRegion({box, {}, 1});
+  ASSERT_TRUE(after.ok());
+  EXPECT_TRUE(BitwiseEqual(before, *after));
+}
+
 TEST(PersistenceTest, ClearReplayedAfterSigkillStaysCleared) {
   TempDir dir("bgkmap_persist");
   const std::vector<OwnedScan> scans = RobotScans("alpha", 0.0, 4, 6);

@@ -44,9 +44,12 @@ Pose Drifted(const Pose& truth, int index) {
   return p;
 }
 
-std::shared_ptr<const PreparedScan> Prepare(const MapParams& params, const ScanSource& source) {
+// Prepared as the server does: stamped with the scan's map time.
+std::shared_ptr<const PreparedScan> Prepare(const MapParams& params, const ScanSource& source,
+                                            int64_t stamp_ns) {
   Result<PreparedScan> scan = PrepareScan(params, source.points, source.pose, source.frame_is_map);
   EXPECT_TRUE(scan.ok()) << scan.status().ToString();
+  scan->stamp_ns = stamp_ns;
   return std::make_shared<const PreparedScan>(std::move(scan).value());
 }
 
@@ -66,15 +69,20 @@ struct Drive {
   std::unique_ptr<TerrainMap> map = NewMap(params);
   std::map<uint64_t, LogRecord> records;  // as logged
 
-  explicit Drive(int versions, StoreOptions options = Retaining()) {
+  // With `half_life_s` > 0 the map forgets, and robot 1's stamps run 3.5 s behind robot 0's.
+  explicit Drive(int versions, StoreOptions options = Retaining(), double half_life_s = 0) {
+    params.half_life_s = half_life_s;
+    map = NewMap(params);
     store = std::move(TileStore::Open(dir.path(), options, params)).value();
     testing::Checkpointer checkpointer;
     for (int v = 1; v <= versions; ++v) {
       const int robot = v % 2, index = v / 2;
       auto source = std::make_shared<ScanSource>(RawScan(robot, index));
       if (robot == 0) source->pose = Drifted(source->pose, index);
+      const int64_t stamp =
+          1'000'000'000LL * v - (half_life_s > 0 && robot == 1 ? 3'500'000'000LL : 0);
       LogRecord record = LogRecord::Scan(v, "robot-" + std::to_string(robot), index + 1,
-                                         Prepare(params, *source), 1'000'000'000LL * v);
+                                         Prepare(params, *source, stamp), stamp);
       record.source = source;
       EXPECT_TRUE(store->log().Append(record).ok());
       checkpointer.MarkDirty(Apply(*map, *record.scan, v));
@@ -140,7 +148,7 @@ std::map<uint64_t, std::shared_ptr<const PreparedScan>> CorrectRobot0(Drive& dri
   for (const auto& [v, record] : drive.records) {
     if (v % 2 != 0 || static_cast<int>(v / 2) < from) continue;
     auto source = std::make_shared<ScanSource>(RawScan(0, static_cast<int>(v / 2)));
-    revised[v] = Prepare(drive.params, *source);
+    revised[v] = Prepare(drive.params, *source, record.stamp_ns);  // a new pose, the same time
     const auto old = record.scan->ChangeableTiles();
     seeds.insert(old.begin(), old.end());
     LogRecord r = record;
@@ -187,6 +195,24 @@ TEST(Reintegration, CorrectedMapEqualsTheMapBuiltFromScratchWithTheCorrectedPose
   EXPECT_TRUE(StatisticsIdentical(*truth, *recovered));
   // The bases between the correction's base and itself are gone: their history predates it.
   for (uint64_t b : drive.store->Bases()) EXPECT_TRUE(b <= 14 || b >= 41) << b;
+}
+
+// Forgetting (docs/semantics.md): the log's stamps are the scans' map times, so the rebuild and
+// recovery age evidence exactly as the live map did, late scans of the other robot included.
+// Mutation checked: the log decoder not putting the record's stamp on the scan fails it.
+TEST(Reintegration, WithForgettingTheCorrectedMapIsStillTheRebuiltOneBitwise) {
+  Drive drive(40, Retaining(), 3.0);
+  ASSERT_TRUE(StatisticsIdentical(*drive.Rebuilt({}), *drive.map));
+  CorrectRobot0(drive, 10, 41);
+  const auto truth = drive.Rebuilt({});
+  EXPECT_TRUE(StatisticsIdentical(*truth, *drive.map));
+  auto recovered = NewMap(drive.params);
+  ASSERT_TRUE(RecoverMap(*drive.store, *recovered).ok());
+  ASSERT_TRUE(LoadAllTiles(*drive.store, *recovered).ok());
+  EXPECT_TRUE(StatisticsIdentical(*truth, *recovered));
+  int stamped = 0;
+  drive.map->ForEachTile([&](TileKey, const Tile& t) { stamped += t.stamp_ns() != 0 ? 1 : 0; });
+  EXPECT_GT(stamped, 0);
 }
 
 TEST(Reintegration, ASecondCorrectionReachingFurtherBackStaysExact) {

@@ -1,7 +1,8 @@
 // Measures the store on the real street scans (docs/storage.md, "Measured"): bytes per known
 // cell on disk for each tile layout and compression, log record size, and log append throughput
 // with sync vs periodic durability. Not a test; run by hand:
-//   store_bench [SCAN_DIR] [APPENDS] [ZSTD_LEVEL]
+//   store_bench [SCAN_DIR] [APPENDS] [ZSTD_LEVEL] [HALF_LIFE_S]
+// With HALF_LIFE_S > 0 the map forgets, its scans stamped 1 s apart (tiles carry stamps).
 #include <chrono>
 #include <cstdio>
 #include <thread>
@@ -123,17 +124,19 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", sequence.status().ToString().c_str());
     return 1;
   }
-  const MapParams params;  // the defaults: 0.1 m cells, 64-cell tiles, bgk+
+  MapParams params;  // the defaults: 0.1 m cells, 64-cell tiles, bgk+
+  params.half_life_s = argc > 4 ? std::atof(argv[4]) : 0.0;
   auto map = st::testing::NewMap(params);
   std::vector<std::shared_ptr<const PreparedScan>> scans;
   for (size_t k = 0; k < sequence->size(); ++k) {
     auto scan = sequence->Read(k);
     if (!scan.ok()) return 1;
-    if (!map->IntegrateScan(scan->points, scan->pose).ok()) return 1;
+    const int64_t stamp = params.half_life_s > 0 ? static_cast<int64_t>(k + 1) * 1'000'000'000 : 0;
+    if (!map->IntegrateScan(scan->points, scan->pose, false, stamp).ok()) return 1;
     scans.push_back(std::make_shared<const PreparedScan>(
         std::move(bgkmap::PrepareScan(params, scan->points, scan->pose)).value()));
   }
-  std::printf("%s: %zu scans\n", dir.c_str(), sequence->size());
+  std::printf("%s: %zu scans, half_life_s %g\n", dir.c_str(), sequence->size(), params.half_life_s);
   const int zstd_level = argc > 3 ? std::atoi(argv[3]) : 3;
   std::printf("zstd level %d\n", zstd_level);
   MeasureTiles(*map, zstd_level);

@@ -4,13 +4,16 @@
 
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
+
+#include "bgkmap/storage/crc32c.h"
 
 namespace bgkmap::storage {
 namespace {
 
-// Bitwise equality including the version (Tile::operator== compares statistics only).
+// Bitwise equality including the version (Tile::operator== compares statistics and stamp).
 void ExpectIdentical(const Tile& a, const Tile& b) {
   ASSERT_EQ(a.tile_size(), b.tile_size());
   EXPECT_TRUE(a == b);
@@ -119,6 +122,73 @@ TEST(TileCodecTest, TruncationAndWrongTileSizeAreDataLoss) {
   const auto wrong = DecodeTile(good, 32);
   EXPECT_EQ(wrong.status().code(), Status::Code::kDataLoss);
   EXPECT_NE(wrong.status().message().find("16 cells wide"), std::string::npos);
+}
+
+// Forgetting's stamp (format 3): stored only when non-zero, so a map without forgetting encodes
+// byte for byte as format 2 did.
+// Mutation checked: not writing the stamp (dropping `if (stamped) PutSignedVarint`) fails the
+// round trips; writing kTileFormat for every tile fails the format-2 bytes.
+TEST(TileCodecTest, StampedTilesRoundTripAsFormat3) {
+  for (int64_t stamp : {int64_t{1'764'000'000'123'456'789}, int64_t{-5}, int64_t{1}}) {
+    Tile t = RandomTile(16, 0.5, 7);
+    t.set_stamp_ns(stamp);
+    for (bool shuffle : {false, true}) {
+      const std::string bytes = EncodeTile(t, {.shuffle = shuffle});
+      EXPECT_EQ(bytes[0], 3);
+      EXPECT_NE(bytes[1] & kTileStamp, 0);
+      const std::unique_ptr<Tile> back = RoundTrip(t, {.shuffle = shuffle});
+      ExpectIdentical(t, *back);
+      EXPECT_EQ(back->stamp_ns(), stamp);
+    }
+  }
+}
+
+std::string WithCrc(std::string body) {
+  const uint32_t crc = Crc32c(body);
+  body.append(reinterpret_cast<const char*>(&crc), 4);
+  return body;
+}
+
+// A format-2 tile written before forgetting, built by hand: it decodes (stamp 0), and an
+// unstamped tile still encodes to exactly these bytes.
+TEST(TileCodecTest, Format2TilesDecodeAndUnstampedTilesEncodeAsFormat2) {
+  std::string body;
+  body += '\x02';                           // format 2
+  body += static_cast<char>(kTileMoments);  // flags
+  body += '\x04';                           // tile_size 4
+  body += '\x09';                           // version 9
+  body += '\x01';                           // one present cell
+  body += std::string("\x20\x00", 2);       // bitmap: cell 5
+  const double w = 2.5, s = 1.25, q = 0.75;
+  const float a = 0.5f, b = 1.5f;
+  for (double v : {w, s, q}) body.append(reinterpret_cast<const char*>(&v), 8);
+  for (float v : {a, b}) body.append(reinterpret_cast<const char*>(&v), 4);
+  const std::string format2 = WithCrc(body);
+  Result<std::unique_ptr<Tile>> decoded = DecodeTile(format2, 4);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  const Tile& t = **decoded;
+  EXPECT_EQ(t.version(), 9u);
+  EXPECT_EQ(t.stamp_ns(), 0);
+  EXPECT_EQ(t.w()[5], w);
+  EXPECT_EQ(t.s()[5], s);
+  EXPECT_EQ(t.q()[5], q);
+  EXPECT_EQ(t.a()[5], a);
+  EXPECT_EQ(t.b()[5], b);
+  EXPECT_EQ(t.CountKnown(), 1);
+  EXPECT_EQ(EncodeTile(t), format2);
+}
+
+TEST(TileCodecTest, NewerFormatsAreRefusedNamingBothAndStampsNeedFormat3) {
+  Tile t = RandomTile(8, 0.5, 9);
+  t.set_stamp_ns(77);
+  std::string bytes = EncodeTile(t);
+  std::string body = bytes.substr(0, bytes.size() - 4);
+  body[0] = 4;
+  const auto newer = DecodeTile(WithCrc(body), 8);
+  EXPECT_EQ(newer.status().code(), Status::Code::kFailedPrecondition);
+  EXPECT_EQ(newer.status().message(), "tile format 4 is newer than this build reads (3)");
+  body[0] = 2;  // a stamp in a format that has none
+  EXPECT_EQ(DecodeTile(WithCrc(body), 8).status().code(), Status::Code::kDataLoss);
 }
 
 }  // namespace

@@ -38,6 +38,7 @@ inline MapParams NonDefaultParams() {
   p.clear_ray_length = 4.5;
   p.sensor_height = 0.75;
   p.footprint_weight = 0.3;
+  p.half_life_s = 12.5;
   return p;
 }
 

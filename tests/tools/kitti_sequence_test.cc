@@ -155,6 +155,41 @@ TEST(KittiSequenceTest, TrailingBlankLinesAndExtraPosesAreAccepted) {
   EXPECT_EQ(seq->size(), 3u);
 }
 
+// KITTI odometry's times.txt: scan k's time on line k, the map time forgetting ages by.
+TEST(KittiSequenceTest, TimesAreReadWhenPresent) {
+  {
+    TempDir dir;
+    CopyStreetWithPoses(dir, StreetPoseLines(3));
+    Result<KittiSequence> seq = KittiSequence::Open(dir.path().string());
+    ASSERT_TRUE(seq.ok()) << seq.status().message();
+    EXPECT_FALSE(seq->has_times());
+    EXPECT_TRUE(std::isnan(seq->Read(1)->time_s));
+  }
+  {
+    TempDir dir;
+    CopyStreetWithPoses(dir, StreetPoseLines(3));
+    WriteBytes(dir.Path("times.txt"), "0.000000e+00\n1.036190e-01 \n2.07e-01\n3.1\n");
+    Result<KittiSequence> seq = KittiSequence::Open(dir.path().string());
+    ASSERT_TRUE(seq.ok()) << seq.status().message();
+    EXPECT_TRUE(seq->has_times());
+    EXPECT_EQ(seq->Read(0)->time_s, 0.0);
+    EXPECT_EQ(seq->Read(1)->time_s, 1.036190e-01);
+    EXPECT_EQ(seq->Read(2)->time_s, 2.07e-01);
+  }
+  for (const auto& [times, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"0\n0.1\n", "times.txt: 2 times for 3 scans"},
+           {"0\nx\n0.2\n", "times.txt:2: not a finite number of seconds: 'x'"},
+           {"0\n0.1\nnan\n", "times.txt:3: not a finite number of seconds: 'nan'"}}) {
+    TempDir dir;
+    CopyStreetWithPoses(dir, StreetPoseLines(3));
+    WriteBytes(dir.Path("times.txt"), times);
+    Result<KittiSequence> seq = KittiSequence::Open(dir.path().string());
+    ASSERT_FALSE(seq.ok()) << times;
+    EXPECT_NE(seq.status().message().find(expected), std::string::npos)
+        << seq.status().message() << " does not contain " << expected;
+  }
+}
+
 TEST(KittiSequenceTest, GapInScanNumberingIsAnError) {
   TempDir dir;
   CopyStreetWithPoses(dir, StreetPoseLines(3));

@@ -1,5 +1,6 @@
 // `bgkmap build`: maps a scan sequence or a cloud offline and writes the map as a GeoTIFF.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -76,10 +77,17 @@ int RunBuild(const BuildOptions& o) {
   StageTimes times;
   {
     io::ProgressBar progress("mapping", (*source)->size(), "scans");
+    double first_time = std::nan("");
     for (size_t k = 0; k < (*source)->size(); ++k) {
       Result<SourceScan> scan = (*source)->Read(k);
       if (!scan.ok()) return Fail(scan.status().message());
-      Result<ScanReport> r = map.IntegrateScan(scan->points, scan->pose, scan->frame_is_map);
+      // Map time (forgetting): the sequence's times.txt, its first scan at 1 s (0 would be
+      // unstamped); without times, unstamped.
+      if (k == 0) first_time = scan->time_s;
+      const int64_t stamp = std::isfinite(scan->time_s) && std::isfinite(first_time)
+                                ? 1'000'000'000 + std::llround((scan->time_s - first_time) * 1e9)
+                                : 0;
+      Result<ScanReport> r = map.IntegrateScan(scan->points, scan->pose, scan->frame_is_map, stamp);
       if (!r.ok()) return Fail("scan " + std::to_string(k) + ": " + r.status().message());
       total.input += r->counts.input;
       total.kept += r->counts.kept;

@@ -73,6 +73,8 @@ int RunInsert(const InsertOptions& o) {
   const auto period = o.rate_hz > 0 ? std::chrono::duration<double>(1.0 / o.rate_hz)
                                     : std::chrono::duration<double>(0);
   std::string read_error;
+  int64_t start_ns = 0;
+  double first_time = std::nan("");
   for (size_t k = first; k < (*source)->size(); ++k) {
     Result<SourceScan> scan = (*source)->Read(k);
     if (!scan.ok()) {
@@ -92,9 +94,18 @@ int RunInsert(const InsertOptions& o) {
     ScanData data;
     data.robot_id = o.robot;
     data.sequence = k + 1;
-    data.stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                        std::chrono::system_clock::now().time_since_epoch())
-                        .count();
+    // The scan's map time (forgetting ages evidence by it): with times.txt, the sequence's own
+    // timing from the moment the insert started, whatever the rate; else the clock.
+    const int64_t now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+    if (k == first) {
+      start_ns = now_ns;
+      first_time = scan->time_s;
+    }
+    data.stamp_ns = std::isfinite(scan->time_s) && std::isfinite(first_time)
+                        ? start_ns + std::llround((scan->time_s - first_time) * 1e9)
+                        : now_ns;
     data.pose = ScanPose::FromPose(scan->pose);
     data.points = scan->points;
     if (!stream->Send(data)) break;

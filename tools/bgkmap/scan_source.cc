@@ -19,7 +19,7 @@ class KittiSource : public ScanSource {
   Result<SourceScan> Read(size_t k) const override {
     Result<io::Scan> s = seq_.Read(k);
     if (!s.ok()) return s.status();
-    return SourceScan{std::move(s->points), s->pose, false};
+    return SourceScan{std::move(s->points), s->pose, false, s->time_s};
   }
   std::string Describe() const override {
     return "KITTI-like sequence " + seq_.directory() + " (" + std::to_string(seq_.size()) +

@@ -2,6 +2,7 @@
 // posed scans), or a single georeferenced cloud (LAS, PCD), which is one scan in the map frame.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -15,7 +16,8 @@ namespace bgkmap::cli {
 struct SourceScan {
   std::vector<Point3f> points;  // sensor frame, or map frame minus pose.translation
   Pose pose;
-  bool frame_is_map = false;  // a single cloud: no sensor, no range/height filtering
+  bool frame_is_map = false;     // a single cloud: no sensor, no range/height filtering
+  double time_s = std::nan("");  // the scan's time in seconds (KITTI times.txt); NaN: none
 };
 
 struct SourceOptions {

@@ -3,6 +3,8 @@
 // With --change FILE (change_script.h) boxes appear and disappear at given scans: each scan sees
 // the world as it is at that scan, and the ground truth is the world after the last change.
 //   <out>/velodyne/NNNNNN.bin, <out>/poses.txt   the mapping scans, sensor frame
+//   <out>/times.txt                              scan k at k / 10 s (10 Hz): the map time
+//                                                forgetting ages by (half_life_s)
 //   <out>/odometry_poses.txt                     with --drift: the same scans' poses as a
 //                                                drifting odometry would report them
 //   <out>/ground_truth.tif                       true elevation, traversability, state
@@ -210,6 +212,12 @@ int RunSimulate(const SimulateOptions& o) {
   if (!error.empty()) return Fail(error);
   for (const Pose& pose : scenario.mapping_poses) {
     if (Status s = io::AppendPose(poses_path, pose); !s.ok()) return Fail(s.message());
+  }
+  {
+    const std::string times_path = (fs::path(o.out) / "times.txt").string();
+    std::ofstream times(times_path, std::ios::trunc);
+    for (size_t k = 0; k < n; ++k) times << static_cast<double>(k) / 10.0 << '\n';
+    if (!times.good()) return Fail(times_path + ": cannot write");
   }
   if (o.drift > 0) {
     const std::string odometry_path = (fs::path(o.out) / "odometry_poses.txt").string();

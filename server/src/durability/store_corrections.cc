@@ -102,6 +102,7 @@ Result<CorrectionPlan> StoreDurability::PlanCorrection(const CorrectionSpec& spe
       return Status::InvalidArgument("pose of sequence " + std::to_string(sequence) + ": " +
                                      prepared.status().message());
     }
+    prepared->stamp_ns = record.stamp_ns;  // a corrected pose, the same map time
     auto scan = std::make_shared<const PreparedScan>(std::move(prepared).value());
     plan.replacements.emplace(record.version, scan);
     record.scan = scan;

@@ -96,12 +96,8 @@ std::map<std::string, uint64_t> StoreDurability::LoggedRobotSequences() const {
 
 Status StoreDurability::Record(const ChangeRecord& change) {
   std::shared_lock lock(reopen_mu_);
-  // The stamp is informational; a sender's absurd seconds must not overflow.
-  int64_t stamp_ns = 0;
-  if (__builtin_mul_overflow(change.stamp.seconds, int64_t{1'000'000'000}, &stamp_ns) ||
-      __builtin_add_overflow(stamp_ns, int64_t{change.stamp.nanos}, &stamp_ns)) {
-    stamp_ns = 0;
-  }
+  // The scan's map time, as it was integrated (PrepareScanMessage): replay forgets with it.
+  const int64_t stamp_ns = change.scan != nullptr ? change.scan->stamp_ns : 0;
   storage::LogRecord record = change.scan != nullptr
                                   ? storage::LogRecord::Scan(change.version, change.robot_id,
                                                              change.sequence, change.scan, stamp_ns)

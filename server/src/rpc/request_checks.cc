@@ -113,6 +113,14 @@ grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
   Result<PreparedScan> prepared = PrepareScan(params, points, pose);
   if (!prepared.ok()) return ToGrpcStatus(prepared.status());
   *out = std::move(prepared).value();
+  // The map time forgetting ages evidence by; a sender's absurd seconds must not overflow (0:
+  // unstamped).
+  int64_t stamp_ns = 0;
+  if (__builtin_mul_overflow(scan.stamp().seconds(), int64_t{1'000'000'000}, &stamp_ns) ||
+      __builtin_add_overflow(stamp_ns, int64_t{scan.stamp().nanos()}, &stamp_ns)) {
+    stamp_ns = 0;
+  }
+  out->stamp_ns = stamp_ns;
   if (source != nullptr) {
     auto raw = std::make_shared<storage::ScanSource>();
     raw->pose = pose;

@@ -122,6 +122,36 @@ Result<KittiSequence> KittiSequence::Open(const std::string& directory) {
                                         seq.scan_paths_.size()));
   }
   seq.poses_.resize(seq.scan_paths_.size());
+
+  // Scan times (KITTI odometry's times.txt): optional; the map time of forgetting.
+  const std::string times_path = (fs::path(directory) / "times.txt").string();
+  if (fs::exists(times_path, ec)) {
+    Result<std::string> times = internal::ReadWholeFile(times_path);
+    if (!times.ok()) return times.status();
+    std::string_view left = *times;
+    line_no = 0;
+    while (!left.empty() && seq.times_.size() < seq.scan_paths_.size()) {
+      const size_t nl = left.find('\n');
+      std::string_view line = left.substr(0, nl);
+      left = nl == std::string_view::npos ? std::string_view() : left.substr(nl + 1);
+      ++line_no;
+      const size_t b = line.find_first_not_of(" \t\r");
+      const size_t e = line.find_last_not_of(" \t\r");
+      line = b == std::string_view::npos ? std::string_view() : line.substr(b, e - b + 1);
+      double t = 0;
+      const auto [end, err] = std::from_chars(line.data(), line.data() + line.size(), t);
+      if (line.empty() || err != std::errc() || end != line.data() + line.size() ||
+          !std::isfinite(t)) {
+        return Status::DataLoss(
+            fmt::format("{}:{}: not a finite number of seconds: '{}'", times_path, line_no, line));
+      }
+      seq.times_.push_back(t);
+    }
+    if (seq.times_.size() < seq.scan_paths_.size()) {
+      return Status::DataLoss(fmt::format("{}: {} times for {} scans", times_path,
+                                          seq.times_.size(), seq.scan_paths_.size()));
+    }
+  }
   return seq;
 }
 
@@ -140,6 +170,7 @@ Result<Scan> KittiSequence::Read(size_t k) const {
   }
   Scan scan;
   scan.pose = poses_[k];
+  if (!times_.empty()) scan.time_s = times_[k];
   const size_t n = bytes->size() / kRecordBytes;
   scan.points.resize(n);
   for (size_t i = 0; i < n; ++i) {

@@ -62,7 +62,7 @@ struct ScanPose {
 struct ScanData {
   std::string robot_id;
   uint64_t sequence = 0;
-  int64_t stamp_ns = 0;  // since the Unix epoch; informational
+  int64_t stamp_ns = 0;  // since the Unix epoch; the scan's map time (forgetting ages by it)
   ScanPose pose;
   std::span<const Point3f> points;
 };

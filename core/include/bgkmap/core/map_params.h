@@ -76,6 +76,9 @@ struct MapParams {
   // ground sensor_height below the sensor, within robot_radius (docs/semantics.md).
   double sensor_height = 0.0;
   double footprint_weight = 0.1;
+  // Forgetting (dynamics on): > 0 halves every statistic's weight per half_life_s seconds of map
+  // time (scan stamps), docs/semantics.md "Forgetting"; 0: off.
+  double half_life_s = 0.0;
 
   // Checks every field (MapParamInfo::check); the message names the key, the value and the rule
   // broken.

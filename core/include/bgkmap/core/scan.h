@@ -68,6 +68,9 @@ struct PreparedScan {
   // sensor_height).
   std::vector<CellIndex> footprint_cells;
   double footprint_y = 0.0;
+  // Map time of the scan, ns (the sender's stamp; 0: unstamped). Only forgetting reads it
+  // (half_life_s > 0, docs/semantics.md "Forgetting"); PrepareScan leaves it 0, the caller sets it.
+  int64_t stamp_ns = 0;
 
   // write_tiles and clear_tiles, merged: every tile the scan may change.
   std::vector<TileKey> ChangeableTiles() const;

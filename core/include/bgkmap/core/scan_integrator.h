@@ -71,6 +71,21 @@ class ScanIntegrator {
   // statistics together, which keeps its means): what a merge does after adding. No-op when off.
   void Saturate(Tile& tile) const;
 
+  // Forgetting (dynamics on, half_life_s > 0; docs/semantics.md "Forgetting").
+  bool forgetting() const { return half_life_ns_ > 0; }
+  // 2^(-dt / half_life): what a statistic keeps after dt ns of map time (1 when off or dt <= 0).
+  double DecayFactor(int64_t dt_ns) const;
+  // Brings `tile` to map time `t` (ns): a tile as of an earlier stamp keeps DecayFactor(t - its
+  // stamp) of every statistic and is stamped `t`. No-op without forgetting, for t == 0
+  // (unstamped) or t <= its stamp; a tile stamped 0 (never stamped) is only stamped.
+  void Advance(Tile& tile, int64_t t) const;
+  // The factor of a contribution made at map time `t` to `tile`: DecayFactor(stamp - t) for a
+  // late scan (t before the tile's stamp), else 1.
+  double Gain(const Tile& tile, int64_t t) const;
+  // The factor that reads `tile`'s statistics as of map time `t` without changing it:
+  // DecayFactor(t - stamp) for a tile behind t, else 1.
+  double ReadFactor(const Tile& tile, int64_t t) const;
+
  private:
   struct Impl;
   struct Caps {
@@ -82,6 +97,7 @@ class ScanIntegrator {
   // bgk-obstacle: the weight of a cell's own v, the kernel's sum over its stencil (the weight a
   // cell gets when every cell within l is observed once), float as the Beta counts.
   float direct_weight_ = 0.0f;
+  double half_life_ns_ = 0;  // > 0: forgetting on
   MapParams params_;
   GridGeometry geometry_;
   KernelStencil kernel_;

@@ -31,9 +31,10 @@ class TerrainMap {
   const GridGeometry& geometry() const { return geometry_; }
   const ScanIntegrator& integrator() const { return integrator_; }
 
-  // Prepares and integrates one scan; on error the map is unchanged. Increments version().
+  // Prepares and integrates one scan taken at map time `stamp_ns` (forgetting's clock; 0:
+  // unstamped); on error the map is unchanged. Increments version().
   Result<ScanReport> IntegrateScan(std::span<const Point3f> points, const Pose& T_map_sensor,
-                                   bool frame_is_map = false);
+                                   bool frame_is_map = false, int64_t stamp_ns = 0);
 
   // The two halves of IntegrateScan for callers that schedule scans themselves.
   TileWindow MakeWindow(const PreparedScan& scan);  // creates scan.write_tiles (not clear_tiles)
@@ -50,10 +51,11 @@ class TerrainMap {
   void EraseTile(TileKey key);
   size_t tile_count() const { return tiles_.size(); }
   void ForEachTile(const std::function<void(TileKey, const Tile&)>& fn) const;
-  // Adds `tile`'s statistics into the tile at `key` (creating it): the merge of two maps.
+  // Adds `tile`'s statistics into the tile at `key` (creating it): the merge of two maps. With
+  // forgetting, both are first brought to the later of their stamps.
   void AddTile(TileKey key, const Tile& tile);
-  // Makes the tile at `key` a bitwise copy of `tile`, version included (AddTile onto an empty
-  // tile would not be: 0 + -0 is +0).
+  // Makes the tile at `key` a bitwise copy of `tile`, version and stamp included (AddTile onto an
+  // empty tile would not be: 0 + -0 is +0).
   void SetTile(TileKey key, const Tile& tile);
 
   // Cells.

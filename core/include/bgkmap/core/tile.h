@@ -55,11 +55,21 @@ class Tile {
   // Adds another tile's statistics cell by cell (same size required).
   void Add(const Tile& other);
   void Clear();
+  // Statistics and stamp, bitwise (not the version).
   bool operator==(const Tile& other) const;
 
   // Map version of the last scan or edit that changed this tile (0 = never).
   uint64_t version() const { return version_; }
   void set_version(uint64_t v) { version_ = v; }
+
+  // Map time (ns, a scan stamp) the statistics are as of, with forgetting on (half_life_s > 0,
+  // docs/semantics.md "Forgetting"); 0 without forgetting or before any stamped scan.
+  int64_t stamp_ns() const { return stamp_ns_; }
+  void set_stamp_ns(int64_t t) { stamp_ns_ = t; }
+
+  // Multiplies every statistic of every cell by f (forgetting: the tile brought to a later
+  // time). +0 stays +0.
+  void Scale(double f);
 
   // Multiplies every statistic of cell `local` by f: the mean and the disagreement stay, the
   // confidence scales (saturation and free-space evidence, docs/semantics.md).
@@ -84,6 +94,7 @@ class Tile {
   size_t n() const { return static_cast<size_t>(size_) * size_; }
   int size_;
   uint64_t version_ = 0;
+  int64_t stamp_ns_ = 0;
   std::unique_ptr<double[]> w_, s_, q_;
   std::unique_ptr<float[]> a_, b_;
 };

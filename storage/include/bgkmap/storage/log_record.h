@@ -38,7 +38,9 @@ struct LogRecord {
   uint64_t version = 0;   // map version the change was applied as; replay follows it
   std::string robot_id;   // kScan: the sending robot
   uint64_t sequence = 0;  // kScan: the robot's sequence number
-  int64_t stamp_ns = 0;   // kScan: the sender's stamp, informational
+  // kScan: the sender's stamp, the scan's map time: decoding sets scan->stamp_ns to it, so a
+  // replay forgets as the first run did (docs/semantics.md "Forgetting").
+  int64_t stamp_ns = 0;
   std::shared_ptr<const PreparedScan> scan;  // kScan: required
   CellBox clear_box;                         // kClear: the cleared cells
   // kScan, optional and not part of the encoding: the raw scan, which the log keeps beside the

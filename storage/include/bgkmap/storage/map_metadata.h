@@ -22,8 +22,10 @@ namespace bgkmap::storage {
 // Version of the store layout (column families, keys, tile and log formats). A store written by
 // a newer format is refused rather than misread. Format 2 (dynamics): tile format 2 (second
 // moments), log record format 2 (sensor position), parameters keys of dynamics; format 1 stores
-// and archives are read (their missing keys take MapParamInfo::legacy_text) and upgraded.
-inline constexpr uint32_t kStoreFormat = 3;
+// and archives are read (their missing keys take MapParamInfo::legacy_text) and upgraded. Format
+// 3: the sources and history families. Format 4 (forgetting): tile format 3 (a tile's stamp), the
+// half_life_s key (legacy 0), the log's stamp is the scan's map time; formats 1-3 upgrade.
+inline constexpr uint32_t kStoreFormat = 4;
 
 // Where the map frame sits in a coordinate reference system (docs/configuration.md): map point
 // (x, y, z) is origin + (x, y, z) in `crs`, axes aligned. An empty crs: the frame is local.

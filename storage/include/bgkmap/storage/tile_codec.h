@@ -1,10 +1,14 @@
 // The on-disk encoding of one tile's statistics: exact (bitwise) and compact.
 //
-// Layout (format 2; format 1, still read, is format 2 without kTileMoments), little-endian:
-//   u8      format            kTileFormat
-//   u8      layout flags      kTileShuffled | kTileXorDelta | kTileMoments
+// Layout (format 3; format 2 is format 3 without kTileStamp, format 1 format 2 without
+// kTileMoments; both still read), little-endian:
+//   u8      format            3 with kTileStamp, else 2 (the oldest that holds the tile, so a
+//                             map without forgetting encodes byte for byte as before it)
+//   u8      layout flags      kTileShuffled | kTileXorDelta | kTileMoments | kTileStamp
 //   varint  tile_size         cells per edge
 //   varint  version           map version of the tile's last change
+//   zigzag  stamp             with kTileStamp: the map time (ns) the statistics are as of
+//                             (forgetting, docs/semantics.md); absent: 0
 //   varint  n                 cells with any non-zero bit in W, S, Q, A or B ("present" cells)
 //   bytes   presence bitmap   ceil(tile_size^2 / 8) bytes, row-major, bit i%8 of byte i/8;
 //                             omitted when n == 0 or n == tile_size^2
@@ -26,10 +30,11 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kTileFormat = 2;
+inline constexpr uint8_t kTileFormat = 3;    // the newest format this build reads and writes
 inline constexpr uint8_t kTileShuffled = 1;  // arrays stored as byte planes
 inline constexpr uint8_t kTileXorDelta = 2;  // each value XOR the previous present value
 inline constexpr uint8_t kTileMoments = 4;   // the Q array is stored (format >= 2)
+inline constexpr uint8_t kTileStamp = 8;     // the tile's stamp is stored (format >= 3)
 
 // Both transforms are off by default: measured on the real street map with zstd, the plain
 // arrays compress best (18.6 bytes per known cell; shuffled 19.9, XOR-delta 20.2; see
@@ -42,7 +47,7 @@ struct TileEncodeOptions {
   bool xor_delta = false;
 };
 
-// Encodes `tile` (statistics and version). Never fails.
+// Encodes `tile` (statistics, version and stamp). Never fails.
 std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options = {});
 
 // Decodes an encoding made by EncodeTile. Returns DataLoss if the checksum fails, the bytes are

@@ -1,8 +1,10 @@
 // KITTI-like scan sequences: `<dir>/velodyne/NNNNNN.bin` (little-endian float32 records
 // {x, y, z, intensity}, sensor frame) and `<dir>/poses.txt` (line k = row-major 3x4 T_map_sensor
 // of scan k). Scan files must be numbered 0..n-1 without gaps so that file k pairs with line k.
+// An optional `<dir>/times.txt` (KITTI odometry) gives scan k's time in seconds on line k.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <span>
 #include <string>
@@ -16,21 +18,24 @@ namespace bgkmap::io {
 
 // One scan of a sequence: points in the sensor frame and the pose that maps them to the map.
 struct Scan {
-  std::vector<Point3f> points;  // intensity is dropped
-  Pose pose;                    // T_map_sensor
+  std::vector<Point3f> points;   // intensity is dropped
+  Pose pose;                     // T_map_sensor
+  double time_s = std::nan("");  // line k of times.txt, seconds; NaN without times.txt
 };
 
 class KittiSequence {
  public:
   // Lists the scans and parses every pose. Fails on a missing directory, a gap in the scan
   // numbering, a poses.txt line without exactly 12 finite numbers, or fewer pose lines than
-  // scans. Extra pose lines are ignored. Does not read the scans themselves.
+  // scans. Extra pose lines are ignored. Likewise times.txt, if present: one finite number of
+  // seconds per line, at least one line per scan. Does not read the scans themselves.
   static Result<KittiSequence> Open(const std::string& directory);
 
   size_t size() const { return scan_paths_.size(); }
   const std::string& directory() const { return directory_; }
   const std::string& scan_path(size_t k) const { return scan_paths_[k]; }
   const Pose& pose(size_t k) const { return poses_[k]; }  // k < size()
+  bool has_times() const { return !times_.empty(); }
 
   // Reads scan k (OutOfRange if k >= size()). A file whose size is not a multiple of 16 bytes
   // is DataLoss naming the file.
@@ -40,6 +45,7 @@ class KittiSequence {
   std::string directory_;
   std::vector<std::string> scan_paths_;
   std::vector<Pose> poses_;
+  std::vector<double> times_;  // empty: no times.txt
 };
 
 // "000042.bin" for k = 42: the name of scan k inside velodyne/.
