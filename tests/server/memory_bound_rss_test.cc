@@ -31,8 +31,11 @@ constexpr double kSiteSpacing = 300.0;  // metres
 // receive buffers for the ingest stream (its flow-control window grows to several MiB on
 // loopback) and malloc's per-thread arenas (a tile freed by the eviction thread returns to the
 // arena of the thread that allocated it). Measured on the 2-core CI machine: idle 29 MiB, peak
-// 193 MiB with the 64 MiB bound, i.e. 100 MiB of overhead (64 of them RocksDB's); allowed: 128.
-constexpr uint64_t kOverheadMb = 128;
+// 193 MiB with the 64 MiB bound, i.e. 100 MiB of overhead (64 of them RocksDB's), on
+// 2026-11-23; on 2026-11-25 (footprint, cluster and stamps merged) peaks of 209-218 MiB alone and
+// 234 under ctest -j2, i.e. up to 139 MiB of overhead; allowed: 160. Mutation: the tile limit at
+// 4/3 of max_memory_mb instead of 2/3 gives peaks of 294-314 MiB (allowed 255), and fails.
+constexpr uint64_t kOverheadMb = 160;
 
 // A field of /proc/<pid>/status in KiB ("VmHWM", "VmRSS"); 0 if absent.
 uint64_t StatusKiB(pid_t pid, const std::string& field) {
