@@ -247,8 +247,11 @@ const std::vector<ServerKey>& ClusterKeys() {
           "dedupe_window_s", [](ServerConfig & c) -> auto& { return c.cluster.dedupe_window_s; },
           "cluster"),
       Key<uint32_t>(
-          "checkpoint_scans",
-          [](ServerConfig & c) -> auto& { return c.cluster.checkpoint_scans; }, "cluster"),
+          "checkpoint_scans", [](ServerConfig & c) -> auto& { return c.cluster.checkpoint_scans; },
+          "cluster"),
+      Key<uint32_t>(
+          "trim_lag_entries", [](ServerConfig & c) -> auto& { return c.cluster.trim_lag_entries; },
+          "cluster"),
   };
   return keys;
 }
@@ -512,9 +515,14 @@ Status ValidateCluster(const ServerConfig& c) {
   if (!(c.cluster.dedupe_window_s >= 1 && c.cluster.dedupe_window_s <= 86400 * 7)) {
     return bad_cluster("dedupe_window_s", "must be in [1, 604800] seconds");
   }
+  if (c.cluster.trim_lag_entries > 0 && c.cluster.checkpoint_scans == 0) {
+    return bad_cluster("trim_lag_entries",
+                       "trimming the log needs checkpoints: set cluster.checkpoint_scans > 0");
+  }
   if (!c.storage.data_dir.empty()) {
-    return bad_cluster("nats", "a shard keeps its partitions in memory and rebuilds them from "
-                               "the cluster's log; storage.data_dir must be empty");
+    return bad_cluster("nats",
+                       "a shard keeps its partitions in memory and rebuilds them from "
+                       "the cluster's log; storage.data_dir must be empty");
   }
   return Status::Ok();
 }

@@ -143,7 +143,13 @@ Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
   return a->sequence;
 }
 
-Result<uint64_t> LastSequence(const NatsClient& nats) {
+namespace {
+
+struct LogBounds {
+  uint64_t first = 0, last = 0;
+};
+
+Result<LogBounds> LogState(const NatsClient& nats) {
   jsStreamInfo* info = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
   const natsStatus st = RetryWhileElecting(
@@ -153,7 +159,31 @@ Result<uint64_t> LastSequence(const NatsClient& nats) {
   if (st != NATS_OK) {
     return Status::Unavailable(NatsStatus(st, "cluster log", jerr).message());
   }
-  return info->State.LastSeq;
+  return LogBounds{info->State.FirstSeq, info->State.LastSeq};
+}
+
+}  // namespace
+
+Result<uint64_t> LastSequence(const NatsClient& nats) {
+  Result<LogBounds> state = LogState(nats);
+  if (!state.ok()) return state.status();
+  return state->last;
+}
+
+Result<uint64_t> FirstSequence(const NatsClient& nats) {
+  Result<LogBounds> state = LogState(nats);
+  if (!state.ok()) return state.status();
+  return state->first;
+}
+
+Status TrimLog(const NatsClient& nats, uint64_t keep_from) {
+  jsOptions o;
+  jsOptions_Init(&o);
+  o.Stream.Purge.Sequence = keep_from;  // purges up to, not including, keep_from
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = js_PurgeStream(nats.jetstream(), kLogStream, &o, &jerr);
+  if (st != NATS_OK) return NatsStatus(st, "cluster: trim the log", jerr);
+  return Status::Ok();
 }
 
 Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {

@@ -57,6 +57,10 @@ Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
 
 // The sequence number of the log's last entry (0: empty).
 Result<uint64_t> LastSequence(const NatsClient& nats);
+// The sequence number of the log's first entry kept (1 until the log is trimmed).
+Result<uint64_t> FirstSequence(const NatsClient& nats);
+// Deletes the entries before `keep_from` (the log's trimming).
+Status TrimLog(const NatsClient& nats, uint64_t keep_from);
 
 struct LogEntryHeader {
   enum class Kind { kScan, kClear, kImport };

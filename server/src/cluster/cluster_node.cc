@@ -154,6 +154,42 @@ Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
   return cluster::AppendImport(*nats_, id, *manifest, {touched.begin(), touched.end()}, changes);
 }
 
+void ClusterNode::TrimLogIfDue() {
+  if (config_.trim_lag_entries == 0) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (now < next_trim_) return;
+  next_trim_ = now + std::chrono::milliseconds(static_cast<int64_t>(config_.lease_s * 4000));
+  {
+    // One node trims (any could: a trim is idempotent): the first live one.
+    std::lock_guard lock(mu_);
+    if (live_.empty() || live_.front() != config_.node) return;
+  }
+  // In this order: the log's end, then the partitions, then their checkpoints. A partition
+  // recorded after the listing was recorded before its first entry, so after `end`: the
+  // entries up to the floor below are in every partition's checkpoint, listed or not.
+  Result<uint64_t> end = LastSequence(*nats_);
+  if (!end.ok()) return;
+  Result<std::vector<PartitionKey>> partitions = members_->ListRecordedPartitions();
+  if (!partitions.ok()) {
+    spdlog::warn("event=cluster_log_trim_skipped reason=\"{}\"", partitions.status().message());
+    return;
+  }
+  uint64_t floor = *end;
+  for (PartitionKey p : *partitions) {
+    Result<std::optional<uint64_t>> c = ReadCheckpointSequence(*nats_, p);
+    if (!c.ok() || !c->has_value()) return;  // a partition without one holds the whole log
+    floor = std::min(floor, **c);
+  }
+  Result<uint64_t> first = FirstSequence(*nats_);
+  if (!first.ok() || floor + 1 <= *first) return;
+  if (Status s = TrimLog(*nats_, floor + 1); !s.ok()) {
+    spdlog::warn("event=cluster_log_trim_failed reason=\"{}\"", s.message());
+    return;
+  }
+  spdlog::info("event=cluster_log_trimmed kept_from={} last={} partitions={}", floor + 1, *end,
+               partitions->size());
+}
+
 void ClusterNode::Run() {
   const auto period = std::chrono::milliseconds(static_cast<int64_t>(config_.lease_s * 250));
   // Partitions are taken only after one lease: by then this node has seen every live node's
@@ -167,7 +203,10 @@ void ClusterNode::Run() {
     if (Status s = members_->Heartbeat(); !s.ok()) {
       spdlog::warn("event=cluster_heartbeat_failed reason=\"{}\"", s.message());
     }
-    if (std::chrono::steady_clock::now() >= first_rebalance) Rebalance();
+    if (std::chrono::steady_clock::now() >= first_rebalance) {
+      Rebalance();
+      TrimLogIfDue();
+    }
     lock.lock();
   }
 }
@@ -238,9 +277,21 @@ std::shared_ptr<PartitionReplica> ClusterNode::TakePartition(PartitionKey p, uin
   Result<std::optional<PartitionCheckpoint>> restored =
       ReadCheckpoint(*nats_, p, params_.tile_size);
   if (!restored.ok()) {
-    // The log is whole: the partition is rebuilt from its start instead.
     spdlog::warn("event=partition_checkpoint_unreadable partition={} reason=\"{}\"",
                  PartitionName(p), restored.status().message());
+    // Rebuilt from the log's start instead, if the log still has it. A trimmed log does not:
+    // the partition stays unserved (queries answer UNAVAILABLE naming it) rather than served
+    // without its older scans, and is tried again at the next rebalance. (A partition that never
+    // had a checkpoint has all its entries: it was recorded before its first entry, and the
+    // log is only trimmed below checkpoints of every partition recorded.)
+    Result<uint64_t> first = FirstSequence(*nats_);
+    if (!first.ok() || *first > 1) {
+      spdlog::error("event=partition_not_taken partition={} reason=\"{}\"", PartitionName(p),
+                    first.ok() ? "its checkpoint cannot be read and the log was trimmed to entry " +
+                                     std::to_string(*first)
+                               : first.status().message());
+      return nullptr;
+    }
     restored = std::optional<PartitionCheckpoint>();
   }
   const uint64_t from = *restored ? (*restored)->log_sequence : 0;
@@ -329,7 +380,8 @@ void ClusterNode::QueueCheckpoints(const std::vector<std::shared_ptr<PartitionRe
       std::lock_guard lock(mu_);
       if (leaving_.count(r->key()) != 0) continue;
     }
-    std::optional<PartitionCheckpoint> c = r->CheckpointIfDue(config_.checkpoint_scans);
+    std::optional<PartitionCheckpoint> c =
+        r->CheckpointIfDue(config_.checkpoint_scans, config_.trim_lag_entries);
     if (!c) continue;
     std::lock_guard lock(checkpoint_mu_);
     pending_checkpoints_.insert_or_assign(r->key(), std::move(*c));

@@ -67,6 +67,9 @@ class ClusterNode {
               std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members);
   void Run();        // the membership loop
   void Rebalance();  // starts the partitions this node owns, stops those it no longer does
+  // cluster.trim_lag_entries > 0: deletes the log's entries that every partition's newest
+  // checkpoint holds (on the first live node, every 4 leases).
+  void TrimLogIfDue();
   // A replica of `p` from its newest checkpoint (or empty), serving once it reads `end`.
   std::shared_ptr<PartitionReplica> TakePartition(PartitionKey p, uint64_t end);
   // The log reader: one ordered reader of the log for all of this node's partitions, started
@@ -106,8 +109,10 @@ class ClusterNode {
   std::condition_variable checkpoint_cv_;
   std::map<PartitionKey, PartitionCheckpoint> pending_checkpoints_;  // newest per partition
   std::thread checkpoint_writer_;
-  std::atomic<uint64_t> imports_{0};     // names this node's imports' chunks
-  std::unique_ptr<LogChangeFeed> feed_;  // stopped first when the node leaves
+  std::atomic<uint64_t> imports_{0};  // names this node's imports' chunks
+  std::unique_ptr<LogChangeFeed> feed_;
+  std::chrono::steady_clock::time_point
+      next_trim_{};  // the membership loop's thread only  // stopped first when the node leaves
 };
 
 }  // namespace bgkmap::cluster

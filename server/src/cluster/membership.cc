@@ -184,6 +184,21 @@ Status Membership::AddPartition(PartitionKey p) {
   return Status::Ok();
 }
 
+Result<std::vector<PartitionKey>> Membership::ListRecordedPartitions() const {
+  kvKeysList keys;
+  const natsStatus st =
+      RetryWhileElecting([&] { return kvStore_Keys(&keys, partitions_.get(), nullptr); }, 5000);
+  if (st == NATS_NOT_FOUND) return std::vector<PartitionKey>();  // none yet
+  if (st != NATS_OK) return NatsStatus(st, "cluster: list the partitions");
+  std::vector<PartitionKey> out;
+  for (int i = 0; i < keys.Count; ++i) {
+    if (std::optional<PartitionKey> p = ParsePartitionName(keys.Keys[i])) out.push_back(*p);
+  }
+  kvKeysList_Destroy(&keys);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 Result<bool> Membership::HasPartition(PartitionKey p) const {
   {
     std::lock_guard lock(mu_);

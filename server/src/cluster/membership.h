@@ -55,6 +55,9 @@ class Membership {
   Status AddPartition(PartitionKey p);
   // Whether `p` has data, asked of the bucket (not the cache).
   Result<bool> HasPartition(PartitionKey p) const;
+  // Every partition recorded in the bucket, read from it now (not this node's watched view,
+  // which may lag another node's record).
+  Result<std::vector<PartitionKey>> ListRecordedPartitions() const;
 
   // The owner of `p` among `live` ("" if none).
   static std::string OwnerOf(PartitionKey p, const std::vector<std::string>& live);

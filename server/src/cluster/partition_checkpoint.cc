@@ -161,8 +161,9 @@ static Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadChunks
   return out;
 }
 
-Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
-                                                          int tile_size) {
+// The newest manifest of `p` (nullopt: none).
+static Result<std::optional<v1::CheckpointManifest>> ReadManifest(const NatsClient& nats,
+                                                                  PartitionKey p) {
   natsMsg* raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
   const std::string subject = Subject(p, "manifest");
@@ -173,13 +174,29 @@ Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats
       },
       5000);
   NatsPtr<natsMsg> last(raw);
-  if (st == NATS_NOT_FOUND) return std::optional<PartitionCheckpoint>();
+  if (st == NATS_NOT_FOUND) return std::optional<v1::CheckpointManifest>();
   if (st != NATS_OK) return NatsStatus(st, "checkpoint: read " + subject, jerr);
   v1::CheckpointManifest manifest;
   if (!manifest.ParseFromArray(natsMsg_GetData(last.get()), natsMsg_GetDataLength(last.get()))) {
     return Status::DataLoss("checkpoint of partition " + PartitionName(p) +
                             ": the manifest does not decode");
   }
+  return std::optional<v1::CheckpointManifest>(std::move(manifest));
+}
+
+Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats, PartitionKey p) {
+  Result<std::optional<v1::CheckpointManifest>> manifest = ReadManifest(nats, p);
+  if (!manifest.ok()) return manifest.status();
+  if (!manifest->has_value()) return std::optional<uint64_t>();
+  return std::optional<uint64_t>((*manifest)->log_sequence());
+}
+
+Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
+                                                          int tile_size) {
+  Result<std::optional<v1::CheckpointManifest>> read = ReadManifest(nats, p);
+  if (!read.ok()) return read.status();
+  if (!read->has_value()) return std::optional<PartitionCheckpoint>();
+  const v1::CheckpointManifest& manifest = **read;
   PartitionCheckpoint out;
   out.log_sequence = manifest.log_sequence();
   for (const auto& [robot, sequence] : manifest.robot_sequences()) {

@@ -37,6 +37,9 @@ Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
 Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
                                                           int tile_size);
 
+// The log sequence of the newest checkpoint of `p` (nullopt: none), without reading its tiles.
+Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats, PartitionKey p);
+
 // An import's tiles, stored in chunks (subject bgkmap.ckpt.import.<id>) before the import's
 // log entry; returns the encoded v1::CheckpointManifest naming them (the entry's payload).
 Result<std::string> StoreImportTiles(const NatsClient& nats, const std::string& id,

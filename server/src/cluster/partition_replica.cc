@@ -30,12 +30,13 @@ PartitionReplica::PartitionReplica(const NatsClient& nats, const PartitionLayout
   if (restored) {
     for (auto& [k, tile] : restored->tiles) map_->SetTile(k, *tile);
     robot_last_ = std::move(restored->robot_sequences);
-    applied_ = restored_from_ = restored->log_sequence;
+    applied_ = restored_from_ = checkpointed_sequence_ = restored->log_sequence;
   }
   if (applied_ >= serve_from_) StartServing();
 }
 
-std::optional<PartitionCheckpoint> PartitionReplica::CheckpointIfDue(uint32_t every_scans) {
+std::optional<PartitionCheckpoint> PartitionReplica::CheckpointIfDue(uint32_t every_scans,
+                                                                     uint32_t lag_entries) {
   uint64_t integrated = 0;
   PartitionCheckpoint c;
   {
@@ -43,10 +44,11 @@ std::optional<PartitionCheckpoint> PartitionReplica::CheckpointIfDue(uint32_t ev
     integrated = scans_integrated_;
     c.log_sequence = applied_;
   }
-  if (every_scans == 0 || integrated - checkpointed_scans_ < every_scans) {
-    return std::nullopt;
-  }
+  const bool by_scans = every_scans > 0 && integrated - checkpointed_scans_ >= every_scans;
+  const bool by_lag = lag_entries > 0 && c.log_sequence - checkpointed_sequence_ >= lag_entries;
+  if (!by_scans && !by_lag) return std::nullopt;
   checkpointed_scans_ = integrated;
+  checkpointed_sequence_ = c.log_sequence;
   c.robot_sequences = robot_last_;
   std::shared_lock map_lock(map_mu_);
   map_->ForEachTile(

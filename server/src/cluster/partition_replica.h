@@ -69,8 +69,10 @@ class PartitionReplica {
   // Stops taking fetches without waiting: many replicas stop in parallel.
   void BeginStop();
   // On the log reader's thread, between entries: a copy of the partition's state when
-  // `every_scans` scans were integrated since the last one, else nullopt.
-  std::optional<PartitionCheckpoint> CheckpointIfDue(uint32_t every_scans);
+  // `every_scans` scans were integrated since the last one, or (lag_entries > 0) when the last
+  // one lags the entries applied by lag_entries (so the log can be trimmed); else nullopt.
+  std::optional<PartitionCheckpoint> CheckpointIfDue(uint32_t every_scans,
+                                                     uint32_t lag_entries = 0);
 
   ReplicaStats Stats() const;
   // Blocks until every entry up to `sequence` is applied, or `timeout_ms` passed (false).
@@ -100,7 +102,8 @@ class PartitionReplica {
   double catch_up_seconds_ = 0;
   std::map<std::string, uint64_t> robot_last_;  // the log reader's thread only
   uint64_t restored_from_ = 0;
-  uint64_t checkpointed_scans_ = 0;  // scans_integrated_ at the last checkpoint
+  uint64_t checkpointed_scans_ = 0;     // scans_integrated_ at the last checkpoint
+  uint64_t checkpointed_sequence_ = 0;  // the log sequence of the last checkpoint (or restore)
 
   std::mutex serve_mu_;  // guards fetch_sub_ and stopping
   bool stopped_ = false;

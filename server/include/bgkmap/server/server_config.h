@@ -95,15 +95,19 @@ struct GeoreferenceConfig {
 // The `cluster:` section: a shard of a map cluster on NATS JetStream (docs/scale-out.md). Off
 // while `nats` is empty.
 struct ClusterConfig {
-  std::string nats;          // nats: the NATS servers, comma-separated ("nats://h:4222,...")
-  std::string node;          // node: this shard's name, unique in the cluster
-  uint32_t partition_tiles = 8;  // partition_tiles: a partition is this many tiles square
-  uint32_t replicas = 1;         // replicas: JetStream copies of the log and the KV buckets
-  double lease_s = 3.0;          // lease_s: a shard silent this long loses its partitions
-  double dedupe_window_s = 3600; // dedupe_window_s: a retried scan inside it is stored once
+  std::string nats;               // nats: the NATS servers, comma-separated ("nats://h:4222,...")
+  std::string node;               // node: this shard's name, unique in the cluster
+  uint32_t partition_tiles = 8;   // partition_tiles: a partition is this many tiles square
+  uint32_t replicas = 1;          // replicas: JetStream copies of the log and the KV buckets
+  double lease_s = 3.0;           // lease_s: a shard silent this long loses its partitions
+  double dedupe_window_s = 3600;  // dedupe_window_s: a retried scan inside it is stored once
   // checkpoint_scans: a partition's owner checkpoints it after this many scans integrated there
   // (0: never; a takeover then reads the log from its start).
   uint32_t checkpoint_scans = 500;
+  // trim_lag_entries: 0 keeps the whole log. Else a partition whose newest checkpoint lags the
+  // log by this many entries is checkpointed even if idle, and the log is trimmed below the
+  // oldest of the partitions' newest checkpoints (docs/scale-out.md, "Trimming the log").
+  uint32_t trim_lag_entries = 0;
   bool enabled() const { return !nats.empty(); }
 };
 
