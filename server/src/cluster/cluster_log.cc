@@ -143,6 +143,32 @@ Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
   return a->sequence;
 }
 
+Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
+                                                bool headers_only) {
+  jsSubOptions so;
+  jsSubOptions_Init(&so);
+  so.Ordered = true;
+  so.Config.HeadersOnly = headers_only;
+  so.Config.DeliverPolicy = js_DeliverByStartSequence;
+  so.Config.OptStartSeq = start;
+  natsSubscription* raw = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = js_SubscribeSync(&raw, nats.jetstream(), kLogSubjects, nullptr, &so, &jerr);
+  NatsPtr<natsSubscription> sub(raw);
+  if (st != NATS_OK) {
+    return Status::Unavailable(
+        NatsStatus(st, headers_only ? "read the log's headers" : "read the log", jerr).message());
+  }
+  return sub;
+}
+
+std::optional<uint64_t> EntrySequence(natsMsg* msg) {
+  jsMsgMetaData* raw = nullptr;
+  if (natsMsg_GetMetaData(&raw, msg) != NATS_OK) return std::nullopt;
+  NatsPtr<jsMsgMetaData> meta(raw);
+  return meta->Sequence.Stream;
+}
+
 namespace {
 
 struct LogBounds {

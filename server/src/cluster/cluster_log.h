@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,13 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
 Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
                               const std::string& manifest, const std::vector<PartitionKey>& touched,
                               const CellBox& changes);
+
+// An ordered reader of the log from entry `start` (whole entries, or their headers only),
+// recreated by nats.c after a failure. Unavailable if the log cannot be read.
+Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
+                                                bool headers_only);
+// The log sequence of an entry an OpenLogReader delivered (nullopt: no JetStream metadata).
+std::optional<uint64_t> EntrySequence(natsMsg* msg);
 
 // The sequence number of the log's last entry (0: empty).
 Result<uint64_t> LastSequence(const NatsClient& nats);

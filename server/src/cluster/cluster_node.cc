@@ -329,22 +329,13 @@ void ClusterNode::ReadLog() {
     // there; the others skip what they have.
     if (!sub || need <= passed) {
       sub.reset();
-      jsSubOptions so;
-      jsSubOptions_Init(&so);
-      so.Ordered = true;  // in the log's order, recreated by nats.c after a failure
-      so.Config.DeliverPolicy = js_DeliverByStartSequence;
-      so.Config.OptStartSeq = need;
-      natsSubscription* raw = nullptr;
-      jsErrCode jerr = static_cast<jsErrCode>(0);
-      const natsStatus st =
-          js_SubscribeSync(&raw, nats_->jetstream(), kLogSubjects, nullptr, &so, &jerr);
-      if (st != NATS_OK) {
-        spdlog::warn("event=cluster_log_open_failed reason=\"{}\"",
-                     NatsStatus(st, "read the log", jerr).message());
+      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(*nats_, need, false);
+      if (!opened.ok()) {
+        spdlog::warn("event=cluster_log_open_failed reason=\"{}\"", opened.status().message());
         std::this_thread::sleep_for(std::chrono::milliseconds(250));
         continue;
       }
-      sub.reset(raw);
+      sub = std::move(opened).value();
       passed = need - 1;
     }
     natsMsg* raw = nullptr;
@@ -357,10 +348,9 @@ void ClusterNode::ReadLog() {
       continue;
     }
     NatsPtr<natsMsg> msg(raw);
-    jsMsgMetaData* meta_raw = nullptr;
-    if (natsMsg_GetMetaData(&meta_raw, msg.get()) != NATS_OK) continue;
-    NatsPtr<jsMsgMetaData> meta(meta_raw);
-    const uint64_t sequence = meta->Sequence.Stream;
+    const std::optional<uint64_t> entry = EntrySequence(msg.get());
+    if (!entry) continue;
+    const uint64_t sequence = *entry;
     // Only the partitions that have every entry this reader delivered before this one.
     std::vector<std::shared_ptr<PartitionReplica>> to;
     for (const auto& r : replicas) {

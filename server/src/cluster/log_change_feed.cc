@@ -27,23 +27,14 @@ void LogChangeFeed::Run() {
   while (!stop_) {
     if (!sub) {
       // After a failure, from the entry after the last one reported: no change is skipped.
-      jsSubOptions so;
-      jsSubOptions_Init(&so);
-      so.Ordered = true;
-      so.Config.HeadersOnly = true;
-      so.Config.DeliverPolicy = js_DeliverByStartSequence;
-      so.Config.OptStartSeq = last_ + 1;
-      natsSubscription* raw = nullptr;
-      jsErrCode jerr = static_cast<jsErrCode>(0);
-      const natsStatus st =
-          js_SubscribeSync(&raw, nats_.jetstream(), kLogSubjects, nullptr, &so, &jerr);
-      if (st != NATS_OK) {
+      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats_, last_ + 1, true);
+      if (!opened.ok()) {
         spdlog::warn("event=cluster_change_feed_open_failed reason=\"{}\"",
-                     NatsStatus(st, "read the log's headers", jerr).message());
+                     opened.status().message());
         std::this_thread::sleep_for(std::chrono::milliseconds(250));
         continue;
       }
-      sub.reset(raw);
+      sub = std::move(opened).value();
     }
     natsMsg* raw = nullptr;
     const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
@@ -53,10 +44,9 @@ void LogChangeFeed::Run() {
       continue;
     }
     NatsPtr<natsMsg> msg(raw);
-    jsMsgMetaData* meta_raw = nullptr;
-    if (natsMsg_GetMetaData(&meta_raw, msg.get()) != NATS_OK) continue;
-    NatsPtr<jsMsgMetaData> meta(meta_raw);
-    const uint64_t sequence = meta->Sequence.Stream;
+    const std::optional<uint64_t> entry = EntrySequence(msg.get());
+    if (!entry) continue;
+    const uint64_t sequence = *entry;
     if (sequence <= last_) continue;
     last_ = sequence;
     Result<LogEntryHeader> header = ReadEntryHeader(msg.get());
