@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "../support/raw_store.h"
 #include "bgkmap/storage/tile_store.h"
 
 namespace bgkmap::testing {
@@ -16,18 +17,10 @@ TileKey CorruptStoredTile(const std::string& dir, StoredTilePick pick) {
     EXPECT_TRUE(store.ok()) << store.status().ToString();
     EXPECT_TRUE(store.ok() && (*store)->Compact().ok());
   }
-  std::vector<std::string> names;
-  EXPECT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &names).ok());
-  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
-  for (const auto& n : names) descriptors.emplace_back(n, rocksdb::ColumnFamilyOptions());
-  std::vector<rocksdb::ColumnFamilyHandle*> handles;
-  rocksdb::DB* raw = nullptr;
-  EXPECT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
-  std::unique_ptr<rocksdb::DB> db(raw);
-  rocksdb::ColumnFamilyHandle* tiles = nullptr;
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == "tiles") tiles = handles[i];
-  }
+  RawStore store(dir);
+  EXPECT_NE(store.db(), nullptr) << "cannot open " << dir;
+  rocksdb::DB* db = store.db();
+  rocksdb::ColumnFamilyHandle* tiles = store.Family("tiles");
   std::vector<std::string> keys;
   if (tiles != nullptr) {
     std::unique_ptr<rocksdb::Iterator> it(db->NewIterator(rocksdb::ReadOptions(), tiles));
@@ -50,8 +43,6 @@ TileKey CorruptStoredTile(const std::string& dir, StoredTilePick pick) {
     };
     key = {coord(0), coord(4)};
   }
-  for (auto* h : handles) db->DestroyColumnFamilyHandle(h);
-  db->Close();
   return key;
 }
 

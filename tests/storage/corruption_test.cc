@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "../support/raw_store.h"
 #include "bgkmap/storage/recovery.h"
 #include "bgkmap/storage/tile_snapshot.h"
 #include "store_test_util.h"
@@ -41,25 +42,15 @@ std::string VersionKeyBytes(uint64_t v) {
 // Flips one byte of the value under `key` in column family `family`, with RocksDB directly.
 void FlipStoredByte(const std::string& dir, const std::string& family, const std::string& key,
                     size_t offset) {
-  std::vector<std::string> names;
-  ASSERT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &names).ok());
-  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
-  for (const auto& n : names) descriptors.emplace_back(n, rocksdb::ColumnFamilyOptions());
-  std::vector<rocksdb::ColumnFamilyHandle*> handles;
-  rocksdb::DB* raw = nullptr;
-  ASSERT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
-  std::unique_ptr<rocksdb::DB> db(raw);
-  rocksdb::ColumnFamilyHandle* target = nullptr;
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == family) target = handles[i];
-  }
+  bgkmap::testing::RawStore store(dir);
+  ASSERT_NE(store.db(), nullptr) << "cannot open " << dir;
+  rocksdb::DB* db = store.db();
+  rocksdb::ColumnFamilyHandle* target = store.Family(family);
   ASSERT_NE(target, nullptr);
   std::string value;
   ASSERT_TRUE(db->Get(rocksdb::ReadOptions(), target, key, &value).ok());
   value[offset % value.size()] ^= 0x20;
   ASSERT_TRUE(db->Put(rocksdb::WriteOptions(), target, key, value).ok());
-  for (auto* h : handles) db->DestroyColumnFamilyHandle(h);
-  db->Close();
 }
 
 // A store holding the checkpoint of 12 scans and the log of 6 more; returns the full map.

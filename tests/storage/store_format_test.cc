@@ -7,6 +7,7 @@
 
 #include <optional>
 
+#include "../support/raw_store.h"
 #include "bgkmap/storage/map_metadata.h"
 #include "store_test_util.h"
 
@@ -18,18 +19,10 @@ using namespace testing;  // NOLINT
 // Sets (or, with nullopt, deletes) `key` of the meta family, with RocksDB directly.
 void EditMeta(const std::string& dir, const std::string& key,
               const std::optional<std::string>& value, std::string* old = nullptr) {
-  std::vector<std::string> names;
-  ASSERT_TRUE(rocksdb::DB::ListColumnFamilies(rocksdb::DBOptions(), dir, &names).ok());
-  std::vector<rocksdb::ColumnFamilyDescriptor> descriptors;
-  for (const auto& n : names) descriptors.emplace_back(n, rocksdb::ColumnFamilyOptions());
-  std::vector<rocksdb::ColumnFamilyHandle*> handles;
-  rocksdb::DB* raw = nullptr;
-  ASSERT_TRUE(rocksdb::DB::Open(rocksdb::DBOptions(), dir, descriptors, &handles, &raw).ok());
-  std::unique_ptr<rocksdb::DB> db(raw);
-  rocksdb::ColumnFamilyHandle* meta = nullptr;
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == "meta") meta = handles[i];
-  }
+  bgkmap::testing::RawStore store(dir);
+  ASSERT_NE(store.db(), nullptr) << "cannot open " << dir;
+  rocksdb::DB* db = store.db();
+  rocksdb::ColumnFamilyHandle* meta = store.Family("meta");
   ASSERT_NE(meta, nullptr);
   if (old != nullptr) {
     ASSERT_TRUE(db->Get(rocksdb::ReadOptions(), meta, key, old).ok());
@@ -39,8 +32,6 @@ void EditMeta(const std::string& dir, const std::string& key,
   } else if (old == nullptr) {
     ASSERT_TRUE(db->Delete(rocksdb::WriteOptions(), meta, key).ok());
   }
-  for (auto* h : handles) db->DestroyColumnFamilyHandle(h);
-  db->Close();
 }
 
 std::string MetaFormat(const std::string& dir) {
