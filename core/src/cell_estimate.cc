@@ -63,7 +63,53 @@ double Disagreement(double w, double s, double q) {
   return std::max(0.0, q / w - mean * mean);
 }
 
-CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b) {
+LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const double* m) {
+  const double W = p.lambda + w;
+  const double mean = (p.lambda * p.prior_mean + s) / W;
+  const double su = m[0], sv = m[1], suu = m[2], suv = m[3], svv = m[4];
+  // Moments of y about the mean: large absolute altitudes cancel here, not in the solve.
+  const double ru = m[5] - mean * su, rv = m[6] - mean * sv;
+  // The slopes solve C g = r, C the kernel-weighted scatter of the training offsets about their
+  // centroid. Along an eigenvector of C whose spread (eigenvalue / W) is under res^2/12, the
+  // spread of a point about its cell centre, the data do not determine a slope: it is 0 there
+  // (one cell, or cells on one line, give the kernel mean's height and no slope across).
+  const double a = suu - su * su / W, b = suv - su * sv / W, c = svv - sv * sv / W;
+  const double floor = p.resolution * p.resolution / 12.0 * W;
+  const double half_trace = 0.5 * (a + c);
+  const double disc = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
+  double gu = 0.0, gv = 0.0;
+  for (const double lambda : {half_trace + disc, half_trace - disc}) {
+    if (!(lambda >= floor) || !(lambda > 0.0)) continue;
+    // An eigenvector of [[a, b], [b, c]] for lambda: the larger of its two candidate forms.
+    double eu = b, ev = lambda - a;
+    const double fu = lambda - c, fv = b;
+    if (fu * fu + fv * fv > eu * eu + ev * ev) eu = fu, ev = fv;
+    const double norm2 = eu * eu + ev * ev;
+    if (!(norm2 > 0.0)) {  // C = lambda I: every direction is an eigenvector
+      gu = ru / lambda;
+      gv = rv / lambda;
+      break;
+    }
+    const double t = (eu * ru + ev * rv) / (lambda * norm2);
+    gu += t * eu;
+    gv += t * ev;
+  }
+  const double shift = -(su * gu + sv * gv) / W;  // intercept minus mean
+  // A cell with observations of its own reads them: its elevation is their mean.
+  const double own_w = m[7], own_s = m[8];
+  LocalPlane out{own_w > 0.0 ? own_s / own_w : mean + shift, gu, gv, 0.0};
+  if (q != 0.0 && w > 0.0) {
+    // Sum k (y - h - g.(u, v))^2, expanded in the moments about the mean.
+    const double qc = q - s * s / w;
+    const double rss = qc - 2.0 * (gu * ru + gv * rv) - W * shift * shift +
+                       (suu * gu * gu + 2.0 * suv * gu * gv + svv * gv * gv);
+    out.residual = std::max(0.0, rss / w);
+  }
+  return out;
+}
+
+CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b,
+                          const double* plane) {
   CellEstimate e{kNaN, kNaN, kNaN, kNaN, CellState::kUnknown, static_cast<float>(w)};
   const double ab = static_cast<double>(a) + static_cast<double>(b);
   const bool known = w > 0.0 || ab > 0.0;
@@ -75,8 +121,14 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
   double disagreement = 0.0;
   if (w > 0.0) {
     const double lw = p.lambda + w;
-    if (dynamic) disagreement = Disagreement(w, s, q);
-    e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
+    if (plane != nullptr) {
+      const LocalPlane fit = FitLocalPlane(p, w, s, dynamic ? q : 0.0, plane);
+      if (dynamic) disagreement = fit.residual;
+      e.elevation = static_cast<float>(fit.elevation);
+    } else {
+      if (dynamic) disagreement = Disagreement(w, s, q);
+      e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
+    }
     e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
   }
   if (InfersTraversability(p.method)) {
@@ -85,6 +137,13 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
     const double sum = alpha + beta;
     e.traversability = static_cast<float>(alpha / sum);
     e.traversability_variance = static_cast<float>(alpha * beta / (sum * sum * (sum + 1.0)));
+    if (plane != nullptr && plane[9] + plane[10] > 0.0) {
+      const double da = p.alpha0 + plane[9], db = p.beta0 + plane[10], ds = da + db;
+      if (da / ds > alpha / sum) {
+        e.traversability = static_cast<float>(da / ds);
+        e.traversability_variance = static_cast<float>(da * db / (ds * ds * (ds + 1.0)));
+      }
+    }
   } else if (ab > 0.0) {
     e.traversability = static_cast<float>(a / ab);
     e.traversability_variance = 0.0f;

@@ -221,7 +221,7 @@ const std::vector<MapParamInfo>& Table() {
           "observation", kStats, "max | mean of a scan's points in a cell, its training value"),
       Integer("tile_size", &P::tile_size, kStats, TileSize, "cells per tile edge"),
       Enum<&P::method, MethodName, ParseMethod>(
-          "method", kStats, "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle"),
+          "method", kStats, "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle | bgk-ll"),
       // Dynamics (docs/semantics.md); stores and archives from before them were built "off".
       Legacy(Enum<&P::dynamics, DynamicsName, ParseDynamics>(
                  "dynamics", kStats, "on | off: follow a changing world, or accumulate (paper)"),

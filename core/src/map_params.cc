@@ -16,6 +16,8 @@ std::string_view MethodName(Method m) {
       return "one-step";
     case Method::kBgkObstacle:
       return "bgk-obstacle";
+    case Method::kBgkLocalLinear:
+      return "bgk-ll";
   }
   return "?";
 }
@@ -32,12 +34,12 @@ Result<Dynamics> ParseDynamics(std::string_view name) {
 
 Result<Method> ParseMethod(std::string_view name) {
   for (Method m : {Method::kBgkPlus, Method::kBgkTrav, Method::kBaseline, Method::kOneStep,
-                   Method::kBgkObstacle}) {
+                   Method::kBgkObstacle, Method::kBgkLocalLinear}) {
     if (name == MethodName(m)) return m;
   }
   return Status::InvalidArgument(
       "method = " + std::string(name) +
-      ": must be one of bgk+, bgk-trav, baseline, one-step, bgk-obstacle");
+      ": must be one of bgk+, bgk-trav, baseline, one-step, bgk-obstacle, bgk-ll");
 }
 
 Result<Observation> ParseObservation(std::string_view name) {
@@ -48,8 +50,12 @@ Result<Observation> ParseObservation(std::string_view name) {
 }
 
 bool InfersTraversability(Method m) {
-  return m == Method::kBgkPlus || m == Method::kOneStep || m == Method::kBgkObstacle;
+  return m == Method::kBgkPlus || m == Method::kOneStep || m == Method::kBgkObstacle ||
+         m == Method::kBgkLocalLinear;
 }
-bool InfersElevation(Method m) { return m == Method::kBgkPlus || m == Method::kBgkTrav; }
+bool InfersElevation(Method m) {
+  return m == Method::kBgkPlus || m == Method::kBgkTrav || m == Method::kBgkLocalLinear;
+}
+bool KeepsPlaneMoments(Method m) { return m == Method::kBgkLocalLinear; }
 
 }  // namespace bgkmap

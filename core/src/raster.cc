@@ -16,8 +16,11 @@ struct PixelAggregate {
   bool known = false;
   bool any_non_traversable = false;  // the pixel is traversable only if all its cells are
 
-  void Add(const MapParams& p, double cw, double cs, double cq, float ca, float cb) {
-    const CellEstimate e = EstimateCell(p, cw, cs, cq, ca, cb);
+  // A coarse pixel's elevation is the kernel mean of its cells' sums (bgk-ll too: planes about
+  // different centres do not add); each cell's state is its own estimate's.
+  void Add(const MapParams& p, double cw, double cs, double cq, float ca, float cb,
+           const double* plane) {
+    const CellEstimate e = EstimateCell(p, cw, cs, cq, ca, cb, plane);
     if (e.state == CellState::kUnknown) return;
     known = true;
     w += cw;
@@ -87,12 +90,18 @@ Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vecto
         for (int x = part.min.x; x <= part.max.x; ++x) {
           const int i = (y - o.y) * T + (x - o.x);
           if (!tile->IsKnown(i)) continue;
+          double moments[Tile::kPlaneMoments];
+          const double* plane = nullptr;
+          if (tile->has_plane()) {
+            tile->PlaneOf(i, moments);
+            plane = moments;
+          }
           if (stride == 1) {
             write(pixel_of(x, y), EstimateCell(p, tile->w()[i], tile->s()[i], tile->q()[i],
-                                               tile->a()[i], tile->b()[i]));
+                                               tile->a()[i], tile->b()[i], plane));
           } else {
             agg[pixel_of(x, y)].Add(p, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i],
-                                    tile->b()[i]);
+                                    tile->b()[i], plane);
           }
         }
       }

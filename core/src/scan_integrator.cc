@@ -135,6 +135,14 @@ inline void CapElevation(double* w, double* s, double* q, int len, double cap) {
   }
 }
 
+// CapElevation for a tile with plane moments: the cell's moments scale with its weight.
+inline void CapElevationPlane(Tile& tile, int start, int len, double cap) {
+  double* w = tile.w().data() + start;
+  for (int j = 0; j < len; ++j) {
+    if (w[j] > cap) tile.ScaleCell(start + j, cap / w[j]);
+  }
+}
+
 // The float sum of a scaled pair can land an ulp above `cap`: the slack makes capping
 // idempotent, so a merge re-capping an already capped map changes nothing.
 inline void CapBeta(float* a, float* b, int len, float cap) {
@@ -153,7 +161,11 @@ inline void CapBeta(float* a, float* b, int len, float cap) {
 
 void ScanIntegrator::Saturate(Tile& tile) const {
   const int n = tile.cell_count();
-  if (caps_.w > 0) CapElevation(tile.w().data(), tile.s().data(), tile.q().data(), n, caps_.w);
+  if (caps_.w > 0 && tile.has_plane()) {
+    CapElevationPlane(tile, 0, n, caps_.w);
+  } else if (caps_.w > 0) {
+    CapElevation(tile.w().data(), tile.s().data(), tile.q().data(), n, caps_.w);
+  }
   if (caps_.ab > 0) CapBeta(tile.a().data(), tile.b().data(), n, caps_.ab);
 }
 
@@ -231,15 +243,41 @@ struct ScanIntegrator::Impl {
     }
   }
 
-  // Elevation mean of a known cell, NaN otherwise.
+  // The surface of cell i of `tile` read with factor f: its elevation (the kernel mean, or the
+  // local plane's height with plane moments) and the disagreement of its observations about it.
+  // False for an unknown cell.
+  bool Surface(const Tile& tile, int i, double f, double* elevation, double* disagreement) const {
+    const double w = f * tile.w()[i];
+    if (!(w > 0.0)) return false;
+    const MapParams& p = self.params_;
+    const double s = f * tile.s()[i], q = f * tile.q()[i];
+    if (tile.has_plane()) {
+      double m[Tile::kPlaneMoments];
+      tile.PlaneOf(i, m);
+      for (double& x : m) x *= f;
+      const LocalPlane fit = FitLocalPlane(p, w, s, q, m);
+      *elevation = fit.elevation;
+      *disagreement = fit.residual;
+    } else {
+      *elevation = (p.lambda * p.prior_mean + s) / (p.lambda + w);
+      *disagreement = Disagreement(w, s, q);
+    }
+    return true;
+  }
+
+  // Elevation of a known cell, NaN otherwise.
   double Elevation(CellIndex c) const {
     const Tile* tile = TileAt(c);
     if (tile == nullptr) return std::numeric_limits<double>::quiet_NaN();
     const int i = self.geometry_.LocalIndex(c);
     const double f = ReadFactorOf(*tile);  // a tile the scan does not change, as of its stamp
+    const MapParams& p = self.params_;
+    if (tile->has_plane()) {
+      double z, d;
+      return Surface(*tile, i, f, &z, &d) ? z : std::numeric_limits<double>::quiet_NaN();
+    }
     const double w = f * tile->w()[i];
     if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-    const MapParams& p = self.params_;
     return (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w);
   }
 
@@ -281,19 +319,28 @@ struct ScanIntegrator::Impl {
           }
           if (last_tile == nullptr) return;
           const int i = self.geometry_.LocalIndex(c);
-          const double w = last_f * last_tile->w()[i];
-          if (!(w > 0.0)) return;
-          const double s = last_f * last_tile->s()[i];
-          // The top of what the cell has seen: its mean plus its disagreement's deviation, so
-          // an old object's remains, mixed with new ground, still stand above a grazing ray.
-          const double m = (p.lambda * p.prior_mean + s) / (p.lambda + w);
-          const double top = m + std::sqrt(Disagreement(w, s, last_f * last_tile->q()[i]));
+          // The top of what the cell has seen: its elevation plus its disagreement's deviation,
+          // so an old object's remains, mixed with new ground, still stand above a grazing ray.
+          double m, d;
+          if (!Surface(*last_tile, i, last_f, &m, &d)) return;
+          const double top = m + std::sqrt(d);
           if (oc.y + rise * t < top - margin) out.push_back(c);
         });
       }
     }
     std::sort(out.begin(), out.end());
     return out;
+  }
+
+  // The height v is computed from at cell c: its elevation, or for bgk-ll its own observations'
+  // mean (NaN if it has none).
+  double FeatureHeight(CellIndex c) const {
+    const Tile* tile = TileAt(c);
+    if (tile == nullptr || !tile->has_plane()) return Elevation(c);
+    const int i = self.geometry_.LocalIndex(c);
+    const double own_w = tile->plane(Tile::kOwnW)[i];  // a ratio: the read factor cancels
+    return own_w > 0.0 ? tile->plane(Tile::kOwnS)[i] / own_w
+                       : std::numeric_limits<double>::quiet_NaN();
   }
 
   // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
@@ -311,14 +358,23 @@ struct ScanIntegrator::Impl {
       const int centre = ly * T + lx;
       for (const CellIndex& o : self.neighbourhood_) {
         const int i = centre + o.y * T + o.x;
-        if (w[i] > 0.0) {
-          patch.push_back(
-              {o.x * res, o.y * res, (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i])});
+        if (!(w[i] > 0.0)) continue;
+        double z = 0.0;
+        if (tile->has_plane()) {
+          // bgk-ll: v from the data, the cells' own observations, not from the fitted surface
+          // (which fills unobserved cells, e.g. behind an occluding edge, with planes that
+          // would read as steps).
+          const double own_w = tile->plane(Tile::kOwnW)[i];
+          if (!(own_w > 0.0)) continue;
+          z = tile->plane(Tile::kOwnS)[i] / own_w;
+        } else {
+          z = (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i]);
         }
+        patch.push_back({o.x * res, o.y * res, z});
       }
     } else {
       for (const CellIndex& o : self.neighbourhood_) {
-        const double z = Elevation({c.x + o.x, c.y + o.y});
+        const double z = FeatureHeight({c.x + o.x, c.y + o.y});
         if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
       }
     }
@@ -400,9 +456,57 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     }
   }
 
-  // 1. Elevation (semantics 4; raw running mean for baseline and one-step).
+  // 1. Elevation (semantics 4; raw running mean for baseline and one-step; plane moments too
+  // for bgk-ll).
   const double w_cap = caps_.w;
-  if (InfersElevation(method) && !dynamic) {
+  if (KeepsPlaneMoments(method)) {
+    const KernelStencil& ks = kernel_;
+    for (const ObservedCell& oc : scan.cells) {
+      const double y = oc.y, yy = dynamic ? oc.y * oc.y : 0.0;
+      impl.ForEachKernelRun(
+          oc.cell, [&impl, &ks, y, yy, w_cap](Tile& tile, int start, const double* k, const float*,
+                                              int len) {
+            const double g = impl.GainOf(tile);  // 1 without forgetting
+            double* __restrict w = tile.w().data() + start;
+            double* __restrict s = tile.s().data() + start;
+            double* __restrict q = tile.q().data() + start;
+            double* __restrict su = tile.plane(Tile::kSu).data() + start;
+            double* __restrict sv = tile.plane(Tile::kSv).data() + start;
+            double* __restrict suu = tile.plane(Tile::kSuu).data() + start;
+            double* __restrict suv = tile.plane(Tile::kSuv).data() + start;
+            double* __restrict svv = tile.plane(Tile::kSvv).data() + start;
+            double* __restrict suy = tile.plane(Tile::kSuy).data() + start;
+            double* __restrict svy = tile.plane(Tile::kSvy).data() + start;
+            const double* ku = ks.moments_at(0, k);
+            const double* kv = ks.moments_at(1, k);
+            const double* kuu = ks.moments_at(2, k);
+            const double* kuv = ks.moments_at(3, k);
+            const double* kvv = ks.moments_at(4, k);
+            const double gy = g * y;
+            for (int j = 0; j < len; ++j) {
+              const double kg = k[j] * g;
+              w[j] += kg;
+              s[j] += kg * y;
+              q[j] += kg * yy;
+              su[j] += ku[j] * g;
+              sv[j] += kv[j] * g;
+              suu[j] += kuu[j] * g;
+              suv[j] += kuv[j] * g;
+              svv[j] += kvv[j] * g;
+              suy[j] += ku[j] * gy;
+              svy[j] += kv[j] * gy;
+            }
+            if (w_cap > 0) CapElevationPlane(tile, start, len, w_cap);
+          });
+      // The cell's own observations, apart: its elevation is theirs (docs/semantics.md).
+      Tile& own = *impl.TileAt(oc.cell);
+      const int i = geometry_.LocalIndex(oc.cell);
+      const double g = impl.GainOf(own);
+      own.plane(Tile::kOwnW)[i] += g;
+      own.plane(Tile::kOwnS)[i] += g * y;
+      if (w_cap > 0) CapElevationPlane(own, i, 1, w_cap);
+    }
+  } else if (InfersElevation(method) && !dynamic) {
     for (const ObservedCell& oc : scan.cells) {
       const double y = oc.y;
       impl.ForEachKernelRun(oc.cell,
@@ -569,7 +673,14 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
       *w += wf;
       *s += wf * y;
       *q += wf * y * y;
-      CapElevation(w, s, q, 1, caps_.w);
+      // At the cell itself (u = v = 0): of the plane moments, only its own sums gain.
+      if (tile->has_plane()) {
+        tile->plane(Tile::kOwnW)[i] += wf;
+        tile->plane(Tile::kOwnS)[i] += wf * y;
+        if (caps_.w > 0) CapElevationPlane(*tile, i, 1, caps_.w);
+      } else {
+        CapElevation(w, s, q, 1, caps_.w);
+      }
       if (InfersTraversability(method)) {
         tile->b()[i] += bf;
         if (caps_.ab > 0) CapBeta(&tile->a()[i], &tile->b()[i], 1, caps_.ab);

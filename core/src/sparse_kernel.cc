@@ -14,7 +14,7 @@ double SparseKernel(double d, double l) {
          std::sin(two_pi_r) / (2.0 * std::numbers::pi);
 }
 
-KernelStencil::KernelStencil(double resolution, double kernel_length) {
+KernelStencil::KernelStencil(double resolution, double kernel_length, double centre_weight) {
   // Largest integer offset whose distance can still be < l.
   radius_ = static_cast<int>(std::ceil(kernel_length / resolution));
   half_width_.assign(2 * radius_ + 1, -1);
@@ -29,9 +29,17 @@ KernelStencil::KernelStencil(double resolution, double kernel_length) {
     half_width_[row] = hw;
     for (int dx = -hw; dx <= hw; ++dx) {
       // k -> 0 like (1 - d/l)^4 at the support's edge; clamp rounding below zero.
-      const double k = std::max(0.0, SparseKernel(resolution * std::hypot(dx, dy), kernel_length));
+      const double k =
+          dx == 0 && dy == 0
+              ? centre_weight
+              : std::max(0.0, SparseKernel(resolution * std::hypot(dx, dy), kernel_length));
       weights_d_.push_back(k);
       weights_.push_back(static_cast<float>(k));
+      const double u = -dx * resolution, v = -dy * resolution;
+      moments_u_.push_back(u);
+      moments_v_.push_back(v);
+      const double m[kGeometricMoments] = {k * u, k * v, k * u * u, k * u * v, k * v * v};
+      for (int i = 0; i < kGeometricMoments; ++i) moments_[i].push_back(m[i]);
     }
   }
   // Trim empty outer rows so radius() is the true reach.
@@ -42,6 +50,12 @@ KernelStencil::KernelStencil(double resolution, double kernel_length) {
     row_offset_.pop_back();
     --radius_;
   }
+}
+
+double KernelStencil::total_weight() const {
+  double sum = 0.0;
+  for (double k : weights_d_) sum += k;
+  return sum;
 }
 
 }  // namespace bgkmap

@@ -54,7 +54,7 @@ Tile* TerrainMap::FindMutableTile(TileKey key) {
 
 Tile& TerrainMap::GetOrCreateTile(TileKey key) {
   std::unique_ptr<Tile>& slot = tiles_[key];
-  if (!slot) slot = std::make_unique<Tile>(params_.tile_size);
+  if (!slot) slot = std::make_unique<Tile>(params_.tile_size, KeepsPlaneMoments(params_.method));
   return *slot;
 }
 
@@ -90,6 +90,11 @@ void TerrainMap::SetTile(TileKey key, const Tile& tile) {
   std::copy(tile.q().begin(), tile.q().end(), dst.q().begin());
   std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
   std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
+  if (dst.has_plane() && tile.has_plane()) {
+    for (int m = 0; m < Tile::kPlaneMoments; ++m) {
+      std::copy(tile.plane(m).begin(), tile.plane(m).end(), dst.plane(m).begin());
+    }
+  }
   dst.set_version(tile.version());
   dst.set_stamp_ns(tile.stamp_ns());
 }
@@ -98,8 +103,10 @@ CellEstimate TerrainMap::Estimate(CellIndex cell) const {
   const Tile* tile = FindTile(geometry_.TileOf(cell));
   if (tile == nullptr) return EstimateCell(params_, 0.0, 0.0, 0.0, 0.0f, 0.0f);
   const int i = geometry_.LocalIndex(cell);
-  return EstimateCell(params_, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i],
-                      tile->b()[i]);
+  double plane[Tile::kPlaneMoments];
+  if (tile->has_plane()) tile->PlaneOf(i, plane);
+  return EstimateCell(params_, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i], tile->b()[i],
+                      tile->has_plane() ? plane : nullptr);
 }
 
 int64_t TerrainMap::CountKnownCells() const {
@@ -136,8 +143,7 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version, 
     for (int y = part.min.y; y <= part.max.y; ++y) {
       for (int x = part.min.x; x <= part.max.x; ++x) {
         const int i = (y - o.y) * T + (x - o.x);
-        tile.w()[i] = tile.s()[i] = tile.q()[i] = 0.0;
-        tile.a()[i] = tile.b()[i] = 0.0f;
+        tile.ClearCell(i);
       }
     }
     tile.set_version(version);
@@ -149,8 +155,10 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version, 
 }
 
 size_t TerrainMap::TileMemoryBytes() const {
-  return tiles_.size() * (sizeof(Tile) + static_cast<size_t>(params_.tile_size) *
-                                             params_.tile_size * Tile::kBytesPerCell);
+  const size_t per_cell =
+      Tile::kBytesPerCell + (KeepsPlaneMoments(params_.method) ? Tile::kPlaneBytesPerCell : 0);
+  return tiles_.size() *
+         (sizeof(Tile) + static_cast<size_t>(params_.tile_size) * params_.tile_size * per_cell);
 }
 
 }  // namespace bgkmap

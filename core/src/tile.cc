@@ -5,15 +5,17 @@
 
 namespace bgkmap {
 
-Tile::Tile(int tile_size)
+Tile::Tile(int tile_size, bool plane_moments)
     : size_(tile_size),
       w_(new double[n()]()),
       s_(new double[n()]()),
       q_(new double[n()]()),
       a_(new float[n()]()),
-      b_(new float[n()]()) {}
+      b_(new float[n()]()),
+      p_(plane_moments ? new double[kPlaneMoments * n()]() : nullptr) {}
 
-Tile::Tile(const Tile& o) : Tile(o.size_) {
+Tile::Tile(const Tile& o) : Tile(o.size_, o.has_plane()) {
+  if (p_) std::copy_n(o.p_.get(), kPlaneMoments * n(), p_.get());
   version_ = o.version_;
   stamp_ns_ = o.stamp_ns_;
   std::copy_n(o.w_.get(), n(), w_.get());
@@ -55,6 +57,10 @@ void Tile::Add(const Tile& o) {
     a_[i] += o.a_[i];
     b_[i] += o.b_[i];
   }
+  // Maps merge only with equal parameters, so both keep plane moments or neither does.
+  if (p_ && o.p_) {
+    for (size_t i = 0; i < kPlaneMoments * n(); ++i) p_[i] += o.p_[i];
+  }
 }
 
 void Tile::Scale(double f) {
@@ -62,6 +68,9 @@ void Tile::Scale(double f) {
     w_[i] *= f;
     s_[i] *= f;
     q_[i] *= f;
+  }
+  if (p_) {
+    for (size_t i = 0; i < kPlaneMoments * n(); ++i) p_[i] *= f;
   }
   // The Beta counts in double, as ScaleCell: a product rounded once to float.
   for (size_t i = 0; i < n(); ++i) {
@@ -76,6 +85,7 @@ void Tile::Clear() {
   std::fill_n(q_.get(), n(), 0.0);
   std::fill_n(a_.get(), n(), 0.0f);
   std::fill_n(b_.get(), n(), 0.0f);
+  if (p_) std::fill_n(p_.get(), kPlaneMoments * n(), 0.0);
 }
 
 bool Tile::operator==(const Tile& o) const {
@@ -85,7 +95,9 @@ bool Tile::operator==(const Tile& o) const {
          std::memcmp(s_.get(), o.s_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(q_.get(), o.q_.get(), n() * sizeof(double)) == 0 &&
          std::memcmp(a_.get(), o.a_.get(), n() * sizeof(float)) == 0 &&
-         std::memcmp(b_.get(), o.b_.get(), n() * sizeof(float)) == 0;
+         std::memcmp(b_.get(), o.b_.get(), n() * sizeof(float)) == 0 &&
+         has_plane() == o.has_plane() &&
+         (!p_ || std::memcmp(p_.get(), o.p_.get(), kPlaneMoments * n() * sizeof(double)) == 0);
 }
 
 }  // namespace bgkmap

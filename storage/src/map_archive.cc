@@ -187,7 +187,8 @@ Result<bool> MapArchiveReader::Next(TileKey* key, std::unique_ptr<Tile>* tile) {
   key->y = static_cast<int>(Fixed32(bytes, 4));
   std::string encoded;
   if (!Read(Fixed32(bytes, 8), &encoded)) return Status::DataLoss("map archive is truncated");
-  Result<std::unique_ptr<Tile>> decoded = DecodeTile(encoded, metadata_.params.tile_size);
+  Result<std::unique_ptr<Tile>> decoded =
+      DecodeTile(encoded, metadata_.params.tile_size, KeepsPlaneMoments(metadata_.params.method));
   if (!decoded.ok()) {
     return Status::DataLoss("map archive tile (" + std::to_string(key->x) + ", " +
                             std::to_string(key->y) + "): " + decoded.status().message());

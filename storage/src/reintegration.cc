@@ -32,8 +32,8 @@ Status ReadHistory(const TileStore& store, const ReintegrationRequest& request,
   const std::set<uint64_t> in_log(request.revised_in_log.begin(), request.revised_in_log.end());
   std::set<uint64_t> replaced_seen;
   const Status stop = Status::OutOfRange("end of the history");
-  Status walked = store.log().ForEach(
-      request.base, [&](uint64_t version, Result<LogRecord> record) -> Status {
+  Status walked =
+      store.log().ForEach(request.base, [&](uint64_t version, Result<LogRecord> record) -> Status {
         if (version >= request.end) return stop;
         if (!record.ok()) return record.status();
         if (record->type == LogRecord::Type::kCorrection) return Status::Ok();  // see header

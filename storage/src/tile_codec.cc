@@ -10,10 +10,17 @@
 namespace bgkmap::storage {
 namespace {
 
+bool PlaneIsZero(const Tile& t, int i) {
+  for (int m = 0; t.has_plane() && m < Tile::kPlaneMoments; ++m) {
+    if (std::bit_cast<uint64_t>(t.plane(m)[i]) != 0) return false;
+  }
+  return true;
+}
+
 bool CellIsZero(const Tile& t, int i) {
   return std::bit_cast<uint64_t>(t.w()[i]) == 0 && std::bit_cast<uint64_t>(t.s()[i]) == 0 &&
          std::bit_cast<uint64_t>(t.q()[i]) == 0 && std::bit_cast<uint32_t>(t.a()[i]) == 0 &&
-         std::bit_cast<uint32_t>(t.b()[i]) == 0;
+         std::bit_cast<uint32_t>(t.b()[i]) == 0 && PlaneIsZero(t, i);
 }
 
 // Gathers the present cells of one array as raw bits, optionally XOR-delta coded.
@@ -84,13 +91,14 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
   bool moments = false;  // a map without dynamics keeps Q at zero: not stored
   for (int i : present) moments |= std::bit_cast<uint64_t>(tile.q()[i]) != 0;
   const bool stamped = tile.stamp_ns() != 0;  // a map without forgetting has none: not stored
+  const bool plane = tile.has_plane();
   const uint8_t flags = static_cast<uint8_t>(
       (options.shuffle ? kTileShuffled : 0) | (options.xor_delta ? kTileXorDelta : 0) |
-      (moments ? kTileMoments : 0) | (stamped ? kTileStamp : 0));
+      (moments ? kTileMoments : 0) | (stamped ? kTileStamp : 0) | (plane ? kTilePlane : 0));
   std::string out;
-  out.reserve(16 + cell_count / 8 + present.size() * Tile::kBytesPerCell);
+  out.reserve(16 + cell_count / 8 + present.size() * tile.bytes_per_cell());
   ByteWriter w(&out);
-  w.PutU8(stamped ? kTileFormat : 2);
+  w.PutU8(plane ? 4 : stamped ? 3 : 2);
   w.PutU8(flags);
   w.PutVarint(static_cast<uint64_t>(tile.tile_size()));
   w.PutVarint(tile.version());
@@ -106,11 +114,16 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
   if (moments) PutArray<uint64_t>(w, tile.q(), present, flags);
   PutArray<uint32_t>(w, tile.a(), present, flags);
   PutArray<uint32_t>(w, tile.b(), present, flags);
+  if (plane) {
+    for (int m = 0; m < Tile::kPlaneMoments; ++m)
+      PutArray<uint64_t>(w, tile.plane(m), present, flags);
+  }
   w.PutFixed32(Crc32c(out));
   return out;
 }
 
-Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size) {
+Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size,
+                                         bool plane_moments) {
   if (encoded.size() < 4) return Malformed("shorter than its checksum");
   const std::string_view body = encoded.substr(0, encoded.size() - 4);
   uint32_t stored_crc;
@@ -131,7 +144,7 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
   // Format 1 is format 2 without moments (written before dynamics), format 2 format 3 without
   // a stamp (written before forgetting): both still read.
   const uint8_t known_flags = kTileShuffled | kTileXorDelta | (format >= 2 ? kTileMoments : 0) |
-                              (format >= 3 ? kTileStamp : 0);
+                              (format >= 3 ? kTileStamp : 0) | (format >= 4 ? kTilePlane : 0);
   if (format < 1 || (flags & ~known_flags) != 0) {
     return Malformed("unknown format or flags");
   }
@@ -144,7 +157,12 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
     return Status::DataLoss("tile is " + std::to_string(size) + " cells wide, the map's are " +
                             std::to_string(tile_size));
   }
-  auto tile = std::make_unique<Tile>(tile_size);
+  const bool plane = (flags & kTilePlane) != 0;
+  if (plane != plane_moments) {
+    return Status::DataLoss(plane ? "tile keeps plane moments, the map's method does not"
+                                  : "tile lacks the plane moments the map's method keeps");
+  }
+  auto tile = std::make_unique<Tile>(tile_size, plane);
   tile->set_version(version);
   tile->set_stamp_ns(stamp);
   const int cell_count = tile->cell_count();
@@ -167,6 +185,11 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
       !GetArray<uint32_t>(r, tile->a(), present, flags) ||
       !GetArray<uint32_t>(r, tile->b(), present, flags)) {
     return Malformed("truncated cell values");
+  }
+  for (int m = 0; plane && m < Tile::kPlaneMoments; ++m) {
+    if (!GetArray<uint64_t>(r, tile->plane(m), present, flags)) {
+      return Malformed("truncated plane moments");
+    }
   }
   if (r.remaining() != 0) return Malformed("trailing bytes");
   return tile;

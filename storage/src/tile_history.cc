@@ -142,8 +142,8 @@ Result<std::vector<std::unique_ptr<Tile>>> TileStore::LoadTilesAt(
       if (w == wanted.end() || found[w->second]) continue;
       found[w->second] = true;
       if (it->value().empty()) continue;
-      Result<std::unique_ptr<Tile>> tile =
-          DecodeTile(it->value().ToStringView(), params_.tile_size);
+      Result<std::unique_ptr<Tile>> tile = DecodeTile(it->value().ToStringView(), params_.tile_size,
+                                                      KeepsPlaneMoments(params_.method));
       if (!tile.ok()) {
         status = Status::DataLoss("history of tile " + TileKeyName(key) + ": " +
                                   tile.status().message());

@@ -315,7 +315,8 @@ Result<std::unique_ptr<Tile>> TileStore::LoadTileAt(TileKey key,
     if (s.IsCorruption() && snapshot == nullptr) MarkCorrupt(key);
     return FromRocks(s, "reading tile " + TileKeyName(key));
   }
-  Result<std::unique_ptr<Tile>> tile = DecodeTile(value.ToStringView(), params_.tile_size);
+  Result<std::unique_ptr<Tile>> tile =
+      DecodeTile(value.ToStringView(), params_.tile_size, KeepsPlaneMoments(params_.method));
   if (!tile.ok()) {
     if (tile.status().code() == Status::Code::kDataLoss && snapshot == nullptr) MarkCorrupt(key);
     return Status(

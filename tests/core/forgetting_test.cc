@@ -202,7 +202,8 @@ TEST(ForgettingTest, MergeBringsBothToTheLaterStampThenAdds) {
 // half_life_s = 0 stamps are ignored and tiles never stamped.
 // Mutation checked: making Gain's product k * g rounded differently (k * (g * 1.0000001)) fails.
 TEST(ForgettingTest, NoTimeOrNoHalfLifeIsBitwiseTheMapWithoutForgetting) {
-  for (Method method : {Method::kBgkPlus, Method::kOneStep, Method::kBgkObstacle}) {
+  for (Method method :
+       {Method::kBgkPlus, Method::kOneStep, Method::kBgkObstacle, Method::kBgkLocalLinear}) {
     SCOPED_TRACE(MethodName(method));
     MapParams off;
     off.method = method;

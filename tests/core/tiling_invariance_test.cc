@@ -88,7 +88,8 @@ TEST_P(TilingInvarianceTest, ShiftingAcrossTileBordersGivesTheShiftedMap) {
 
 INSTANTIATE_TEST_SUITE_P(AllMethods, TilingInvarianceTest,
                          ::testing::Values(Method::kBgkPlus, Method::kBgkTrav, Method::kBaseline,
-                                           Method::kOneStep, Method::kBgkObstacle),
+                                           Method::kOneStep, Method::kBgkObstacle,
+                                           Method::kBgkLocalLinear),
                          [](const ::testing::TestParamInfo<Method>& param_info) {
                            std::string n(MethodName(param_info.param));
                            for (char& c : n) c = std::isalnum(c) ? c : '_';

@@ -183,12 +183,45 @@ TEST(TileCodecTest, NewerFormatsAreRefusedNamingBothAndStampsNeedFormat3) {
   t.set_stamp_ns(77);
   std::string bytes = EncodeTile(t);
   std::string body = bytes.substr(0, bytes.size() - 4);
-  body[0] = 4;
+  body[0] = 5;
   const auto newer = DecodeTile(WithCrc(body), 8);
   EXPECT_EQ(newer.status().code(), Status::Code::kFailedPrecondition);
-  EXPECT_EQ(newer.status().message(), "tile format 4 is newer than this build reads (3)");
+  EXPECT_EQ(newer.status().message(), "tile format 5 is newer than this build reads (4)");
   body[0] = 2;  // a stamp in a format that has none
   EXPECT_EQ(DecodeTile(WithCrc(body), 8).status().code(), Status::Code::kDataLoss);
+}
+
+// bgk-ll tiles: the plane moments round-trip bitwise in every layout, in format 4; a map of the
+// other methods is refused such a tile (and the reverse) as DataLoss; plane moments need
+// format 4. Mutations: not writing the plane arrays (round trip differs); accepting a plane
+// tile in a map without planes.
+TEST(TileCodecTest, PlaneMomentsRoundTripInFormat4AndMustMatchTheMap) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const Tile base = RandomTile(8, 0.5, 11);
+  Tile t(8, /*plane_moments=*/true);
+  t.Add(base);
+  t.set_version(base.version());
+  for (int i = 0; i < t.cell_count(); ++i) {
+    if (!(t.w()[i] > 0.0)) continue;
+    for (int m = 0; m < Tile::kPlaneMoments; ++m) t.plane(m)[i] = u(rng) * 100.0;
+  }
+  for (bool shuffle : {false, true}) {
+    for (bool xor_delta : {false, true}) {
+      const std::string bytes = EncodeTile(t, {shuffle, xor_delta});
+      EXPECT_EQ(bytes[0], 4);
+      Result<std::unique_ptr<Tile>> back = DecodeTile(bytes, 8, /*plane_moments=*/true);
+      ASSERT_TRUE(back.ok()) << back.status().ToString();
+      ASSERT_TRUE((*back)->has_plane());
+      ExpectIdentical(t, **back);
+    }
+  }
+  const std::string bytes = EncodeTile(t);
+  EXPECT_EQ(DecodeTile(bytes, 8).status().code(), Status::Code::kDataLoss);
+  EXPECT_EQ(DecodeTile(EncodeTile(base), 8, true).status().code(), Status::Code::kDataLoss);
+  std::string body = bytes.substr(0, bytes.size() - 4);
+  body[0] = 3;  // plane moments in a format that has none
+  EXPECT_EQ(DecodeTile(WithCrc(body), 8, true).status().code(), Status::Code::kDataLoss);
 }
 
 }  // namespace

@@ -33,7 +33,8 @@ struct EvalOptions {
   std::string config;
   std::string out;
   std::string name = "dataset";
-  std::vector<std::string> methods = {"baseline", "bgk-trav", "bgk+", "one-step", "bgk-obstacle"};
+  std::vector<std::string> methods = {"baseline", "bgk-trav",     "bgk+",
+                                      "one-step", "bgk-obstacle", "bgk-ll"};
   double rate_hz = 10.0;
   bool figures = true;
   std::string changes;    // changes.json; default <sequence>/changes.json if it exists

@@ -39,6 +39,9 @@ struct RegressOptions {
   std::vector<double> resolutions = {0.5, 1.0, 2.0};
   std::vector<double> kernel_lengths = {1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0};
   std::vector<std::string> peers = {"invdist", "invdistnn", "linear"};
+  // The BGK methods, each with its own cross-validation: the paper's ("bgk", method bgk+) and
+  // the local-linear one (bgk-ll).
+  std::vector<std::string> methods = {"bgk+", "bgk-ll"};
 };
 
 int Fail(const std::string& msg) {
@@ -56,12 +59,12 @@ double Seconds(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-MapParams RegressionParams(double resolution, double kernel_length) {
+MapParams RegressionParams(Method method, double resolution, double kernel_length) {
   MapParams p;
   p.resolution = resolution;
   p.kernel_length = kernel_length;
   p.observation = Observation::kMean;  // ground points of one cell: their mean height
-  p.method = Method::kBgkPlus;
+  p.method = method;
   p.robot_radius = std::max(p.robot_radius, resolution);  // unused here, but must span a cell
   return p;
 }
@@ -128,8 +131,8 @@ struct Candidate {
 
 // The selection rule: k-fold cross-validation on the training half over a fixed grid; the
 // lowest CV RMSE among candidates that predict at least 99% of held-out points wins.
-Candidate SelectByCrossValidation(const std::vector<P3>& train, const RegressOptions& o,
-                                  std::vector<Candidate>* all) {
+Candidate SelectByCrossValidation(Method method, const std::vector<P3>& train,
+                                  const RegressOptions& o, std::vector<Candidate>* all) {
   const int folds = o.folds;
   for (double res : o.resolutions) {
     for (double l : o.kernel_lengths) {
@@ -140,7 +143,7 @@ Candidate SelectByCrossValidation(const std::vector<P3>& train, const RegressOpt
         std::vector<P3> fit, held;
         for (size_t i = 0; i < train.size(); ++i)
           (static_cast<int>(i % folds) == f ? held : fit).push_back(train[i]);
-        const auto map = Fit(RegressionParams(res, l), fit);
+        const auto map = Fit(RegressionParams(method, res, l), fit);
         if (!map) continue;
         for (const P3& p : held) {
           ++total;
@@ -213,68 +216,118 @@ int RunRegress(const RegressOptions& o) {
   const std::vector<P3> train(pts.begin(), pts.begin() + pts.size() / 2);
   const std::vector<P3> test(pts.begin() + pts.size() / 2, pts.end());
 
-  std::vector<Candidate> candidates;
-  const auto tcv = Clock::now();
-  const Candidate chosen = SelectByCrossValidation(train, o, &candidates);
-  const double cv_seconds = Seconds(tcv);
-
-  // Grid: the cells covering every point's x, y (the extent, not the test values).
-  const MapParams params = RegressionParams(chosen.resolution, chosen.kernel_length);
-  const GridGeometry geo(params.resolution, params.tile_size);
-  double x1 = 0, y1 = 0;
-  for (const P3& p : pts) x1 = std::max(x1, p[0]), y1 = std::max(y1, p[1]);
-  const CellBox box = geo.BoxCovering(0, 0, x1, y1);
-  const GridExtent extent{box.min.x * params.resolution,       box.min.y * params.resolution,
-                          (box.max.x + 1) * params.resolution, (box.max.y + 1) * params.resolution,
-                          static_cast<int>(box.width()),       static_cast<int>(box.height())};
-
+  // Each BGK method: its own cross-validation on the training half, then a fit on all of it.
+  struct Fitted {
+    Method method;
+    std::vector<Candidate> candidates;
+    Candidate chosen;
+    double cv_seconds;
+    std::unique_ptr<TerrainMap> map;
+  };
+  std::vector<Fitted> fitted;
   std::vector<Row> rows;
-  const auto t0 = Clock::now();
-  const auto map = Fit(params, train);
-  if (!map) return Fail("BGK regression failed for the chosen parameters");
-  const Raster raster = ExtractRaster(*map, box, {Layer::kElevation});
-  const double bgk_seconds = Seconds(t0);
-  auto bgk_at = [&](double x, double y) -> double { return map->EstimateAt(x, y).elevation; };
   char buf[128];
-  std::snprintf(buf, sizeof buf, "l = %g m, res = %g m", chosen.kernel_length, chosen.resolution);
-  rows.push_back({"bgk", buf, ScorePoints(test, bgk_at), {}, bgk_seconds});
+  for (const std::string& name : o.methods) {
+    Result<Method> method = ParseMethod(name);
+    if (!method.ok()) return Usage("--methods: " + method.status().message());
+    Fitted f{*method, {}, {}, 0, nullptr};
+    const auto tcv = Clock::now();
+    f.chosen = SelectByCrossValidation(f.method, train, o, &f.candidates);
+    f.cv_seconds = Seconds(tcv);
+    const MapParams params =
+        RegressionParams(f.method, f.chosen.resolution, f.chosen.kernel_length);
+    const auto t0 = Clock::now();
+    f.map = Fit(params, train);
+    if (!f.map) return Fail("BGK regression failed for the chosen parameters");
+    const Raster raster = ExtractRaster(*f.map, f.map->KnownBounds(), {Layer::kElevation});
+    const double seconds = Seconds(t0);
+    const TerrainMap& m = *f.map;
+    std::snprintf(buf, sizeof buf, "l = %g m, res = %g m", f.chosen.kernel_length,
+                  f.chosen.resolution);
+    rows.push_back(
+        {f.method == Method::kBgkPlus ? "bgk" : name,
+         buf,
+         ScorePoints(test,
+                     [&m](double x, double y) -> double { return m.EstimateAt(x, y).elevation; }),
+         {},
+         seconds});
+    fitted.push_back(std::move(f));
+  }
+  if (fitted.empty()) return Usage("--methods: name at least one BGK method");
 
+  // gdal_grid on the same training CSV, on the grid of each resolution a BGK method chose.
   const std::string csv = (fs::path(o.out) / "train.csv").string();
   if (Status s = WritePointsCsv(csv, train); !s.ok()) return Fail(s.message());
-  std::snprintf(buf, sizeof buf, "invdistnn:power=2.0:radius=%g:max_points=12",
-                chosen.kernel_length);
-  std::vector<std::pair<std::string, std::string>> peers;
-  for (const std::string& peer : o.peers) {
-    if (peer == "invdist") peers.push_back({"gdal invdist", "invdist:power=2.0"});
-    if (peer == "invdistnn") peers.push_back({"gdal invdistnn", buf});
-    if (peer == "linear") peers.push_back({"gdal linear", "linear"});
+  std::vector<double> resolutions;
+  for (const Fitted& f : fitted) {
+    if (std::find(resolutions.begin(), resolutions.end(), f.chosen.resolution) == resolutions.end())
+      resolutions.push_back(f.chosen.resolution);
   }
   std::vector<SampledGrid> grids;
-  for (const auto& [name, algo] : peers) {
-    const std::string tif = (fs::path(o.out) / (algo.substr(0, algo.find(':')) + ".tif")).string();
-    Result<SampledGrid> g = RunGdalGrid(csv, algo, extent, tif);
-    if (!g.ok()) return Fail(g.status().message());
-    const SampledGrid& grid = *g;
-    rows.push_back({name,
-                    algo,
-                    ScorePoints(test, [&](double x, double y) -> double { return grid.At(x, y); }),
-                    {},
-                    grid.seconds});
-    grids.push_back(std::move(g).value());
+  for (double res : resolutions) {
+    const GridGeometry geo(res, MapParams{}.tile_size);
+    double x1 = 0, y1 = 0;
+    for (const P3& p : pts) x1 = std::max(x1, p[0]), y1 = std::max(y1, p[1]);
+    const CellBox box = geo.BoxCovering(0, 0, x1, y1);
+    const GridExtent extent{box.min.x * res,
+                            box.min.y * res,
+                            (box.max.x + 1) * res,
+                            (box.max.y + 1) * res,
+                            static_cast<int>(box.width()),
+                            static_cast<int>(box.height())};
+    // invdistnn searches as far as the first method's kernel reaches.
+    std::snprintf(buf, sizeof buf, "invdistnn:power=2.0:radius=%g:max_points=12",
+                  fitted.front().chosen.kernel_length);
+    std::vector<std::pair<std::string, std::string>> peers;
+    for (const std::string& peer : o.peers) {
+      if (peer == "invdist") peers.push_back({"gdal invdist", "invdist:power=2.0"});
+      if (peer == "invdistnn") peers.push_back({"gdal invdistnn", buf});
+      if (peer == "linear") peers.push_back({"gdal linear", "linear"});
+    }
+    std::string at, suffix;  // in the table, in the file name
+    if (resolutions.size() > 1) {
+      char r[32];
+      std::snprintf(r, sizeof r, " @ %g m", res);
+      at = r;
+      std::snprintf(r, sizeof r, "_%gm", res);
+      suffix = r;
+    }
+    for (const auto& [name, algo] : peers) {
+      const std::string tif =
+          (fs::path(o.out) / (algo.substr(0, algo.find(':')) + suffix + ".tif")).string();
+      Result<SampledGrid> g = RunGdalGrid(csv, algo, extent, tif);
+      if (!g.ok()) return Fail(g.status().message());
+      const SampledGrid& grid = *g;
+      rows.push_back(
+          {name + at,
+           algo,
+           ScorePoints(test, [&](double x, double y) -> double { return grid.At(x, y); }),
+           {},
+           grid.seconds});
+      grids.push_back(std::move(g).value());
+    }
   }
   // The common test set: points every method predicts.
   std::vector<bool> common(test.size(), true);
   for (size_t i = 0; i < test.size(); ++i) {
-    common[i] = !std::isnan(bgk_at(test[i][0], test[i][1]));
+    for (const Fitted& f : fitted)
+      common[i] = common[i] && !std::isnan(f.map->EstimateAt(test[i][0], test[i][1]).elevation);
     for (const SampledGrid& g : grids)
       common[i] = common[i] && !std::isnan(g.At(test[i][0], test[i][1]));
   }
-  rows[0].common = ScorePoints(test, bgk_at, &common);
+  for (size_t k = 0; k < fitted.size(); ++k) {
+    const TerrainMap& m = *fitted[k].map;
+    rows[k].common = ScorePoints(
+        test, [&m](double x, double y) -> double { return m.EstimateAt(x, y).elevation; }, &common);
+  }
   for (size_t k = 0; k < grids.size(); ++k) {
     const SampledGrid& g = grids[k];
-    rows[k + 1].common = ScorePoints(
+    rows[fitted.size() + k].common = ScorePoints(
         test, [&](double x, double y) -> double { return g.At(x, y); }, &common);
   }
+  const Candidate& chosen = fitted.front().chosen;
+  const std::vector<Candidate>& candidates = fitted.front().candidates;
+  const double cv_seconds = fitted.front().cv_seconds;
 
   std::ostringstream md;
   md << "| Method | Parameters | Test RMSE (m) | Test points predicted (%) | RMSE on common points "
@@ -318,13 +371,37 @@ int RunRegress(const RegressOptions& o) {
   js["cv_seconds"] = JsonNumber<Json>(cv_seconds);
   js["cv"] = std::move(cv);
   js["results"] = std::move(results);
+  // Every BGK method's own choice and CV table ("chosen" and "cv" above: the first's).
+  Json per_method = Json::array();
+  for (const Fitted& f : fitted) {
+    Json table = Json::array();
+    for (const Candidate& c : f.candidates) {
+      table.push_back({{"resolution", JsonNumber<Json>(c.resolution)},
+                       {"kernel_length", JsonNumber<Json>(c.kernel_length)},
+                       {"rmse", JsonNumber<Json>(c.cv.rmse)},
+                       {"coverage", JsonNumber<Json>(c.cv.coverage)}});
+    }
+    per_method.push_back({{"method", std::string(MethodName(f.method))},
+                          {"chosen",
+                           {{"resolution", JsonNumber<Json>(f.chosen.resolution)},
+                            {"kernel_length", JsonNumber<Json>(f.chosen.kernel_length)},
+                            {"cv_rmse", JsonNumber<Json>(f.chosen.cv.rmse)}}},
+                          {"cv_seconds", JsonNumber<Json>(f.cv_seconds)},
+                          {"cv", std::move(table)}});
+  }
+  js["methods"] = std::move(per_method);
   std::ofstream(fs::path(o.out) / "regress.json") << JsonText(js);
   std::ofstream(fs::path(o.out) / "table.md") << md.str();
   std::printf(
-      "%s\nbgkmap regress: %zu points (%zu train, %zu test), chose l = %g m, res = %g m "
-      "by %d-fold CV on the training half (CV RMSE %.4f m, %.1f s) -> %s\n",
-      md.str().c_str(), pts.size(), train.size(), test.size(), chosen.kernel_length,
-      chosen.resolution, o.folds, chosen.cv.rmse, cv_seconds, o.out.c_str());
+      "%s\nbgkmap regress: %zu points (%zu train, %zu test), %d-fold CV on the training "
+      "half chose",
+      md.str().c_str(), pts.size(), train.size(), test.size(), o.folds);
+  for (const Fitted& f : fitted) {
+    std::printf(" %s: l = %g m, res = %g m (CV RMSE %.4f m, %.1f s);",
+                std::string(MethodName(f.method)).c_str(), f.chosen.kernel_length,
+                f.chosen.resolution, f.chosen.cv.rmse, f.cv_seconds);
+  }
+  std::printf(" -> %s\n", o.out.c_str());
   return 0;
 }
 
@@ -350,6 +427,9 @@ void RegisterRegressCommand(CLI::App& app, int& exit_code) {
                   "Cross-validated kernel lengths, m (1,2,3,4,6,8,12)")
       ->delimiter(',');
   cmd->add_option("--peers", o->peers, "gdal_grid methods: invdist,invdistnn,linear or none")
+      ->delimiter(',');
+  cmd->add_option("--methods", o->methods,
+                  "BGK methods, each cross-validated on its own (default bgk+,bgk-ll)")
       ->delimiter(',');
   cmd->callback([o, &exit_code] { exit_code = RunRegress(*o); });
 }

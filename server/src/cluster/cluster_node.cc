@@ -274,8 +274,7 @@ void ClusterNode::Rebalance() {
 std::shared_ptr<PartitionReplica> ClusterNode::TakePartition(PartitionKey p, uint64_t end) {
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
   if (!map.ok()) return nullptr;
-  Result<std::optional<PartitionCheckpoint>> restored =
-      ReadCheckpoint(*nats_, p, params_.tile_size);
+  Result<std::optional<PartitionCheckpoint>> restored = ReadCheckpoint(*nats_, p, params_);
   if (!restored.ok()) {
     spdlog::warn("event=partition_checkpoint_unreadable partition={} reason=\"{}\"",
                  PartitionName(p), restored.status().message());
@@ -422,7 +421,7 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
       const std::string manifest(natsMsg_GetData(msg),
                                  static_cast<size_t>(natsMsg_GetDataLength(msg)));
       Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> read =
-          ReadImportTiles(*nats_, manifest, params_.tile_size);
+          ReadImportTiles(*nats_, manifest, params_);
       if (read.ok()) {
         tiles = std::move(read).value();
       } else {

@@ -75,7 +75,8 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
         return Status::DataLoss("partition " + PartitionName(p) + ": keys and tiles differ");
       }
       for (int i = 0; keys == nullptr && i < reply.keys_size(); ++i) {
-        Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(reply.tiles(i), params_.tile_size);
+        Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(reply.tiles(i), params_.tile_size,
+                                                                 KeepsPlaneMoments(params_.method));
         if (!tile.ok()) {
           return Status::DataLoss("partition " + PartitionName(p) + ": " + tile.status().message());
         }

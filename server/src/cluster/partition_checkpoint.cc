@@ -130,7 +130,7 @@ Result<std::string> StoreImportTiles(const NatsClient& nats, const std::string& 
 }
 
 static Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadChunks(
-    const NatsClient& nats, const v1::CheckpointManifest& manifest, int tile_size) {
+    const NatsClient& nats, const v1::CheckpointManifest& manifest, const MapParams& params) {
   std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> out;
   for (uint64_t seq : manifest.chunk_sequences()) {
     natsMsg* chunk_raw = nullptr;
@@ -149,7 +149,8 @@ static Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadChunks
       return Status::DataLoss("chunk " + std::to_string(seq) + " does not decode");
     }
     for (int i = 0; i < chunk.keys_size(); ++i) {
-      Result<std::unique_ptr<Tile>> tile = storage::DecodeTile(chunk.tiles(i), tile_size);
+      Result<std::unique_ptr<Tile>> tile =
+          storage::DecodeTile(chunk.tiles(i), params.tile_size, KeepsPlaneMoments(params.method));
       if (!tile.ok()) return Status::DataLoss(tile.status().message());
       out.emplace_back(TileKey{chunk.keys(i).x(), chunk.keys(i).y()}, std::move(tile).value());
     }
@@ -192,7 +193,7 @@ Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats, P
 }
 
 Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
-                                                          int tile_size) {
+                                                          const MapParams& params) {
   Result<std::optional<v1::CheckpointManifest>> read = ReadManifest(nats, p);
   if (!read.ok()) return read.status();
   if (!read->has_value()) return std::optional<PartitionCheckpoint>();
@@ -203,7 +204,7 @@ Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats
     out.robot_sequences[robot] = sequence;
   }
   Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> tiles =
-      ReadChunks(nats, manifest, tile_size);
+      ReadChunks(nats, manifest, params);
   if (!tiles.ok()) {
     return Status::DataLoss("checkpoint of partition " + PartitionName(p) + ": " +
                             tiles.status().message());
@@ -213,11 +214,11 @@ Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats
 }
 
 Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadImportTiles(
-    const NatsClient& nats, const std::string& manifest, int tile_size) {
+    const NatsClient& nats, const std::string& manifest, const MapParams& params) {
   v1::CheckpointManifest m;
   if (!m.ParseFromString(manifest))
     return Status::DataLoss("the import's manifest does not decode");
-  return ReadChunks(nats, m, tile_size);
+  return ReadChunks(nats, m, params);
 }
 
 }  // namespace bgkmap::cluster

@@ -32,10 +32,10 @@ Status EnsureCheckpointStream(const NatsClient& nats, int replicas);
 // Stores `checkpoint` of `p`; the tiles are encoded here.
 Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
                        const PartitionCheckpoint& checkpoint);
-// The newest checkpoint of `p` (nullopt: none), its tiles decoded for maps of `tile_size`.
+// The newest checkpoint of `p` (nullopt: none), its tiles decoded for maps of `params`.
 // DataLoss if a chunk fails its checksum.
 Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
-                                                          int tile_size);
+                                                          const MapParams& params);
 
 // The log sequence of the newest checkpoint of `p` (nullopt: none), without reading its tiles.
 Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats, PartitionKey p);
@@ -47,6 +47,6 @@ Result<std::string> StoreImportTiles(const NatsClient& nats, const std::string& 
                                      std::span<const Tile* const> tiles);
 // The tiles of the chunks an encoded manifest names. DataLoss if one fails its checksum.
 Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadImportTiles(
-    const NatsClient& nats, const std::string& manifest, int tile_size);
+    const NatsClient& nats, const std::string& manifest, const MapParams& params);
 
 }  // namespace bgkmap::cluster

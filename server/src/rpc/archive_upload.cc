@@ -53,8 +53,9 @@ bool InRange(TileKey k, int tile_size) {
   return ok(k.x) && ok(k.y);
 }
 
-// Weights, pseudo-counts and second moments are sums of non-negative values; S is any finite
-// number. Returns the first local cell that breaks this, or -1.
+// Weights, pseudo-counts, second moments, the plane's k*u^2, k*v^2 and own weight are sums of
+// non-negative values; S and the other plane moments are any finite number. Returns the first local
+// cell that breaks this, or -1.
 int FirstImpossibleCell(const Tile& t) {
   for (int i = 0; i < t.cell_count(); ++i) {
     const double w = t.w()[i], s = t.s()[i], q = t.q()[i];
@@ -62,6 +63,11 @@ int FirstImpossibleCell(const Tile& t) {
     if (!(w >= 0.0 && std::isfinite(w)) || !std::isfinite(s) || !(q >= 0.0 && std::isfinite(q)) ||
         !(a >= 0.0f && std::isfinite(a)) || !(b >= 0.0f && std::isfinite(b))) {
       return i;
+    }
+    for (int m = 0; t.has_plane() && m < Tile::kPlaneMoments; ++m) {
+      const double x = t.plane(m)[i];
+      const bool square = m == Tile::kSuu || m == Tile::kSvv || m == Tile::kOwnW;
+      if (!std::isfinite(x) || (square && !(x >= 0.0))) return i;
     }
   }
   return -1;

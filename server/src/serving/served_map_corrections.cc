@@ -115,8 +115,11 @@ ChangeScheduler::Done ServedMap::RunCorrection(std::shared_ptr<CorrectionJob> jo
   }
   // One switch under the tiles' locks: readers see the map before or after, never a mix.
   for (std::unique_ptr<Tile>& tile : rebuilt->tiles) {
-    if (tile == nullptr) tile = std::make_unique<Tile>(params().tile_size);  // (kept until a
-    tile->set_version(version);  // checkpoint deletes its stored copy, like a cleared tile)
+    if (tile ==
+        nullptr) {  // (kept until a checkpoint deletes its stored copy, like a cleared tile)
+      tile = std::make_unique<Tile>(params().tile_size, KeepsPlaneMoments(params().method));
+    }
+    tile->set_version(version);
   }
   table_.ReplaceTiles(rebuilt->affected, rebuilt->tiles);
   summary_.MarkStale(rebuilt->affected);

@@ -20,7 +20,9 @@ TileTable::TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared)
 
 uint64_t TileTable::TileBytes() const {
   const uint64_t t = static_cast<uint64_t>(params().tile_size);
-  return sizeof(Tile) + t * t * Tile::kBytesPerCell;
+  const uint64_t per_cell =
+      Tile::kBytesPerCell + (KeepsPlaneMoments(params().method) ? Tile::kPlaneBytesPerCell : 0);
+  return sizeof(Tile) + t * t * per_cell;
 }
 
 ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version) {
@@ -65,8 +67,12 @@ Status TileTable::CheckSumsFinite(std::span<const TileKey> keys,
       const double w = have->w()[c] + add.w()[c], s = have->s()[c] + add.s()[c];
       const double q = have->q()[c] + add.q()[c];
       const float a = have->a()[c] + add.a()[c], b = have->b()[c] + add.b()[c];
+      bool plane_finite = true;
+      for (int m = 0; add.has_plane() && have->has_plane() && m < Tile::kPlaneMoments; ++m) {
+        plane_finite &= std::isfinite(have->plane(m)[c] + add.plane(m)[c]);
+      }
       if (std::isfinite(w) && std::isfinite(s) && std::isfinite(q) && std::isfinite(a) &&
-          std::isfinite(b)) {
+          std::isfinite(b) && plane_finite) {
         continue;
       }
       const CellIndex origin = geometry().TileOrigin(keys[i]);
@@ -75,9 +81,9 @@ Status TileTable::CheckSumsFinite(std::span<const TileKey> keys,
       m << "tile (" << keys[i].x << ", " << keys[i].y << ") cell (" << origin.x + c % ts << ", "
         << origin.y + c / ts << "): the merged statistics would not be finite (W " << have->w()[c]
         << " + " << add.w()[c] << ", S " << have->s()[c] << " + " << add.s()[c] << ", Q "
-        << have->q()[c] << " + " << add.q()[c] << ", A "
-        << have->a()[c] << " + " << add.a()[c] << ", B " << have->b()[c] << " + " << add.b()[c]
-        << ")";
+        << have->q()[c] << " + " << add.q()[c] << ", A " << have->a()[c] << " + " << add.a()[c]
+        << ", B " << have->b()[c] << " + " << add.b()[c]
+        << (plane_finite ? ")" : ", or a plane moment)");
       return Status::OutOfRange(m.str());
     }
   }

@@ -46,7 +46,26 @@ struct CellEstimate {
 // With dynamics on, the observations' disagreement D = Q/W - (S/W)^2 (their kernel-weighted
 // variance) is added to the elevation variance, and a cell whose observations disagree by more
 // than a step the robot can take (sqrt(D) > step_crit) is non-traversable.
-CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b);
+// bgk-ll: `plane` holds the cell's Tile::kPlaneMoments plane moments (Tile::PlaneOf), and the
+// elevation is the intercept of the local plane fit (FitLocalPlane) instead of the kernel mean;
+// the disagreement is the fit's residual instead of the spread around the mean.
+CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b,
+                          const double* plane = nullptr);
+
+// The kernel-weighted plane z = h + g_u u + g_v v through a cell's neighbourhood (bgk-ll,
+// docs/semantics.md): weighted least squares on the moments, with the prior (lambda, mu0) as a
+// pseudo-observation at the cell. Where the training cells spread less than res^2/12 (a point's
+// spread about its cell centre) in some direction, there is no slope along it: one cell gives
+// the kernel mean, cells on one line a slope along the line only. Data on a plane give that
+// plane exactly. A cell with observations of its own (Tile::kOwnW > 0) reads their mean instead:
+// what a cell saw itself is not averaged away by its neighbourhood (a step is kept). `residual`
+// is the plane's weighted mean squared residual from Q (0 without dynamics).
+struct LocalPlane {
+  double elevation;
+  double slope_u, slope_v;
+  double residual;
+};
+LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const double* plane);
 
 // D = Q/W - (S/W)^2, clamped at 0 against rounding; 0 without weight.
 double Disagreement(double w, double s, double q);

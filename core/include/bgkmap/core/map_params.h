@@ -21,6 +21,10 @@ enum class Method {
   // neighbourhood, and a state that needs the Beta mean two deviations below the threshold
   // (docs/semantics.md, "bgk-obstacle").
   kBgkObstacle,
+  // "bgk-ll": local-linear BGK elevation (a kernel-weighted plane per cell, from additive
+  // moments) and BGK traversability, in both of which a cell's own observation weighs as much
+  // as its whole kernel neighbourhood (docs/semantics.md, "bgk-ll").
+  kBgkLocalLinear,
 };
 
 // How the points of one scan falling in one cell become that cell's training value y.
@@ -37,12 +41,15 @@ Result<Method> ParseMethod(std::string_view name);
 Result<Observation> ParseObservation(std::string_view name);
 Result<Dynamics> ParseDynamics(std::string_view name);
 
-// True for the methods whose traversability is a Beta posterior (bgk+, one-step, bgk-obstacle);
+// True for the methods whose traversability is a Beta posterior (bgk+, one-step, bgk-obstacle,
+// bgk-ll);
 // the others
 // keep the latest directly computed value per cell.
 bool InfersTraversability(Method m);
-// True for the methods whose elevation is BGK regression (bgk+, bgk-trav).
+// True for the methods whose elevation is BGK regression (bgk+, bgk-trav, bgk-ll).
 bool InfersElevation(Method m);
+// True for the methods whose tiles keep plane moments (bgk-ll).
+bool KeepsPlaneMoments(Method m);
 
 // Every parameter, with its default. What each means, its key and its rule are in
 // MapParamTable() (map_param_table.h), the one place that lists them.

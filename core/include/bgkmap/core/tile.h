@@ -17,11 +17,18 @@ namespace bgkmap {
 //   a: traversability     A = sum k*v        (float: enters only a probability)
 //   b: traversability     B = sum k*(1 - v)
 // For methods that keep a directly computed v instead of inferring it (baseline, bgk-trav),
-// a = v and b = 1 - v of the latest computation. Everything is additive: the statistics of two
-// maps of the same parameters merge by summation.
+// a = v and b = 1 - v of the latest computation.
+// Local-linear maps (bgk-ll) also keep, per cell, the plane moments of its kernel neighbourhood,
+// with (u, v) the training cell's offset from this cell in metres, and the cell's own
+// observations apart (72 more bytes per cell, double: y can be an absolute altitude):
+//   sum k*u, k*v, k*u^2, k*u*v, k*v^2, k*u*y, k*v*y, own weight sum 1, own sum y  (Plane enum)
+// Everything is additive: the statistics of two maps of the same parameters merge by summation.
 class Tile {
  public:
-  explicit Tile(int tile_size);
+  enum Plane { kSu = 0, kSv, kSuu, kSuv, kSvv, kSuy, kSvy, kOwnW, kOwnS, kDirA, kDirB };
+  static constexpr int kPlaneMoments = 11;
+
+  explicit Tile(int tile_size, bool plane_moments = false);
   Tile(const Tile& other);
   Tile& operator=(const Tile&) = delete;
 
@@ -38,6 +45,16 @@ class Tile {
   std::span<const double> q() const { return {q_.get(), n()}; }
   std::span<const float> a() const { return {a_.get(), n()}; }
   std::span<const float> b() const { return {b_.get(), n()}; }
+  // Copies cell `local`'s plane moments to out[0..kPlaneMoments) (the tile must keep them).
+  void PlaneOf(int local, double* out) const {
+    for (int m = 0; m < kPlaneMoments; ++m) out[m] = p_[m * n() + local];
+  }
+  // The plane moments (null spans when the tile keeps none).
+  bool has_plane() const { return p_ != nullptr; }
+  std::span<double> plane(int m) { return {p_ ? p_.get() + m * n() : nullptr, p_ ? n() : 0}; }
+  std::span<const double> plane(int m) const {
+    return {p_ ? p_.get() + m * n() : nullptr, p_ ? n() : 0};
+  }
 
   // A cell is known once it has elevation weight or traversability pseudo-counts.
   bool IsKnown(int local) const { return w_[local] > 0.0 || (a_[local] + b_[local]) > 0.0f; }
@@ -77,6 +94,9 @@ class Tile {
     w_[local] *= f;
     s_[local] *= f;
     q_[local] *= f;
+    if (p_) {
+      for (int m = 0; m < kPlaneMoments; ++m) p_[m * n() + local] *= f;
+    }
     a_[local] = static_cast<float>(a_[local] * f);
     b_[local] = static_cast<float>(b_[local] * f);
   }
@@ -85,10 +105,15 @@ class Tile {
   // which a merge would turn into +0).
   void ClearCell(int local) {
     w_[local] = s_[local] = q_[local] = 0.0;
+    if (p_) {
+      for (int m = 0; m < kPlaneMoments; ++m) p_[m * n() + local] = 0.0;
+    }
     a_[local] = b_[local] = 0.0f;
   }
 
   static constexpr size_t kBytesPerCell = 3 * sizeof(double) + 2 * sizeof(float);
+  static constexpr size_t kPlaneBytesPerCell = kPlaneMoments * sizeof(double);
+  size_t bytes_per_cell() const { return kBytesPerCell + (p_ ? kPlaneBytesPerCell : 0); }
 
  private:
   size_t n() const { return static_cast<size_t>(size_) * size_; }
@@ -97,6 +122,7 @@ class Tile {
   int64_t stamp_ns_ = 0;
   std::unique_ptr<double[]> w_, s_, q_;
   std::unique_ptr<float[]> a_, b_;
+  std::unique_ptr<double[]> p_;  // kPlaneMoments arrays of n(), or null
 };
 
 }  // namespace bgkmap

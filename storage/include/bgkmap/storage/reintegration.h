@@ -4,9 +4,10 @@
 //
 // Which records are replayed, over the history H = the log's records in (base, end):
 //   - affected tiles A: from the first revised scan on, the revised scans' tiles before
-//     (`seed_tiles`) and after the revision, then, in version order, the tiles a record changes if it reads a tile of A (or is revised):
-//     a scan's traversability reads the elevation around it, so a later scan over a corrected
-//     region changes too. Only tiles of A can differ from the map as it is.
+//     (`seed_tiles`) and after the revision, then, in version order, the tiles a record changes if
+//     it reads a tile of A (or is revised): a scan's traversability reads the elevation around it,
+//     so a later scan over a corrected region changes too. Only tiles of A can differ from the map
+//     as it is.
 //   - needed tiles N: A, then, in reverse version order, every tile read by a record that
 //     changes a tile of N. The records replayed are those that change a tile of N, onto N's
 //     tiles as they were at the base; tiles outside N are neither read nor needed.
@@ -30,8 +31,8 @@
 namespace bgkmap::storage {
 
 struct ReintegrationRequest {
-  uint64_t base = 0;  // a retained checkpoint below every revised version
-  uint64_t end = 0;   // the history is the log's records with base < version < end
+  uint64_t base = 0;                // a retained checkpoint below every revised version
+  uint64_t end = 0;                 // the history is the log's records with base < version < end
   std::vector<TileKey> seed_tiles;  // the tiles the revised scans changed as first logged
   // Revised scans that the log does not hold yet, by version: the new training set, or null
   // for a scan that is removed.

@@ -1,10 +1,12 @@
 // The on-disk encoding of one tile's statistics: exact (bitwise) and compact.
 //
-// Layout (format 3; format 2 is format 3 without kTileStamp, format 1 format 2 without
-// kTileMoments; both still read), little-endian:
-//   u8      format            3 with kTileStamp, else 2 (the oldest that holds the tile, so a
-//                             map without forgetting encodes byte for byte as before it)
-//   u8      layout flags      kTileShuffled | kTileXorDelta | kTileMoments | kTileStamp
+// Layout (format 4; format 3 is format 4 without kTilePlane, format 2 format 3 without
+// kTileStamp, format 1 format 2 without kTileMoments; all still read), little-endian:
+//   u8      format            4 with kTilePlane, else 3 with kTileStamp, else 2 (the oldest that
+//                             holds the tile, so maps of the older methods, without forgetting,
+//                             encode byte for byte as before)
+//   u8      layout flags      kTileShuffled | kTileXorDelta | kTileMoments | kTileStamp |
+//                             kTilePlane
 //   varint  tile_size         cells per edge
 //   varint  version           map version of the tile's last change
 //   zigzag  stamp             with kTileStamp: the map time (ns) the statistics are as of
@@ -13,7 +15,8 @@
 //   bytes   presence bitmap   ceil(tile_size^2 / 8) bytes, row-major, bit i%8 of byte i/8;
 //                             omitted when n == 0 or n == tile_size^2
 //   W[n] S[n] (8 bytes each), Q[n] (8 bytes, with kTileMoments: a map with dynamics),
-//   A[n] B[n] (4 bytes each), present cells only, in cell order,
+//   A[n] B[n] (4 bytes each), then with kTilePlane (bgk-ll) the seven plane moments
+//   (Tile::Plane order, 8 bytes each, n of each), present cells only, in cell order,
 //                             each array optionally XOR-delta coded and byte-shuffled
 //   fixed32 crc32c            of every byte before it
 // Cells that are bitwise +0 in all five arrays are skipped: a missing cell decodes to +0. Every
@@ -30,11 +33,12 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kTileFormat = 3;    // the newest format this build reads and writes
+inline constexpr uint8_t kTileFormat = 4;    // the newest format this build reads and writes
 inline constexpr uint8_t kTileShuffled = 1;  // arrays stored as byte planes
 inline constexpr uint8_t kTileXorDelta = 2;  // each value XOR the previous present value
 inline constexpr uint8_t kTileMoments = 4;   // the Q array is stored (format >= 2)
 inline constexpr uint8_t kTileStamp = 8;     // the tile's stamp is stored (format >= 3)
+inline constexpr uint8_t kTilePlane = 16;    // the plane moments are stored (format >= 4)
 
 // Both transforms are off by default: measured on the real street map with zstd, the plain
 // arrays compress best (18.6 bytes per known cell; shuffled 19.9, XOR-delta 20.2; see
@@ -53,7 +57,10 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options = {});
 // Decodes an encoding made by EncodeTile. Returns DataLoss if the checksum fails, the bytes are
 // malformed or truncated, or the tile is not `tile_size` cells wide (a tile from another map);
 // FailedPrecondition for a format newer than this build reads.
-Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size);
+// `plane_moments`: whether the map's tiles keep plane moments (KeepsPlaneMoments of its method);
+// a tile that disagrees is DataLoss, not a tile the map could not use.
+Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size,
+                                         bool plane_moments = false);
 
 // True if every cell of `tile` is bitwise +0: such a tile is stored as no tile at all.
 bool IsZeroTile(const Tile& tile);
