@@ -17,6 +17,8 @@ inline constexpr int kExitCheckError = 2;
 void RegisterBuildCommand(CLI::App& app, int& exit_code);
 void RegisterSimulateCommand(CLI::App& app, int& exit_code);
 void RegisterEvalCommand(CLI::App& app, int& exit_code);
+void RegisterTruthCommand(CLI::App& app, int& exit_code);
+void RegisterThinCommand(CLI::App& app, int& exit_code);
 void RegisterRegressCommand(CLI::App& app, int& exit_code);
 void RegisterInsertCommand(CLI::App& app, int& exit_code);
 void RegisterQueryCommand(CLI::App& app, int& exit_code);

@@ -15,6 +15,8 @@ int main(int argc, char** argv) {
   bgkmap::cli::RegisterBuildCommand(app, exit_code);
   bgkmap::cli::RegisterSimulateCommand(app, exit_code);
   bgkmap::cli::RegisterEvalCommand(app, exit_code);
+  bgkmap::cli::RegisterTruthCommand(app, exit_code);
+  bgkmap::cli::RegisterThinCommand(app, exit_code);
   bgkmap::cli::RegisterRegressCommand(app, exit_code);
   bgkmap::cli::RegisterInsertCommand(app, exit_code);
   bgkmap::cli::RegisterQueryCommand(app, exit_code);

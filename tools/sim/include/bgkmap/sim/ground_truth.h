@@ -43,6 +43,8 @@ class VisibilityMask {
 
 // Layers kElevation, kTraversability and kState over the mask's box (stride 1), NaN outside the
 // visible area. A cell whose neighbourhood holds fewer than 3 surface samples is non-traversable.
+// The traversability of the surface is eval::TruthFromHeights, shared with the truth of real
+// scans (eval/scan_truth.h).
 Raster MakeGroundTruth(const World& world, const MapParams& params, const VisibilityMask& visible);
 
 }  // namespace bgkmap::sim
