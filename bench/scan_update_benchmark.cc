@@ -115,6 +115,10 @@ BENCHMARK_CAPTURE(BM_Vlp16, baseline, Method::kBaseline)->Unit(benchmark::kMilli
 BENCHMARK_CAPTURE(BM_Vlp16, one_step, Method::kOneStep)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vlp16, bgk_obstacle, Method::kBgkObstacle)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Hdl32e, bgk_obstacle, Method::kBgkObstacle)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vlp16, bgk_ll, Method::kBgkLocalLinear)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32e, bgk_ll, Method::kBgkLocalLinear)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Vlp16Paper, bgk_ll, Method::kBgkLocalLinear)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Hdl32ePaper, bgk_ll, Method::kBgkLocalLinear)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Vlp16, bgk_trav, Method::kBgkTrav)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Hdl32e, bgk_trav, Method::kBgkTrav)->Unit(benchmark::kMillisecond);
 

@@ -143,6 +143,41 @@ inline void CapElevationPlane(Tile& tile, int start, int len, double cap) {
   }
 }
 
+// Adds one observation y, with gain g, to a run of a bgk-ll tile's cells: the kernel sums and
+// the plane moments (Q only with dynamics: without, it stays 0 and is not touched).
+template <bool kSecondMoment>
+inline void AddPlaneRun(Tile& tile, int start, int len, const KernelStencil& ks, const double* k,
+                        double g, double y) {
+  double* __restrict w = tile.w().data() + start;
+  double* __restrict s = tile.s().data() + start;
+  double* __restrict q = tile.q().data() + start;
+  double* __restrict su = tile.plane(Tile::kSu).data() + start;
+  double* __restrict sv = tile.plane(Tile::kSv).data() + start;
+  double* __restrict suu = tile.plane(Tile::kSuu).data() + start;
+  double* __restrict suv = tile.plane(Tile::kSuv).data() + start;
+  double* __restrict svv = tile.plane(Tile::kSvv).data() + start;
+  double* __restrict suy = tile.plane(Tile::kSuy).data() + start;
+  double* __restrict svy = tile.plane(Tile::kSvy).data() + start;
+  const double* ku = ks.moments_at(0, k);
+  const double* kv = ks.moments_at(1, k);
+  const double* kuu = ks.moments_at(2, k);
+  const double* kuv = ks.moments_at(3, k);
+  const double* kvv = ks.moments_at(4, k);
+  const double gy = g * y, gyy = gy * y;
+  for (int j = 0; j < len; ++j) {
+    w[j] += k[j] * g;
+    s[j] += k[j] * gy;
+    if constexpr (kSecondMoment) q[j] += k[j] * gyy;
+    su[j] += ku[j] * g;
+    sv[j] += kv[j] * g;
+    suu[j] += kuu[j] * g;
+    suv[j] += kuv[j] * g;
+    svv[j] += kvv[j] * g;
+    suy[j] += ku[j] * gy;
+    svy[j] += kv[j] * gy;
+  }
+}
+
 // The float sum of a scaled pair can land an ulp above `cap`: the slack makes capping
 // idempotent, so a merge re-capping an already capped map changes nothing.
 inline void CapBeta(float* a, float* b, int len, float cap) {
@@ -243,25 +278,20 @@ struct ScanIntegrator::Impl {
     }
   }
 
-  // The surface of cell i of `tile` read with factor f: its elevation (the kernel mean, or the
-  // local plane's height with plane moments) and the disagreement of its observations about it.
-  // False for an unknown cell.
-  bool Surface(const Tile& tile, int i, double f, double* elevation, double* disagreement) const {
+  // The top of what cell i of `tile` (read with factor f) has seen, for the free-space test:
+  // its height plus the deviation of the observations within l about their kernel mean. The
+  // height is the kernel mean, or a bgk-ll cell's own observations' mean where it has any: the
+  // cheap reads, as a ray crosses many cells. False for an unknown cell.
+  bool SeenTop(const Tile& tile, int i, double f, double* top) const {
     const double w = f * tile.w()[i];
     if (!(w > 0.0)) return false;
     const MapParams& p = self.params_;
-    const double s = f * tile.s()[i], q = f * tile.q()[i];
-    if (tile.has_plane()) {
-      double m[Tile::kPlaneMoments];
-      tile.PlaneOf(i, m);
-      for (double& x : m) x *= f;
-      const LocalPlane fit = FitLocalPlane(p, w, s, q, m);
-      *elevation = fit.elevation;
-      *disagreement = fit.residual;
-    } else {
-      *elevation = (p.lambda * p.prior_mean + s) / (p.lambda + w);
-      *disagreement = Disagreement(w, s, q);
+    const double s = f * tile.s()[i];
+    double height = (p.lambda * p.prior_mean + s) / (p.lambda + w);
+    if (tile.has_plane() && tile.plane(Tile::kOwnW)[i] > 0.0) {
+      height = tile.plane(Tile::kOwnS)[i] / tile.plane(Tile::kOwnW)[i];
     }
+    *top = height + std::sqrt(Disagreement(w, s, f * tile.q()[i]));
     return true;
   }
 
@@ -272,9 +302,15 @@ struct ScanIntegrator::Impl {
     const int i = self.geometry_.LocalIndex(c);
     const double f = ReadFactorOf(*tile);  // a tile the scan does not change, as of its stamp
     const MapParams& p = self.params_;
-    if (tile->has_plane()) {
-      double z, d;
-      return Surface(*tile, i, f, &z, &d) ? z : std::numeric_limits<double>::quiet_NaN();
+    if (tile->has_plane()) {  // the estimate's own elevation (EstimateCell)
+      const double w = f * tile->w()[i];
+      if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+      const double own_w = tile->plane(Tile::kOwnW)[i];
+      if (own_w > 0.0) return tile->plane(Tile::kOwnS)[i] / own_w;
+      double m[Tile::kPlaneMoments];
+      tile->PlaneOf(i, m);
+      for (double& x : m) x *= f;
+      return FitLocalPlane(p, w, f * tile->s()[i], 0.0, m).elevation;
     }
     const double w = f * tile->w()[i];
     if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
@@ -321,9 +357,8 @@ struct ScanIntegrator::Impl {
           const int i = self.geometry_.LocalIndex(c);
           // The top of what the cell has seen: its elevation plus its disagreement's deviation,
           // so an old object's remains, mixed with new ground, still stand above a grazing ray.
-          double m, d;
-          if (!Surface(*last_tile, i, last_f, &m, &d)) return;
-          const double top = m + std::sqrt(d);
+          double top;
+          if (!SeenTop(*last_tile, i, last_f, &top)) return;
           if (oc.y + rise * t < top - margin) out.push_back(c);
         });
       }
@@ -462,42 +497,18 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   if (KeepsPlaneMoments(method)) {
     const KernelStencil& ks = kernel_;
     for (const ObservedCell& oc : scan.cells) {
-      const double y = oc.y, yy = dynamic ? oc.y * oc.y : 0.0;
-      impl.ForEachKernelRun(
-          oc.cell, [&impl, &ks, y, yy, w_cap](Tile& tile, int start, const double* k, const float*,
-                                              int len) {
-            const double g = impl.GainOf(tile);  // 1 without forgetting
-            double* __restrict w = tile.w().data() + start;
-            double* __restrict s = tile.s().data() + start;
-            double* __restrict q = tile.q().data() + start;
-            double* __restrict su = tile.plane(Tile::kSu).data() + start;
-            double* __restrict sv = tile.plane(Tile::kSv).data() + start;
-            double* __restrict suu = tile.plane(Tile::kSuu).data() + start;
-            double* __restrict suv = tile.plane(Tile::kSuv).data() + start;
-            double* __restrict svv = tile.plane(Tile::kSvv).data() + start;
-            double* __restrict suy = tile.plane(Tile::kSuy).data() + start;
-            double* __restrict svy = tile.plane(Tile::kSvy).data() + start;
-            const double* ku = ks.moments_at(0, k);
-            const double* kv = ks.moments_at(1, k);
-            const double* kuu = ks.moments_at(2, k);
-            const double* kuv = ks.moments_at(3, k);
-            const double* kvv = ks.moments_at(4, k);
-            const double gy = g * y;
-            for (int j = 0; j < len; ++j) {
-              const double kg = k[j] * g;
-              w[j] += kg;
-              s[j] += kg * y;
-              q[j] += kg * yy;
-              su[j] += ku[j] * g;
-              sv[j] += kv[j] * g;
-              suu[j] += kuu[j] * g;
-              suv[j] += kuv[j] * g;
-              svv[j] += kvv[j] * g;
-              suy[j] += ku[j] * gy;
-              svy[j] += kv[j] * gy;
-            }
-            if (w_cap > 0) CapElevationPlane(tile, start, len, w_cap);
-          });
+      const double y = oc.y;
+      impl.ForEachKernelRun(oc.cell,
+                            [&impl, &ks, y, w_cap, dynamic](Tile& tile, int start, const double* k,
+                                                            const float*, int len) {
+                              const double g = impl.GainOf(tile);  // 1 without forgetting
+                              if (dynamic) {
+                                AddPlaneRun<true>(tile, start, len, ks, k, g, y);
+                              } else {
+                                AddPlaneRun<false>(tile, start, len, ks, k, g, y);
+                              }
+                              if (w_cap > 0) CapElevationPlane(tile, start, len, w_cap);
+                            });
       // The cell's own observations, apart: its elevation is theirs (docs/semantics.md).
       Tile& own = *impl.TileAt(oc.cell);
       const int i = geometry_.LocalIndex(oc.cell);
