@@ -96,12 +96,21 @@ TEST(RegressCommandTest, ParametersComeFromTheTrainingHalfAndTheSmoothSurfaceIsF
   const double l = a["chosen"]["kernel_length"], res = a["chosen"]["resolution"];
   EXPECT_TRUE(l == 2 || l == 4 || l == 8) << l;
   EXPECT_TRUE(res == 1 || res == 2) << res;
-  ASSERT_EQ(a["results"].size(), 2u);  // bgk and gdal linear
+  ASSERT_EQ(a["results"].size(), 3u);  // bgk, bgk-ll and gdal linear
   EXPECT_EQ(a["results"][0]["method"], "bgk");
-  const double rmse = a["results"][0]["rmse"];
-  EXPECT_TRUE(std::isfinite(rmse));
-  EXPECT_LT(rmse, 0.15);
-  EXPECT_GT(a["results"][0]["coverage"].get<double>(), 0.99);
+  EXPECT_EQ(a["results"][1]["method"], "bgk-ll");
+  for (int k : {0, 1}) {
+    const double rmse = a["results"][k]["rmse"];
+    EXPECT_TRUE(std::isfinite(rmse));
+    EXPECT_LT(rmse, 0.15);
+    EXPECT_GT(a["results"][k]["coverage"].get<double>(), 0.99);
+  }
+  // Each BGK method chose its own parameters by its own cross-validation, on the training half.
+  ASSERT_EQ(a["methods"].size(), 2u);
+  EXPECT_EQ(a["methods"][0]["chosen"], a["chosen"]);
+  EXPECT_EQ(a["methods"][1]["method"], "bgk-ll");
+  EXPECT_EQ(a["methods"][1]["chosen"], b["methods"][1]["chosen"]);
+  EXPECT_EQ(a["methods"][1]["cv"], b["methods"][1]["cv"]);
   fs::remove_all(dir);
 }
 
@@ -135,14 +144,14 @@ TEST(RegressCommandTest, OutputIsJsonForAnyPathAndNonFiniteScores) {
   EXPECT_TRUE(j["cv"][1]["rmse"].is_null()) << j["cv"][1];
   EXPECT_EQ(j["cv"][1]["coverage"], 0.0);
   EXPECT_EQ(j["chosen"]["kernel_length"], 4.0);
-  ASSERT_EQ(j["results"].size(), 1u);  // bgk only (--peers none)
+  ASSERT_EQ(j["results"].size(), 2u);  // bgk and bgk-ll only (--peers none)
   EXPECT_TRUE(j["results"][0]["rmse"].is_number());
   // Same keys, in the order the hand-written file had (scripts and docs/results/ show them so).
   const nlohmann::ordered_json ordered = nlohmann::ordered_json::parse(text.str());
   std::vector<std::string> keys;
   for (const auto& [k, v] : ordered.items()) keys.push_back(k);
   EXPECT_EQ(keys, (std::vector<std::string>{"input", "points", "chosen", "train", "test", "seed",
-                                            "folds", "cv_seconds", "cv", "results"}));
+                                            "folds", "cv_seconds", "cv", "results", "methods"}));
   fs::remove_all(dir);
 }
 

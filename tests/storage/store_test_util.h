@@ -103,7 +103,7 @@ inline ::testing::AssertionResult CompareTiles(const TerrainMap& a, const Terrai
   std::set<TileKey> keys;
   a.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
   b.ForEachTile([&](TileKey k, const Tile&) { keys.insert(k); });
-  const Tile zero(a.params().tile_size);
+  const Tile zero(a.params().tile_size, KeepsPlaneMoments(a.params().method));
   int differing = 0;
   std::string first;
   for (const TileKey& k : keys) {

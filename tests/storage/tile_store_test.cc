@@ -174,6 +174,29 @@ TEST(TileStoreTest, CheckpointedTilesLoadBitwiseListAndDelete) {
   EXPECT_FALSE(store->Checkpoint(5, {}).ok()) << "checkpoints never go back";
 }
 
+// bgk-ll's plane moments go through a checkpoint and a reopened store bitwise (tile format 4).
+// Mutation: DecodeTile ignoring kTilePlane (the reloaded tiles lack the moments: not equal).
+TEST(TileStoreTest, BgkLlTilesCheckpointAndReloadBitwise) {
+  TempDir dir;
+  MapParams params = SmallParams();
+  params.method = Method::kBgkLocalLinear;
+  auto map = NewMap(params);
+  Checkpointer checkpointer;
+  for (int i = 1; i <= 4; ++i) checkpointer.MarkDirty(Apply(*map, *MakeScan(params, 0, i), i));
+  {
+    auto store = std::move(TileStore::Open(dir.path(), {}, params)).value();
+    ASSERT_TRUE(checkpointer.Checkpoint(*store, *map).ok());
+  }
+  auto store = std::move(TileStore::OpenExisting(dir.path(), {})).value();
+  EXPECT_EQ(store->params().method, Method::kBgkLocalLinear);
+  auto reloaded = NewMap(params);
+  ASSERT_TRUE(LoadAllTiles(*store, *reloaded).ok());
+  int planes = 0;
+  reloaded->ForEachTile([&](TileKey, const Tile& t) { planes += t.has_plane(); });
+  EXPECT_EQ(planes, static_cast<int>(map->tile_count()));
+  EXPECT_TRUE(testing::CompareTiles(*map, *reloaded, /*versions=*/true));
+}
+
 TEST(TileStoreTest, ReopenGivesTheSameMap) {
   TempDir dir;
   const MapParams params = SmallParams();
