@@ -121,6 +121,20 @@ void StorageSeeds(const io::Scan& scan) {
         std::string(1, '\0') + storage::EncodeTile(*sparse, options));
   }
 
+  // A bgk-ll tile (plane moments, tile format 4); first byte: tile size 8 << 0, bit 3 = planes.
+  MapParams ll_params = params;
+  ll_params.method = Method::kBgkLocalLinear;
+  auto ll_map = Must(TerrainMap::Create(ll_params));
+  Must(ll_map->IntegrateScan(points, scan.pose));
+  const Tile* ll_full = nullptr;
+  int ll_n = -1;
+  ll_map->ForEachTile([&](TileKey, const Tile& tile) {
+    int n = 0;
+    for (int i = 0; i < tile.cell_count(); ++i) n += tile.w()[i] != 0;
+    if (n > ll_n) ll_n = n, ll_full = &tile;
+  });
+  Put("tile_codec", "plane_full", std::string(1, '\x08') + storage::EncodeTile(*ll_full));
+
   // Log records: a scan as the server logs it, and a clear.
   const std::vector<Point3f> few = Every(scan.points, 1000);
   auto prepared = std::make_shared<const PreparedScan>(Must(PrepareScan(params, few, scan.pose)));

@@ -95,9 +95,7 @@ LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const
     gv += t * ev;
   }
   const double shift = -(su * gu + sv * gv) / W;  // intercept minus mean
-  // A cell with observations of its own reads them: its elevation is their mean.
-  const double own_w = m[7], own_s = m[8];
-  LocalPlane out{own_w > 0.0 ? own_s / own_w : mean + shift, gu, gv, 0.0};
+  LocalPlane out{mean + shift, gu, gv, 0.0};
   if (q != 0.0 && w > 0.0) {
     // Sum k (y - h - g.(u, v))^2, expanded in the moments about the mean.
     const double qc = q - s * s / w;
@@ -137,13 +135,6 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
     const double sum = alpha + beta;
     e.traversability = static_cast<float>(alpha / sum);
     e.traversability_variance = static_cast<float>(alpha * beta / (sum * sum * (sum + 1.0)));
-    if (plane != nullptr && plane[9] + plane[10] > 0.0) {
-      const double da = p.alpha0 + plane[9], db = p.beta0 + plane[10], ds = da + db;
-      if (da / ds > alpha / sum) {
-        e.traversability = static_cast<float>(da / ds);
-        e.traversability_variance = static_cast<float>(da * db / (ds * ds * (ds + 1.0)));
-      }
-    }
   } else if (ab > 0.0) {
     e.traversability = static_cast<float>(a / ab);
     e.traversability_variance = 0.0f;

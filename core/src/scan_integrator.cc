@@ -305,8 +305,6 @@ struct ScanIntegrator::Impl {
     if (tile->has_plane()) {  // the estimate's own elevation (EstimateCell)
       const double w = f * tile->w()[i];
       if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-      const double own_w = tile->plane(Tile::kOwnW)[i];
-      if (own_w > 0.0) return tile->plane(Tile::kOwnS)[i] / own_w;
       double m[Tile::kPlaneMoments];
       tile->PlaneOf(i, m);
       for (double& x : m) x *= f;

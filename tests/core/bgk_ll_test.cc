@@ -53,12 +53,11 @@ std::unique_ptr<TerrainMap> Observe(const MapParams& p, const Height& height,
   return map;
 }
 
-// bgk-ll's elevation at (cx, cy), brute force: the cell's own height if it is observed, else the
-// intercept of the weighted least-squares plane through the observed cells within l, solved
-// with Eigen: the oracle bgk-ll's moments must agree with.
+// bgk-ll's elevation at (cx, cy), brute force: the intercept of the weighted least-squares plane
+// through the observed cells within l (the cell itself included, k(0) = 1), solved with Eigen:
+// the oracle bgk-ll's moments must agree with.
 double OracleIntercept(int cx, int cy, const Height& height,
                        const std::function<bool(int, int)>& keep) {
-  if (keep(cx, cy)) return static_cast<float>(height(cx, cy));
   Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
   Eigen::Vector3d b = Eigen::Vector3d::Zero();
   const int r = static_cast<int>(std::ceil(kL / kRes));
@@ -139,22 +138,34 @@ TEST(BgkLlTest, NoSlopeWhereTheDataGiveNone) {
   }
 }
 
-// A 0.3 m step along x = 0 (cells ix >= 0 high), every cell observed once. Mutation: observed
-// cells read the plane fit instead of their own heights (the step blurs).
-TEST(BgkLlTest, AStepIsKept) {
+// A 0.3 m step along x = 0 (cells ix >= 0 high), every cell observed once. The elevation is the
+// plane fit (a smoother: it ramps over the step like any kernel estimate), but v is computed
+// from the observed heights, so the step is kept where it decides traversability: bgk-ll's
+// traversability is one-step's (raw heights) exactly, cell for cell, and the step's cells are
+// non-traversable on both sides. Mutation: v from the kernel mean S / W instead of the observed
+// heights (FeatureHeight and ValueAt's fast path) -> the traversability differs from one-step's.
+TEST(BgkLlTest, AStepIsKeptInTraversability) {
   const Height step = [](int ix, int) { return ix >= 0 ? 0.3 : 0.0; };
-  const auto all = [](int, int) { return true; };
+  const auto all = [](int ix, int iy) { return std::abs(ix) <= 6 && std::abs(iy) <= 6; };
   auto ll = Observe(Params(Method::kBgkLocalLinear), step, all);
+  auto raw = Observe(Params(Method::kOneStep), step, all);
   auto nw = Observe(Params(Method::kBgkPlus), step, all);
+  int compared = 0, differs_from_bgk_plus = 0;
+  for (int ix = -6; ix <= 6; ++ix) {
+    for (int iy = -6; iy <= 6; ++iy) {
+      EXPECT_NEAR(ll->Estimate({ix, iy}).elevation, OracleIntercept(ix, iy, step, all), 2e-6)
+          << ix << ", " << iy;
+      const float t = ll->Estimate({ix, iy}).traversability;
+      EXPECT_EQ(t, raw->Estimate({ix, iy}).traversability) << ix << ", " << iy;
+      differs_from_bgk_plus += t != nw->Estimate({ix, iy}).traversability;
+      ++compared;
+    }
+  }
+  EXPECT_EQ(compared, 169);
+  EXPECT_GT(differs_from_bgk_plus, 20);
   for (int ix : {-1, 0}) {
-    const double own = step(ix, 0);
-    const double ll_error = std::abs(ll->Estimate({ix, 0}).elevation - own);
-    const double nw_error = std::abs(nw->Estimate({ix, 0}).elevation - own);
-    EXPECT_NEAR(ll->Estimate({ix, 0}).elevation, OracleIntercept(ix, 0, step, all), 2e-6);
-    EXPECT_LT(ll_error, 1e-6) << ix;        // its own height
-    EXPECT_GT(nw_error, 0.25 * 0.3) << ix;  // the kernel mean: a quarter of it or more
-    // A 0.3 m step within the robot radius: not traversable on either side.
     EXPECT_EQ(ll->Estimate({ix, 0}).state, CellState::kNonTraversable) << ix;
+    EXPECT_GT(ll->Estimate({ix, 0}).traversability, 0.9f) << ix;
   }
   // Far from the step (more than robot radius + l): flat, traversable.
   EXPECT_EQ(ll->Estimate({-6, 0}).state, CellState::kTraversable);

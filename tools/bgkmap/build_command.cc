@@ -162,8 +162,9 @@ void RegisterBuildCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
   cmd->add_option("--png", o->png, "Also write a PNG preview (hillshade + traversability)");
   cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
-  cmd->add_option("--method", o->method,
-                  "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle (overrides config)");
+  cmd->add_option(
+      "--method", o->method,
+      "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle | bgk-ll (overrides config)");
   cmd->add_option("--bbox", o->bbox, "xmin,ymin,xmax,ymax in metres (default: the known cells)")
       ->delimiter(',')
       ->expected(4);

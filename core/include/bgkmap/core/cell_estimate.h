@@ -57,9 +57,8 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
 // pseudo-observation at the cell. Where the training cells spread less than res^2/12 (a point's
 // spread about its cell centre) in some direction, there is no slope along it: one cell gives
 // the kernel mean, cells on one line a slope along the line only. Data on a plane give that
-// plane exactly. A cell with observations of its own (Tile::kOwnW > 0) reads their mean instead:
-// what a cell saw itself is not averaged away by its neighbourhood (a step is kept). `residual`
-// is the plane's weighted mean squared residual from Q (0 without dynamics).
+// plane exactly. `residual` is the plane's weighted mean squared residual from Q (0 without
+// dynamics).
 struct LocalPlane {
   double elevation;
   double slope_u, slope_v;

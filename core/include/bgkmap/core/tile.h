@@ -25,8 +25,8 @@ namespace bgkmap {
 // Everything is additive: the statistics of two maps of the same parameters merge by summation.
 class Tile {
  public:
-  enum Plane { kSu = 0, kSv, kSuu, kSuv, kSvv, kSuy, kSvy, kOwnW, kOwnS, kDirA, kDirB };
-  static constexpr int kPlaneMoments = 11;
+  enum Plane { kSu = 0, kSv, kSuu, kSuv, kSvv, kSuy, kSvy, kOwnW, kOwnS };
+  static constexpr int kPlaneMoments = 9;
 
   explicit Tile(int tile_size, bool plane_moments = false);
   Tile(const Tile& other);
