@@ -40,6 +40,31 @@ ServerFixture* ServedMapTest::fixture_ = nullptr;
 TerrainMap* ServedMapTest::offline_ = nullptr;
 std::vector<ScanAck> ServedMapTest::acks_;
 
+// bgk-ll through the real server: the plane moments are integrated by the serving path and read
+// by region queries exactly as the offline engine does.
+TEST(ServedMapBgkLlTest, ServedMapAndRegionEqualTheOfflineMap) {
+  ServerConfig config = TestConfig();
+  config.map.method = Method::kBgkLocalLinear;
+  ServerFixture fixture(config);
+  std::vector<ScanData> scans;
+  std::vector<const OwnedScan*> order;
+  for (const OwnedScan& s : StreetScans()) {
+    scans.push_back(s.Data());
+    order.push_back(&s);
+  }
+  RpcResult<std::vector<ScanAck>> acks = fixture.client().IngestAll(scans);
+  ASSERT_TRUE(acks.ok()) << acks.status().ToString();
+  const std::unique_ptr<TerrainMap> offline = OfflineMap(order, config.map);
+  int planes = 0;
+  offline->ForEachTile([&](TileKey, const Tile& t) { planes += t.has_plane(); });
+  EXPECT_EQ(planes, static_cast<int>(offline->tile_count()));
+  EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *offline));
+  const MetricBox box = KnownBox(*offline);
+  RpcResult<Raster> served = fixture.client().QueryRegion({box, {}, 1}, nullptr);
+  ASSERT_TRUE(served.ok()) << served.status().ToString();
+  EXPECT_TRUE(RastersMatch(*served, OfflineRegion(*offline, box, 1), 1e-5));
+}
+
 TEST_F(ServedMapTest, EveryScanAppliedInOrderWithItsCounts) {
   ASSERT_EQ(acks_.size(), 3u);
   for (size_t i = 0; i < acks_.size(); ++i) {
