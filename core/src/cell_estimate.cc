@@ -78,6 +78,9 @@ LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const
   const double half_trace = 0.5 * (a + c);
   const double disc = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
   double gu = 0.0, gv = 0.0;
+  // The training cells' centroid relative to the cell: how far the intercept is extrapolated.
+  const double cu = su / W, cv = sv / W;
+  double leverage = 0.0;  // c' C+ c: the intercept's variance beyond sigma2 / W', per sigma2
   for (const double lambda : {half_trace + disc, half_trace - disc}) {
     if (!(lambda >= floor) || !(lambda > 0.0)) continue;
     // An eigenvector of [[a, b], [b, c]] for lambda: the larger of its two candidate forms.
@@ -88,14 +91,17 @@ LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const
     if (!(norm2 > 0.0)) {  // C = lambda I: every direction is an eigenvector
       gu = ru / lambda;
       gv = rv / lambda;
+      leverage = (cu * cu + cv * cv) / lambda;
       break;
     }
     const double t = (eu * ru + ev * rv) / (lambda * norm2);
     gu += t * eu;
     gv += t * ev;
+    const double along = (eu * cu + ev * cv);  // the centroid's offset along e, times |e|
+    leverage += along * along / (lambda * norm2);
   }
   const double shift = -(su * gu + sv * gv) / W;  // intercept minus mean
-  LocalPlane out{mean + shift, gu, gv, 0.0};
+  LocalPlane out{mean + shift, gu, gv, 0.0, leverage};
   if (q != 0.0 && w > 0.0) {
     // Sum k (y - h - g.(u, v))^2, expanded in the moments about the mean.
     const double qc = q - s * s / w;
@@ -123,11 +129,13 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
       const LocalPlane fit = FitLocalPlane(p, w, s, dynamic ? q : 0.0, plane);
       if (dynamic) disagreement = fit.residual;
       e.elevation = static_cast<float>(fit.elevation);
+      e.elevation_variance =
+          static_cast<float>(p.sigma2 * (1.0 / lw + fit.leverage) + disagreement);
     } else {
       if (dynamic) disagreement = Disagreement(w, s, q);
       e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
+      e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
     }
-    e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
   }
   if (InfersTraversability(p.method)) {
     const double alpha = p.alpha0 + a;

@@ -109,6 +109,21 @@ TEST(BgkLlTest, APlaneIsReproducedExactlyWhereTheKernelMeanBendsIt) {
   }
 }
 
+// The elevation variance carries the extrapolation: sigma2 (1 / W + c' C^-1 c), c the training
+// cells' centroid. Inside the disk it is close to the kernel mean's sigma2 / W; at the rim,
+// where all the data lie on one side, it is several times larger. Mutation: leverage left out
+// (the rim's variance equals sigma2 / W).
+TEST(BgkLlTest, ExtrapolatedCellsAreLessCertain) {
+  const MapParams p = Params(Method::kBgkLocalLinear);
+  auto ll = Observe(p, Plane, DiskWithHole);
+  auto nw = Observe(Params(Method::kBgkPlus), Plane, DiskWithHole);
+  const CellEstimate inside = ll->Estimate({-2, -2}), rim = ll->Estimate({6, 0});
+  ASSERT_FALSE(std::isnan(rim.elevation));
+  EXPECT_NEAR(inside.elevation_variance, nw->Estimate({-2, -2}).elevation_variance,
+              0.05 * inside.elevation_variance);
+  EXPECT_GT(rim.elevation_variance, 3 * nw->Estimate({6, 0}).elevation_variance);
+}
+
 TEST(BgkLlTest, AgreesWithABruteForceWeightedPlaneFit) {
   // Not a plane: a bump, so the fit depends on every weight.
   const Height bumpy = [](int ix, int iy) { return 0.05 * std::sin(ix * 0.9) + 0.02 * iy * iy; };

@@ -48,7 +48,8 @@ struct CellEstimate {
 // than a step the robot can take (sqrt(D) > step_crit) is non-traversable.
 // bgk-ll: `plane` holds the cell's Tile::kPlaneMoments plane moments (Tile::PlaneOf), and the
 // elevation is the intercept of the local plane fit (FitLocalPlane) instead of the kernel mean;
-// the disagreement is the fit's residual instead of the spread around the mean.
+// the disagreement is the fit's residual instead of the spread around the mean; the elevation
+// variance is sigma2 (1 / (lambda + W) + leverage) plus the disagreement.
 CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b,
                           const double* plane = nullptr);
 
@@ -63,6 +64,10 @@ struct LocalPlane {
   double elevation;
   double slope_u, slope_v;
   double residual;
+  // c' C+ c, c the training cells' weighted centroid relative to the cell: the intercept's
+  // variance is sigma2 (1 / W' + leverage), large where the plane is extrapolated (a cell at the
+  // fringe of what was seen, its data all on one side).
+  double leverage;
 };
 LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const double* plane);
 
