@@ -274,8 +274,7 @@ void RegisterEvalCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--out", o->out, "Output directory for eval.json, table.md and figures")
       ->required();
   cmd->add_option("--name", o->name, "Dataset name in tables and figures");
-  cmd->add_option("--methods", o->methods, "Methods to compare (default: all six)")
-      ->delimiter(',');
+  cmd->add_option("--methods", o->methods, "Methods to compare (default: all six)")->delimiter(',');
   cmd->add_option("--rate", o->rate_hz, "Scan rate for the real-time replay, Hz (default 10)");
   cmd->add_flag("!--no-figures", o->figures, "Skip the gnuplot figures");
   cmd->add_option("--changes", o->changes,
