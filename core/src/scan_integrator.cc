@@ -135,6 +135,14 @@ inline void CapElevation(double* w, double* s, double* q, int len, double cap) {
   }
 }
 
+// The mean of cell i's own observations in a bgk-ll tile, NaN if it has none (a ratio: a read
+// factor would cancel).
+inline double OwnHeight(const Tile& tile, int i) {
+  const double own_w = tile.plane(Tile::kOwnW)[i];
+  return own_w > 0.0 ? tile.plane(Tile::kOwnS)[i] / own_w
+                     : std::numeric_limits<double>::quiet_NaN();
+}
+
 // CapElevation for a tile with plane moments: the cell's moments scale with its weight.
 inline void CapElevationPlane(Tile& tile, int start, int len, double cap) {
   double* w = tile.w().data() + start;
@@ -288,9 +296,7 @@ struct ScanIntegrator::Impl {
     const MapParams& p = self.params_;
     const double s = f * tile.s()[i];
     double height = (p.lambda * p.prior_mean + s) / (p.lambda + w);
-    if (tile.has_plane() && tile.plane(Tile::kOwnW)[i] > 0.0) {
-      height = tile.plane(Tile::kOwnS)[i] / tile.plane(Tile::kOwnW)[i];
-    }
+    if (tile.has_plane() && !std::isnan(OwnHeight(tile, i))) height = OwnHeight(tile, i);
     *top = height + std::sqrt(Disagreement(w, s, f * tile.q()[i]));
     return true;
   }
@@ -370,10 +376,7 @@ struct ScanIntegrator::Impl {
   double FeatureHeight(CellIndex c) const {
     const Tile* tile = TileAt(c);
     if (tile == nullptr || !tile->has_plane()) return Elevation(c);
-    const int i = self.geometry_.LocalIndex(c);
-    const double own_w = tile->plane(Tile::kOwnW)[i];  // a ratio: the read factor cancels
-    return own_w > 0.0 ? tile->plane(Tile::kOwnS)[i] / own_w
-                       : std::numeric_limits<double>::quiet_NaN();
+    return OwnHeight(*tile, self.geometry_.LocalIndex(c));
   }
 
   // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
@@ -392,18 +395,12 @@ struct ScanIntegrator::Impl {
       for (const CellIndex& o : self.neighbourhood_) {
         const int i = centre + o.y * T + o.x;
         if (!(w[i] > 0.0)) continue;
-        double z = 0.0;
-        if (tile->has_plane()) {
-          // bgk-ll: v from the data, the cells' own observations, not from the fitted surface
-          // (which fills unobserved cells, e.g. behind an occluding edge, with planes that
-          // would read as steps).
-          const double own_w = tile->plane(Tile::kOwnW)[i];
-          if (!(own_w > 0.0)) continue;
-          z = tile->plane(Tile::kOwnS)[i] / own_w;
-        } else {
-          z = (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i]);
-        }
-        patch.push_back({o.x * res, o.y * res, z});
+        // bgk-ll: v from the data, the cells' own observations, not from the fitted surface
+        // (which fills unobserved cells, e.g. behind an occluding edge, with planes that would
+        // read as steps).
+        const double z = tile->has_plane() ? OwnHeight(*tile, i)
+                                           : (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i]);
+        if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
       }
     } else {
       for (const CellIndex& o : self.neighbourhood_) {

@@ -342,13 +342,17 @@ int RunRegress(const RegressOptions& o) {
     md << line;
   }
   // The keys in the order they were always written (ordered_json); NaN/inf are null.
-  Json cv = Json::array();
-  for (const Candidate& c : candidates) {
-    cv.push_back({{"resolution", JsonNumber<Json>(c.resolution)},
-                  {"kernel_length", JsonNumber<Json>(c.kernel_length)},
-                  {"rmse", JsonNumber<Json>(c.cv.rmse)},
-                  {"coverage", JsonNumber<Json>(c.cv.coverage)}});
-  }
+  const auto cv_table = [](const std::vector<Candidate>& scored) {
+    Json table = Json::array();
+    for (const Candidate& c : scored) {
+      table.push_back({{"resolution", JsonNumber<Json>(c.resolution)},
+                       {"kernel_length", JsonNumber<Json>(c.kernel_length)},
+                       {"rmse", JsonNumber<Json>(c.cv.rmse)},
+                       {"coverage", JsonNumber<Json>(c.cv.coverage)}});
+    }
+    return table;
+  };
+  Json cv = cv_table(candidates);
   Json results = Json::array();
   for (const Row& r : rows) {
     results.push_back({{"method", r.method},
@@ -374,20 +378,13 @@ int RunRegress(const RegressOptions& o) {
   // Every BGK method's own choice and CV table ("chosen" and "cv" above: the first's).
   Json per_method = Json::array();
   for (const Fitted& f : fitted) {
-    Json table = Json::array();
-    for (const Candidate& c : f.candidates) {
-      table.push_back({{"resolution", JsonNumber<Json>(c.resolution)},
-                       {"kernel_length", JsonNumber<Json>(c.kernel_length)},
-                       {"rmse", JsonNumber<Json>(c.cv.rmse)},
-                       {"coverage", JsonNumber<Json>(c.cv.coverage)}});
-    }
     per_method.push_back({{"method", std::string(MethodName(f.method))},
                           {"chosen",
                            {{"resolution", JsonNumber<Json>(f.chosen.resolution)},
                             {"kernel_length", JsonNumber<Json>(f.chosen.kernel_length)},
                             {"cv_rmse", JsonNumber<Json>(f.chosen.cv.rmse)}}},
                           {"cv_seconds", JsonNumber<Json>(f.cv_seconds)},
-                          {"cv", std::move(table)}});
+                          {"cv", cv_table(f.candidates)}});
   }
   js["methods"] = std::move(per_method);
   std::ofstream(fs::path(o.out) / "regress.json") << JsonText(js);
