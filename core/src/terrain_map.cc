@@ -90,9 +90,13 @@ void TerrainMap::SetTile(TileKey key, const Tile& tile) {
   std::copy(tile.q().begin(), tile.q().end(), dst.q().begin());
   std::copy(tile.a().begin(), tile.a().end(), dst.a().begin());
   std::copy(tile.b().begin(), tile.b().end(), dst.b().begin());
-  if (dst.has_plane() && tile.has_plane()) {
-    for (int m = 0; m < Tile::kPlaneMoments; ++m) {
+  // A tile without plane moments holds none: the copy's are zero (an empty tile installed in
+  // place of a bgk-ll tile must not leave its old moments behind).
+  for (int m = 0; dst.has_plane() && m < Tile::kPlaneMoments; ++m) {
+    if (tile.has_plane()) {
       std::copy(tile.plane(m).begin(), tile.plane(m).end(), dst.plane(m).begin());
+    } else {
+      std::fill(dst.plane(m).begin(), dst.plane(m).end(), 0.0);
     }
   }
   dst.set_version(tile.version());

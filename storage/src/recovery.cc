@@ -51,7 +51,9 @@ void InstallTiles(std::span<const TileKey> keys, std::span<const std::unique_ptr
                   uint64_t version, TerrainMap& map) {
   for (size_t i = 0; i < keys.size(); ++i) {
     // An empty tile rather than none: the stored copy, older, must not be loaded in its place.
-    Tile tile = tiles[i] != nullptr ? *tiles[i] : Tile(map.params().tile_size);
+    Tile tile = tiles[i] != nullptr
+                    ? *tiles[i]
+                    : Tile(map.params().tile_size, KeepsPlaneMoments(map.params().method));
     tile.set_version(version);
     map.SetTile(keys[i], tile);
   }

@@ -49,6 +49,36 @@ TEST(MapArchiveTest, ExportImportRoundTripIsBitwise) {
   EXPECT_TRUE(MapsIdentical(*map, *imported));
 }
 
+// bgk-ll maps: the plane moments go through an archive bitwise, two robots' archives merge into
+// their sum (moments included), and a bgk-ll archive is refused by a map of another method.
+TEST(MapArchiveTest, BgkLlArchivesRoundTripAndMerge) {
+  TempDir dir;
+  MapParams params = SmallParams();
+  params.method = Method::kBgkLocalLinear;
+  std::unique_ptr<TerrainMap> maps[2];
+  for (int robot : {0, 1}) {
+    maps[robot] = NewMap(params);
+    for (int i = 1; i <= 4; ++i) Apply(*maps[robot], *MakeScan(params, robot, i), i);
+    ASSERT_TRUE(
+        ExportMap(*maps[robot], MetadataOf(*maps[robot]), dir.Sub(std::to_string(robot))).ok());
+  }
+  auto imported = NewMap(params);
+  ASSERT_TRUE(ImportMap(dir.Sub("0"), *imported).ok());
+  EXPECT_TRUE(MapsIdentical(*maps[0], *imported));
+  ASSERT_TRUE(ImportMap(dir.Sub("1"), *imported).ok());
+  int planes = 0;
+  imported->ForEachTile([&](TileKey k, const Tile& t) {
+    Tile want(t.tile_size(), /*plane_moments=*/true);
+    for (const auto& m : maps) {
+      if (const Tile* part = m->FindTile(k)) want.Add(*part);
+    }
+    planes += t.has_plane();
+    EXPECT_TRUE(t == want) << k.x << "," << k.y;
+  });
+  EXPECT_EQ(planes, static_cast<int>(imported->tile_count()));
+  EXPECT_FALSE(ImportMap(dir.Sub("0"), *NewMap(SmallParams())).ok());
+}
+
 TEST(MapArchiveTest, GeoreferenceRoundTrips) {
   TempDir dir;
   const auto map = RobotMap(0, 2);
