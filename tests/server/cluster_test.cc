@@ -96,7 +96,8 @@ void InsertAll(Client& client, const std::vector<OwnedScan>& scans, size_t from,
 struct Reference {
   ServerFixture single;
   MetricBox box;
-  explicit Reference(const std::vector<OwnedScan>& scans) {
+  explicit Reference(const std::vector<OwnedScan>& scans, const ServerConfig& config = TestConfig())
+      : single(config) {
     InsertAll(single.client(), scans, 0, scans.size());
     box = KnownBox(*single.server().SnapshotMap());
   }
@@ -154,6 +155,29 @@ TEST(ClusterTest, AnswersEqualSingleServer) {
     ASSERT_EQ(ack->status, AckStatus::kApplied);
   }
   // Right away (no waiting): a query reads at least every acknowledged scan.
+  EXPECT_TRUE(SameAnswers(a.client(), ref));
+  EXPECT_TRUE(SameAnswers(b.client(), ref));
+}
+
+// bgk-ll's plane moments through the cluster: the log, each shard's partitions with their halos,
+// checkpoints and the tile fetches of a query on any node answer as one bgk-ll server does.
+TEST(ClusterTest, BgkLlAnswersEqualSingleServer) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  ServerConfig single = TestConfig();
+  single.map.method = Method::kBgkLocalLinear;
+  Reference ref(scans, single);
+  ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
+  ca.map.method = cb.map.method = Method::kBgkLocalLinear;
+  ServerFixture a(ca), b(cb);
+  for (const OwnedScan& s : scans) {
+    Client& via = s.robot_id == "r1" ? a.client() : b.client();
+    RpcResult<ScanAck> ack = via.Insert(s.Data());
+    ASSERT_TRUE(ack.ok()) << ack.status().message();
+    ASSERT_EQ(ack->status, AckStatus::kApplied);
+  }
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
 }
