@@ -140,37 +140,18 @@ struct Reference {
   return same;
 }
 
-TEST(ClusterTest, AnswersEqualSingleServer) {
-  TempDir dir("bgkmap_cluster");
-  NatsCluster nats(1, dir.str());
-  ASSERT_TRUE(nats.started());
-  const std::vector<OwnedScan> scans = TwoRobots();
-  Reference ref(scans);
-  ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
-  // r1 through a, r2 through b, one at a time: the log's order is the reference's.
-  for (const OwnedScan& s : scans) {
-    Client& via = s.robot_id == "r1" ? a.client() : b.client();
-    RpcResult<ScanAck> ack = via.Insert(s.Data());
-    ASSERT_TRUE(ack.ok()) << ack.status().message();
-    ASSERT_EQ(ack->status, AckStatus::kApplied);
-  }
-  // Right away (no waiting): a query reads at least every acknowledged scan.
-  EXPECT_TRUE(SameAnswers(a.client(), ref));
-  EXPECT_TRUE(SameAnswers(b.client(), ref));
-}
-
-// bgk-ll's plane moments through the cluster: the log, each shard's partitions with their halos,
-// checkpoints and the tile fetches of a query on any node answer as one bgk-ll server does.
-TEST(ClusterTest, BgkLlAnswersEqualSingleServer) {
+// Two shards fed two robots' scans, r1 through a and r2 through b, one at a time (the log's
+// order is the reference's), answer right away (no waiting: a query reads at least every
+// acknowledged scan) as one server of the same method does.
+void ExpectTwoShardsAnswerAsOne(Method method) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
   ASSERT_TRUE(nats.started());
   const std::vector<OwnedScan> scans = TwoRobots();
   ServerConfig single = TestConfig();
-  single.map.method = Method::kBgkLocalLinear;
-  Reference ref(scans, single);
   ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
-  ca.map.method = cb.map.method = Method::kBgkLocalLinear;
+  single.map.method = ca.map.method = cb.map.method = method;
+  Reference ref(scans, single);
   ServerFixture a(ca), b(cb);
   for (const OwnedScan& s : scans) {
     Client& via = s.robot_id == "r1" ? a.client() : b.client();
@@ -180,6 +161,14 @@ TEST(ClusterTest, BgkLlAnswersEqualSingleServer) {
   }
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
+}
+
+TEST(ClusterTest, AnswersEqualSingleServer) { ExpectTwoShardsAnswerAsOne(Method::kBgkPlus); }
+
+// bgk-ll's plane moments through the cluster: the log, each shard's partitions with their halos,
+// checkpoints and the tile fetches of a query on any node answer as one bgk-ll server does.
+TEST(ClusterTest, BgkLlAnswersEqualSingleServer) {
+  ExpectTwoShardsAnswerAsOne(Method::kBgkLocalLinear);
 }
 
 // Mutation: a shard clearing only its own partition's cells, not its halo's copies (the

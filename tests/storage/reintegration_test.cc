@@ -199,12 +199,9 @@ TEST(Reintegration, CorrectedMapEqualsTheMapBuiltFromScratchWithTheCorrectedPose
   for (uint64_t b : drive.store->Bases()) EXPECT_TRUE(b <= 14 || b >= 41) << b;
 }
 
-// Forgetting (docs/semantics.md): the log's stamps are the scans' map times, so the rebuild and
-// recovery age evidence exactly as the live map did, late scans of the other robot included.
-// Mutation checked: the log decoder not putting the record's stamp on the scan fails it.
-TEST(Reintegration, WithForgettingTheCorrectedMapIsStillTheRebuiltOneBitwise) {
-  Drive drive(40, Retaining(), 3.0);
-  ASSERT_TRUE(StatisticsIdentical(*drive.Rebuilt({}), *drive.map));
+// Corrects robot 0 from version 10 (as version 41); the live map and the map recovered from
+// the store then equal the map rebuilt from scratch with the corrected scans, bitwise.
+void ExpectCorrectionAndRecoveryEqualTheRebuild(Drive& drive) {
   CorrectRobot0(drive, 10, 41);
   const auto truth = drive.Rebuilt({});
   EXPECT_TRUE(StatisticsIdentical(*truth, *drive.map));
@@ -212,6 +209,15 @@ TEST(Reintegration, WithForgettingTheCorrectedMapIsStillTheRebuiltOneBitwise) {
   ASSERT_TRUE(RecoverMap(*drive.store, *recovered).ok());
   ASSERT_TRUE(LoadAllTiles(*drive.store, *recovered).ok());
   EXPECT_TRUE(StatisticsIdentical(*truth, *recovered));
+}
+
+// Forgetting (docs/semantics.md): the log's stamps are the scans' map times, so the rebuild and
+// recovery age evidence exactly as the live map did, late scans of the other robot included.
+// Mutation checked: the log decoder not putting the record's stamp on the scan fails it.
+TEST(Reintegration, WithForgettingTheCorrectedMapIsStillTheRebuiltOneBitwise) {
+  Drive drive(40, Retaining(), 3.0);
+  ASSERT_TRUE(StatisticsIdentical(*drive.Rebuilt({}), *drive.map));
+  ExpectCorrectionAndRecoveryEqualTheRebuild(drive);
   int stamped = 0;
   drive.map->ForEachTile([&](TileKey, const Tile& t) { stamped += t.stamp_ns() != 0 ? 1 : 0; });
   EXPECT_GT(stamped, 0);
@@ -223,13 +229,7 @@ TEST(Reintegration, WithForgettingTheCorrectedMapIsStillTheRebuiltOneBitwise) {
 // left the old tile's moments behind.
 TEST(Reintegration, WithBgkLlTheCorrectedMapIsStillTheRebuiltOneBitwise) {
   Drive drive(40, Retaining(), 0, Method::kBgkLocalLinear);
-  CorrectRobot0(drive, 10, 41);
-  const auto truth = drive.Rebuilt({});
-  EXPECT_TRUE(StatisticsIdentical(*truth, *drive.map));
-  auto recovered = NewMap(drive.params);
-  ASSERT_TRUE(RecoverMap(*drive.store, *recovered).ok());
-  ASSERT_TRUE(LoadAllTiles(*drive.store, *recovered).ok());
-  EXPECT_TRUE(StatisticsIdentical(*truth, *recovered));
+  ExpectCorrectionAndRecoveryEqualTheRebuild(drive);
   int planes = 0;
   drive.map->ForEachTile([&](TileKey, const Tile& t) { planes += t.has_plane() ? 1 : 0; });
   EXPECT_EQ(planes, static_cast<int>(drive.map->tile_count()));

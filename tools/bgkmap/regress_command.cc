@@ -264,10 +264,10 @@ int RunRegress(const RegressOptions& o) {
       resolutions.push_back(f.chosen.resolution);
   }
   std::vector<SampledGrid> grids;
+  double x1 = 0, y1 = 0;  // the extent of every point (not the test values)
+  for (const P3& p : pts) x1 = std::max(x1, p[0]), y1 = std::max(y1, p[1]);
   for (double res : resolutions) {
     const GridGeometry geo(res, MapParams{}.tile_size);
-    double x1 = 0, y1 = 0;
-    for (const P3& p : pts) x1 = std::max(x1, p[0]), y1 = std::max(y1, p[1]);
     const CellBox box = geo.BoxCovering(0, 0, x1, y1);
     const GridExtent extent{box.min.x * res,
                             box.min.y * res,
