@@ -9,6 +9,7 @@
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/eval/change_score.h"
+#include "bgkmap/eval/drive_score.h"
 #include "bgkmap/eval/map_score.h"
 
 namespace bgkmap::cli {
@@ -28,6 +29,10 @@ struct MethodResult {
   // (offline pass), pooled over the objects; index j = scans after the change (0: just before).
   std::vector<eval::ChangeCounts> removed;   // stale cells of removed objects
   std::vector<eval::ChangeCounts> appeared;  // missed cells of appeared objects
+  // With a footprint (EvalReport::has_drive): the driven cells of the offline map, and the map
+  // of the odd scans against the map of the even scans (all cells both know; driven cells).
+  eval::DriveScore drive;
+  eval::MapAgreement odd_even, odd_even_driven;
 };
 
 struct EvalReport {
@@ -35,7 +40,14 @@ struct EvalReport {
   std::string sequence;
   double rate_hz = 10;
   MapParams params;
+  bool has_truth = true;     // scored against a ground truth (coverage, AUC, ...)
   bool has_changes = false;  // a changes.json was scored: eval.json and table.md report it
+  bool has_drive = false;    // a footprint was given: driven cells and odd/even agreement
+  bool has_odd_even = false;
+  std::string footprint;  // eval::Footprint::Describe()
+  std::string poses;      // the poses the maps were built with, if not the sequence's
+  double pose_noise = 0;  // the scale of the pose error added to them (0: none)
+  uint32_t pose_noise_seed = 1;
   std::vector<MethodResult> methods;
 };
 
