@@ -4,6 +4,7 @@
 // rates per scan after each change (eval/change_score.h). With the robot's footprint, also the
 // truth that needs no survey, on real drives too (eval/drive_score.h): the driven cells'
 // known, traversable and blocked shares (and why), and the odd scans' map against the even's.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -16,14 +17,17 @@
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/eval/change_score.h"
+#include "bgkmap/eval/drive_causes.h"
 #include "bgkmap/eval/drive_score.h"
 #include "bgkmap/eval/map_score.h"
 #include "bgkmap/eval/realtime_gate.h"
+#include "bgkmap/eval/traffic_score.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/kitti_sequence.h"
 #include "bgkmap/io/progress_bar.h"
 #include "bgkmap/sim/pose_noise.h"
 #include "commands.h"
+#include "drive_figure.h"
 #include "eval_report.h"
 #include "json_output.h"
 #include "scan_source.h"
@@ -50,11 +54,44 @@ struct EvalOptions {
   double footprint_radius = 0;
   std::vector<double> footprint_box;
   std::vector<double> sensor_offset;
-  std::string poses;      // map with these poses instead of the sequence's (driven cells: its own)
-  bool odd_even = true;   // with a footprint: also the odd scans' map against the even scans'
+  std::string poses;     // map with these poses instead of the sequence's (driven cells: its own)
+  bool odd_even = true;  // with a footprint: also the odd scans' map against the even scans'
+  std::string traffic;   // traffic.json; default <sequence>/traffic.json if it exists
+  int trail_scans = 5;   // a trail is judged this many scans after the vehicle left a cell
+  int new_scans = 1;     // a new obstacle this many scans after it arrived
+  std::vector<int> figure_scans;  // with a footprint: also the drive figure after these scans
+  std::string trace;      // with a footprint: every driven cell's statistics after every scan (CSV)
   double pose_noise = 0;  // > 0: the mapping poses perturbed (sim/pose_noise.h) at this scale
   uint32_t pose_noise_seed = 1;
+  std::vector<std::string> pose_noise_parts;  // keep only these components (default: all)
 };
+
+// The pose error of --pose-noise with only the components named kept (xy, z, tilt, yaw, drift).
+Result<sim::PoseNoiseOptions> PoseNoiseOf(const EvalOptions& o) {
+  sim::PoseNoiseOptions n = sim::PoseNoiseOptions().Scaled(o.pose_noise);
+  n.seed = o.pose_noise_seed;
+  if (o.pose_noise_parts.empty()) return n;
+  const sim::PoseNoiseOptions all = n;
+  n.xy_m = n.z_m = n.roll_pitch_deg = n.yaw_deg = n.drift_z_m = n.drift_roll_pitch_deg = 0;
+  for (const std::string& part : o.pose_noise_parts) {
+    if (part == "xy") {
+      n.xy_m = all.xy_m;
+    } else if (part == "z") {
+      n.z_m = all.z_m;
+    } else if (part == "tilt") {
+      n.roll_pitch_deg = all.roll_pitch_deg;
+    } else if (part == "yaw") {
+      n.yaw_deg = all.yaw_deg;
+    } else if (part == "drift") {
+      n.drift_z_m = all.drift_z_m;
+      n.drift_roll_pitch_deg = all.drift_roll_pitch_deg;
+    } else {
+      return Status::InvalidArgument("--pose-noise-parts: unknown part '" + part +
+                                     "' (xy, z, tilt, yaw, drift)");
+    }
+  }
+  return n;
+}
 
 // One object's change from changes.json.
 struct Change {
@@ -174,8 +211,47 @@ struct EvalInputs {
   std::vector<SourceScan> scans;  // with the poses the maps are built with
   std::vector<Change> changes;
   std::optional<eval::Footprint> footprint;
-  std::vector<eval::DrivenCell> driven;  // along the sequence's own poses
+  std::vector<Pose> path;                               // the sequence's own poses
+  std::vector<eval::DrivenCell> driven;                 // along them
+  std::vector<std::vector<eval::DrivenCell>> arrivals;  // [k]: the driven cells scan k arrives at
+  // Traffic (a traffic.json): the vehicles, the truth without them, and the cells each scan
+  // has a return in with the sequence's own (true) poses.
+  std::vector<eval::VehicleTrack> vehicles;
+  std::optional<Raster> static_truth;
+  std::vector<std::vector<CellIndex>> observed;
 };
+
+// traffic.json (bgkmap simulate with moving objects) and the ground_truth_static.tif beside it.
+Status LoadTraffic(const std::string& path, const MapParams& params, EvalInputs* in) {
+  namespace fs = std::filesystem;
+  std::ifstream f(path);
+  if (!f) return Status::IoError(path + ": cannot read");
+  try {
+    const nlohmann::json j = nlohmann::json::parse(f);
+    const double res = j.at("resolution").get<double>();
+    const double radius = j.at("robot_radius").get<double>();
+    if (std::abs(res - params.resolution) > 1e-9 || std::abs(radius - params.robot_radius) > 1e-9)
+      return Status::InvalidArgument(path +
+                                     ": made with another resolution or robot_radius "
+                                     "than the map's (pass the simulation's --config)");
+    for (const auto& v : j.at("vehicles")) {
+      eval::VehicleTrack t;
+      t.first_scan = v.at("first_scan").get<int>();
+      for (const auto& b : v.at("boxes")) t.boxes.push_back(b.get<std::array<double, 4>>());
+      in->vehicles.push_back(std::move(t));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return Status::InvalidArgument(path + ": " + e.what());
+  }
+  const std::string truth_path =
+      (fs::path(path).parent_path() / "ground_truth_static.tif").string();
+  Result<Raster> truth = io::ReadGeoTiff(truth_path);
+  if (!truth.ok()) return truth.status();
+  if (truth->Find(Layer::kState) == nullptr || truth->stride != 1)
+    return Status::InvalidArgument(truth_path + ": needs a state band at the map's resolution");
+  in->static_truth = std::move(truth).value();
+  return Status::Ok();
+}
 
 // Line k of a KITTI poses.txt for each of n scans.
 Result<std::vector<Pose>> ReadPoseFile(const std::string& path, size_t n) {
@@ -262,7 +338,7 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
     if (!s.ok()) return Fail(s.status().message());
     in->scans.push_back(std::move(s).value());
   }
-  std::vector<Pose> path;
+  std::vector<Pose>& path = in->path;
   for (const SourceScan& s : in->scans) path.push_back(s.pose);
   if (!o.poses.empty()) {
     Result<std::vector<Pose>> poses = ReadPoseFile(o.poses, in->scans.size());
@@ -271,16 +347,32 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   }
   if (!(o.pose_noise >= 0)) return Usage("--pose-noise must be >= 0");
   if (o.pose_noise > 0) {
-    sim::PoseNoiseOptions noise = sim::PoseNoiseOptions().Scaled(o.pose_noise);
-    noise.seed = o.pose_noise_seed;
+    Result<sim::PoseNoiseOptions> noise = PoseNoiseOf(o);
+    if (!noise.ok()) return Usage(noise.status().message());
     std::vector<Pose> mapping;
     for (const SourceScan& s : in->scans) mapping.push_back(s.pose);
-    mapping = sim::PerturbPoses(mapping, noise);
+    mapping = sim::PerturbPoses(mapping, *noise);
     for (size_t k = 0; k < in->scans.size(); ++k) in->scans[k].pose = mapping[k];
   }
   if (in->footprint) {
     in->driven = eval::DrivenCells(GridGeometry(params.resolution, params.tile_size), path,
                                    *in->footprint, params.sensor_height);
+    in->arrivals.resize(in->scans.size());
+    for (const eval::DrivenCell& d : in->driven) in->arrivals[d.first_scan].push_back(d);
+  }
+  const std::string traffic_path =
+      !o.traffic.empty() ? o.traffic : (fs::path(o.sequence) / "traffic.json").string();
+  if (o.trail_scans < 1 || o.new_scans < 1)
+    return Usage("--trail-scans and --new-obstacle-scans must be at least 1");
+  if (!o.traffic.empty() || fs::exists(traffic_path, ec)) {
+    if (Status s = LoadTraffic(traffic_path, params, in); !s.ok()) return Fail(s.message());
+    for (size_t k = 0; k < in->scans.size(); ++k) {
+      Result<PreparedScan> prepared = PrepareScan(params, in->scans[k].points, path[k]);
+      if (!prepared.ok()) return Fail(prepared.status().message());
+      std::vector<CellIndex> cells;
+      for (const ObservedCell& c : prepared->cells) cells.push_back(c.cell);
+      in->observed.push_back(std::move(cells));  // sorted, as PrepareScan sorts them
+    }
   }
   const std::string changes_path =
       !o.changes.empty() ? o.changes : (fs::path(o.sequence) / "changes.json").string();
@@ -290,6 +382,37 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
     in->changes = std::move(changes).value();
   }
   return 0;
+}
+
+// One line per driven cell on the map after scan k: its statistics, state and reasons, and
+// whether scan k has a return in it.
+void WriteTrace(std::ostream& out, size_t k, const TerrainMap& map,
+                const std::vector<eval::DrivenCell>& driven, const SourceScan& scan) {
+  Result<PreparedScan> prepared = PrepareScan(map.params(), scan.points, scan.pose);
+  std::vector<CellIndex> observed;
+  if (prepared.ok()) {
+    for (const ObservedCell& c : prepared->cells) observed.push_back(c.cell);
+  }
+  for (const eval::DrivenCell& d : driven) {
+    const Tile* t = map.FindTile(map.geometry().TileOf(d.cell));
+    const int i = map.geometry().LocalIndex(d.cell);
+    const double w = t ? t->w()[i] : 0.0, s = t ? t->s()[i] : 0.0, q = t ? t->q()[i] : 0.0;
+    const CellEstimate e = map.Estimate(d.cell);
+    out << k << ',' << d.cell.x << ',' << d.cell.y << ','
+        << std::binary_search(observed.begin(), observed.end(), d.cell) << ',' << w << ','
+        << e.elevation << ',' << Disagreement(w, s, q) << ',' << (t ? t->a()[i] : 0.0f) << ','
+        << (t ? t->b()[i] : 0.0f) << ',' << static_cast<int>(e.state) << ','
+        << static_cast<int>(eval::BlockReasonsAt(map, d.cell));
+    // At an observed cell, what v was computed from (up to the traversability step's footprint).
+    TerrainFeatures f;
+    if (std::binary_search(observed.begin(), observed.end(), d.cell) &&
+        eval::SurfaceFeatures(map, d.cell, &f)) {
+      out << ',' << f.step << ',' << f.slope_deg << ',' << f.roughness << ','
+          << TraversabilityValue(f, map.params()) << '\n';
+    } else {
+      out << ",,,,\n";
+    }
+  }
 }
 
 // One method: the offline map (and its change and drive scores), the odd and even maps, and
@@ -306,7 +429,41 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
     m.removed.resize(points);
     m.appeared.resize(points);
   }
+  std::optional<eval::TrafficJudge> traffic;
+  if (in.static_truth) {
+    traffic.emplace(p, in.vehicles, static_cast<int>(in.scans.size()), *in.static_truth,
+                    in.observed, o.trail_scans, o.new_scans);
+  }
+  std::optional<eval::DriveCauses> causes;
+  if (in.footprint) {
+    std::function<bool(int, CellIndex)> occupied;
+    if (traffic) occupied = [&](int k, CellIndex c) { return traffic->Near(k, c); };
+    causes.emplace(in.driven, occupied);
+  }
+  Status figure_error;
+  std::ofstream trace;
+  if (!o.trace.empty() && in.footprint) {
+    trace.open(std::filesystem::path(o.out) / (name + "_" + o.trace));
+    trace << "scan,ix,iy,observed,w,elevation,disagreement,a,b,state,reasons,step,slope,"
+             "roughness,v\n";
+  }
   auto score_changes = [&](size_t k, const TerrainMap& map) {
+    if (trace.is_open()) WriteTrace(trace, k, map, in.driven, in.scans[k]);
+    if (traffic) traffic->Score(static_cast<int>(k), map);
+    if (causes) causes->AfterScan(static_cast<int>(k), in.path[k], map);
+    // The ground the next scan arrives at, on the map before it.
+    if (k + 1 < in.arrivals.size()) m.drive_on_arrival += eval::ScoreDrive(map, in.arrivals[k + 1]);
+    if (in.footprint && std::count(o.figure_scans.begin(), o.figure_scans.end(), k) > 0) {
+      const std::string png =
+          (std::filesystem::path(o.out) / ("drive_" + name + "_scan" + std::to_string(k) + ".png"))
+              .string();
+      // A square of 30 m around the sensor of scan k.
+      const Eigen::Vector3d& t = in.path[k].translation;
+      const CellBox around =
+          map.geometry().BoxCovering(t.x() - 15.0, t.y() - 15.0, t.x() + 15.0, t.y() + 15.0);
+      if (Status s = WriteDriveFigure(map, in.driven, png, around); !s.ok() && figure_error.ok())
+        figure_error = s;
+    }
     for (const Change& c : in.changes) {
       const long j = static_cast<long>(k) + 1 - c.scan;  // scans of the changed world mapped
       if (j < 0 || j >= static_cast<long>(points)) continue;
@@ -317,6 +474,7 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
   const std::vector<SourceScan>& scans = in.scans;
   Result<Run> offline = MapScans(p, scans, {}, name + " (all scans)", score_changes);
   if (!offline.ok()) return offline.status();
+  if (!figure_error.ok()) return figure_error;
   m.method = method;
   m.scans = scans.size();
   const double n = static_cast<double>(scans.size());
@@ -325,8 +483,16 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
   m.features_s = offline->sum.features / n;
   m.traversability_s = offline->sum.traversability / n;
   m.max_scan_s = offline->max_scan;
+  if (traffic) m.traffic = traffic->counts();
   if (in.footprint) {
     m.drive = eval::ScoreDrive(*offline->map, in.driven);
+    causes->Finish(*offline->map);
+    m.causes_final = causes->final();
+    m.causes_on_arrival = causes->on_arrival();
+    if (o.figures) {
+      const std::string png = (std::filesystem::path(o.out) / ("drive_" + name + ".png")).string();
+      if (Status s = WriteDriveFigure(*offline->map, in.driven, png); !s.ok()) return s;
+    }
     if (o.odd_even) {
       Result<Run> odd = MapScans(p, scans, EveryOther(scans.size(), 1), name + " (odd scans)");
       if (!odd.ok()) return odd.status();
@@ -373,6 +539,9 @@ int RunEval(const EvalOptions& o) {
   report.has_truth = in.truth.has_value();
   report.has_changes = !in.changes.empty();
   report.has_drive = in.footprint.has_value();
+  report.has_traffic = in.static_truth.has_value();
+  report.trail_scans = o.trail_scans;
+  report.new_scans = o.new_scans;
   report.has_odd_even = report.has_drive && o.odd_even;
   if (in.footprint) report.footprint = in.footprint->Describe();
   report.poses = o.poses;
@@ -443,11 +612,31 @@ void RegisterEvalCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--poses", o->poses,
                   "Build the maps with these poses (KITTI poses.txt) instead of the sequence's; "
                   "the driven cells and truths stay the sequence's (e.g. simulate --pose-noise)");
+  cmd->add_option("--traffic", o->traffic,
+                  "traffic.json of bgkmap simulate with moving objects (default: "
+                  "<sequence>/traffic.json if present): also score stale trails and missed new "
+                  "obstacles");
+  cmd->add_option("--trail-scans", o->trail_scans,
+                  "Scans after a vehicle left a cell that its trail is judged on (default 5)");
+  cmd->add_option("--new-obstacle-scans", o->new_scans,
+                  "Scans after a vehicle arrived that it must be shown on (default 1)");
+  cmd->add_option("--figure-scans", o->figure_scans,
+                  "With a footprint: also draw the driven cells' figure on the map after these "
+                  "scans, 30 m around the sensor (drive_<method>_scanK.png)")
+      ->delimiter(',');
+  cmd->add_option("--trace", o->trace,
+                  "With a footprint: write every driven cell's statistics after every scan to "
+                  "<out>/<method>_FILE (CSV), for diagnosis")
+      ->group("");
   cmd->add_option("--pose-noise", o->pose_noise,
                   "Perturb the mapping poses like a real SLAM's error at this scale (1: 3 cm and "
                   "0.1 deg per scan, plus a slow drift of 5 cm in z and 0.2 deg in roll and "
                   "pitch; sim/pose_noise.h); the driven cells and truths stay the sequence's");
   cmd->add_option("--pose-noise-seed", o->pose_noise_seed, "Seed of --pose-noise (default 1)");
+  cmd->add_option("--pose-noise-parts", o->pose_noise_parts,
+                  "Keep only these components of --pose-noise: xy, z, tilt (roll and pitch), yaw, "
+                  "drift (default: all)")
+      ->delimiter(',');
   cmd->add_flag("!--no-odd-even", o->odd_even,
                 "With a footprint, skip the odd scans' map against the even scans' map");
   cmd->callback([o, &exit_code] { exit_code = RunEval(*o); });

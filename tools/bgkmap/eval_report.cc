@@ -80,6 +80,19 @@ Json DriveJson(const eval::DriveScore& d) {
           {"ground_rms_m", JsonNumber<Json>(d.ground_rms)}};
 }
 
+Json CausesJson(const eval::CauseCounts& c) {
+  Json j;
+  j["judged_cells"] = c.judged;
+  for (int i = 0; i < eval::kCauseCount; ++i) {
+    const auto cause = static_cast<eval::Cause>(i);
+    j[std::string(eval::CauseName(cause))] = c[cause];
+  }
+  j["cells_cut_before"] = c.cells_cut;
+  j["cells_reset_before"] = c.cells_reset;
+  j["high_mean_evidence_range_m"] = JsonNumber<Json>(c.mean_evidence_range());
+  return j;
+}
+
 Json AgreementJson(const eval::MapAgreement& a) {
   return {{"common_cells", a.common},
           {"only_odd", a.only_a},
@@ -107,27 +120,53 @@ double Percent(int64_t part, int64_t whole) {
 // The driven cells' tables: shares, why the blocked ones are blocked, odd against even.
 std::string DriveMarkdown(const EvalReport& r) {
   std::ostringstream o;
-  o << "\n| Dataset | Method | Driven cells | Known (%) | Traversable (%) | Blocked | "
+  o << "\n| Dataset | Method | Map | Driven cells | Known (%) | Traversable (%) | Blocked | "
        "Ground bias (m) | Ground RMS (m) |\n"
-    << "|---|---|---|---|---|---|---|---|\n";
+    << "|---|---|---|---|---|---|---|---|---|\n";
   for (const MethodResult& m : r.methods) {
-    const eval::DriveScore& d = m.drive;
-    o << "| " << r.name << " | " << MethodName(m.method) << " | " << d.driven << " | "
-      << Cell(100 * d.known_share(), "%.2f") << " | " << Cell(100 * d.traversable_share(), "%.2f")
-      << " | " << d.blocked << " | " << Cell(d.ground_bias, "%.3f") << " | "
-      << Cell(d.ground_rms, "%.3f") << " |\n";
+    for (const bool arrival : {false, true}) {
+      const eval::DriveScore& d = arrival ? m.drive_on_arrival : m.drive;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (arrival ? "on arrival" : "final") << " | " << d.driven << " | "
+        << Cell(100 * d.known_share(), "%.2f") << " | " << Cell(100 * d.traversable_share(), "%.2f")
+        << " | " << d.blocked << " | " << Cell(d.ground_bias, "%.3f") << " | "
+        << Cell(d.ground_rms, "%.3f") << " |\n";
+    }
   }
-  o << "\n| Dataset | Method | Blocked | No value | High mean | High variance | Disagreement | "
+  o << "\n| Dataset | Method | Map | Blocked | No value | High mean | High variance | Disagreement "
+       "| "
        "Mean only | Variance only | Disagreement only | High mean, now: step / slope / rough / "
        "none |\n"
-    << "|---|---|---|---|---|---|---|---|---|---|---|\n";
+    << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const MethodResult& m : r.methods) {
-    const eval::DriveScore& d = m.drive;
-    o << "| " << r.name << " | " << MethodName(m.method) << " | " << d.blocked << " | "
-      << d.no_value << " | " << d.high_mean << " | " << d.high_variance << " | " << d.disagreement
-      << " | " << d.only_mean << " | " << d.only_variance << " | " << d.only_disagreement << " | "
-      << d.mean_step << " / " << d.mean_slope << " / " << d.mean_roughness << " / "
-      << d.mean_flat_now << " |\n";
+    for (const bool arrival : {false, true}) {
+      const eval::DriveScore& d = arrival ? m.drive_on_arrival : m.drive;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (arrival ? "on arrival" : "final") << " | " << d.blocked << " | " << d.no_value << " | "
+        << d.high_mean << " | " << d.high_variance << " | " << d.disagreement << " | "
+        << d.only_mean << " | " << d.only_variance << " | " << d.only_disagreement << " | "
+        << d.mean_step << " / " << d.mean_slope << " / " << d.mean_roughness << " / "
+        << d.mean_flat_now << " |\n";
+    }
+  }
+  o << "\n| Dataset | Method | Map | Judged | Traversable | Unknown: never seen / forgotten | No "
+       "value | Mean: vehicle / surface now / history | Disagreement | Variance: after cut or "
+       "reset / little evidence | Cut before / reset before | Mean evidence range (m) |\n"
+    << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  using eval::Cause;
+  for (const MethodResult& m : r.methods) {
+    for (const bool arrival : {false, true}) {
+      const eval::CauseCounts& c = arrival ? m.causes_on_arrival : m.causes_final;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (arrival ? "on arrival" : "final") << " | " << c.judged << " | "
+        << c[Cause::kTraversable] << " | " << c[Cause::kUnknownNeverSeen] << " / "
+        << c[Cause::kUnknownForgotten] << " | " << c[Cause::kNoValue] << " | "
+        << c[Cause::kMeanVehicle] << " / " << c[Cause::kMeanSurfaceNow] << " / "
+        << c[Cause::kMeanHistory] << " | " << c[Cause::kDisagreement] << " | "
+        << c[Cause::kVarianceAfterReset] << " / " << c[Cause::kVarianceSparse] << " | "
+        << c.cells_cut << " / " << c.cells_reset << " | " << Cell(c.mean_evidence_range(), "%.1f")
+        << " |\n";
+    }
   }
   if (!r.has_odd_even) return o.str();
   o << "\n| Dataset | Method | Common cells | State agreement (%) | Blocked in one only (%) | "
@@ -171,7 +210,24 @@ std::string ToJson(const EvalReport& r) {
       methods.back()["offline"] = ScoreJson(m.offline);
     }
     if (r.has_changes) methods.back()["change"] = std::move(change);
-    if (r.has_drive) methods.back()["drive"] = DriveJson(m.drive);
+    if (r.has_traffic) {
+      const eval::TrafficCounts& t = m.traffic;
+      methods.back()["traffic"] = {{"trail_scans", r.trail_scans},
+                                   {"trail_judged_cells", t.trail_judged},
+                                   {"trail_stale_cells", t.trail_stale},
+                                   {"trail_stale_rate", JsonNumber<Json>(t.stale_rate())},
+                                   {"new_obstacle_scans", r.new_scans},
+                                   {"new_judged_cells", t.new_judged},
+                                   {"new_missed_cells", t.new_missed},
+                                   {"new_missed_unknown_cells", t.new_unknown},
+                                   {"new_missed_rate", JsonNumber<Json>(t.missed_rate())}};
+    }
+    if (r.has_drive) {
+      methods.back()["drive"] = DriveJson(m.drive);
+      methods.back()["drive_on_arrival"] = DriveJson(m.drive_on_arrival);
+      methods.back()["causes"] = {{"final", CausesJson(m.causes_final)},
+                                  {"on_arrival", CausesJson(m.causes_on_arrival)}};
+    }
     if (r.has_odd_even) {
       methods.back()["odd_even"] = AgreementJson(m.odd_even);
       methods.back()["odd_even_driven"] = AgreementJson(m.odd_even_driven);
@@ -241,11 +297,28 @@ std::string TruthMarkdown(const EvalReport& r) {
   return o.str();
 }
 
+// Trails and new obstacles of the traffic.
+std::string TrafficMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  o << "\n| Dataset | Method | Trail cells judged (" << r.trail_scans
+    << " scans after) | Stale (%) | Stale cells | New-obstacle cells judged (" << r.new_scans
+    << " scan after) | Missed (%) | Missed, unknown |\n"
+    << "|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    const eval::TrafficCounts& t = m.traffic;
+    o << "| " << r.name << " | " << MethodName(m.method) << " | " << t.trail_judged << " | "
+      << Cell(100 * t.stale_rate(), "%.2f") << " | " << t.trail_stale << " | " << t.new_judged
+      << " | " << Cell(100 * t.missed_rate(), "%.2f") << " | " << t.new_unknown << " |\n";
+  }
+  return o.str();
+}
+
 }  // namespace
 
 std::string ToMarkdown(const EvalReport& r) {
   std::ostringstream o;
   if (r.has_truth) o << TruthMarkdown(r);
+  if (r.has_traffic) o << TrafficMarkdown(r);
   if (r.has_drive) o << DriveMarkdown(r).substr(r.has_truth ? 0 : 1);  // no leading blank line
   return o.str();
 }

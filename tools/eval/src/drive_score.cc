@@ -27,6 +27,7 @@ double Turn(double a, double b) {
 
 struct Placement {
   double x, y, z, yaw;
+  int scan;  // the scan whose footprint this placement belongs to
 };
 
 // The footprint placed every at most half a cell along the path, both ends included.
@@ -35,8 +36,9 @@ std::vector<Placement> Sweep(std::span<const Pose> poses, double step) {
   for (size_t k = 0; k < poses.size(); ++k) {
     const Eigen::Vector3d& a = poses[k].translation;
     const double yaw_a = Heading(poses[k]);
+    const int scan = static_cast<int>(k);
     if (k + 1 == poses.size()) {
-      out.push_back({a.x(), a.y(), a.z(), yaw_a});
+      out.push_back({a.x(), a.y(), a.z(), yaw_a, scan});
       break;
     }
     const Eigen::Vector3d& b = poses[k + 1].translation;
@@ -46,7 +48,7 @@ std::vector<Placement> Sweep(std::span<const Pose> poses, double step) {
     for (int i = 0; i < n; ++i) {  // the segment's end is the next segment's start
       const double t = static_cast<double>(i) / n;
       const Eigen::Vector3d p = a + t * (b - a);
-      out.push_back({p.x(), p.y(), p.z(), yaw_a + t * turn});
+      out.push_back({p.x(), p.y(), p.z(), yaw_a + t * turn, i == 0 ? scan : scan + 1});
     }
   }
   return out;
@@ -114,8 +116,13 @@ std::string Footprint::Describe() const {
 std::vector<DrivenCell> DrivenCells(const GridGeometry& geometry, std::span<const Pose> poses,
                                     const Footprint& footprint, double sensor_height) {
   const double res = geometry.resolution();
-  // Per cell, the squared distance to the nearest placement covering it and its ground height.
-  std::map<CellIndex, std::pair<double, double>> cells;
+  // Per cell, the squared distance to the nearest placement covering it, its ground height and
+  // the first scan that covers it.
+  struct Seen {
+    double d2, ground;
+    int first_scan;
+  };
+  std::map<CellIndex, Seen> cells;
   const double reach = footprint.Reach();
   for (const Placement& p : Sweep(poses, 0.5 * res)) {
     const double c = std::cos(p.yaw), s = std::sin(p.yaw);
@@ -127,14 +134,17 @@ std::vector<DrivenCell> DrivenCells(const GridGeometry& geometry, std::span<cons
         if (!footprint.Contains(c * dx + s * dy, -s * dx + c * dy)) continue;
         const double d2 = dx * dx + dy * dy;
         const double ground = sensor_height > 0 ? p.z - sensor_height : kNaN;
-        auto [it, inserted] = cells.try_emplace({ix, iy}, d2, ground);
-        if (!inserted && d2 < it->second.first) it->second = {d2, ground};
+        auto [it, inserted] = cells.try_emplace({ix, iy}, Seen{d2, ground, p.scan});
+        if (inserted) continue;
+        Seen& seen = it->second;
+        if (d2 < seen.d2) seen.d2 = d2, seen.ground = ground;
+        seen.first_scan = std::min(seen.first_scan, p.scan);
       }
     }
   }
   std::vector<DrivenCell> out;
   out.reserve(cells.size());
-  for (const auto& [cell, v] : cells) out.push_back({cell, v.second});
+  for (const auto& [cell, v] : cells) out.push_back({cell, v.ground, v.first_scan});
   return out;
 }
 
@@ -172,7 +182,7 @@ uint8_t BlockReasonsAt(const TerrainMap& map, CellIndex cell) {
                       tile->b()[i], tile->has_plane() ? plane : nullptr);
 }
 
-bool CheckSurface(const TerrainMap& map, CellIndex cell, SurfaceCheck* out) {
+bool SurfaceFeatures(const TerrainMap& map, CellIndex cell, TerrainFeatures* out) {
   const MapParams& p = map.params();
   const GridGeometry& g = map.geometry();
   std::vector<PatchPoint> patch;
@@ -184,7 +194,14 @@ bool CheckSurface(const TerrainMap& map, CellIndex cell, SurfaceCheck* out) {
     if (!std::isnan(z)) patch.push_back({o.x * p.resolution, o.y * p.resolution, z});
   }
   if (patch.size() < 3) return false;
-  const TerrainFeatures f = ComputeFeatures(patch);
+  *out = ComputeFeatures(patch);
+  return true;
+}
+
+bool CheckSurface(const TerrainMap& map, CellIndex cell, SurfaceCheck* out) {
+  const MapParams& p = map.params();
+  TerrainFeatures f;
+  if (!SurfaceFeatures(map, cell, &f)) return false;
   out->step = f.step > p.step_crit;
   out->slope = f.slope_deg > p.slope_crit_deg;
   out->roughness = f.roughness > p.roughness_crit;
@@ -196,6 +213,34 @@ double DriveScore::known_share() const {
 }
 double DriveScore::traversable_share() const {
   return known ? static_cast<double>(traversable) / static_cast<double>(known) : kNaN;
+}
+
+DriveScore& DriveScore::operator+=(const DriveScore& o) {
+  const double n = static_cast<double>(ground_cells), m = static_cast<double>(o.ground_cells);
+  if (o.ground_cells > 0) {
+    const double sum = (n > 0 ? ground_bias * n : 0.0) + o.ground_bias * m;
+    const double sum2 =
+        (n > 0 ? ground_rms * ground_rms * n : 0.0) + o.ground_rms * o.ground_rms * m;
+    ground_bias = sum / (n + m);
+    ground_rms = std::sqrt(sum2 / (n + m));
+  }
+  driven += o.driven;
+  known += o.known;
+  traversable += o.traversable;
+  blocked += o.blocked;
+  no_value += o.no_value;
+  high_mean += o.high_mean;
+  high_variance += o.high_variance;
+  disagreement += o.disagreement;
+  only_mean += o.only_mean;
+  only_variance += o.only_variance;
+  only_disagreement += o.only_disagreement;
+  mean_step += o.mean_step;
+  mean_slope += o.mean_slope;
+  mean_roughness += o.mean_roughness;
+  mean_flat_now += o.mean_flat_now;
+  ground_cells += o.ground_cells;
+  return *this;
 }
 
 DriveScore ScoreDrive(const TerrainMap& map, std::span<const DrivenCell> driven) {

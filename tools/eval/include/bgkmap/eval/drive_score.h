@@ -9,7 +9,10 @@
 // interpolated at most half a cell apart (heading interpolated along the shorter turn), since the
 // robot passed there too. A cell is driven when its centre lies inside the footprint at some
 // placement (boundary included). Its ground height is that of the placement nearest to it,
-// sensor z minus sensor_height (NaN if sensor_height is 0: unknown).
+// sensor z minus sensor_height (NaN if sensor_height is 0: unknown). It is *arrived at* by the
+// first scan whose footprint covers it: scan k's covers the placements after pose k - 1 up to
+// pose k (scan 0's: pose 0 alone). Judged on the map just before that scan (built from the scans
+// before it), it says what a planner saw of the ground the robot was about to drive on.
 #pragma once
 
 #include <cstdint>
@@ -20,6 +23,7 @@
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/scan.h"
+#include "bgkmap/core/terrain_features.h"
 #include "bgkmap/core/terrain_map.h"
 
 namespace bgkmap::eval {
@@ -43,7 +47,8 @@ struct Footprint {
 
 struct DrivenCell {
   CellIndex cell;
-  double ground_z;  // sensor z - sensor_height at the nearest placement; NaN if unknown
+  double ground_z;     // sensor z - sensor_height at the nearest placement; NaN if unknown
+  int first_scan = 0;  // the scan that arrives at it
 };
 
 // The driven cells of a path of sensor poses, sorted by (x, y), each once.
@@ -72,6 +77,7 @@ uint8_t BlockReasonsAt(const TerrainMap& map, CellIndex cell);
 // Step, slope and roughness at a cell as the integrator computes v there (its neighbours with
 // weight within robot_radius, their elevations; bgk-ll: their own observations), on the map as
 // it is. False with fewer than 3 neighbours.
+bool SurfaceFeatures(const TerrainMap& map, CellIndex cell, TerrainFeatures* out);
 struct SurfaceCheck {
   bool step = false, slope = false, roughness = false;  // above the critical value
 };
@@ -95,6 +101,8 @@ struct DriveScore {
 
   double known_share() const;        // known / driven
   double traversable_share() const;  // traversable / known
+  // Pools another set of cells' score (the ground bias and RMS weighted by their cells).
+  DriveScore& operator+=(const DriveScore& o);
 };
 
 DriveScore ScoreDrive(const TerrainMap& map, std::span<const DrivenCell> driven);
