@@ -115,6 +115,8 @@ TEST_F(TrafficScoreTest, StaleAndMissedAgainstTheMap) {
   for (int k = 0; k < kScans; ++k) judge.Score(k, k == 2 || k == 3 ? *map : *clear);
   const TrafficCounts& c = judge.counts();
   EXPECT_EQ(c.trail_stale, static_cast<int64_t>(left_at_1.size()));  // judged after scan 2
+  EXPECT_EQ(c.stale_mean, c.trail_stale);  // blocked by their Beta mean (9.5 of 10)
+  EXPECT_EQ(c.stale_no_value + c.stale_variance + c.stale_disagreement, 0);
   int64_t trails = 0, news = 0;
   for (int k = 1; k + 1 < kScans; ++k) trails += Minus(occupied_[k - 1], occupied_[k]).size();
   for (int k = 1; k < kScans; ++k) news += Minus(occupied_[k], occupied_[k - 1]).size();

@@ -216,6 +216,11 @@ std::string ToJson(const EvalReport& r) {
                                    {"trail_judged_cells", t.trail_judged},
                                    {"trail_stale_cells", t.trail_stale},
                                    {"trail_stale_rate", JsonNumber<Json>(t.stale_rate())},
+                                   {"trail_stale_by",
+                                    {{"no_value", t.stale_no_value},
+                                     {"high_mean", t.stale_mean},
+                                     {"high_variance", t.stale_variance},
+                                     {"disagreement", t.stale_disagreement}}},
                                    {"new_obstacle_scans", r.new_scans},
                                    {"new_judged_cells", t.new_judged},
                                    {"new_missed_cells", t.new_missed},
@@ -301,14 +306,17 @@ std::string TruthMarkdown(const EvalReport& r) {
 std::string TrafficMarkdown(const EvalReport& r) {
   std::ostringstream o;
   o << "\n| Dataset | Method | Trail cells judged (" << r.trail_scans
-    << " scans after) | Stale (%) | Stale cells | New-obstacle cells judged (" << r.new_scans
-    << " scan after) | Missed (%) | Missed, unknown |\n"
-    << "|---|---|---|---|---|---|---|---|\n";
+    << " scans after) | Stale (%) | Stale cells | Stale by: no value / mean / variance / "
+       "disagreement | New-obstacle cells judged ("
+    << r.new_scans << " scan after) | Missed (%) | Missed, unknown |\n"
+    << "|---|---|---|---|---|---|---|---|---|\n";
   for (const MethodResult& m : r.methods) {
     const eval::TrafficCounts& t = m.traffic;
     o << "| " << r.name << " | " << MethodName(m.method) << " | " << t.trail_judged << " | "
-      << Cell(100 * t.stale_rate(), "%.2f") << " | " << t.trail_stale << " | " << t.new_judged
-      << " | " << Cell(100 * t.missed_rate(), "%.2f") << " | " << t.new_unknown << " |\n";
+      << Cell(100 * t.stale_rate(), "%.2f") << " | " << t.trail_stale << " | " << t.stale_no_value
+      << " / " << t.stale_mean << " / " << t.stale_variance << " / " << t.stale_disagreement
+      << " | " << t.new_judged << " | " << Cell(100 * t.missed_rate(), "%.2f") << " | "
+      << t.new_unknown << " |\n";
   }
   return o.str();
 }

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "bgkmap/eval/drive_score.h"
+
 namespace bgkmap::eval {
 namespace {
 
@@ -113,7 +115,13 @@ void TrafficJudge::Score(int k, const TerrainMap& map) {
     const CellState s = map.Estimate(d.cell).state;
     if (d.trail) {
       ++counts_.trail_judged;
-      counts_.trail_stale += s == CellState::kNonTraversable;
+      if (s != CellState::kNonTraversable) continue;
+      ++counts_.trail_stale;
+      const uint8_t r = BlockReasonsAt(map, d.cell);
+      counts_.stale_no_value += (r & kNoValue) != 0;
+      counts_.stale_mean += (r & kHighMean) != 0;
+      counts_.stale_variance += (r & kHighVariance) != 0;
+      counts_.stale_disagreement += (r & kDisagreement) != 0;
     } else {
       ++counts_.new_judged;
       counts_.new_missed += s != CellState::kNonTraversable;

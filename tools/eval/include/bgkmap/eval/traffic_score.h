@@ -38,6 +38,8 @@ struct VehicleTrack {
 struct TrafficCounts {
   int64_t trail_judged = 0, trail_stale = 0;
   int64_t new_judged = 0, new_missed = 0, new_unknown = 0;  // unknown: missed, not known
+  // The stale cells' reasons (BlockReason, eval/drive_score.h; several may hold).
+  int64_t stale_no_value = 0, stale_mean = 0, stale_variance = 0, stale_disagreement = 0;
   double stale_rate() const;   // trail_stale / trail_judged (NaN without judged cells)
   double missed_rate() const;  // new_missed / new_judged
 };
