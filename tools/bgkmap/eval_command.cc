@@ -17,17 +17,15 @@
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/eval/change_score.h"
-#include "bgkmap/eval/drive_causes.h"
 #include "bgkmap/eval/drive_score.h"
 #include "bgkmap/eval/map_score.h"
 #include "bgkmap/eval/realtime_gate.h"
-#include "bgkmap/eval/traffic_score.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/kitti_sequence.h"
 #include "bgkmap/io/progress_bar.h"
 #include "bgkmap/sim/pose_noise.h"
 #include "commands.h"
-#include "drive_figure.h"
+#include "drive_eval.h"
 #include "eval_report.h"
 #include "json_output.h"
 #include "scan_source.h"
@@ -210,48 +208,8 @@ struct EvalInputs {
   std::optional<Raster> truth;
   std::vector<SourceScan> scans;  // with the poses the maps are built with
   std::vector<Change> changes;
-  std::optional<eval::Footprint> footprint;
-  std::vector<Pose> path;                               // the sequence's own poses
-  std::vector<eval::DrivenCell> driven;                 // along them
-  std::vector<std::vector<eval::DrivenCell>> arrivals;  // [k]: the driven cells scan k arrives at
-  // Traffic (a traffic.json): the vehicles, the truth without them, and the cells each scan
-  // has a return in with the sequence's own (true) poses.
-  std::vector<eval::VehicleTrack> vehicles;
-  std::optional<Raster> static_truth;
-  std::vector<std::vector<CellIndex>> observed;
+  DriveInputs drive;
 };
-
-// traffic.json (bgkmap simulate with moving objects) and the ground_truth_static.tif beside it.
-Status LoadTraffic(const std::string& path, const MapParams& params, EvalInputs* in) {
-  namespace fs = std::filesystem;
-  std::ifstream f(path);
-  if (!f) return Status::IoError(path + ": cannot read");
-  try {
-    const nlohmann::json j = nlohmann::json::parse(f);
-    const double res = j.at("resolution").get<double>();
-    const double radius = j.at("robot_radius").get<double>();
-    if (std::abs(res - params.resolution) > 1e-9 || std::abs(radius - params.robot_radius) > 1e-9)
-      return Status::InvalidArgument(path +
-                                     ": made with another resolution or robot_radius "
-                                     "than the map's (pass the simulation's --config)");
-    for (const auto& v : j.at("vehicles")) {
-      eval::VehicleTrack t;
-      t.first_scan = v.at("first_scan").get<int>();
-      for (const auto& b : v.at("boxes")) t.boxes.push_back(b.get<std::array<double, 4>>());
-      in->vehicles.push_back(std::move(t));
-    }
-  } catch (const nlohmann::json::exception& e) {
-    return Status::InvalidArgument(path + ": " + e.what());
-  }
-  const std::string truth_path =
-      (fs::path(path).parent_path() / "ground_truth_static.tif").string();
-  Result<Raster> truth = io::ReadGeoTiff(truth_path);
-  if (!truth.ok()) return truth.status();
-  if (truth->Find(Layer::kState) == nullptr || truth->stride != 1)
-    return Status::InvalidArgument(truth_path + ": needs a state band at the map's resolution");
-  in->static_truth = std::move(truth).value();
-  return Status::Ok();
-}
 
 // Line k of a KITTI poses.txt for each of n scans.
 Result<std::vector<Pose>> ReadPoseFile(const std::string& path, size_t n) {
@@ -296,6 +254,49 @@ Result<std::optional<eval::Footprint>> FootprintOf(const EvalOptions& o) {
 
 // Reads the parameters, truth, scans, changes and driven cells; 0, or the exit code after the
 // message.
+// The poses the maps are built with (--poses, --pose-noise), the driven cells along the
+// sequence's own poses and the traffic; 0, or the exit code after the message.
+int LoadDrive(const EvalOptions& o, const sim::PoseNoiseOptions& noise, EvalInputs* in) {
+  namespace fs = std::filesystem;
+  const MapParams& params = in->params;
+  DriveInputs& drive = in->drive;
+  std::vector<Pose>& path = drive.path;
+  for (const SourceScan& s : in->scans) path.push_back(s.pose);
+  if (!o.poses.empty()) {
+    Result<std::vector<Pose>> poses = ReadPoseFile(o.poses, in->scans.size());
+    if (!poses.ok()) return Fail(poses.status().message());
+    for (size_t k = 0; k < in->scans.size(); ++k) in->scans[k].pose = (*poses)[k];
+  }
+  if (o.pose_noise > 0) {
+    std::vector<Pose> mapping;
+    for (const SourceScan& s : in->scans) mapping.push_back(s.pose);
+    mapping = sim::PerturbPoses(mapping, noise);
+    for (size_t k = 0; k < in->scans.size(); ++k) in->scans[k].pose = mapping[k];
+  }
+  if (drive.footprint) {
+    drive.driven = eval::DrivenCells(GridGeometry(params.resolution, params.tile_size), path,
+                                     *drive.footprint, params.sensor_height);
+    drive.arrivals.resize(in->scans.size());
+    for (const eval::DrivenCell& d : drive.driven) drive.arrivals[d.first_scan].push_back(d);
+  }
+  std::error_code ec;
+  const std::string traffic_path =
+      !o.traffic.empty() ? o.traffic : (fs::path(o.sequence) / "traffic.json").string();
+  if (!o.traffic.empty() || fs::exists(traffic_path, ec)) {
+    if (Status s = LoadTraffic(traffic_path, params, &drive); !s.ok()) return Fail(s.message());
+    for (size_t k = 0; k < in->scans.size(); ++k) {
+      Result<PreparedScan> prepared = PrepareScan(params, in->scans[k].points, path[k]);
+      if (!prepared.ok()) return Fail(prepared.status().message());
+      std::vector<CellIndex> cells;
+      for (const ObservedCell& c : prepared->cells) cells.push_back(c.cell);
+      drive.observed.push_back(std::move(cells));  // sorted, as PrepareScan sorts them
+    }
+  }
+  return 0;
+}
+
+// Reads the parameters, truth, scans, changes and the drive's inputs; 0, or the exit code after
+// the message.
 int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   namespace fs = std::filesystem;
   Result<MapParams> loaded = LoadMapParamsFileOrDefaults(o.config);
@@ -304,6 +305,11 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   const MapParams& params = in->params;
   if (!(o.rate_hz > 0)) return Usage("--rate must be > 0");
   if (o.change_scans < 1) return Usage("--change-scans must be at least 1");
+  if (o.trail_scans < 1 || o.new_scans < 1)
+    return Usage("--trail-scans and --new-obstacle-scans must be at least 1");
+  if (!(o.pose_noise >= 0)) return Usage("--pose-noise must be >= 0");
+  Result<sim::PoseNoiseOptions> noise = PoseNoiseOf(o);
+  if (!noise.ok()) return Usage(noise.status().message());
   for (const std::string& name : o.methods) {
     Result<Method> m = ParseMethod(name);
     if (!m.ok()) return Usage(m.status().message());
@@ -311,7 +317,7 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   }
   Result<std::optional<eval::Footprint>> footprint = FootprintOf(o);
   if (!footprint.ok()) return Usage(footprint.status().message());
-  in->footprint = *footprint;
+  in->drive.footprint = *footprint;
   std::error_code ec;
   const std::string truth_path =
       !o.truth.empty() ? o.truth : (fs::path(o.sequence) / "ground_truth.tif").string();
@@ -326,7 +332,7 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
                   " m differs from the map resolution " + std::to_string(params.resolution) + " m");
     }
     in->truth = std::move(truth).value();
-  } else if (!in->footprint) {
+  } else if (!in->drive.footprint) {
     return Usage(truth_path +
                  " does not exist: give --truth, or the robot's footprint "
                  "(--footprint-radius or --footprint-box) to score the driven cells");
@@ -338,42 +344,7 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
     if (!s.ok()) return Fail(s.status().message());
     in->scans.push_back(std::move(s).value());
   }
-  std::vector<Pose>& path = in->path;
-  for (const SourceScan& s : in->scans) path.push_back(s.pose);
-  if (!o.poses.empty()) {
-    Result<std::vector<Pose>> poses = ReadPoseFile(o.poses, in->scans.size());
-    if (!poses.ok()) return Fail(poses.status().message());
-    for (size_t k = 0; k < in->scans.size(); ++k) in->scans[k].pose = (*poses)[k];
-  }
-  if (!(o.pose_noise >= 0)) return Usage("--pose-noise must be >= 0");
-  if (o.pose_noise > 0) {
-    Result<sim::PoseNoiseOptions> noise = PoseNoiseOf(o);
-    if (!noise.ok()) return Usage(noise.status().message());
-    std::vector<Pose> mapping;
-    for (const SourceScan& s : in->scans) mapping.push_back(s.pose);
-    mapping = sim::PerturbPoses(mapping, *noise);
-    for (size_t k = 0; k < in->scans.size(); ++k) in->scans[k].pose = mapping[k];
-  }
-  if (in->footprint) {
-    in->driven = eval::DrivenCells(GridGeometry(params.resolution, params.tile_size), path,
-                                   *in->footprint, params.sensor_height);
-    in->arrivals.resize(in->scans.size());
-    for (const eval::DrivenCell& d : in->driven) in->arrivals[d.first_scan].push_back(d);
-  }
-  const std::string traffic_path =
-      !o.traffic.empty() ? o.traffic : (fs::path(o.sequence) / "traffic.json").string();
-  if (o.trail_scans < 1 || o.new_scans < 1)
-    return Usage("--trail-scans and --new-obstacle-scans must be at least 1");
-  if (!o.traffic.empty() || fs::exists(traffic_path, ec)) {
-    if (Status s = LoadTraffic(traffic_path, params, in); !s.ok()) return Fail(s.message());
-    for (size_t k = 0; k < in->scans.size(); ++k) {
-      Result<PreparedScan> prepared = PrepareScan(params, in->scans[k].points, path[k]);
-      if (!prepared.ok()) return Fail(prepared.status().message());
-      std::vector<CellIndex> cells;
-      for (const ObservedCell& c : prepared->cells) cells.push_back(c.cell);
-      in->observed.push_back(std::move(cells));  // sorted, as PrepareScan sorts them
-    }
-  }
+  if (int code = LoadDrive(o, *noise, in); code != 0) return code;
   const std::string changes_path =
       !o.changes.empty() ? o.changes : (fs::path(o.sequence) / "changes.json").string();
   if (in->truth && (!o.changes.empty() || fs::exists(changes_path, ec))) {
@@ -384,39 +355,24 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   return 0;
 }
 
-// One line per driven cell on the map after scan k: its statistics, state and reasons, and
-// whether scan k has a return in it.
-void WriteTrace(std::ostream& out, size_t k, const TerrainMap& map,
-                const std::vector<eval::DrivenCell>& driven, const SourceScan& scan) {
-  Result<PreparedScan> prepared = PrepareScan(map.params(), scan.points, scan.pose);
-  std::vector<CellIndex> observed;
-  if (prepared.ok()) {
-    for (const ObservedCell& c : prepared->cells) observed.push_back(c.cell);
-  }
-  for (const eval::DrivenCell& d : driven) {
-    const Tile* t = map.FindTile(map.geometry().TileOf(d.cell));
-    const int i = map.geometry().LocalIndex(d.cell);
-    const double w = t ? t->w()[i] : 0.0, s = t ? t->s()[i] : 0.0, q = t ? t->q()[i] : 0.0;
-    const CellEstimate e = map.Estimate(d.cell);
-    out << k << ',' << d.cell.x << ',' << d.cell.y << ','
-        << std::binary_search(observed.begin(), observed.end(), d.cell) << ',' << w << ','
-        << e.elevation << ',' << Disagreement(w, s, q) << ',' << (t ? t->a()[i] : 0.0f) << ','
-        << (t ? t->b()[i] : 0.0f) << ',' << static_cast<int>(e.state) << ','
-        << static_cast<int>(eval::BlockReasonsAt(map, d.cell));
-    // At an observed cell, what v was computed from (up to the traversability step's footprint).
-    TerrainFeatures f;
-    if (std::binary_search(observed.begin(), observed.end(), d.cell) &&
-        eval::SurfaceFeatures(map, d.cell, &f)) {
-      out << ',' << f.step << ',' << f.slope_deg << ',' << f.roughness << ','
-          << TraversabilityValue(f, map.params()) << '\n';
-    } else {
-      out << ",,,,\n";
-    }
-  }
+// The map of the odd scans against the map of the even scans, over every cell and over the
+// driven cells.
+Status ScoreOddEven(const MapParams& p, const std::vector<SourceScan>& scans,
+                    const std::vector<eval::DrivenCell>& driven, const std::string& name,
+                    MethodResult* m) {
+  Result<Run> odd = MapScans(p, scans, EveryOther(scans.size(), 1), name + " (odd scans)");
+  if (!odd.ok()) return odd.status();
+  Result<Run> even = MapScans(p, scans, EveryOther(scans.size(), 0), name + " (even scans)");
+  if (!even.ok()) return even.status();
+  std::vector<CellIndex> cells;
+  for (const eval::DrivenCell& d : driven) cells.push_back(d.cell);
+  m->odd_even = eval::CompareMaps(*odd->map, *even->map);
+  m->odd_even_driven = eval::CompareMaps(*odd->map, *even->map, cells);
+  return Status::Ok();
 }
 
-// One method: the offline map (and its change and drive scores), the odd and even maps, and
-// with a truth the real-time replay.
+// One method: the offline map (and its change, drive and traffic scores), the odd and even maps,
+// and with a truth the real-time replay.
 Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, Method method) {
   MapParams p = in.params;
   p.method = method;
@@ -429,41 +385,10 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
     m.removed.resize(points);
     m.appeared.resize(points);
   }
-  std::optional<eval::TrafficJudge> traffic;
-  if (in.static_truth) {
-    traffic.emplace(p, in.vehicles, static_cast<int>(in.scans.size()), *in.static_truth,
-                    in.observed, o.trail_scans, o.new_scans);
-  }
-  std::optional<eval::DriveCauses> causes;
-  if (in.footprint) {
-    std::function<bool(int, CellIndex)> occupied;
-    if (traffic) occupied = [&](int k, CellIndex c) { return traffic->Near(k, c); };
-    causes.emplace(in.driven, occupied);
-  }
-  Status figure_error;
-  std::ofstream trace;
-  if (!o.trace.empty() && in.footprint) {
-    trace.open(std::filesystem::path(o.out) / (name + "_" + o.trace));
-    trace << "scan,ix,iy,observed,w,elevation,disagreement,a,b,state,reasons,step,slope,"
-             "roughness,v\n";
-  }
-  auto score_changes = [&](size_t k, const TerrainMap& map) {
-    if (trace.is_open()) WriteTrace(trace, k, map, in.driven, in.scans[k]);
-    if (traffic) traffic->Score(static_cast<int>(k), map);
-    if (causes) causes->AfterScan(static_cast<int>(k), in.path[k], map);
-    // The ground the next scan arrives at, on the map before it.
-    if (k + 1 < in.arrivals.size()) m.drive_on_arrival += eval::ScoreDrive(map, in.arrivals[k + 1]);
-    if (in.footprint && std::count(o.figure_scans.begin(), o.figure_scans.end(), k) > 0) {
-      const std::string png =
-          (std::filesystem::path(o.out) / ("drive_" + name + "_scan" + std::to_string(k) + ".png"))
-              .string();
-      // A square of 30 m around the sensor of scan k.
-      const Eigen::Vector3d& t = in.path[k].translation;
-      const CellBox around =
-          map.geometry().BoxCovering(t.x() - 15.0, t.y() - 15.0, t.x() + 15.0, t.y() + 15.0);
-      if (Status s = WriteDriveFigure(map, in.driven, png, around); !s.ok() && figure_error.ok())
-        figure_error = s;
-    }
+  const DriveOutputs outputs{o.out, o.figures, o.figure_scans, o.trace, o.trail_scans, o.new_scans};
+  DriveObserver drive(p, name, in.drive, in.scans, outputs);
+  auto after_scan = [&](size_t k, const TerrainMap& map) {
+    drive.AfterScan(k, map);
     for (const Change& c : in.changes) {
       const long j = static_cast<long>(k) + 1 - c.scan;  // scans of the changed world mapped
       if (j < 0 || j >= static_cast<long>(points)) continue;
@@ -472,9 +397,8 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
     }
   };
   const std::vector<SourceScan>& scans = in.scans;
-  Result<Run> offline = MapScans(p, scans, {}, name + " (all scans)", score_changes);
+  Result<Run> offline = MapScans(p, scans, {}, name + " (all scans)", after_scan);
   if (!offline.ok()) return offline.status();
-  if (!figure_error.ok()) return figure_error;
   m.method = method;
   m.scans = scans.size();
   const double n = static_cast<double>(scans.size());
@@ -483,26 +407,9 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
   m.features_s = offline->sum.features / n;
   m.traversability_s = offline->sum.traversability / n;
   m.max_scan_s = offline->max_scan;
-  if (traffic) m.traffic = traffic->counts();
-  if (in.footprint) {
-    m.drive = eval::ScoreDrive(*offline->map, in.driven);
-    causes->Finish(*offline->map);
-    m.causes_final = causes->final();
-    m.causes_on_arrival = causes->on_arrival();
-    if (o.figures) {
-      const std::string png = (std::filesystem::path(o.out) / ("drive_" + name + ".png")).string();
-      if (Status s = WriteDriveFigure(*offline->map, in.driven, png); !s.ok()) return s;
-    }
-    if (o.odd_even) {
-      Result<Run> odd = MapScans(p, scans, EveryOther(scans.size(), 1), name + " (odd scans)");
-      if (!odd.ok()) return odd.status();
-      Result<Run> even = MapScans(p, scans, EveryOther(scans.size(), 0), name + " (even scans)");
-      if (!even.ok()) return even.status();
-      std::vector<CellIndex> cells;
-      for (const eval::DrivenCell& d : in.driven) cells.push_back(d.cell);
-      m.odd_even = eval::CompareMaps(*odd->map, *even->map);
-      m.odd_even_driven = eval::CompareMaps(*odd->map, *even->map, cells);
-    }
+  if (Status s = drive.Finish(*offline->map, &m); !s.ok()) return s;
+  if (in.drive.footprint && o.odd_even) {
+    if (Status s = ScoreOddEven(p, scans, in.drive.driven, name, &m); !s.ok()) return s;
   }
   if (!in.truth) return m;
   m.offline = eval::ScoreMap(*offline->map, *in.truth);
@@ -538,12 +445,12 @@ int RunEval(const EvalOptions& o) {
   report.params = in.params;
   report.has_truth = in.truth.has_value();
   report.has_changes = !in.changes.empty();
-  report.has_drive = in.footprint.has_value();
-  report.has_traffic = in.static_truth.has_value();
+  report.has_drive = in.drive.footprint.has_value();
+  report.has_traffic = in.drive.static_truth.has_value();
   report.trail_scans = o.trail_scans;
   report.new_scans = o.new_scans;
   report.has_odd_even = report.has_drive && o.odd_even;
-  if (in.footprint) report.footprint = in.footprint->Describe();
+  if (in.drive.footprint) report.footprint = in.drive.footprint->Describe();
   report.poses = o.poses;
   report.pose_noise = o.pose_noise;
   report.pose_noise_seed = o.pose_noise_seed;
