@@ -2,7 +2,8 @@
 // footprint drives over (disc, swept between poses; a box turned to the heading with the sensor
 // off its centre), why a cell is blocked (condition by condition, and always exactly when the
 // map's own state rule blocks it), the driven cells' shares on a hand-filled map, and two maps
-// compared cell by cell.
+// compared cell by cell. Mutation checked by hand: the footprint placed at the poses only, not
+// swept between them, fails TheFootprintIsSweptBetweenPoses.
 #include "bgkmap/eval/drive_score.h"
 
 #include <gtest/gtest.h>

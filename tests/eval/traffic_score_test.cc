@@ -1,6 +1,7 @@
 // Trails and new obstacles of moving vehicles (eval/traffic_score.h), on a hand-made vehicle
 // moving 1 m per scan over ground that is traversable except where the truth says otherwise:
-// which cells are judged when, and what counts as stale or missed on hand-filled maps.
+// which cells are judged when, and what counts as stale or missed on hand-filled maps. Mutation
+// checked by hand: a trail judged one scan late fails the first two tests.
 #include "bgkmap/eval/traffic_score.h"
 
 #include <gtest/gtest.h>
