@@ -14,8 +14,8 @@
 # map, and on arrival: the map just before the robot drives onto them) with their causes, stale
 # trails (cells a vehicle left that are still non-traversable 5 scans later) and missed new
 # obstacles (cells a vehicle arrived at not shown on the map after that scan).
-#   scripts/drive-trouble.sh [build-dir] [out-dir]    (about 15 minutes on 2 vCPUs, mostly the
-#                                                      ray casting of the two simulations)
+#   scripts/drive-trouble.sh [build-dir] [out-dir]    (3.5 minutes on 2 vCPUs, mostly the ray
+#                                                      casting of the two simulations)
 # Writes $OUT/<run>/{eval.json,table.md,drive_bgk+.png,...} and $OUT/table.md. METHODS (default
 # bgk+) is passed to --methods; the simulations are kept and reused if $OUT/sim exists.
 set -euo pipefail
