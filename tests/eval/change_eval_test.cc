@@ -156,6 +156,11 @@ TEST_F(ChangeEvalTest, BadScriptsAreRefusedWithOneLine) {
       {"objects: [{center: [1, 2], size: [0, 1], height: 1}]", "both sizes must be > 0"},
       {"objects: [{center: [1, 2], size: [1, 1], height: 1, appear: 3, disappear: 5}]",
        "give appear or disappear, not both"},
+      {"objects: [{center: [1, 2], size: [1, 1], height: 1, velocity: [1, 0], appear: 5, "
+       "disappear: 5}]",
+       "disappear must come after appear"},
+      {"objects: [{center: [1, 2], size: [1, 1], height: 1, velocity: 3}]",
+       "object 1.velocity (line 1): expected [x, y]"},
       {"objects: [", "end of sequence flow not found"},
       {"boxes: []", "expected a map with an 'objects' list"},
   };

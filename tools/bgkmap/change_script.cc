@@ -103,23 +103,31 @@ Result<sim::ScriptedObject> ParseObject(const YAML::Node& node, size_t index, in
       if (!k.ok()) return k.status();
       o.appear = *k;
       has_appear = true;
+    } else if (key == "velocity") {
+      Result<std::pair<double, double>> v2 = Pair(field, v);
+      if (!v2.ok()) return v2.status();
+      o.velocity_x = v2->first;
+      o.velocity_y = v2->second;
     } else if (key == "disappear") {
       Result<int> k = ScanIndex(field, v, scans);
       if (!k.ok()) return k.status();
       o.disappear = *k;
       has_disappear = true;
     } else {
-      return Bad(
-          what, kv.first,
-          "unknown key '" + key + "' (known: name, center, size, height, appear, disappear)");
+      return Bad(what, kv.first,
+                 "unknown key '" + key +
+                     "' (known: name, center, size, height, appear, disappear, velocity)");
     }
   }
   if (!has_center || !has_size || !has_height) {
     return Bad(what, node, "needs center, size and height");
   }
-  if (has_appear && has_disappear) {
+  if (has_appear && has_disappear && !o.Moves()) {
     return Bad(what, node,
                "give appear or disappear, not both (script a second object for a second change)");
+  }
+  if (has_appear && has_disappear && o.disappear <= o.appear) {
+    return Bad(what, node, "disappear must come after appear");
   }
   if (o.name.empty()) o.name = what;
   return o;

@@ -7,8 +7,11 @@
 //       size: [2.0, 2.0]     # x and y extent, metres
 //       height: 1.0          # flat top this far above the surface at the centre, metres
 //       disappear: 10        # first scan without it; or appear: K, the first scan with it
+//       velocity: [0, 10]    # optional, m/s (10 Hz scans): a vehicle, at `center` at its first
+//                            # scan, driving on in a straight line
 //
-// An object has at most one event (appear or disappear); one with neither stands throughout.
+// A standing object has at most one event (appear or disappear); one with neither stands
+// throughout. A moving one may have both (it enters and leaves the scene).
 #pragma once
 
 #include <string>

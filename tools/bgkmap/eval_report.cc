@@ -55,6 +55,138 @@ Json ChangeJson(const std::vector<eval::ChangeCounts>& curve, const char* wrong)
   return points;
 }
 
+Json DriveJson(const eval::DriveScore& d) {
+  return {{"driven_cells", d.driven},
+          {"known_cells", d.known},
+          {"traversable_cells", d.traversable},
+          {"blocked_cells", d.blocked},
+          {"known_share", JsonNumber<Json>(d.known_share())},
+          {"traversable_share", JsonNumber<Json>(d.traversable_share())},
+          {"blocked_by",
+           {{"no_value", d.no_value},
+            {"high_mean", d.high_mean},
+            {"high_variance", d.high_variance},
+            {"disagreement", d.disagreement},
+            {"only_high_mean", d.only_mean},
+            {"only_high_variance", d.only_variance},
+            {"only_disagreement", d.only_disagreement}}},
+          {"high_mean_surface_now",
+           {{"step", d.mean_step},
+            {"slope", d.mean_slope},
+            {"roughness", d.mean_roughness},
+            {"none", d.mean_flat_now}}},
+          {"ground_cells", d.ground_cells},
+          {"ground_bias_m", JsonNumber<Json>(d.ground_bias)},
+          {"ground_rms_m", JsonNumber<Json>(d.ground_rms)}};
+}
+
+Json CausesJson(const eval::CauseCounts& c) {
+  Json j;
+  j["judged_cells"] = c.judged;
+  for (int i = 0; i < eval::kCauseCount; ++i) {
+    const auto cause = static_cast<eval::Cause>(i);
+    j[std::string(eval::CauseName(cause))] = c[cause];
+  }
+  j["cells_cut_before"] = c.cells_cut;
+  j["cells_reset_before"] = c.cells_reset;
+  j["high_mean_evidence_range_m"] = JsonNumber<Json>(c.mean_evidence_range());
+  return j;
+}
+
+Json AgreementJson(const eval::MapAgreement& a) {
+  return {{"common_cells", a.common},
+          {"only_odd", a.only_a},
+          {"only_even", a.only_b},
+          {"state_agreement", JsonNumber<Json>(a.agreement())},
+          {"both_traversable", a.both_traversable},
+          {"blocked_in_odd_only", a.a_blocked_only},
+          {"blocked_in_even_only", a.b_blocked_only},
+          {"blocked_in_one_by",
+           {{"no_value", a.split_no_value},
+            {"high_mean", a.split_high_mean},
+            {"high_variance", a.split_high_variance},
+            {"disagreement", a.split_disagreement}}},
+          {"dz_mean_m", JsonNumber<Json>(a.dz_mean)},
+          {"dz_rms_m", JsonNumber<Json>(a.dz_rms)},
+          {"dz_abs_p50_m", JsonNumber<Json>(a.dz_abs_p50)},
+          {"dz_abs_p95_m", JsonNumber<Json>(a.dz_abs_p95)},
+          {"dz_abs_max_m", JsonNumber<Json>(a.dz_abs_max)}};
+}
+
+double Percent(int64_t part, int64_t whole) {
+  return whole ? 100.0 * static_cast<double>(part) / static_cast<double>(whole) : NAN;
+}
+
+// The driven cells' tables: shares, why the blocked ones are blocked, odd against even.
+std::string DriveMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  o << "\n| Dataset | Method | Map | Driven cells | Known (%) | Traversable (%) | Blocked | "
+       "Ground bias (m) | Ground RMS (m) |\n"
+    << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    for (const bool arrival : {false, true}) {
+      const eval::DriveScore& d = arrival ? m.drive_on_arrival : m.drive;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (arrival ? "on arrival" : "final") << " | " << d.driven << " | "
+        << Cell(100 * d.known_share(), "%.2f") << " | " << Cell(100 * d.traversable_share(), "%.2f")
+        << " | " << d.blocked << " | " << Cell(d.ground_bias, "%.3f") << " | "
+        << Cell(d.ground_rms, "%.3f") << " |\n";
+    }
+  }
+  o << "\n| Dataset | Method | Map | Blocked | No value | High mean | High variance | Disagreement "
+       "| "
+       "Mean only | Variance only | Disagreement only | High mean, now: step / slope / rough / "
+       "none |\n"
+    << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    for (const bool arrival : {false, true}) {
+      const eval::DriveScore& d = arrival ? m.drive_on_arrival : m.drive;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (arrival ? "on arrival" : "final") << " | " << d.blocked << " | " << d.no_value << " | "
+        << d.high_mean << " | " << d.high_variance << " | " << d.disagreement << " | "
+        << d.only_mean << " | " << d.only_variance << " | " << d.only_disagreement << " | "
+        << d.mean_step << " / " << d.mean_slope << " / " << d.mean_roughness << " / "
+        << d.mean_flat_now << " |\n";
+    }
+  }
+  o << "\n| Dataset | Method | Map | Judged | Traversable | Unknown: never seen / forgotten | No "
+       "value | Mean: vehicle / surface now / history | Disagreement | Variance: after cut or "
+       "reset / little evidence | Cut before / reset before | Mean evidence range (m) |\n"
+    << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  using eval::Cause;
+  for (const MethodResult& m : r.methods) {
+    for (const bool arrival : {false, true}) {
+      const eval::CauseCounts& c = arrival ? m.causes_on_arrival : m.causes_final;
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (arrival ? "on arrival" : "final") << " | " << c.judged << " | "
+        << c[Cause::kTraversable] << " | " << c[Cause::kUnknownNeverSeen] << " / "
+        << c[Cause::kUnknownForgotten] << " | " << c[Cause::kNoValue] << " | "
+        << c[Cause::kMeanVehicle] << " / " << c[Cause::kMeanSurfaceNow] << " / "
+        << c[Cause::kMeanHistory] << " | " << c[Cause::kDisagreement] << " | "
+        << c[Cause::kVarianceAfterReset] << " / " << c[Cause::kVarianceSparse] << " | "
+        << c.cells_cut << " / " << c.cells_reset << " | " << Cell(c.mean_evidence_range(), "%.1f")
+        << " |\n";
+    }
+  }
+  if (!r.has_odd_even) return o.str();
+  o << "\n| Dataset | Method | Common cells | State agreement (%) | Blocked in one only (%) | "
+       "Its reasons: no value / mean / variance / disagreement | dz RMS (m) | abs dz p50 / p95 "
+       "/ max (m) | Driven: common | Driven: agreement (%) |\n"
+    << "|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    const eval::MapAgreement& a = m.odd_even;
+    o << "| " << r.name << " | " << MethodName(m.method) << " | " << a.common << " | "
+      << Cell(100 * a.agreement(), "%.2f") << " | "
+      << Cell(Percent(a.a_blocked_only + a.b_blocked_only, a.common), "%.2f") << " | "
+      << a.split_no_value << " / " << a.split_high_mean << " / " << a.split_high_variance << " / "
+      << a.split_disagreement << " | " << Cell(a.dz_rms, "%.3f") << " | "
+      << Cell(a.dz_abs_p50, "%.3f") << " / " << Cell(a.dz_abs_p95, "%.3f") << " / "
+      << Cell(a.dz_abs_max, "%.2f") << " | " << m.odd_even_driven.common << " | "
+      << Cell(100 * m.odd_even_driven.agreement(), "%.2f") << " |\n";
+  }
+  return o.str();
+}
+
 }  // namespace
 
 std::string ToJson(const EvalReport& r) {
@@ -72,10 +204,39 @@ std::string ToJson(const EvalReport& r) {
                        {"mean_elevation_s", JsonNumber<Json>(m.elevation_s)},
                        {"mean_features_s", JsonNumber<Json>(m.features_s)},
                        {"mean_traversability_s", JsonNumber<Json>(m.traversability_s)},
-                       {"max_scan_s", JsonNumber<Json>(m.max_scan_s)},
-                       {"realtime", ScoreJson(m.realtime)},
-                       {"offline", ScoreJson(m.offline)}});
+                       {"max_scan_s", JsonNumber<Json>(m.max_scan_s)}});
+    if (r.has_truth) {
+      methods.back()["realtime"] = ScoreJson(m.realtime);
+      methods.back()["offline"] = ScoreJson(m.offline);
+    }
     if (r.has_changes) methods.back()["change"] = std::move(change);
+    if (r.has_traffic) {
+      const eval::TrafficCounts& t = m.traffic;
+      methods.back()["traffic"] = {{"trail_scans", r.trail_scans},
+                                   {"trail_judged_cells", t.trail_judged},
+                                   {"trail_stale_cells", t.trail_stale},
+                                   {"trail_stale_rate", JsonNumber<Json>(t.stale_rate())},
+                                   {"trail_stale_by",
+                                    {{"no_value", t.stale_no_value},
+                                     {"high_mean", t.stale_mean},
+                                     {"high_variance", t.stale_variance},
+                                     {"disagreement", t.stale_disagreement}}},
+                                   {"new_obstacle_scans", r.new_scans},
+                                   {"new_judged_cells", t.new_judged},
+                                   {"new_missed_cells", t.new_missed},
+                                   {"new_missed_unknown_cells", t.new_unknown},
+                                   {"new_missed_rate", JsonNumber<Json>(t.missed_rate())}};
+    }
+    if (r.has_drive) {
+      methods.back()["drive"] = DriveJson(m.drive);
+      methods.back()["drive_on_arrival"] = DriveJson(m.drive_on_arrival);
+      methods.back()["causes"] = {{"final", CausesJson(m.causes_final)},
+                                  {"on_arrival", CausesJson(m.causes_on_arrival)}};
+    }
+    if (r.has_odd_even) {
+      methods.back()["odd_even"] = AgreementJson(m.odd_even);
+      methods.back()["odd_even_driven"] = AgreementJson(m.odd_even_driven);
+    }
   }
   Json j;
   j["dataset"] = r.name;
@@ -83,11 +244,20 @@ std::string ToJson(const EvalReport& r) {
   j["rate_hz"] = JsonNumber<Json>(r.rate_hz);
   j["resolution"] = JsonNumber<Json>(r.params.resolution);
   j["kernel_length"] = JsonNumber<Json>(r.params.kernel_length);
+  if (r.has_drive) j["footprint"] = r.footprint;
+  if (!r.poses.empty()) j["poses"] = r.poses;
+  if (r.pose_noise > 0) {
+    j["pose_noise"] = JsonNumber<Json>(r.pose_noise);
+    j["pose_noise_seed"] = r.pose_noise_seed;
+  }
   j["methods"] = std::move(methods);
   return JsonText(j);
 }
 
-std::string ToMarkdown(const EvalReport& r) {
+namespace {
+
+// The paper's Table 1 layout, and the changing world's scores per scan.
+std::string TruthMarkdown(const EvalReport& r) {
   std::ostringstream o;
   o << "| Dataset | Method | Coverage (%) | Skipped scans | Elevation (s) | Trav. calculation (s) "
        "| "
@@ -129,6 +299,35 @@ std::string ToMarkdown(const EvalReport& r) {
         << ap.judged << " |\n";
     }
   }
+  return o.str();
+}
+
+// Trails and new obstacles of the traffic.
+std::string TrafficMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  o << "\n| Dataset | Method | Trail cells judged (" << r.trail_scans
+    << " scans after) | Stale (%) | Stale cells | Stale by: no value / mean / variance / "
+       "disagreement | New-obstacle cells judged ("
+    << r.new_scans << " scan after) | Missed (%) | Missed, unknown |\n"
+    << "|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    const eval::TrafficCounts& t = m.traffic;
+    o << "| " << r.name << " | " << MethodName(m.method) << " | " << t.trail_judged << " | "
+      << Cell(100 * t.stale_rate(), "%.2f") << " | " << t.trail_stale << " | " << t.stale_no_value
+      << " / " << t.stale_mean << " / " << t.stale_variance << " / " << t.stale_disagreement
+      << " | " << t.new_judged << " | " << Cell(100 * t.missed_rate(), "%.2f") << " | "
+      << t.new_unknown << " |\n";
+  }
+  return o.str();
+}
+
+}  // namespace
+
+std::string ToMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  if (r.has_truth) o << TruthMarkdown(r);
+  if (r.has_traffic) o << TrafficMarkdown(r);
+  if (r.has_drive) o << DriveMarkdown(r).substr(r.has_truth ? 0 : 1);  // no leading blank line
   return o.str();
 }
 

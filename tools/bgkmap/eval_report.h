@@ -9,7 +9,10 @@
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/eval/change_score.h"
+#include "bgkmap/eval/drive_causes.h"
+#include "bgkmap/eval/drive_score.h"
 #include "bgkmap/eval/map_score.h"
+#include "bgkmap/eval/traffic_score.h"
 
 namespace bgkmap::cli {
 
@@ -28,6 +31,16 @@ struct MethodResult {
   // (offline pass), pooled over the objects; index j = scans after the change (0: just before).
   std::vector<eval::ChangeCounts> removed;   // stale cells of removed objects
   std::vector<eval::ChangeCounts> appeared;  // missed cells of appeared objects
+  // With a footprint (EvalReport::has_drive): the driven cells of the offline map, and the map
+  // of the odd scans against the map of the even scans (all cells both know; driven cells).
+  eval::DriveScore drive;
+  // The same, each driven cell judged once, on the map just before the scan that arrives at it
+  // (eval/drive_score.h): what a planner saw of the ground ahead.
+  eval::DriveScore drive_on_arrival;
+  // Why the blocked and unknown ones are so, from each cell's history (eval/drive_causes.h).
+  eval::CauseCounts causes_final, causes_on_arrival;
+  eval::MapAgreement odd_even, odd_even_driven;
+  eval::TrafficCounts traffic;  // with a traffic.json (EvalReport::has_traffic), offline map
 };
 
 struct EvalReport {
@@ -35,7 +48,16 @@ struct EvalReport {
   std::string sequence;
   double rate_hz = 10;
   MapParams params;
+  bool has_truth = true;     // scored against a ground truth (coverage, AUC, ...)
   bool has_changes = false;  // a changes.json was scored: eval.json and table.md report it
+  bool has_drive = false;    // a footprint was given: driven cells and odd/even agreement
+  bool has_odd_even = false;
+  bool has_traffic = false;  // a traffic.json was scored
+  int trail_scans = 5, new_scans = 1;
+  std::string footprint;  // eval::Footprint::Describe()
+  std::string poses;      // the poses the maps were built with, if not the sequence's
+  double pose_noise = 0;  // the scale of the pose error added to them (0: none)
+  uint32_t pose_noise_seed = 1;
   std::vector<MethodResult> methods;
 };
 

@@ -1,7 +1,8 @@
 // `bgkmap simulate`: renders one of the paper's simulated experiments (city, aerial), or flat
 // ground, into a KITTI-like sequence plus its ground truth (docs/results.md explains the worlds).
-// With --change FILE (change_script.h) boxes appear and disappear at given scans: each scan sees
-// the world as it is at that scan, and the ground truth is the world after the last change.
+// With --change FILE (change_script.h) boxes appear and disappear at given scans, or drive
+// through the scene (traffic): each scan sees the world as it is at that scan, and the ground
+// truth is the world after the last change (the vehicles where they are at the last scan).
 //   <out>/velodyne/NNNNNN.bin, <out>/poses.txt   the mapping scans, sensor frame
 //   <out>/times.txt                              scan k at k / 10 s (10 Hz): the map time
 //                                                forgetting ages by (half_life_s)
@@ -10,6 +11,9 @@
 //   <out>/ground_truth.tif                       true elevation, traversability, state
 //   <out>/scenario.json                          what was simulated (with --change: the
 //                                                objects and their scans, for bgkmap eval)
+//   <out>/traffic.json, ground_truth_static.tif  with moving objects: their footprint at every
+//                                                scan, and the truth without them (eval's
+//                                                stale trails and missed obstacles)
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -93,6 +97,7 @@ Status WriteChanges(const sim::Scenario& scenario, const std::vector<sim::Script
   const double r = params.robot_radius;
   Json list = Json::array();
   for (const sim::ScriptedObject& obj : objects) {
+    if (obj.Moves()) continue;  // traffic: traffic.json
     const bool removed = obj.disappear != sim::ScriptedObject::kNever;
     if (!removed && obj.appear == 0) continue;  // stands throughout
     const int scan = removed ? obj.disappear : obj.appear;
@@ -138,6 +143,57 @@ Status WriteChanges(const sim::Scenario& scenario, const std::vector<sim::Script
   out << root.dump() << "\n";
   if (!out) return Status::IoError(path + ": cannot write");
   return Status::Ok();
+}
+
+// traffic.json: every moving object's footprint [xmin, ymin, xmax, ymax] at each scan it is
+// present, from `first_scan` on; and ground_truth_static.tif, the truth of the last scan's world
+// without them, over the cells the truth scans see and every cell within robot_radius of a
+// vehicle's footprint at some scan (the cells eval judges trails and new obstacles on).
+Status WriteTraffic(const sim::Scenario& scenario, const std::vector<sim::ScriptedObject>& objects,
+                    const MapParams& params, const sim::VisibilityMask& visible,
+                    const std::string& dir) {
+  namespace fs = std::filesystem;
+  using Json = nlohmann::ordered_json;
+  const int n = static_cast<int>(scenario.mapping_poses.size());
+  const GridGeometry geometry(params.resolution, params.tile_size);
+  const double r = params.robot_radius;
+  sim::VisibilityMask judged = visible;
+  std::vector<sim::ScriptedObject> standing;
+  Json vehicles = Json::array();
+  for (const sim::ScriptedObject& obj : objects) {
+    if (!obj.Moves()) {
+      standing.push_back(obj);
+      continue;
+    }
+    Json boxes = Json::array();
+    const int first = obj.appear, last = std::min(n, obj.disappear);
+    for (int k = first; k < last; ++k) {
+      const sim::Box b = obj.Placed(*scenario.world, k);
+      boxes.push_back({JsonNumber<Json>(b.xmin), JsonNumber<Json>(b.ymin), JsonNumber<Json>(b.xmax),
+                       JsonNumber<Json>(b.ymax)});
+      const CellBox near = geometry.BoxCovering(b.xmin - r, b.ymin - r, b.xmax + r, b.ymax + r);
+      for (int iy = near.min.y; iy <= near.max.y; ++iy) {
+        for (int ix = near.min.x; ix <= near.max.x; ++ix) judged.Mark({ix, iy});
+      }
+    }
+    Json v;
+    v["name"] = obj.name;
+    v["first_scan"] = first;
+    v["boxes"] = std::move(boxes);
+    vehicles.push_back(std::move(v));
+  }
+  Json root;
+  root["resolution"] = JsonNumber<Json>(params.resolution);
+  root["robot_radius"] = JsonNumber<Json>(params.robot_radius);
+  root["scans"] = n;
+  root["vehicles"] = std::move(vehicles);
+  const std::string path = (fs::path(dir) / "traffic.json").string();
+  std::ofstream out(path);
+  out << root.dump() << "\n";
+  if (!out) return Status::IoError(path + ": cannot write");
+  const Raster truth =
+      sim::MakeGroundTruth(*sim::WorldAtScan(scenario.world, standing, n - 1), params, judged);
+  return io::WriteGeoTiff(truth, (fs::path(dir) / "ground_truth_static.tif").string());
 }
 
 int RunSimulate(const SimulateOptions& o) {
@@ -216,7 +272,7 @@ int RunSimulate(const SimulateOptions& o) {
   {
     const std::string times_path = (fs::path(o.out) / "times.txt").string();
     std::ofstream times(times_path, std::ios::trunc);
-    for (size_t k = 0; k < n; ++k) times << static_cast<double>(k) / 10.0 << '\n';
+    for (size_t k = 0; k < n; ++k) times << static_cast<double>(k) * sim::kScanPeriodS << '\n';
     if (!times.good()) return Fail(times_path + ": cannot write");
   }
   if (o.drift > 0) {
@@ -257,9 +313,14 @@ int RunSimulate(const SimulateOptions& o) {
     const std::string truth_path = (fs::path(o.out) / "ground_truth.tif").string();
     if (Status s = io::WriteGeoTiff(truth, truth_path); !s.ok()) return Fail(s.message());
   }
-  bool has_events = false;
+  bool has_events = false, has_traffic = false;
   for (const sim::ScriptedObject& obj : objects) {
-    has_events |= obj.appear > 0 || obj.disappear != sim::ScriptedObject::kNever;
+    has_events |= !obj.Moves() && (obj.appear > 0 || obj.disappear != sim::ScriptedObject::kNever);
+    has_traffic |= obj.Moves();
+  }
+  if (o.truth && has_traffic) {
+    if (Status s = WriteTraffic(scenario, objects, params, visible, o.out); !s.ok())
+      return Fail(s.message());
   }
   if (o.truth && has_events) {
     // The world of the first scan, and the cells each change is judged on (eval/change_score.h).
@@ -297,10 +358,12 @@ int RunSimulate(const SimulateOptions& o) {
     // What `bgkmap eval` needs to score the change: each object's footprint, height and scans.
     Json list = Json::array();
     for (const sim::ScriptedObject& obj : objects) {
-      const sim::Box b = obj.Placed(*scenario.world);
+      const sim::Box b = obj.Placed(*scenario.world, obj.appear);  // where it starts
       Json j;
       j["name"] = obj.name;
       j["center"] = {JsonNumber<Json>(obj.center_x), JsonNumber<Json>(obj.center_y)};
+      if (obj.Moves())
+        j["velocity"] = {JsonNumber<Json>(obj.velocity_x), JsonNumber<Json>(obj.velocity_y)};
       j["size"] = {JsonNumber<Json>(obj.size_x), JsonNumber<Json>(obj.size_y)};
       j["height"] = JsonNumber<Json>(obj.height);
       j["top_z"] = JsonNumber<Json>(b.height);

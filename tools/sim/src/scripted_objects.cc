@@ -5,11 +5,12 @@
 
 namespace bgkmap::sim {
 
-Box ScriptedObject::Placed(const World& base) const {
-  double ground = base.SurfaceHeight(center_x, center_y);
+Box ScriptedObject::Placed(const World& base, int scan) const {
+  const double cx = CenterXAt(scan), cy = CenterYAt(scan);
+  double ground = base.SurfaceHeight(cx, cy);
   if (std::isnan(ground)) ground = 0.0;
-  return {center_x - 0.5 * size_x, center_y - 0.5 * size_y, center_x + 0.5 * size_x,
-          center_y + 0.5 * size_y, ground + height};
+  return {cx - 0.5 * size_x, cy - 0.5 * size_y, cx + 0.5 * size_x, cy + 0.5 * size_y,
+          ground + height};
 }
 
 ObjectsWorld::ObjectsWorld(std::shared_ptr<const World> base, std::vector<Box> boxes)
@@ -38,7 +39,7 @@ std::shared_ptr<const World> WorldAtScan(const std::shared_ptr<const World>& bas
   if (objects.empty()) return base;
   std::vector<Box> boxes;
   for (const ScriptedObject& o : objects) {
-    if (o.PresentAt(scan)) boxes.push_back(o.Placed(*base));
+    if (o.PresentAt(scan)) boxes.push_back(o.Placed(*base, scan));
   }
   return std::make_shared<ObjectsWorld>(base, std::move(boxes));
 }
