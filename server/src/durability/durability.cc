@@ -8,7 +8,9 @@ Status NoCorrections() {
 }
 }  // namespace
 
-Result<CorrectionPlan> Durability::PlanCorrection(const CorrectionSpec&) const {
+Result<CorrectionPlan> Durability::PlanCorrection(const std::string&,
+                                                  const std::map<uint64_t, Pose>&,
+                                                  const CorrectionRange&) const {
   return NoCorrections();
 }
 

@@ -20,22 +20,18 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/georeference.h"
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/raw_scan.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/tile.h"
 #include "bgkmap/storage/reintegration.h"
-#include "bgkmap/storage/scan_source.h"
 #include "bgkmap/storage/tile_store.h"
 #include "durability/correction_plan.h"
 #include "durability/tile_backing.h"
 
 namespace bgkmap {
-
-struct Stamp {
-  int64_t seconds = 0;
-  int32_t nanos = 0;
-};
 
 // A change about to be applied, as the journal sees it: a scan, or a clear of `clear_box`.
 struct ChangeRecord {
@@ -43,10 +39,9 @@ struct ChangeRecord {
   std::shared_ptr<const PreparedScan> scan;  // null for a clear
   std::string robot_id;
   uint64_t sequence = 0;
-  Stamp stamp;
   CellBox clear_box;
   // The raw scan, kept beside the record when the store retains scans for corrections.
-  std::shared_ptr<const storage::ScanSource> source;
+  std::shared_ptr<const RawScan> raw_scan;
 };
 
 // Copies of the served map's tiles, taken at a barrier (no change in flight).
@@ -105,12 +100,15 @@ class Durability : public TileBacking {
   // ---- Pose corrections (docs/semantics.md, "Pose corrections"); a map in memory has none.
   // Whether Record() keeps raw scans (ChangeRecord::source) for corrections.
   virtual bool retains_scans() const { return false; }
-  // Resolves `spec` against the log: the robot's scans by sequence number, each prepared again
-  // with its corrected pose, and the retained checkpoint to rebuild from. InvalidArgument for a
+  // Resolves a correction of `robot_id`'s scans against the log: its scans by sequence number,
+  // each prepared again with its corrected pose in `poses` (or, with `remove`, the scans with
+  // first <= sequence <= last dropped), and the retained checkpoint to rebuild from. InvalidArgument for a
   // pose the engine refuses; NotFound-like InvalidArgument for a sequence never logged;
   // FailedPrecondition when a scan is no longer retained (naming the robot's oldest retained
   // sequence number) or the map keeps none.
-  virtual Result<CorrectionPlan> PlanCorrection(const CorrectionSpec& spec) const;
+  virtual Result<CorrectionPlan> PlanCorrection(const std::string& robot_id,
+                                                const std::map<uint64_t, Pose>& poses,
+                                                const CorrectionRange& remove) const;
   // The re-integration of `plan` over the log's records below `end` (reintegration.h).
   virtual Result<storage::Reintegration> Reintegrate(const CorrectionPlan& plan, uint64_t end,
                                                      bool plan_only) const;
@@ -180,11 +178,11 @@ class Durability : public TileBacking {
   // Where the map frame sits in a coordinate reference system (empty: a local frame): the
   // store's, which keeps the first one it is given (storage.md, "Georeference"), or for a map
   // in memory the configured one.
-  virtual storage::Georeference georeference() const = 0;
+  virtual Georeference georeference() const = 0;
   // Ties a map in a local frame to `georeference` (an import of a georeferenced archive): OK at
   // once if it is empty or already the map's; FailedPrecondition naming the key if the map has
   // another; a store's write error otherwise.
-  virtual Status AdoptGeoreference(const storage::Georeference& georeference) = 0;
+  virtual Status AdoptGeoreference(const Georeference& georeference) = 0;
 };
 
 }  // namespace bgkmap

@@ -27,7 +27,7 @@ Result<std::unique_ptr<TileSource>> MemoryDurability::OpenTileSource(TileKey min
   return std::unique_ptr<TileSource>(new CopiedTiles(std::move(keys), std::move(tiles)));
 }
 
-Status MemoryDurability::AdoptGeoreference(const storage::Georeference& georeference) {
+Status MemoryDurability::AdoptGeoreference(const Georeference& georeference) {
   std::lock_guard lock(georeference_mu_);
   if (Status s = storage::CheckGeoreferenceCompatible(georeference_, georeference); !s.ok()) {
     return s;

@@ -11,7 +11,7 @@ namespace bgkmap {
 class MemoryDurability final : public Durability {
  public:
   // `georeference`: the configured one (server config `georeference`), empty for a local frame.
-  explicit MemoryDurability(storage::Georeference georeference = {})
+  explicit MemoryDurability(Georeference georeference = {})
       : georeference_(std::move(georeference)) {}
 
   bool persists() const override { return false; }
@@ -31,11 +31,11 @@ class MemoryDurability final : public Durability {
   ScratchDirectory scratch_directory() const override;
   VerifyReport VerifyStoredTiles(const std::atomic<bool>&) const override { return {}; }
   std::optional<StoreStatus> store_status(bool) const override { return std::nullopt; }
-  storage::Georeference georeference() const override {
+  Georeference georeference() const override {
     std::lock_guard lock(georeference_mu_);
     return georeference_;
   }
-  Status AdoptGeoreference(const storage::Georeference& georeference) override;
+  Status AdoptGeoreference(const Georeference& georeference) override;
 
   // TileBacking: nothing is stored, and nothing in memory is ever clean.
   bool IsStored(TileKey) const override { return false; }
@@ -47,7 +47,7 @@ class MemoryDurability final : public Durability {
 
  private:
   mutable std::mutex georeference_mu_;
-  storage::Georeference georeference_;  // guarded by georeference_mu_
+  Georeference georeference_;  // guarded by georeference_mu_
 };
 
 }  // namespace bgkmap

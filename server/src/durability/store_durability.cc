@@ -27,7 +27,7 @@ class SnapshotTiles final : public TileSource {
 }  // namespace
 
 Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(
-    const StorageConfig& config, const MapParams& params, const storage::Georeference& georeference,
+    const StorageConfig& config, const MapParams& params, const Georeference& georeference,
     TerrainMap& map) {
   storage::StoreOptions options;
   Result<storage::Durability> durability = storage::ParseDurability(config.durability);
@@ -102,7 +102,7 @@ Status StoreDurability::Record(const ChangeRecord& change) {
                                   ? storage::LogRecord::Scan(change.version, change.robot_id,
                                                              change.sequence, change.scan, stamp_ns)
                                   : storage::LogRecord::Clear(change.version, change.clear_box);
-  record.source = change.source;
+  record.raw_scan = change.raw_scan;
   Status s = store_->log().Append(record);
   if (!store_->log().write_failure().ok()) write_failed_.store(true);
   NotePause(s);

@@ -29,7 +29,7 @@ class StoreDurability final : public Durability {
   // one-line message.
   static Result<std::unique_ptr<StoreDurability>> Open(const StorageConfig& config,
                                                        const MapParams& params,
-                                                       const storage::Georeference& georeference,
+                                                       const Georeference& georeference,
                                                        TerrainMap& map);
 
   bool persists() const override { return true; }
@@ -41,7 +41,9 @@ class StoreDurability final : public Durability {
   }
   Status Record(const ChangeRecord& change) override;
   bool retains_scans() const override;
-  Result<CorrectionPlan> PlanCorrection(const CorrectionSpec& spec) const override;
+  Result<CorrectionPlan> PlanCorrection(const std::string& robot_id,
+                                        const std::map<uint64_t, Pose>& poses,
+                                        const CorrectionRange& remove) const override;
   Result<storage::Reintegration> Reintegrate(const CorrectionPlan& plan, uint64_t end,
                                              bool plan_only) const override;
   Status RecordCorrection(const CorrectionPlan& plan, uint64_t version) override;
@@ -60,8 +62,8 @@ class StoreDurability final : public Durability {
   std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
   ScratchDirectory scratch_directory() const override;
   std::optional<StoreStatus> store_status(bool with_disk_usage) const override;
-  storage::Georeference georeference() const override { return store_->georeference(); }
-  Status AdoptGeoreference(const storage::Georeference& georeference) override {
+  Georeference georeference() const override { return store_->georeference(); }
+  Status AdoptGeoreference(const Georeference& georeference) override {
     std::shared_lock lock(reopen_mu_);
     return store_->AdoptGeoreference(georeference);
   }

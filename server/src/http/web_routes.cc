@@ -88,7 +88,7 @@ nlohmann::json PointJson(double x, double y, const CellEstimate& e) {
 
 }  // namespace
 
-WebRoutes::WebRoutes(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
+WebRoutes::WebRoutes(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool,
                      std::atomic<uint32_t>& queries, const ServerLimits& limits,
                      WebRoutesOptions options)
     : map_(map),
@@ -211,9 +211,10 @@ void WebRoutes::Tile(const HttpRequest& request, std::string_view rest,
       [this, version = request.version(), cells = *cells, layer = *layer]() -> HttpResponse {
         HttpRequest head{http::verb::get, "", version};
         const GridGeometry& g = map_.geometry();
-        if (map_.ListTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max)).empty()) {
-          return Body(head, "image/png", EmptyTilePng());
-        }
+        Result<std::vector<TileKey>> known =
+            map_.ListKnownTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max));
+        if (!known.ok()) return ReadFailed(head, known.status());
+        if (known->empty()) return Body(head, "image/png", EmptyTilePng());
         Result<Raster> raster = map_.ReadRegion(cells.box, WebLayerSources(layer), cells.stride);
         if (!raster.ok()) return ReadFailed(head, raster.status());
         return Body(head, "image/png",
@@ -256,7 +257,7 @@ void WebRoutes::Points(const HttpRequest& request, std::string_view query,
 void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
   OffThread(request, std::move(exchange), [this, version = request.version()]() -> HttpResponse {
     HttpRequest head{http::verb::get, "", version};
-    const MapSummary summary = map_.Summary();
+    const MapSummary summary = map_.State().summary;
     const GridGeometry& g = map_.geometry();
     const double res = g.resolution();
     nlohmann::json bounds = nullptr;

@@ -14,16 +14,10 @@
 
 #include "bgkmap/core/status.h"
 #include "durability/tile_backing.h"
+#include "serving/residency_stats.h"
 #include "serving/tile_table.h"
 
 namespace bgkmap {
-
-struct ResidencyStats {
-  uint64_t resident_tiles = 0;
-  uint64_t resident_bytes = 0;  // tile memory (TileTable::TileBytes each)
-  uint64_t tiles_loaded = 0;    // from the backing, since start
-  uint64_t tiles_evicted = 0;   // since start
-};
 
 class TileResidency {
  public:

@@ -20,8 +20,8 @@ class FakeDurability final : public Durability {
   uint64_t recovered_version() const override { return 0; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override { return {}; }
   Status RetireRobot(const std::string&) override { return Status::Ok(); }
-  storage::Georeference georeference() const override { return {}; }
-  Status AdoptGeoreference(const storage::Georeference&) override { return Status::Ok(); }
+  Georeference georeference() const override { return {}; }
+  Status AdoptGeoreference(const Georeference&) override { return Status::Ok(); }
 
   Status Record(const ChangeRecord& change) override {
     std::lock_guard lock(mu_);

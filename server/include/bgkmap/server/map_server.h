@@ -9,6 +9,7 @@
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/server/robot_stats.h"
 #include "bgkmap/server/server_config.h"
 
 namespace bgkmap {
@@ -19,14 +20,6 @@ inline constexpr const char* kMapServiceName = "bgkmap.v1.MapService";
 // (storage.min_free_space_mb), when "" and kMapServiceName stay SERVING for the reads.
 inline constexpr const char* kWritesHealthName = "bgkmap.v1.MapService/writes";
 
-struct RobotSummary {
-  std::string robot_id;
-  uint64_t last_sequence = 0;
-  uint64_t scans_applied = 0;
-  uint64_t scans_duplicate = 0;
-  uint64_t scans_rejected = 0;
-};
-
 struct ServerReport {
   uint64_t map_version = 0;
   uint64_t scans_applied = 0;
@@ -34,7 +27,7 @@ struct ServerReport {
   uint64_t known_cells = 0;
   // Most scans ever integrating at the same moment: > 1 shows disjoint scans ran in parallel.
   uint32_t peak_parallel_integrations = 0;
-  std::vector<RobotSummary> robots;  // sorted by id
+  std::vector<RobotStats> robots;  // sorted by id
 };
 
 // glibc hands large buffers (region rasters, chunks, scans) back to the kernel when they are freed

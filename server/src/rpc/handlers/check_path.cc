@@ -178,8 +178,8 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
   first[n] = cells.size();
 
   if (grpc::Status s = control.Check(); !s.ok()) return s;
-  const uint64_t version = ctx.reads.applied_version();
-  const Result<std::vector<CellEstimate>> read = ctx.reads.ReadCells(cells);
+  const uint64_t version = ctx.map.applied_version();
+  const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
   const std::vector<CellEstimate>& estimates = *read;  // one atomic read
   bool all_safe = true;
