@@ -86,6 +86,12 @@ nlohmann::json PointJson(double x, double y, const CellEstimate& e) {
   return p;
 }
 
+nlohmann::json WebLayerNames() {
+  nlohmann::json names = nlohmann::json::array();
+  for (Layer l : kWebLayers) names.push_back(std::string(LayerName(l)));
+  return names;
+}
+
 }  // namespace
 
 WebRoutes::WebRoutes(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool,
@@ -188,7 +194,7 @@ void WebRoutes::Tile(const HttpRequest& request, std::string_view rest,
     return;
   }
   parts[3].remove_suffix(kPng.size());
-  const Result<WebLayer> layer = ParseWebLayer(parts[0]);
+  const Result<Layer> layer = ParseWebLayer(parts[0]);
   if (!layer.ok()) {
     exchange->Reply(Text(request, http::status::not_found, layer.status().message()));
     return;
@@ -215,7 +221,7 @@ void WebRoutes::Tile(const HttpRequest& request, std::string_view rest,
             map_.ListKnownTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max));
         if (!known.ok()) return ReadFailed(head, known.status());
         if (known->empty()) return Body(head, "image/png", EmptyTilePng());
-        Result<Raster> raster = map_.ReadRegion(cells.box, WebLayerSources(layer), cells.stride);
+        Result<Raster> raster = map_.ReadRegion(cells.box, {layer}, cells.stride);
         if (!raster.ok()) return ReadFailed(head, raster.status());
         return Body(head, "image/png",
                     EncodePng(RenderTile(*raster, layer, cells), kWebTilePixels, kWebTilePixels));
@@ -274,8 +280,7 @@ void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange
         {"map_version", map_.applied_version()},
         {"known_cells", summary.known_cells},
         {"bounds", bounds},
-        {"layers",
-         {"elevation", "traversability", "elevation_variance", "traversability_variance"}}};
+        {"layers", WebLayerNames()}};
     return Body(head, "application/json", out.dump(2) + "\n");
   });
 }
