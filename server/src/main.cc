@@ -54,9 +54,9 @@ void DeclareOptions(CLI::App& app, CommandLine& cmd, CLI::Option** metrics_flag)
   app.add_option("-l,--listen", cmd.listen,
                  "Listen address host:port (overrides server.listen_address)");
   *metrics_flag =
-      app.add_option("--metrics,--http", cmd.metrics,
-                     "Serve HTTP on host:port: GET /metrics (Prometheus) and the live web map at "
-                     "/; \"\" = off (overrides server.metrics_address)");
+      app.add_option("--http,--metrics", cmd.metrics,
+                     "Serve HTTP on host:port: the live web map at /, GET /metrics (Prometheus); "
+                     "\"\" = off (overrides server.metrics_address; --metrics is its old name)");
   app.add_option("--worker-threads", cmd.worker_threads, "Ingest worker threads (0 = all cores)");
   app.add_option("--query-threads", cmd.query_threads, "Query worker threads (0 = all cores)");
   app.add_option("--log-level", cmd.log_level, "trace|debug|info|warn|error|off");

@@ -31,9 +31,9 @@
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
 #include "host_port.h"
+#include "http/http_server.h"
 #include "http/https_context.h"
 #include "http/metrics.h"
-#include "http/metrics_http.h"
 #include "http/web_routes.h"
 #include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
@@ -199,9 +199,10 @@ struct MapServer::Impl {
 
   // The web map's routes on the same address; null when off.
   std::unique_ptr<WebRoutes> web;
-  // GET /metrics (server.metrics_address); null when off. Last: it reads everything above.
-  std::unique_ptr<MetricsHttpServer> metrics;
-  int metrics_port = 0;
+  // The HTTP endpoint (server.metrics_address): /metrics, the web map, its events, /login; null
+  // when off. Last: it reads everything above.
+  std::unique_ptr<HttpServer> http;
+  int http_port = 0;
 };
 
 void KeepLargeAllocationsInHeap() {
@@ -262,7 +263,7 @@ Result<std::unique_ptr<Durability>> OpenDurability(const ServerConfig& config, T
 Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
   web = std::make_unique<WebRoutes>(*map, hub, query_pool, ctx->queries, config.limits,
                                     WebRoutesOptions{});
-  MetricsHttpServer::Options http_options;
+  HttpServer::Options http_options;
   http_options.routes = [routes = web.get()](const HttpRequest& request,
                                              std::shared_ptr<HttpExchange> exchange) {
     routes->Handle(request, std::move(exchange));
@@ -285,13 +286,13 @@ Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
                                 ctx->sessions.count(SessionRegistry::Kind::kWatch)};
     return FormatMetrics(CollectMetrics(*map, service, config.storage.max_memory_mb << 20));
   };
-  Result<std::unique_ptr<MetricsHttpServer>> listening =
-      MetricsHttpServer::Listen(config.metrics_address, render, http_options);
+  Result<std::unique_ptr<HttpServer>> listening =
+      HttpServer::Listen(config.metrics_address, render, http_options);
   if (!listening.ok()) {
     return Status::FailedPrecondition("server.metrics_address: " + listening.status().message());
   }
-  metrics = std::move(listening).value();
-  metrics_port = metrics->port();
+  http = std::move(listening).value();
+  http_port = http->port();
   return Status::Ok();
 }
 
@@ -362,12 +363,12 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
       ThreadCount(config.query_threads),
       !tls.has_value() ? "off" : (tls->client_ca_pem.empty() ? "on" : "mutual"),
       impl->tokens == nullptr ? "off" : std::to_string(impl->tokens->size()) + "_tokens");
-  if (impl->metrics != nullptr) {
-    impl->metrics->Start();
+  if (impl->http != nullptr) {
+    impl->http->Start();
     spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
-                 impl->metrics_port);
+                 impl->http_port);
     spdlog::info("event=web_map_listening url={}://{}:{}/{}", tls.has_value() ? "https" : "http",
-                 HostOf(config.metrics_address), impl->metrics_port,
+                 HostOf(config.metrics_address), impl->http_port,
                  impl->tokens == nullptr ? "" : "login?token=<token>");
   }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
@@ -375,7 +376,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
 
 int MapServer::port() const { return impl_->port; }
 
-int MapServer::metrics_port() const { return impl_->metrics_port; }
+int MapServer::http_port() const { return impl_->http_port; }
 
 Status MapServer::ReloadTokens() {
   if (impl_->tokens == nullptr) {
@@ -415,7 +416,7 @@ void MapServer::Shutdown() {
   if (impl_->served != nullptr) impl_->served->WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
   if (impl_->web != nullptr) impl_->web->Stop();  // event streams end before their server
-  if (impl_->metrics != nullptr) impl_->metrics->Stop();
+  if (impl_->http != nullptr) impl_->http->Stop();
   if (impl_->maintenance != nullptr) impl_->maintenance->Stop();
   if (std::optional<StoreStatus> store =
           impl_->served != nullptr ? impl_->served->store_status() : std::nullopt) {

@@ -86,8 +86,7 @@ void ClusterNode::SubmitExport(const std::optional<CellBox>&,
 void ClusterNode::SubmitCorrection(CorrectionSpec spec,
                                    std::function<void(CorrectionOutcome)> done) {
   CorrectionOutcome outcome;
-  outcome.status =
-      NotOnShard(spec.remove ? Operation::kRemoveScans : Operation::kCorrectPoses);
+  outcome.status = NotOnShard(spec.remove ? Operation::kRemoveScans : Operation::kCorrectPoses);
   done(std::move(outcome));
 }
 

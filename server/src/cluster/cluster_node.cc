@@ -40,12 +40,9 @@ ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, S
                                           static_cast<int64_t>(config.lease_s * 1000) + 10000);
 }
 
-Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& config,
-                                                        const MapParams& params,
-                                                        const std::string& params_yaml,
-                                                        ScanPreparer prepare,
-                                                        Georeference georeference,
-                                                        Executor executor) {
+Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
+    const ClusterConfig& config, const MapParams& params, const std::string& params_yaml,
+    ScanPreparer prepare, Georeference georeference, Executor executor) {
   Result<std::unique_ptr<NatsClient>> nats =
       NatsClient::Connect(SplitServers(config.nats), "bgkmapd-" + config.node);
   if (!nats.ok()) return nats.status();
@@ -72,9 +69,9 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
   mo.lease_s = config.lease_s;
   Result<std::unique_ptr<Membership>> members = Membership::Open(**nats, mo, params_yaml);
   if (!members.ok()) return members.status();
-  std::unique_ptr<ClusterNode> node(new ClusterNode(
-      config, params, std::move(prepare), std::move(nats).value(), std::move(members).value(),
-      std::move(georeference), std::move(executor)));
+  std::unique_ptr<ClusterNode> node(
+      new ClusterNode(config, params, std::move(prepare), std::move(nats).value(),
+                      std::move(members).value(), std::move(georeference), std::move(executor)));
   if (Status s = node->members_->Heartbeat(); !s.ok()) return s;
   node->loop_ = std::thread([n = node.get()] { n->Run(); });
   node->checkpoint_writer_ = std::thread([n = node.get()] { n->WriteCheckpoints(); });

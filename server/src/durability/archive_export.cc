@@ -29,7 +29,7 @@ bool CropToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Ti
 
 }  // namespace
 
-Result<std::unique_ptr<ArchiveExport>> ArchiveExport::Start(std::unique_ptr<TileSource> tiles,
+Result<std::unique_ptr<ArchiveExport>> ArchiveExport::Start(std::unique_ptr<TilesAtVersion> tiles,
                                                             const storage::MapMetadata& metadata,
                                                             const GridGeometry& geometry,
                                                             const std::optional<CellBox>& box) {

@@ -1,6 +1,6 @@
 // A map archive (storage/map_archive.h) written from the map's tiles at one version and handed
-// out in chunks as it is encoded (ExportMap): tiles are read one at a time from a TileSource, so
-// an export holds one tile and one chunk in memory, whatever the map's size.
+// out in chunks as it is encoded (ExportMap): tiles are read one at a time from a TilesAtVersion,
+// so an export holds one tile and one chunk in memory, whatever the map's size.
 #pragma once
 
 #include <cstdint>
@@ -19,7 +19,7 @@ class ArchiveExport {
  public:
   // The archive of `tiles` with `metadata` (its map_version is the export's version). With a
   // `box`, only its cells: tiles are cut to it, and a tile left empty is skipped.
-  static Result<std::unique_ptr<ArchiveExport>> Start(std::unique_ptr<TileSource> tiles,
+  static Result<std::unique_ptr<ArchiveExport>> Start(std::unique_ptr<TilesAtVersion> tiles,
                                                       const storage::MapMetadata& metadata,
                                                       const GridGeometry& geometry,
                                                       const std::optional<CellBox>& box);
@@ -35,13 +35,13 @@ class ArchiveExport {
   uint64_t bytes() const { return writer_->bytes(); }
 
  private:
-  ArchiveExport(std::unique_ptr<TileSource> tiles, uint64_t version, const GridGeometry& geometry,
-                const std::optional<CellBox>& box)
+  ArchiveExport(std::unique_ptr<TilesAtVersion> tiles, uint64_t version,
+                const GridGeometry& geometry, const std::optional<CellBox>& box)
       : tiles_(std::move(tiles)), version_(version), geometry_(geometry), box_(box) {}
   // Encodes the next tile into pending_ (or the trailer, after the last one).
   Status EncodeNext();
 
-  std::unique_ptr<TileSource> tiles_;  // released once every tile is encoded
+  std::unique_ptr<TilesAtVersion> tiles_;  // released once every tile is encoded
   const uint64_t version_;
   const GridGeometry geometry_;
   const std::optional<CellBox> box_;

@@ -25,8 +25,8 @@ class MemoryDurability final : public Durability {
   }
   bool write_failed() const override { return false; }
   Status Resume() override { return Status::Ok(); }
-  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
-                                                     const TileCopier& map) override;
+  Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey min, TileKey max,
+                                                         const ResidentTiles& map) override;
   std::vector<TileKey> CorruptTiles() const override { return {}; }
   ScratchDirectory scratch_directory() const override;
   VerifyReport VerifyStoredTiles(const std::atomic<bool>&) const override { return {}; }
@@ -37,7 +37,7 @@ class MemoryDurability final : public Durability {
   }
   Status AdoptGeoreference(const Georeference& georeference) override;
 
-  // TileBacking: nothing is stored, and nothing in memory is ever clean.
+  // StoredTiles: nothing is stored, and nothing in memory is ever clean.
   bool IsStored(TileKey) const override { return false; }
   void StoredIn(TileKey, TileKey, std::vector<TileKey>*) const override {}
   void ForEachStored(const std::function<void(TileKey, const TileSummary&)>&) const override {}

@@ -1,6 +1,6 @@
 // Durability in the persistent store (storage/, storage.data_dir): opens and recovers it at
 // start, journals every change to the scan log before it is applied, writes checkpoints of the
-// changed tiles, and serves the stored tiles back (TileBacking) from an index kept in memory.
+// changed tiles, and serves the stored tiles back (StoredTiles) from an index kept in memory.
 #pragma once
 
 #include <atomic>
@@ -57,8 +57,8 @@ class StoreDurability final : public Durability {
   bool writes_paused_for_space() const override;
   std::vector<TileKey> DeferredTiles() const override { return deferred_; }
   Status AdmitScratch(uint64_t bytes) override;
-  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
-                                                     const TileCopier& map) override;
+  Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey min, TileKey max,
+                                                         const ResidentTiles& map) override;
   std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
   ScratchDirectory scratch_directory() const override;
   std::optional<StoreStatus> store_status(bool with_disk_usage) const override;
@@ -68,7 +68,7 @@ class StoreDurability final : public Durability {
     return store_->AdoptGeoreference(georeference);
   }
 
-  // TileBacking: the stored tiles, as of the last written checkpoint.
+  // StoredTiles: the stored tiles, as of the last written checkpoint.
   bool IsStored(TileKey key) const override { return index_.Contains(key); }
   void StoredIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const override {
     index_.KeysIn(min, max, keys);

@@ -31,7 +31,7 @@ struct ServerMetrics {
   uint64_t known_cells = 0;
   uint64_t ingest_streams = 0;
   uint64_t watchers = 0;
-  std::vector<RobotStats> robots;  // sorted by id
+  std::vector<RobotStats> robots;     // sorted by id
   std::optional<StorageState> store;  // with storage.data_dir
   uint64_t memory_limit_bytes = 0;    // storage.max_memory_mb in bytes; 0 = unbounded
   std::optional<uint64_t> process_resident_bytes;

@@ -4,8 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iterator>
 #include <csetjmp>
+#include <iterator>
 #include <stdexcept>
 
 namespace bgkmap {

@@ -212,20 +212,20 @@ void WebRoutes::Tile(const HttpRequest& request, std::string_view rest,
     exchange->Reply(Text(request, http::status::not_found, cells.status().message()));
     return;
   }
-  OffThread(
-      request, std::move(exchange),
-      [this, version = request.version(), cells = *cells, layer = *layer]() -> HttpResponse {
-        HttpRequest head{http::verb::get, "", version};
-        const GridGeometry& g = map_.geometry();
-        Result<std::vector<TileKey>> known =
-            map_.ListKnownTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max));
-        if (!known.ok()) return ReadFailed(head, known.status());
-        if (known->empty()) return Body(head, "image/png", EmptyTilePng());
-        Result<Raster> raster = map_.ReadRegion(cells.box, {layer}, cells.stride);
-        if (!raster.ok()) return ReadFailed(head, raster.status());
-        return Body(head, "image/png",
-                    EncodePng(RenderTile(*raster, layer, cells), kWebTilePixels, kWebTilePixels));
-      });
+  OffThread(request, std::move(exchange),
+            [this, version = request.version(), cells = *cells, layer = *layer]() -> HttpResponse {
+              HttpRequest head{http::verb::get, "", version};
+              const GridGeometry& g = map_.geometry();
+              Result<std::vector<TileKey>> known =
+                  map_.ListKnownTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max));
+              if (!known.ok()) return ReadFailed(head, known.status());
+              if (known->empty()) return Body(head, "image/png", EmptyTilePng());
+              Result<Raster> raster = map_.ReadRegion(cells.box, {layer}, cells.stride);
+              if (!raster.ok()) return ReadFailed(head, raster.status());
+              return Body(
+                  head, "image/png",
+                  EncodePng(RenderTile(*raster, layer, cells), kWebTilePixels, kWebTilePixels));
+            });
 }
 
 void WebRoutes::Points(const HttpRequest& request, std::string_view query,
@@ -271,16 +271,15 @@ void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange
       const CellBox& b = summary.known_bounds;
       bounds = {b.min.x * res, b.min.y * res, (b.max.x + 1) * res, (b.max.y + 1) * res};
     }
-    const nlohmann::json out = {
-        {"resolution", res},
-        {"tile_size", g.tile_size()},
-        {"tile_pixels", kWebTilePixels},
-        {"min_zoom", min_zoom_},
-        {"max_zoom", kWebMaxZoom},
-        {"map_version", map_.applied_version()},
-        {"known_cells", summary.known_cells},
-        {"bounds", bounds},
-        {"layers", WebLayerNames()}};
+    const nlohmann::json out = {{"resolution", res},
+                                {"tile_size", g.tile_size()},
+                                {"tile_pixels", kWebTilePixels},
+                                {"min_zoom", min_zoom_},
+                                {"max_zoom", kWebMaxZoom},
+                                {"map_version", map_.applied_version()},
+                                {"known_cells", summary.known_cells},
+                                {"bounds", bounds},
+                                {"layers", WebLayerNames()}};
     return Body(head, "application/json", out.dump(2) + "\n");
   });
 }

@@ -32,8 +32,8 @@ class SpooledUpload final : public ArchiveUpload {
       done(std::move(out));
     };
     if (Status s = spool_->Close(); !s.ok()) return stop(ImportStage::kSpool, s);
-    Status checked = ReadVerifiedArchive(spool_->path(), target_.params, target_.georeference(),
-                                         &archive_);
+    Status checked =
+        ReadVerifiedArchive(spool_->path(), target_.params, target_.georeference(), &archive_);
     spool_.reset();  // the tiles are in memory now
     if (!checked.ok()) {
       spdlog::warn("event=import_refused bytes={} reason=\"{}\"", out.bytes,

@@ -53,7 +53,7 @@ struct StorageState {
     uint64_t write_errors = 0;              // failed appends and checkpoints
     uint64_t writes_refused_for_space = 0;  // refused before they were tried
   } counters;
-  struct DiskUsage {  // only when asked for: it lists the store's directory
+  struct DiskUsage {           // only when asked for: it lists the store's directory
     uint64_t tile_bytes = 0;   // SST files of the tiles column family
     uint64_t log_bytes = 0;    // SST files of the log column family
     uint64_t total_bytes = 0;  // every file in the store's directory (WAL included)
@@ -82,10 +82,10 @@ struct ShardState {
 struct MapState {
   uint64_t version = 0;  // known_version()
   uint64_t scans_applied = 0;
-  MapSummary summary;  // (a cluster node: its own local map, empty)
+  MapSummary summary;              // (a cluster node: its own local map, empty)
   std::vector<RobotStats> robots;  // sorted by id
   CorrectionStats corrections;
-  Georeference georeference;  // where the map frame sits (empty: a local frame)
+  Georeference georeference;            // where the map frame sits (empty: a local frame)
   std::optional<StorageState> storage;  // a map on a store
   std::optional<ShardState> shard;      // a shard of a cluster
 };

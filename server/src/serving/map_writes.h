@@ -49,7 +49,7 @@ struct ScanOutcome {
 struct ClearOutcome {
   uint64_t version = 0;
   std::vector<TileKey> changed_tiles;  // (a cluster node lists none)
-  Status status;  // not OK: nothing was cleared; codes as in ScanOutcome
+  Status status;                       // not OK: nothing was cleared; codes as in ScanOutcome
 };
 
 // Where an import stopped.
@@ -96,7 +96,7 @@ class ArchiveChunks {
   // The next bytes of the archive: `max_bytes` of them unless they are its last, none once it is
   // complete. DataLoss naming a stored tile that fails its checksum.
   virtual Result<std::string> Next(size_t max_bytes) = 0;
-  virtual bool complete() const = 0;  // every byte was handed out
+  virtual bool complete() const = 0;   // every byte was handed out
   virtual uint64_t tiles() const = 0;  // written so far
   virtual uint64_t bytes() const = 0;
 };

@@ -26,7 +26,7 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
       table_(std::move(map), /*keep_cleared=*/durability.persists()),
       residency_(table_, durability, durability.persists(), options.tile_memory_limit_bytes,
                  std::move(options.on_over_memory)),
-      checkpointer_(durability, copies_),
+      checkpointer_(durability, durability.persists(), copies_),
       robots_(options.max_robots, options.max_sequence_jump),
       scheduler_(workers, std::move(options.on_tiles_changed)) {
   scheduler_.Restore(durability.recovered_version());
@@ -220,7 +220,7 @@ void ServedMap::SubmitSnapshot(TileKey min, TileKey max,
         Result<MapSnapshot> snapshot = Status::Ok();
         if (Status s = checkpointer_.CheckpointAt(applied); !s.ok()) {
           snapshot = Status::IoError("cannot checkpoint it first: " + s.message());
-        } else if (Result<std::unique_ptr<TileSource>> tiles =
+        } else if (Result<std::unique_ptr<TilesAtVersion>> tiles =
                        durability_.OpenTileSource(min, max, copies_);
                    !tiles.ok()) {
           snapshot = tiles.status();

@@ -44,7 +44,7 @@ namespace bgkmap {
 struct MapSnapshot {
   uint64_t version = 0;
   std::map<std::string, uint64_t> robot_sequences;  // as logged up to `version` (store only)
-  std::unique_ptr<TileSource> tiles;
+  std::unique_ptr<TilesAtVersion> tiles;
 };
 
 struct ServedMapOptions {

@@ -13,8 +13,7 @@ namespace {
 // The port's view of an archive being written.
 class ExportedArchive final : public ArchiveChunks {
  public:
-  explicit ExportedArchive(std::unique_ptr<ArchiveExport> archive)
-      : archive_(std::move(archive)) {}
+  explicit ExportedArchive(std::unique_ptr<ArchiveExport> archive) : archive_(std::move(archive)) {}
   uint64_t version() const override { return archive_->version(); }
   Result<std::string> Next(size_t max_bytes) override { return archive_->Next(max_bytes); }
   bool complete() const override { return archive_->complete(); }

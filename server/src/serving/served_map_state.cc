@@ -18,10 +18,10 @@ StorageState ToStorageState(const StoreStatus& s) {
   out.reserve_bytes = s.reserve_bytes;
   out.paused_reason = s.paused_reason;
   const storage::StoreCounters& c = s.counters;
-  out.counters = {c.tiles_loaded,         c.tiles_written,      c.tiles_deleted,
-                  c.checkpoints,          c.corrupt_tiles,      c.corrupt_log_records,
-                  c.log_records_appended, c.log_bytes_appended, c.write_errors,
-                  c.writes_refused_for_space};
+  out.counters = {
+      c.tiles_loaded,  c.tiles_written,           c.tiles_deleted,        c.checkpoints,
+      c.corrupt_tiles, c.corrupt_log_records,     c.log_records_appended, c.log_bytes_appended,
+      c.write_errors,  c.writes_refused_for_space};
   out.usage = {s.usage.tile_bytes, s.usage.log_bytes, s.usage.total_bytes};
   return out;
 }

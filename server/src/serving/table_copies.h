@@ -10,7 +10,7 @@
 
 namespace bgkmap {
 
-class TableCopies final : public TileCopier {
+class TableCopies final : public ResidentTiles {
  public:
   explicit TableCopies(const TileTable& table) : table_(table) {}
   std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const override {

@@ -25,10 +25,10 @@
 #include <vector>
 
 #include "bgkmap/core/raster.h"
-#include "bgkmap/core/terrain_map.h"
-#include "bgkmap/core/tile_summary.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/scan_integrator.h"
+#include "bgkmap/core/terrain_map.h"
+#include "bgkmap/core/tile_summary.h"
 #include "serving/tile_lock_table.h"
 #include "serving/writer_priority_mutex.h"
 

@@ -60,7 +60,8 @@ class FakeDurability final : public Durability {
     return Status::Ok();
   }
 
-  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey, TileKey, const TileCopier&) override {
+  Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey, TileKey,
+                                                         const ResidentTiles&) override {
     return Status::IoError("not used by these tests");
   }
   std::vector<TileKey> CorruptTiles() const override {

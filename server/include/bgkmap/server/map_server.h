@@ -39,14 +39,14 @@ void KeepLargeAllocationsInHeap();
 class MapServer {
  public:
   // Creates the map and starts listening on config.listen_address (port 0: any free port), and
-  // on config.metrics_address for GET /metrics if it is set.
+  // if it is set on config.metrics_address for HTTP: GET /metrics and the live web map.
   static Result<std::unique_ptr<MapServer>> Start(const ServerConfig& config);
   ~MapServer();  // Shutdown()
 
   int port() const;
-  // The port of the Prometheus endpoint (server.metrics_address; the chosen one for port 0), or
-  // 0 when it is off.
-  int metrics_port() const;
+  // The port of the HTTP endpoint (server.metrics_address: /metrics, the web map, its events,
+  // /login; the chosen one for port 0), or 0 when it is off.
+  int http_port() const;
 
   // Reads server.auth.tokens_file again (bgkmapd: on SIGHUP). A file that does not load keeps
   // the tokens in use; the error says why (also logged).

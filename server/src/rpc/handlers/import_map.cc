@@ -18,8 +18,8 @@
 #include <optional>
 
 #include "bgkmap/server/log_safe.h"
-#include "rpc/proto_convert.h"
 #include "rpc/handlers/handlers.h"
+#include "rpc/proto_convert.h"
 
 namespace bgkmap {
 namespace {

@@ -1,7 +1,6 @@
 // Info: parameters, counts, bounds, version and per-robot progress.
 #include <yaml-cpp/yaml.h>
 
-
 #include "bgkmap/config/map_params_yaml.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
