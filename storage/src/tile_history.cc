@@ -5,9 +5,9 @@
 #include <algorithm>
 #include <map>
 
+#include "bgkmap/storage/raw_scan_codec.h"
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/storage/tile_store.h"
-#include "bgkmap/storage/raw_scan_codec.h"
 #include "store_db.h"
 #include "store_keys.h"
 

@@ -233,7 +233,7 @@ struct MapInfo {
   // Where the map frame sits (core/georeference.h), as the map's store keeps it (the first one
   // given by the server config `georeference` or an imported archive); absent: a local frame.
   std::optional<Georeference> georeference;
-  std::optional<ClusterInfo> cluster;        // present on a cluster shard
+  std::optional<ClusterInfo> cluster;  // present on a cluster shard
   const RobotInfo* FindRobot(const std::string& id) const;
 };
 

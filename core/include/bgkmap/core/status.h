@@ -17,7 +17,7 @@ class Status {
     kFailedPrecondition,
     kDataLoss,
     kIoError,
-    kUnavailable,  // a remote part (a cluster peer) cannot be reached now; a retry may succeed
+    kUnavailable,   // a remote part (a cluster peer) cannot be reached now; a retry may succeed
     kUnimplemented  // this implementation does not offer the operation (yet)
   };
 

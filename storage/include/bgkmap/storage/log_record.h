@@ -21,9 +21,9 @@
 #include <string_view>
 
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/raw_scan.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
-#include "bgkmap/core/raw_scan.h"
 
 namespace bgkmap::storage {
 
