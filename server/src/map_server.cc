@@ -30,7 +30,7 @@
 #include "durability/durability.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
-#include "host_port.h"
+#include "bgkmap/server/host_port.h"
 #include "http/http_server.h"
 #include "http/https_context.h"
 #include "http/metrics.h"
@@ -41,7 +41,7 @@
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
-#include "tls_files.h"
+#include "auth/tls_files.h"
 
 namespace bgkmap {
 namespace {

@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "bgkmap/config/map_params_yaml.h"
-#include "host_port.h"
+#include "bgkmap/server/host_port.h"
 
 namespace bgkmap {
 namespace {

@@ -21,7 +21,7 @@
 #include <thread>
 #include <type_traits>
 
-#include "host_port.h"
+#include "bgkmap/server/host_port.h"
 #include "http/http_exchange.h"
 #include "http/login_cookie.h"
 

@@ -6,7 +6,7 @@
 #include <memory>
 
 #include "bgkmap/core/status.h"
-#include "tls_files.h"
+#include "auth/tls_files.h"
 
 namespace bgkmap {
 
