@@ -23,14 +23,15 @@
 #include <string_view>
 #include <thread>
 
+#include "auth/tls_files.h"
 #include "auth/token_table.h"
 #include "bgkmap/config/map_params_yaml.h"
+#include "bgkmap/server/host_port.h"
 #include "bgkmap/v1/map_service.pb.h"
 #include "cluster/cluster_node.h"
 #include "durability/durability.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
-#include "bgkmap/server/host_port.h"
 #include "http/http_server.h"
 #include "http/https_context.h"
 #include "http/metrics.h"
@@ -41,7 +42,6 @@
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
-#include "auth/tls_files.h"
 
 namespace bgkmap {
 namespace {

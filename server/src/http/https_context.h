@@ -5,8 +5,8 @@
 #include <boost/asio/ssl/context.hpp>
 #include <memory>
 
-#include "bgkmap/core/status.h"
 #include "auth/tls_files.h"
+#include "bgkmap/core/status.h"
 
 namespace bgkmap {
 
