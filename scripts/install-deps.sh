@@ -5,6 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git clang-format
+  universal-ctags  # scripts/check-function-length.sh (the House.function_length test)
   clang-14 libclang-rt-14-dev
   libeigen3-dev
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev

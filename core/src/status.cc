@@ -18,6 +18,8 @@ std::string Status::ToString() const {
       return "I/O error: " + message_;
     case Code::kUnavailable:
       return "unavailable: " + message_;
+    case Code::kUnimplemented:
+      return "unimplemented: " + message_;
   }
   return message_;
 }

@@ -81,18 +81,8 @@ double Percentile(std::vector<double> v, double p) {
   return v[std::min(v.size() - 1, static_cast<size_t>(p * (v.size() - 1) + 0.5))];
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  bgkmap::KeepLargeAllocationsInHeap();  // as bgkmapd does
-  const size_t per_robot = argc > 1 ? std::strtoul(argv[1], nullptr, 10) : 40;
-  std::printf("simulating VLP-16 scans of the city...\n");
-  const std::vector<SimScan> scans = SimulateCity(60);
-  size_t pts = 0;
-  for (const SimScan& s : scans) pts += s.points.size();
-  std::printf("%zu scans, %.0f points per scan on average\n\n", scans.size(),
-              static_cast<double>(pts) / scans.size());
-
+// Ingest throughput with 1, 4 and 16 robots streaming `per_robot` scans each, one server each.
+void BenchIngest(const std::vector<SimScan>& scans, size_t per_robot) {
   std::printf("| robots | scans | seconds | scans/s | points/s |\n|---|---|---|---|---|\n");
   for (int robots : {1, 4, 16}) {
     bgkmap::ServerConfig config;
@@ -119,25 +109,10 @@ int main(int argc, char** argv) {
                 total_points / s);
     server->Shutdown();
   }
+}
 
-  // Queries while 4 robots stream.
-  bgkmap::ServerConfig config;
-  config.listen_address = "127.0.0.1:0";
-  auto server = std::move(bgkmap::MapServer::Start(config)).value();
-  const std::string target = "127.0.0.1:" + std::to_string(server->port());
-  {
-    // A mapped area first, so that queries read real tiles.
-    uint64_t p = 0;
-    RunRobot(target, 0, scans, scans.size(), nullptr, &p);
-  }
-  // Robots at 10 Hz, like real lidars (flat-out robots would measure CPU starvation instead).
-  std::atomic<bool> stop{false};
-  std::vector<std::thread> robots;
-  std::vector<uint64_t> points(4, 0);
-  for (int r = 0; r < 4; ++r) {
-    robots.emplace_back([&, r] { RunRobot(target, r + 1, scans, 0, &stop, &points[r], 10.0); });
-  }
-  Client client(target);
+// Region and point query latencies through `client`.
+void BenchQueries(Client& client) {
   std::printf(
       "\n| query (while 4 robots stream at 10 Hz) | n | p50 ms | p99 ms |\n"
       "|---|---|---|---|\n");
@@ -168,6 +143,40 @@ int main(int argc, char** argv) {
   }
   std::printf("| 1,000 points, 6 layers | 500 | %.2f | %.2f |\n", Percentile(ms, 0.5),
               Percentile(ms, 0.99));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bgkmap::KeepLargeAllocationsInHeap();  // as bgkmapd does
+  const size_t per_robot = argc > 1 ? std::strtoul(argv[1], nullptr, 10) : 40;
+  std::printf("simulating VLP-16 scans of the city...\n");
+  const std::vector<SimScan> scans = SimulateCity(60);
+  size_t pts = 0;
+  for (const SimScan& s : scans) pts += s.points.size();
+  std::printf("%zu scans, %.0f points per scan on average\n\n", scans.size(),
+              static_cast<double>(pts) / scans.size());
+  BenchIngest(scans, per_robot);
+
+  // Queries while 4 robots stream.
+  bgkmap::ServerConfig config;
+  config.listen_address = "127.0.0.1:0";
+  auto server = std::move(bgkmap::MapServer::Start(config)).value();
+  const std::string target = "127.0.0.1:" + std::to_string(server->port());
+  {
+    // A mapped area first, so that queries read real tiles.
+    uint64_t p = 0;
+    RunRobot(target, 0, scans, scans.size(), nullptr, &p);
+  }
+  // Robots at 10 Hz, like real lidars (flat-out robots would measure CPU starvation instead).
+  std::atomic<bool> stop{false};
+  std::vector<std::thread> robots;
+  std::vector<uint64_t> points(4, 0);
+  for (int r = 0; r < 4; ++r) {
+    robots.emplace_back([&, r] { RunRobot(target, r + 1, scans, 0, &stop, &points[r], 10.0); });
+  }
+  Client client(target);
+  BenchQueries(client);
   stop = true;
   for (auto& t : robots) t.join();
   server->Shutdown();

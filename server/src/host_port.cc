@@ -1,4 +1,4 @@
-#include "host_port.h"
+#include "bgkmap/server/host_port.h"
 
 namespace bgkmap {
 

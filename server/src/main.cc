@@ -12,9 +12,9 @@
 #include <sstream>
 
 #include "bgkmap/config/map_params_yaml.h"
+#include "bgkmap/server/log_safe.h"
 #include "bgkmap/server/map_server.h"
 #include "bgkmap/server/server_config.h"
-#include "log_safe.h"
 
 namespace {
 
@@ -33,10 +33,8 @@ std::string RobotsLine(const bgkmap::ServerReport& report) {
   return s.str();
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"bgkmapd: BGK terrain traversability map server (gRPC bgkmap.v1.MapService)"};
+// The command line, as given.
+struct CommandLine {
   std::string config_path;
   std::string listen;
   int worker_threads = -1;
@@ -44,72 +42,77 @@ int main(int argc, char** argv) {
   std::string log_level;
   std::string data_dir;
   std::string metrics;
+  bool metrics_set = false;
   std::vector<std::string> overrides;
   bool print_config = false;
-  app.add_option("-c,--config", config_path,
+};
+
+void DeclareOptions(CLI::App& app, CommandLine& cmd, CLI::Option** metrics_flag) {
+  app.add_option("-c,--config", cmd.config_path,
                  "YAML config: engine keys at the top level, server keys under 'server:'")
       ->check(CLI::ExistingFile);
-  app.add_option("-l,--listen", listen,
+  app.add_option("-l,--listen", cmd.listen,
                  "Listen address host:port (overrides server.listen_address)");
-  CLI::Option* metrics_flag =
-      app.add_option("--metrics,--http", metrics,
-                     "Serve HTTP on host:port: GET /metrics (Prometheus) and the live web map at "
-                     "/; \"\" = off (overrides server.metrics_address)");
-  app.add_option("--worker-threads", worker_threads, "Ingest worker threads (0 = all cores)");
-  app.add_option("--query-threads", query_threads, "Query worker threads (0 = all cores)");
-  app.add_option("--log-level", log_level, "trace|debug|info|warn|error|off");
-  app.add_option("--data-dir", data_dir,
+  *metrics_flag =
+      app.add_option("--http,--metrics", cmd.metrics,
+                     "Serve HTTP on host:port: the live web map at /, GET /metrics (Prometheus); "
+                     "\"\" = off (overrides server.metrics_address; --metrics is its old name)");
+  app.add_option("--worker-threads", cmd.worker_threads, "Ingest worker threads (0 = all cores)");
+  app.add_option("--query-threads", cmd.query_threads, "Query worker threads (0 = all cores)");
+  app.add_option("--log-level", cmd.log_level, "trace|debug|info|warn|error|off");
+  app.add_option("--data-dir", cmd.data_dir,
                  "Persist the map in this directory (overrides storage.data_dir)");
-  app.add_option("--set", overrides,
+  app.add_option("--set", cmd.overrides,
                  "Override a key: KEY=VALUE for engine keys, server.KEY=VALUE for server keys "
                  "(repeatable)");
-  app.add_flag("--print-config", print_config, "Print the effective configuration and exit");
+  app.add_flag("--print-config", cmd.print_config, "Print the effective configuration and exit");
   app.set_version_flag("--version", std::string("bgkmapd ") + BGKMAP_VERSION);
-  CLI11_PARSE(app, argc, argv);
+}
 
-  bgkmap::ServerConfig config;
-  if (!config_path.empty()) {
-    bgkmap::Result<YAML::Node> doc = bgkmap::LoadYamlFile(config_path);
-    if (!doc.ok()) return Fail(doc.status().message());
-    bgkmap::Result<bgkmap::ServerConfig> parsed = bgkmap::ServerConfigFromYaml(*doc);
-    if (!parsed.ok()) return Fail(config_path + ": " + parsed.status().message());
-    config = *parsed;
-  }
-  std::vector<std::string> flag_overrides;
+// The flags as config overrides, then the --set ones (later ones win).
+std::vector<std::string> FlagOverrides(const CommandLine& cmd) {
+  std::vector<std::string> out;
   // String flags are quoted, so that "" (off), "[::1]:9100" or a path with '#' read as the
   // strings they are rather than as YAML.
-  auto set_string = [&flag_overrides](const std::string& key, const std::string& value) {
+  auto set_string = [&out](const std::string& key, const std::string& value) {
     YAML::Emitter quoted;
     quoted << YAML::DoubleQuoted << value;
-    flag_overrides.push_back(key + "=" + std::string(quoted.c_str()));
+    out.push_back(key + "=" + std::string(quoted.c_str()));
   };
-  if (!listen.empty()) set_string("server.listen_address", listen);
-  if (metrics_flag->count() > 0) set_string("server.metrics_address", metrics);
-  if (worker_threads >= 0) {
-    flag_overrides.push_back("server.worker_threads=" + std::to_string(worker_threads));
+  if (!cmd.listen.empty()) set_string("server.listen_address", cmd.listen);
+  if (cmd.metrics_set) set_string("server.metrics_address", cmd.metrics);
+  if (cmd.worker_threads >= 0) {
+    out.push_back("server.worker_threads=" + std::to_string(cmd.worker_threads));
   }
-  if (query_threads >= 0) {
-    flag_overrides.push_back("server.query_threads=" + std::to_string(query_threads));
+  if (cmd.query_threads >= 0) {
+    out.push_back("server.query_threads=" + std::to_string(cmd.query_threads));
   }
-  if (!log_level.empty()) set_string("server.log_level", log_level);
-  if (!data_dir.empty()) set_string("storage.data_dir", data_dir);
-  flag_overrides.insert(flag_overrides.end(), overrides.begin(), overrides.end());
-  for (const std::string& o : flag_overrides) {
-    if (bgkmap::Status s = bgkmap::ApplyConfigOverride(config, o); !s.ok()) {
-      return Fail(s.message());
+  if (!cmd.log_level.empty()) set_string("server.log_level", cmd.log_level);
+  if (!cmd.data_dir.empty()) set_string("storage.data_dir", cmd.data_dir);
+  out.insert(out.end(), cmd.overrides.begin(), cmd.overrides.end());
+  return out;
+}
+
+// The config file, then the flags. The error is the message to print (exit 2).
+bgkmap::Result<bgkmap::ServerConfig> LoadConfig(const CommandLine& cmd) {
+  bgkmap::ServerConfig config;
+  if (!cmd.config_path.empty()) {
+    bgkmap::Result<YAML::Node> doc = bgkmap::LoadYamlFile(cmd.config_path);
+    if (!doc.ok()) return doc.status();
+    bgkmap::Result<bgkmap::ServerConfig> parsed = bgkmap::ServerConfigFromYaml(*doc);
+    if (!parsed.ok()) {
+      return bgkmap::Status::InvalidArgument(cmd.config_path + ": " + parsed.status().message());
     }
+    config = *parsed;
   }
-  if (print_config) {
-    std::cout << bgkmap::ServerConfigToYaml(config);
-    return 0;
+  for (const std::string& o : FlagOverrides(cmd)) {
+    if (bgkmap::Status s = bgkmap::ApplyConfigOverride(config, o); !s.ok()) return s;
   }
+  return config;
+}
 
-  const spdlog::level::level_enum level = spdlog::level::from_str(config.log_level);
-  spdlog::set_default_logger(spdlog::stderr_color_mt("bgkmapd"));
-  spdlog::set_level(level);
-  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e%z %^%l%$ %v");
-
-  bgkmap::KeepLargeAllocationsInHeap();
+// Runs the server until SIGINT or SIGTERM (SIGHUP re-reads the tokens); the exit code.
+int Serve(const bgkmap::ServerConfig& config) {
   // Signals are caught before the server starts: a SIGTERM right after "event=listening" (or
   // during a long recovery) must still shut down gracefully, with the last checkpoint.
   boost::asio::io_context io;
@@ -144,4 +147,27 @@ int main(int argc, char** argv) {
   server->reset();
   spdlog::info("event=exit code=0");
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bgkmapd: BGK terrain traversability map server (gRPC bgkmap.v1.MapService)"};
+  CommandLine cmd;
+  CLI::Option* metrics_flag = nullptr;
+  DeclareOptions(app, cmd, &metrics_flag);
+  CLI11_PARSE(app, argc, argv);
+  cmd.metrics_set = metrics_flag->count() > 0;
+
+  bgkmap::Result<bgkmap::ServerConfig> config = LoadConfig(cmd);
+  if (!config.ok()) return Fail(config.status().message());
+  if (cmd.print_config) {
+    std::cout << bgkmap::ServerConfigToYaml(*config);
+    return 0;
+  }
+  spdlog::set_default_logger(spdlog::stderr_color_mt("bgkmapd"));
+  spdlog::set_level(spdlog::level::from_str(config->log_level));
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e%z %^%l%$ %v");
+  bgkmap::KeepLargeAllocationsInHeap();
+  return Serve(*config);
 }

@@ -23,16 +23,18 @@
 #include <string_view>
 #include <thread>
 
+#include "auth/tls_files.h"
 #include "auth/token_table.h"
 #include "bgkmap/config/map_params_yaml.h"
+#include "bgkmap/server/host_port.h"
 #include "bgkmap/v1/map_service.pb.h"
 #include "cluster/cluster_node.h"
+#include "durability/durability.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
-#include "host_port.h"
+#include "http/http_server.h"
 #include "http/https_context.h"
 #include "http/metrics.h"
-#include "http/metrics_http.h"
 #include "http/web_routes.h"
 #include "rpc/malformed_request.h"
 #include "rpc/map_service.h"
@@ -40,7 +42,6 @@
 #include "rpc/service_context.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
-#include "tls_files.h"
 
 namespace bgkmap {
 namespace {
@@ -114,30 +115,58 @@ size_t ThreadCount(int configured) {
 
 }  // namespace
 
-// Member order is construction order: each part uses only those above it, and the parts are
-// destroyed in reverse.
+// The server's parts. Member order is construction order: each part uses only those above it,
+// and the parts are destroyed in reverse. The map behind the port is one of two: a served map
+// (with its durability and maintenance) or a cluster node.
 struct MapServer::Impl {
-  Impl(const ServerConfig& cfg, std::unique_ptr<TerrainMap> map,
-       std::unique_ptr<Durability> durable, std::unique_ptr<TokenTable> token_table,
-       std::unique_ptr<cluster::ClusterNode> cluster_node)
+  Impl(const ServerConfig& cfg, std::unique_ptr<TokenTable> token_table)
       : config(cfg),
         tokens(std::move(token_table)),
-        durability(std::move(durable)),
         ingest_pool(ThreadCount(cfg.worker_threads)),
-        query_pool(ThreadCount(cfg.query_threads)),
-        map(std::move(map), *durability, ingest_pool, ServedMapOptionsFor(cfg)),
-        maintenance(this->map, *durability, cfg.storage),
-        cluster(std::move(cluster_node)),
-        ctx(cfg, this->map, hub, ingest_pool, query_pool, cluster.get(),
-            cluster != nullptr ? &cluster->reads() : nullptr),
-        service(ctx, tokens.get()) {
+        query_pool(ThreadCount(cfg.query_threads)) {}
+
+  // A single server's map on `durable` (what it recovered is in `recovered`).
+  void OpenServedMap(std::unique_ptr<TerrainMap> recovered, std::unique_ptr<Durability> durable) {
+    durability = std::move(durable);
+    served = std::make_unique<ServedMap>(std::move(recovered), *durability, ingest_pool,
+                                         ServedMapOptionsFor(config));
+    maintenance = std::make_unique<MapMaintenance>(*served, *durability, config.storage);
+    map = served.get();
+  }
+
+  // A shard of a cluster; reads that ask the log run on the query pool.
+  Status JoinCluster() {
+    YAML::Emitter params_yaml;
+    params_yaml << MapParamsToYaml(config.map);
+    auto prepare = [params = config.map, limits = config.limits](const v1::Scan& scan,
+                                                                 PreparedScan* out) {
+      const grpc::Status s = PrepareScanMessage(scan, params, limits, out);
+      return s.ok() ? Status::Ok() : Status::InvalidArgument(s.error_message());
+    };
+    Result<std::unique_ptr<cluster::ClusterNode>> joined = cluster::ClusterNode::Start(
+        config.cluster, config.map, params_yaml.c_str(), prepare,
+        Georeference{config.georeference.crs, config.georeference.origin},
+        [this](std::function<void()> task) { boost::asio::post(query_pool, std::move(task)); });
+    if (!joined.ok()) return joined.status();
+    cluster = std::move(joined).value();
     // A shard's watchers learn of changes anywhere in the cluster from the log.
-    if (cluster != nullptr) {
-      cluster->FollowChanges([this](uint64_t, const CellBox& cells) {
-        const GridGeometry& g = cluster->layout().geometry();
-        hub.PublishBox(g.TileOf(cells.min), g.TileOf(cells.max));
-      });
-    }
+    cluster->FollowChanges([this](uint64_t, const CellBox& cells) {
+      const GridGeometry& g = cluster->layout().geometry();
+      hub.PublishBox(g.TileOf(cells.min), g.TileOf(cells.max));
+    });
+    map = cluster.get();
+    return Status::Ok();
+  }
+
+  // Serves GET /metrics and the web map (server.metrics_address).
+  Status ListenHttp(const std::optional<TlsMaterial>& tls);
+  // Serves gRPC (server.listen_address).
+  Status ListenGrpc(const std::optional<TlsMaterial>& tls);
+
+  // The RPC service over the map.
+  void Serve() {
+    ctx = std::make_unique<ServiceContext>(config, *map, hub, ingest_pool, query_pool);
+    service = std::make_unique<MapService>(*ctx, tokens.get());
   }
 
   ServedMapOptions ServedMapOptionsFor(const ServerConfig& cfg) {
@@ -145,7 +174,7 @@ struct MapServer::Impl {
     o.max_robots = cfg.limits.max_robots;
     o.max_sequence_jump = cfg.limits.max_sequence_jump;
     o.tile_memory_limit_bytes = TileMemoryLimit(cfg.storage);
-    o.on_over_memory = [this] { maintenance.RequestEviction(); };
+    o.on_over_memory = [this] { maintenance->RequestEviction(); };
     o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
     return o;
   }
@@ -156,11 +185,12 @@ struct MapServer::Impl {
   WatchHub hub;
   boost::asio::thread_pool ingest_pool;
   boost::asio::thread_pool query_pool;
-  ServedMap map;
-  MapMaintenance maintenance;
-  std::unique_ptr<cluster::ClusterNode> cluster;  // null: a single server
-  ServiceContext ctx;
-  MapService service;
+  std::unique_ptr<ServedMap> served;              // a single server's map (else null)
+  std::unique_ptr<MapMaintenance> maintenance;    // with `served`
+  std::unique_ptr<cluster::ClusterNode> cluster;  // a cluster node (else null)
+  MapPort* map = nullptr;                         // the one of the two
+  std::unique_ptr<ServiceContext> ctx;
+  std::unique_ptr<MapService> service;
   std::unique_ptr<grpc::Server> server;
   int port = 0;
 
@@ -169,9 +199,10 @@ struct MapServer::Impl {
 
   // The web map's routes on the same address; null when off.
   std::unique_ptr<WebRoutes> web;
-  // GET /metrics (server.metrics_address); null when off. Last: it reads everything above.
-  std::unique_ptr<MetricsHttpServer> metrics;
-  int metrics_port = 0;
+  // The HTTP endpoint (server.metrics_address): /metrics, the web map, its events, /login; null
+  // when off. Last: it reads everything above.
+  std::unique_ptr<HttpServer> http;
+  int http_port = 0;
 };
 
 void KeepLargeAllocationsInHeap() {
@@ -183,134 +214,161 @@ MapServer::MapServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 
 MapServer::~MapServer() { Shutdown(); }
 
-Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) {
-  if (Status s = ValidateServerConfig(config); !s.ok()) return s;
-  if (Status s = ValidateSecurity(config); !s.ok()) return s;
-  if (Status s = ValidateCluster(config); !s.ok()) return s;
-  // The security files first: a bad one fails the start before the store is opened.
-  std::optional<TlsMaterial> tls;
+namespace {
+
+// The security files first: a bad one fails the start before the store is opened.
+Status LoadSecurity(const ServerConfig& config, std::optional<TlsMaterial>* tls,
+                    std::unique_ptr<TokenTable>* tokens) {
   if (config.tls.enabled()) {
     Result<TlsMaterial> loaded = LoadTlsMaterial(config.tls);
     if (!loaded.ok()) return loaded.status();
-    tls = std::move(loaded).value();
+    *tls = std::move(loaded).value();
   }
-  std::unique_ptr<TokenTable> tokens;
   if (config.auth.enabled()) {
     Result<std::unique_ptr<TokenTable>> loaded = TokenTable::Load(
         config.auth.tokens_file, {QueriesPerToken(config), IngestStreamsPerToken(config)});
     if (!loaded.ok()) {
       return Status::InvalidArgument("server.auth.tokens_file: " + loaded.status().message());
     }
-    tokens = std::move(loaded).value();
+    *tokens = std::move(loaded).value();
   }
-  KeepGrpcInitialized();
-  KeepServiceDescriptorLinked();
-  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
-  if (!map.ok()) return map.status();
-  const storage::Georeference georeference{config.georeference.crs, config.georeference.origin};
-  std::unique_ptr<Durability> durability = std::make_unique<MemoryDurability>(georeference);
-  if (!config.storage.data_dir.empty()) {
-    Result<std::unique_ptr<StoreDurability>> opened =
-        StoreDurability::Open(config.storage, config.map, georeference, **map);
-    if (!opened.ok()) return opened.status();
-    const StoreDurability& d = **opened;
-    const storage::RecoveryReport& r = d.recovery();
-    spdlog::info(
-        "event=recovered data_dir={} durability={} checkpoint_version={} map_version={} "
-        "scans_replayed={} clears_replayed={} tiles={} corrupt_records={} corrupt_tiles={} "
-        "seconds={:.3f}",
-        d.directory(), d.durability_name(), r.checkpoint_version, r.map_version, r.scans_replayed,
-        r.clears_replayed, (*map)->tile_count(), r.corrupt_records.size(), d.CorruptTiles().size(),
-        r.seconds);
-    durability = std::move(opened).value();
-  }
-  std::unique_ptr<cluster::ClusterNode> cluster_node;
-  if (config.cluster.enabled()) {
-    YAML::Emitter params_yaml;
-    params_yaml << MapParamsToYaml(config.map);
-    auto prepare = [params = config.map, limits = config.limits](const v1::Scan& scan,
-                                                                 PreparedScan* out) {
-      const grpc::Status s = PrepareScanMessage(scan, params, limits, out);
-      return s.ok() ? Status::Ok() : Status::InvalidArgument(s.error_message());
-    };
-    Result<std::unique_ptr<cluster::ClusterNode>> joined =
-        cluster::ClusterNode::Start(config.cluster, config.map, params_yaml.c_str(), prepare);
-    if (!joined.ok()) return joined.status();
-    cluster_node = std::move(joined).value();
-  }
-  auto impl = std::make_unique<Impl>(config, std::move(map).value(), std::move(durability),
-                                     std::move(tokens), std::move(cluster_node));
-  LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
-  if (!config.metrics_address.empty()) {
-    // Bound before any thread starts, so that a bad address fails the start cleanly; served
-    // once the map service is up.
-    impl->web = std::make_unique<WebRoutes>(impl->map, impl->hub, impl->query_pool,
-                                            impl->ctx.queries, config.limits, WebRoutesOptions{});
-    MetricsHttpServer::Options http_options;
-    http_options.routes = [web = impl->web.get()](const HttpRequest& request,
-                                                  std::shared_ptr<HttpExchange> exchange) {
-      web->Handle(request, std::move(exchange));
-    };
-    if (tls.has_value()) {
-      Result<std::shared_ptr<boost::asio::ssl::context>> https = MakeHttpsContext(*tls);
-      if (!https.ok()) return https.status();
-      http_options.tls = std::move(https).value();
-    }
-    if (const TokenTable* t = impl->tokens.get()) {
-      // Any role's token, for /metrics and the web map alike: what they show (counts, the
-      // map's cells) is no secret from a client of the map.
-      http_options.authorize = [t](std::string_view authorization) {
-        std::string why;
-        return t->Authenticate(authorization, &why) != nullptr;
-      };
-    }
-    Result<std::unique_ptr<MetricsHttpServer>> metrics = MetricsHttpServer::Listen(
-        config.metrics_address, [p = impl.get()] { return FormatMetrics(CollectMetrics(p->ctx)); },
-        http_options);
-    if (!metrics.ok()) {
-      return Status::FailedPrecondition("server.metrics_address: " + metrics.status().message());
-    }
-    impl->metrics = std::move(metrics).value();
-    impl->metrics_port = impl->metrics->port();
-  }
-  impl->maintenance.Start();
+  return Status::Ok();
+}
 
+// The store with --data-dir (recovered into `map`), memory otherwise.
+Result<std::unique_ptr<Durability>> OpenDurability(const ServerConfig& config, TerrainMap& map) {
+  const Georeference georeference{config.georeference.crs, config.georeference.origin};
+  if (config.storage.data_dir.empty()) {
+    return std::unique_ptr<Durability>(std::make_unique<MemoryDurability>(georeference));
+  }
+  Result<std::unique_ptr<StoreDurability>> opened =
+      StoreDurability::Open(config.storage, config.map, georeference, map);
+  if (!opened.ok()) return opened.status();
+  const StoreDurability& d = **opened;
+  const storage::RecoveryReport& r = d.recovery();
+  spdlog::info(
+      "event=recovered data_dir={} durability={} checkpoint_version={} map_version={} "
+      "scans_replayed={} clears_replayed={} tiles={} corrupt_records={} corrupt_tiles={} "
+      "seconds={:.3f}",
+      d.directory(), d.durability_name(), r.checkpoint_version, r.map_version, r.scans_replayed,
+      r.clears_replayed, map.tile_count(), r.corrupt_records.size(), d.CorruptTiles().size(),
+      r.seconds);
+  return std::unique_ptr<Durability>(std::move(opened).value());
+}
+
+}  // namespace
+
+// Binds server.metrics_address before any thread serves, so that a bad address fails the start
+// cleanly: GET /metrics and the web map, over TLS with `tls`, behind any token with tokens.
+Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
+  web = std::make_unique<WebRoutes>(*map, hub, query_pool, ctx->queries, config.limits,
+                                    WebRoutesOptions{});
+  HttpServer::Options http_options;
+  http_options.routes = [routes = web.get()](const HttpRequest& request,
+                                             std::shared_ptr<HttpExchange> exchange) {
+    routes->Handle(request, std::move(exchange));
+  };
+  if (tls.has_value()) {
+    Result<std::shared_ptr<boost::asio::ssl::context>> https = MakeHttpsContext(*tls);
+    if (!https.ok()) return https.status();
+    http_options.tls = std::move(https).value();
+  }
+  if (const TokenTable* t = tokens.get()) {
+    // Any role's token, for /metrics and the web map alike: what they show (counts, the map's
+    // cells) is no secret from a client of the map.
+    http_options.authorize = [t](std::string_view authorization) {
+      std::string why;
+      return t->Authenticate(authorization, &why) != nullptr;
+    };
+  }
+  auto render = [this] {
+    const ServiceCounts service{ctx->sessions.count(SessionRegistry::Kind::kIngest),
+                                ctx->sessions.count(SessionRegistry::Kind::kWatch)};
+    return FormatMetrics(CollectMetrics(*map, service, config.storage.max_memory_mb << 20));
+  };
+  Result<std::unique_ptr<HttpServer>> listening =
+      HttpServer::Listen(config.metrics_address, render, http_options);
+  if (!listening.ok()) {
+    return Status::FailedPrecondition("server.metrics_address: " + listening.status().message());
+  }
+  http = std::move(listening).value();
+  http_port = http->port();
+  return Status::Ok();
+}
+
+// Builds and starts the gRPC server (health, reflection, the map service).
+Status MapServer::Impl::ListenGrpc(const std::optional<TlsMaterial>& tls) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(config.listen_address, GrpcCredentials(tls), &impl->port);
-  builder.RegisterService(&impl->service);
+  builder.AddListeningPort(config.listen_address, GrpcCredentials(tls), &port);
+  builder.RegisterService(service.get());
   // A request that does not parse answers INVALID_ARGUMENT naming its type, not UNIMPLEMENTED.
   builder.experimental().SetInterceptorCreators(MapServiceInterceptors());
   const int max_bytes = static_cast<int>(config.limits.max_message_bytes);
   builder.SetMaxReceiveMessageSize(max_bytes);
   builder.SetMaxSendMessageSize(max_bytes);
-  impl->server = builder.BuildAndStart();
-  if (impl->server == nullptr || impl->port == 0) {
-    impl->server.reset();
-    impl->maintenance.Stop();  // joins its threads (a joinable std::thread terminates)
+  server = builder.BuildAndStart();
+  if (server == nullptr || port == 0) {
+    server.reset();
     return Status::FailedPrecondition("server.listen_address: cannot listen on '" +
                                       config.listen_address + "'");
   }
-  if (auto* health = impl->server->GetHealthCheckService()) {
+  if (auto* health = server->GetHealthCheckService()) {
     health->SetServingStatus(kMapServiceName, true);
     health->SetServingStatus("", true);
-    impl->maintenance.WatchWritable(
-        [health](bool writable) { health->SetServingStatus(kWritesHealthName, writable); });
+    if (maintenance != nullptr) {
+      maintenance->WatchWritable(
+          [health](bool writable) { health->SetServingStatus(kWritesHealthName, writable); });
+    } else {
+      health->SetServingStatus(kWritesHealthName, true);  // a shard: its log takes writes
+    }
   }
-  impl->ctx.sessions.StartWatchdog(WatchdogPeriod(config.limits));
+  return Status::Ok();
+}
+
+Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) {
+  if (Status s = ValidateServerConfig(config); !s.ok()) return s;
+  if (Status s = ValidateSecurity(config); !s.ok()) return s;
+  if (Status s = ValidateCluster(config); !s.ok()) return s;
+  std::optional<TlsMaterial> tls;
+  std::unique_ptr<TokenTable> tokens;
+  if (Status s = LoadSecurity(config, &tls, &tokens); !s.ok()) return s;
+  KeepGrpcInitialized();
+  KeepServiceDescriptorLinked();
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
+  if (!map.ok()) return map.status();
+  auto impl = std::make_unique<Impl>(config, std::move(tokens));
+  if (config.cluster.enabled()) {
+    if (Status s = impl->JoinCluster(); !s.ok()) return s;
+  } else {
+    Result<std::unique_ptr<Durability>> durability = OpenDurability(config, **map);
+    if (!durability.ok()) return durability.status();
+    impl->OpenServedMap(std::move(map).value(), std::move(durability).value());
+  }
+  impl->Serve();
+  LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
+  if (!config.metrics_address.empty()) {
+    if (Status s = impl->ListenHttp(tls); !s.ok()) return s;
+  }
+  if (impl->maintenance != nullptr) impl->maintenance->Start();
+  if (Status s = impl->ListenGrpc(tls); !s.ok()) {
+    if (impl->maintenance != nullptr) impl->maintenance->Stop();  // joins its threads
+    return s;
+  }
+  impl->ctx->sessions.StartWatchdog(WatchdogPeriod(config.limits));
   spdlog::info(
       "event=listening address={} port={} worker_threads={} query_threads={} tls={} auth={}",
       config.listen_address, impl->port, ThreadCount(config.worker_threads),
       ThreadCount(config.query_threads),
       !tls.has_value() ? "off" : (tls->client_ca_pem.empty() ? "on" : "mutual"),
       impl->tokens == nullptr ? "off" : std::to_string(impl->tokens->size()) + "_tokens");
-  if (impl->metrics != nullptr) {
-    impl->metrics->Start();
+  if (impl->http != nullptr) {
+    impl->http->Start();
     spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
-                 impl->metrics_port);
+                 impl->http_port);
     spdlog::info("event=web_map_listening url={}://{}:{}/{}", tls.has_value() ? "https" : "http",
-                 HostOf(config.metrics_address), impl->metrics_port,
+                 HostOf(config.metrics_address), impl->http_port,
                  impl->tokens == nullptr ? "" : "login?token=<token>");
   }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
@@ -318,7 +376,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
 
 int MapServer::port() const { return impl_->port; }
 
-int MapServer::metrics_port() const { return impl_->metrics_port; }
+int MapServer::http_port() const { return impl_->http_port; }
 
 Status MapServer::ReloadTokens() {
   if (impl_->tokens == nullptr) {
@@ -341,29 +399,30 @@ void MapServer::Shutdown() {
   impl_->stopped = true;
   const auto t0 = std::chrono::steady_clock::now();
   spdlog::info("event=shutdown_begin open_ingest_streams={} watchers={}",
-               impl_->ctx.sessions.count(SessionRegistry::Kind::kIngest),
-               impl_->ctx.sessions.count(SessionRegistry::Kind::kWatch));
+               impl_->ctx->sessions.count(SessionRegistry::Kind::kIngest),
+               impl_->ctx->sessions.count(SessionRegistry::Kind::kWatch));
   if (auto* health = impl_->server->GetHealthCheckService()) {
-    impl_->maintenance.WatchWritable(nullptr);
+    if (impl_->maintenance != nullptr) impl_->maintenance->WatchWritable(nullptr);
     health->SetServingStatus(kMapServiceName, false);
     health->SetServingStatus(kWritesHealthName, false);
   }
   // Ingest streams stop reading and ack what they have; watches end.
-  impl_->ctx.sessions.DrainAll();
+  impl_->ctx->sessions.DrainAll();
   // Refuse new calls and wait for the open ones (bounded by the grace period).
   const auto grace = std::chrono::duration_cast<std::chrono::milliseconds>(
       std::chrono::duration<double>(impl_->config.shutdown_timeout_s));
   impl_->server->Shutdown(std::chrono::system_clock::now() + grace);
-  impl_->ctx.sessions.StopWatchdog();
-  impl_->map.WaitIdle();
+  impl_->ctx->sessions.StopWatchdog();
+  if (impl_->served != nullptr) impl_->served->WaitIdle();
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
   if (impl_->web != nullptr) impl_->web->Stop();  // event streams end before their server
-  if (impl_->metrics != nullptr) impl_->metrics->Stop();
-  impl_->maintenance.Stop();
-  if (std::optional<StoreStatus> store = impl_->map.store_status()) {
+  if (impl_->http != nullptr) impl_->http->Stop();
+  if (impl_->maintenance != nullptr) impl_->maintenance->Stop();
+  if (std::optional<StoreStatus> store =
+          impl_->served != nullptr ? impl_->served->store_status() : std::nullopt) {
     // Last checkpoint: the next start replays nothing.
-    const Status s = impl_->map.Checkpoint();
-    store = impl_->map.store_status();
+    const Status s = impl_->served->Checkpoint();
+    store = impl_->served->store_status();
     spdlog::info(
         "event=storage_closed data_dir={} durability={} checkpoint_version={} corrupt_tiles={} "
         "checkpoint={}",
@@ -378,21 +437,23 @@ void MapServer::Shutdown() {
 }
 
 ServerReport MapServer::Report() const {
-  ServedMap& map = impl_->map;  // (Summary() recounts tiles changed since the last read)
   ServerReport r;
-  r.map_version = map.applied_version();
-  r.scans_applied = map.scans_applied();
-  const MapSummary summary = map.Summary();
-  r.tile_count = summary.tile_count;
-  r.known_cells = summary.known_cells;
-  r.peak_parallel_integrations = map.peak_parallel_integrations();
-  for (const RobotProgress& p : map.robots().Robots()) {
-    r.robots.push_back(
-        {p.robot_id, p.last_sequence, p.scans_applied, p.scans_duplicate, p.scans_rejected});
+  // (State() recounts the tiles changed since the last read.)
+  MapState state = impl_->map->State();
+  r.map_version = state.version;
+  r.scans_applied = state.scans_applied;
+  r.tile_count = state.summary.tile_count;
+  r.known_cells = state.summary.known_cells;
+  if (impl_->served != nullptr) {
+    r.peak_parallel_integrations = impl_->served->peak_parallel_integrations();
   }
+  r.robots = std::move(state.robots);
   return r;
 }
 
-std::unique_ptr<TerrainMap> MapServer::SnapshotMap() const { return impl_->map.Snapshot(); }
+std::unique_ptr<TerrainMap> MapServer::SnapshotMap() const {
+  if (impl_->served != nullptr) return impl_->served->Snapshot();
+  return TerrainMap::Create(impl_->config.map).value();  // a shard's own map: empty
+}
 
 }  // namespace bgkmap

@@ -10,7 +10,7 @@
 #include <sstream>
 
 #include "bgkmap/config/map_params_yaml.h"
-#include "host_port.h"
+#include "bgkmap/server/host_port.h"
 
 namespace bgkmap {
 namespace {
@@ -69,8 +69,9 @@ ServerKey Key(std::string name, Member member, const std::string& section = "ser
   return k;
 }
 
-const std::vector<ServerKey>& Keys() {
-  static const std::vector<ServerKey> keys = {
+// server.*: the listeners, threads, logging and security.
+std::vector<ServerKey> ListenerKeys() {
+  return {
       Key<std::string>(
           "listen_address", [](ServerConfig & c) -> auto& { return c.listen_address; }),
       Key<int>(
@@ -101,6 +102,12 @@ const std::vector<ServerKey>& Keys() {
           [](ServerConfig & c) -> auto& { return c.auth.max_ingest_streams_per_token; }),
       Key<bool>(
           "insecure", [](ServerConfig & c) -> auto& { return c.insecure; }),
+  };
+}
+
+// server.*: the limits on what a client may ask (ServerLimits).
+std::vector<ServerKey> LimitKeys() {
+  return {
       Key<uint64_t>(
           "max_points_per_scan",
           [](ServerConfig & c) -> auto& { return c.limits.max_points_per_scan; }),
@@ -166,6 +173,14 @@ const std::vector<ServerKey>& Keys() {
           "max_query_seconds",
           [](ServerConfig & c) -> auto& { return c.limits.max_query_seconds; }),
   };
+}
+
+const std::vector<ServerKey>& Keys() {
+  static const std::vector<ServerKey> keys = [] {
+    std::vector<ServerKey> k = ListenerKeys();
+    for (ServerKey& limit : LimitKeys()) k.push_back(std::move(limit));
+    return k;
+  }();
   return keys;
 }
 
@@ -396,65 +411,75 @@ Status ApplyConfigOverride(ServerConfig& config, const std::string& assignment) 
   return Status::Ok();
 }
 
-Status ValidateServerConfig(const ServerConfig& c) {
-  if (Status s = c.map.Validate(); !s.ok()) return s;
-  auto bad = [](const std::string& key, const std::string& why) {
-    return Status::InvalidArgument("server." + key + ": " + why);
-  };
-  if (c.listen_address.empty()) return bad("listen_address", "must not be empty");
+namespace {
+
+Status Bad(const std::string& key, const std::string& why) {
+  return Status::InvalidArgument("server." + key + ": " + why);
+}
+
+// server.*: the listeners, threads and logging.
+Status ValidateServerKeys(const ServerConfig& c) {
+  if (c.listen_address.empty()) return Bad("listen_address", "must not be empty");
   if (!c.metrics_address.empty()) {
     if (Result<HostPort> m = ParseHostPort(c.metrics_address); !m.ok()) {
-      return bad("metrics_address", m.status().message() + " (\"\" turns the endpoint off)");
+      return Bad("metrics_address", m.status().message() + " (\"\" turns the endpoint off)");
     }
   }
   static const std::vector<std::string> kLevels = {"trace", "debug",    "info", "warn",
                                                    "error", "critical", "off"};
   if (std::find(kLevels.begin(), kLevels.end(), c.log_level) == kLevels.end()) {
-    return bad("log_level", "'" + c.log_level + "' is not one of trace|debug|info|warn|error|off");
+    return Bad("log_level", "'" + c.log_level + "' is not one of trace|debug|info|warn|error|off");
   }
-  if (c.worker_threads < 0 || c.worker_threads > 1024) return bad("worker_threads", "0..1024");
-  if (c.query_threads < 0 || c.query_threads > 1024) return bad("query_threads", "0..1024");
-  if (c.worker_nice < 0 || c.worker_nice > 19) return bad("worker_nice", "0..19");
-  if (c.shutdown_timeout_s < 0) return bad("shutdown_timeout_s", "must be >= 0");
-  const ServerLimits& l = c.limits;
-  if (l.max_points_per_scan == 0) return bad("max_points_per_scan", "must be > 0");
-  if (l.max_region_cells == 0) return bad("max_region_cells", "must be > 0");
-  if (l.max_region_bytes_in_flight == 0) return bad("max_region_bytes_in_flight", "must be > 0");
-  if (!(l.max_coordinate > 0)) return bad("max_coordinate", "must be > 0");
-  if (l.max_coordinate > kMaxCellIndex * c.map.resolution / 2) {
+  if (c.worker_threads < 0 || c.worker_threads > 1024) return Bad("worker_threads", "0..1024");
+  if (c.query_threads < 0 || c.query_threads > 1024) return Bad("query_threads", "0..1024");
+  if (c.worker_nice < 0 || c.worker_nice > 19) return Bad("worker_nice", "0..19");
+  if (c.shutdown_timeout_s < 0) return Bad("shutdown_timeout_s", "must be >= 0");
+  return Status::Ok();
+}
+
+// server.max_*, the limits on what a client may ask.
+Status ValidateLimits(const ServerLimits& l, double resolution) {
+  if (l.max_points_per_scan == 0) return Bad("max_points_per_scan", "must be > 0");
+  if (l.max_region_cells == 0) return Bad("max_region_cells", "must be > 0");
+  if (l.max_region_bytes_in_flight == 0) return Bad("max_region_bytes_in_flight", "must be > 0");
+  if (!(l.max_coordinate > 0)) return Bad("max_coordinate", "must be > 0");
+  if (l.max_coordinate > kMaxCellIndex * resolution / 2) {
     std::ostringstream why;
-    why << "must be below half the engine's range (" << kMaxCellIndex * c.map.resolution / 2
-        << " m at resolution " << c.map.resolution << ")";
-    return bad("max_coordinate", why.str());
+    why << "must be below half the engine's range (" << kMaxCellIndex * resolution / 2
+        << " m at resolution " << resolution << ")";
+    return Bad("max_coordinate", why.str());
   }
   if (!(l.quaternion_tolerance > 0 && l.quaternion_tolerance < 0.5)) {
-    return bad("quaternion_tolerance", "must be in (0, 0.5)");
+    return Bad("quaternion_tolerance", "must be in (0, 0.5)");
   }
   if (l.max_inflight_scans_per_stream == 0) {
-    return bad("max_inflight_scans_per_stream", "must be > 0");
+    return Bad("max_inflight_scans_per_stream", "must be > 0");
   }
-  if (l.max_message_bytes < (1u << 20)) return bad("max_message_bytes", "must be >= 1 MiB");
-  if (l.max_message_bytes > (1ull << 31) - 1) return bad("max_message_bytes", "must be < 2 GiB");
+  if (l.max_message_bytes < (1u << 20)) return Bad("max_message_bytes", "must be >= 1 MiB");
+  if (l.max_message_bytes > (1ull << 31) - 1) return Bad("max_message_bytes", "must be < 2 GiB");
   if (l.max_points_per_scan * 12 + 4096 > l.max_message_bytes) {
-    return bad("max_points_per_scan", std::to_string(l.max_points_per_scan) +
+    return Bad("max_points_per_scan", std::to_string(l.max_points_per_scan) +
                                           " points (12 bytes each) exceed "
                                           "server.max_message_bytes = " +
                                           std::to_string(l.max_message_bytes));
   }
   if (l.region_chunk_bytes < 4096 || l.region_chunk_bytes > l.max_message_bytes / 2) {
-    return bad("region_chunk_bytes", "must be in [4096, max_message_bytes / 2]");
+    return Bad("region_chunk_bytes", "must be in [4096, max_message_bytes / 2]");
   }
-  if (l.max_import_bytes == 0) return bad("max_import_bytes", "must be > 0");
-  if (l.max_footprint_cells == 0) return bad("max_footprint_cells", "must be > 0");
-  if (l.max_path_check_cells == 0) return bad("max_path_check_cells", "must be > 0");
+  if (l.max_import_bytes == 0) return Bad("max_import_bytes", "must be > 0");
+  if (l.max_footprint_cells == 0) return Bad("max_footprint_cells", "must be > 0");
+  if (l.max_path_check_cells == 0) return Bad("max_path_check_cells", "must be > 0");
   for (const auto& [key, value] :
        {std::pair<const char*, double>{"ingest_idle_timeout_s", l.ingest_idle_timeout_s},
         {"stalled_write_timeout_s", l.stalled_write_timeout_s},
         {"import_idle_timeout_s", l.import_idle_timeout_s},
         {"max_query_seconds", l.max_query_seconds}}) {
-    if (!(value >= 0) || value > 86'400) return bad(key, "must be in [0, 86400] (0 = never)");
+    if (!(value >= 0) || value > 86'400) return Bad(key, "must be in [0, 86400] (0 = never)");
   }
-  const StorageConfig& st = c.storage;
+  return Status::Ok();
+}
+
+Status ValidateStorage(const StorageConfig& st) {
   auto bad_storage = [](const std::string& key, const std::string& why) {
     return Status::InvalidArgument("storage." + key + ": " + why);
   };
@@ -482,7 +507,10 @@ Status ValidateServerConfig(const ServerConfig& c) {
   if (!(st.retention_s >= 0) || st.retention_s > 1e9) {
     return bad_storage("retention_s", "must be in [0, 1e9] seconds of map time");
   }
-  const GeoreferenceConfig& geo = c.georeference;
+  return Status::Ok();
+}
+
+Status ValidateGeoreference(const GeoreferenceConfig& geo) {
   for (double v : geo.origin) {
     if (!std::isfinite(v)) return Status::InvalidArgument("georeference.origin: must be finite");
   }
@@ -491,6 +519,16 @@ Status ValidateServerConfig(const ServerConfig& c) {
         "georeference.origin: needs georeference.crs (the system the origin is given in)");
   }
   return Status::Ok();
+}
+
+}  // namespace
+
+Status ValidateServerConfig(const ServerConfig& c) {
+  if (Status s = c.map.Validate(); !s.ok()) return s;
+  if (Status s = ValidateServerKeys(c); !s.ok()) return s;
+  if (Status s = ValidateLimits(c.limits, c.map.resolution); !s.ok()) return s;
+  if (Status s = ValidateStorage(c.storage); !s.ok()) return s;
+  return ValidateGeoreference(c.georeference);
 }
 
 Status ValidateCluster(const ServerConfig& c) {

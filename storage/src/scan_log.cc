@@ -6,6 +6,7 @@
 #include <chrono>
 #include <memory>
 
+#include "bgkmap/storage/raw_scan_codec.h"
 #include "store_db.h"
 #include "store_keys.h"
 
@@ -107,8 +108,8 @@ Status ScanLog::Append(const LogRecord& record) {
     s = batch.Merge(db_->meta, std::string(kRobotPrefix) + record.robot_id,
                     U64Bytes(record.sequence));
   }
-  if (s.ok() && record.source && retain_sources_ && db_->sources != nullptr) {
-    s = batch.Put(db_->sources, VersionKeyBytes(record.version), EncodeScanSource(*record.source));
+  if (s.ok() && record.raw_scan && retain_sources_ && db_->sources != nullptr) {
+    s = batch.Put(db_->sources, VersionKeyBytes(record.version), EncodeRawScan(*record.raw_scan));
   }
   if (!s.ok()) {
     append_errors_.fetch_add(1);
@@ -229,20 +230,20 @@ void ScanLog::AddTruncation(rocksdb::WriteBatch* batch, uint64_t through) {
   if (db_->sources != nullptr) batch->DeleteRange(db_->sources, VersionKeyBytes(0), end);
 }
 
-Result<std::optional<ScanSource>> ScanLog::LoadSource(uint64_t version) const {
-  if (db_->sources == nullptr) return std::optional<ScanSource>();
+Result<std::optional<RawScan>> ScanLog::LoadRawScan(uint64_t version) const {
+  if (db_->sources == nullptr) return std::optional<RawScan>();
   rocksdb::PinnableSlice value;
   rocksdb::ReadOptions read;
   read.verify_checksums = true;
   const rocksdb::Status s = db_->db->Get(read, db_->sources, VersionKeyBytes(version), &value);
-  if (s.IsNotFound()) return std::optional<ScanSource>();
+  if (s.IsNotFound()) return std::optional<RawScan>();
   if (!s.ok()) return FromRocks(s, "reading the raw scan of version " + std::to_string(version));
-  Result<ScanSource> source = DecodeScanSource(value.ToStringView());
+  Result<RawScan> source = DecodeRawScan(value.ToStringView());
   if (!source.ok()) {
     return Status::DataLoss("raw scan of version " + std::to_string(version) + ": " +
                             source.status().message());
   }
-  return std::optional<ScanSource>(std::move(*source));
+  return std::optional<RawScan>(std::move(*source));
 }
 
 }  // namespace bgkmap::storage

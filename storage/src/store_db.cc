@@ -122,8 +122,12 @@ StoreDb::~StoreDb() {
   if (read_only_lock_fd >= 0) UnlockReadOnly(dir, read_only_lock_fd);
 }
 
-Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const StoreOptions& options,
-                                               bool read_only) {
+namespace {
+
+// The database's options; its own log goes to InfoLog (or the test's file system to `store`'s
+// env).
+rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options, bool read_only,
+                             StoreDb& store) {
   rocksdb::DBOptions db_options;
   db_options.create_if_missing = options.create_if_missing;
   // A store of an older format gains the families it lacks when opened for writing.
@@ -132,29 +136,31 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
   db_options.wal_recovery_mode = rocksdb::WALRecoveryMode::kPointInTimeRecovery;
   db_options.paranoid_checks = true;
   db_options.max_background_jobs = 2;
-
-  auto store = std::make_unique<StoreDb>();
   if (options.file_system) {
-    store->env = rocksdb::NewCompositeEnv(options.file_system);
-    db_options.env = store->env.get();
+    store.env = rocksdb::NewCompositeEnv(options.file_system);
+    db_options.env = store.env.get();
   } else {
     std::error_code ec;
     if (options.create_if_missing && !read_only) std::filesystem::create_directories(dir, ec);
     // Not RocksDB's own log file, which aborts the process on a full disk (info_log.h).
     if (std::filesystem::is_directory(dir, ec)) db_options.info_log = InfoLog::Open(dir);
   }
-
-  auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);
   // One budget for the memory tables of all families: the log alone would otherwise hold up to
   // 2 x 64 MiB of records between checkpoints, and the tiles as much again.
   db_options.write_buffer_manager =
       std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
+  return db_options;
+}
+
+// The store's column families, in the order of StoreDb's handles.
+std::vector<rocksdb::ColumnFamilyDescriptor> Families(const StoreOptions& options) {
+  auto cache = rocksdb::NewLRUCache(options.block_cache_bytes);
   rocksdb::ColumnFamilyOptions meta;
   meta.merge_operator = std::make_shared<MaxMergeOperator>();
   rocksdb::ColumnFamilyOptions log;
   // Log records live only until the next checkpoint; compressing them is wasted work.
   log.compression = rocksdb::kNoCompression;
-  std::vector<rocksdb::ColumnFamilyDescriptor> families = {
+  return {
       {rocksdb::kDefaultColumnFamilyName, rocksdb::ColumnFamilyOptions()},
       {kMetaFamily, meta},
       {kTilesFamily, TileFamilyOptions(options, cache)},
@@ -165,19 +171,34 @@ Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const Sto
       {kSourcesFamily, SourceFamilyOptions(cache)},
       {kHistoryFamily, TileFamilyOptions(options, cache)},
   };
+}
 
-  store->dir = dir;
+// A read-only database takes RocksDB's lock itself; a writable one may not open a directory
+// this process holds read-only.
+Status Lock(const std::string& dir, bool read_only, StoreDb& store) {
   if (read_only) {
     Result<int> fd = LockLikeRocksDb(dir);
     if (!fd.ok()) return fd.status();
-    store->read_only_lock_fd = *fd;
-  } else {
-    std::lock_guard guard(locked_mu);
-    if (LockedReadOnly().contains(LockKey(dir))) {
-      return Status::IoError("opening the map store in " + dir +
-                             ": it is already open (read-only) in this process");
-    }
+    store.read_only_lock_fd = *fd;
+    return Status::Ok();
   }
+  std::lock_guard guard(locked_mu);
+  if (LockedReadOnly().contains(LockKey(dir))) {
+    return Status::IoError("opening the map store in " + dir +
+                           ": it is already open (read-only) in this process");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<std::unique_ptr<StoreDb>> StoreDb::Open(const std::string& dir, const StoreOptions& options,
+                                               bool read_only) {
+  auto store = std::make_unique<StoreDb>();
+  const rocksdb::DBOptions db_options = DbOptions(dir, options, read_only, *store);
+  std::vector<rocksdb::ColumnFamilyDescriptor> families = Families(options);
+  store->dir = dir;
+  if (Status s = Lock(dir, read_only, *store); !s.ok()) return s;
   if (read_only) {
     // Read-only cannot create a family: an older store opens without the ones it lacks.
     std::vector<std::string> present;

@@ -8,7 +8,7 @@
 //   tiles       tile key (8 bytes) -> TileCodec encoding
 //   tile_index  tile key (8 bytes) -> varint version, known cells, encoded bytes
 //   log         version (8 bytes)  -> LogRecord encoding
-//   sources     version (8 bytes)  -> ScanSource encoding (the raw scan, kept for corrections)
+//   sources     version (8 bytes)  -> EncodeRawScan (the raw scan, kept for corrections)
 //   history     checkpoint version C (8 bytes) + tile key (8 bytes) -> the tile's stored bytes
 //               just before checkpoint C replaced them ("" : there was no tile)
 //   meta "bases" -> varint count, varint versions: the retained checkpoints a correction may

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <map>
 
+#include "bgkmap/storage/raw_scan_codec.h"
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/storage/tile_store.h"
 #include "store_db.h"
@@ -183,8 +184,8 @@ Status TileStore::ApplyCorrection(const LogRecord& correction, std::span<const L
   batch.Merge(db_->meta, kMapVersionKey, U64Bytes(correction.version));
   for (const LogRecord& record : rewritten) {
     batch.Put(db_->log, VersionKeyBytes(record.version), EncodeLogRecord(record));
-    if (record.source && db_->sources != nullptr) {
-      batch.Put(db_->sources, VersionKeyBytes(record.version), EncodeScanSource(*record.source));
+    if (record.raw_scan && db_->sources != nullptr) {
+      batch.Put(db_->sources, VersionKeyBytes(record.version), EncodeRawScan(*record.raw_scan));
     }
   }
   for (uint64_t version : removed) {

@@ -94,6 +94,79 @@ Result<uint64_t> MetaU64(const std::map<std::string, std::string, std::less<>>& 
   return v;
 }
 
+using MetaMap = std::map<std::string, std::string, std::less<>>;
+
+// The values under `prefix`, keyed without it.
+MetaMap WithPrefix(const MetaMap& meta, std::string_view prefix) {
+  MetaMap out;
+  for (const auto& [key, value] : meta) {
+    if (key.starts_with(prefix)) out.emplace(key.substr(prefix.size()), value);
+  }
+  return out;
+}
+
+// Whether a store in `dir` opens read-only: it exists on a disk below the free-space reserve
+// (serve what is stored; write nothing, not even RocksDB's own files). IoError if there is no
+// store yet and no room to make one.
+Result<bool> OpensReadOnly(const std::string& dir, FreeSpaceGuard& guard) {
+  std::error_code ec;
+  if (!guard.enabled() || !std::filesystem::is_directory(dir, ec)) return false;
+  Status space = guard.Check();
+  if (space.ok()) return false;
+  if (!std::filesystem::exists(dir + "/CURRENT", ec)) {
+    return Status::IoError("cannot create a map store in " + dir + ": " + space.message());
+  }
+  return true;
+}
+
+// A new store's metadata, into `batch`.
+Status InitMeta(const StoreOptions& options, const MapParams& params, StoreDb& db,
+                rocksdb::WriteBatch& batch) {
+  batch.Put(db.meta, kFormatKey, std::to_string(kStoreFormat));
+  batch.Put(db.meta, kCheckpointVersionKey, U64Bytes(0));
+  // A new store's log is complete from the start: the empty map at version 0 is a base.
+  if (options.retention.enabled()) batch.Put(db.meta, kBasesKey, EncodeVersionList({0}));
+  return PutParams(batch, db, params);
+}
+
+// An existing store's metadata, checked against what the opener asks: a format this build reads
+// (an older one is upgraded in place), a compatible georeference, and `params` (if given)
+// compatible with the stored ones, which they then replace. The parameters and georeference in
+// effect go to `effective` and `stored_georeference`; updates go to `batch`.
+Status ReconcileMeta(const std::string& dir, const MetaMap& meta, const MapParams* params,
+                     const Georeference& georeference, StoreDb& db, rocksdb::WriteBatch& batch,
+                     MapParams* effective, Georeference* stored_georeference) {
+  Result<Georeference> stored_geo =
+      GeoreferenceFromKeyValues(WithPrefix(meta, kGeoreferencePrefix));
+  if (!stored_geo.ok()) return stored_geo.status();
+  if (Status s = CheckGeoreferenceCompatible(*stored_geo, georeference); !s.ok()) {
+    return Status::FailedPrecondition(dir + ": " + s.message());
+  }
+  *stored_georeference = *stored_geo;
+  uint32_t stored_format = 0;
+  const std::string& text = meta.find(kFormatKey)->second;
+  if (std::from_chars(text.data(), text.data() + text.size(), stored_format).ec != std::errc()) {
+    return Status::DataLoss("store format marker is malformed: " + text);
+  }
+  if (stored_format > kStoreFormat) {
+    return Status::FailedPrecondition("the store in " + dir + " has format " + text +
+                                      ", newer than this build reads (" +
+                                      std::to_string(kStoreFormat) + ")");
+  }
+  // An older store upgrades in place: it is read as it is and written from now on in the
+  // current formats, which an older build then refuses by this marker.
+  if (stored_format < kStoreFormat) batch.Put(db.meta, kFormatKey, std::to_string(kStoreFormat));
+  Result<MapParams> stored = ParamsFromKeyValues(WithPrefix(meta, kParamPrefix));
+  if (!stored.ok()) return stored.status();
+  *effective = *stored;
+  if (params == nullptr) return Status::Ok();
+  if (Status s = CheckParamsCompatible(*stored, *params); !s.ok()) {
+    return Status::FailedPrecondition(dir + ": " + s.message());
+  }
+  *effective = *params;
+  return PutParams(batch, db, *effective);
+}
+
 }  // namespace
 
 TileStore::TileStore(std::string dir, const StoreOptions& options, const MapParams& params,
@@ -125,73 +198,25 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
                                                        const MapParams* params,
                                                        const Georeference& georeference) {
   auto guard = std::make_unique<FreeSpaceGuard>(dir, options.free_space);
-  bool read_only = false;
-  std::error_code ec;
-  if (guard->enabled() && std::filesystem::is_directory(dir, ec)) {
-    if (Status space = guard->Check(); !space.ok()) {
-      if (!std::filesystem::exists(dir + "/CURRENT", ec)) {
-        return Status::IoError("cannot create a map store in " + dir + ": " + space.message());
-      }
-      read_only = true;  // serve what is stored; write nothing, not even RocksDB's own files
-    }
-  }
-  Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir, options, read_only);
+  Result<bool> read_only = OpensReadOnly(dir, *guard);
+  if (!read_only.ok()) return read_only.status();
+  Result<std::unique_ptr<StoreDb>> db = StoreDb::Open(dir, options, *read_only);
   if (!db.ok()) return db.status();
   StoreDb& sdb = **db;
-  Result<std::map<std::string, std::string, std::less<>>> meta = ReadMeta(sdb);
+  Result<MetaMap> meta = ReadMeta(sdb);
   if (!meta.ok()) return meta.status();
 
   MapParams effective;
   Georeference stored_georeference;
   rocksdb::WriteBatch batch;
-  auto format = meta->find(kFormatKey);
-  if (format == meta->end()) {
+  if (meta->find(kFormatKey) == meta->end()) {
     if (params == nullptr) return Status::FailedPrecondition("no map store in " + dir);
     effective = *params;
-    batch.Put(sdb.meta, kFormatKey, std::to_string(kStoreFormat));
-    batch.Put(sdb.meta, kCheckpointVersionKey, U64Bytes(0));
-    // A new store's log is complete from the start: the empty map at version 0 is a base.
-    if (options.retention.enabled()) batch.Put(sdb.meta, kBasesKey, EncodeVersionList({0}));
-    if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
-  } else {
-    std::map<std::string, std::string, std::less<>> geo;
-    for (const auto& [key, value] : *meta) {
-      if (key.starts_with(kGeoreferencePrefix))
-        geo.emplace(key.substr(kGeoreferencePrefix.size()), value);
-    }
-    Result<Georeference> stored_geo = GeoreferenceFromKeyValues(geo);
-    if (!stored_geo.ok()) return stored_geo.status();
-    if (Status s = CheckGeoreferenceCompatible(*stored_geo, georeference); !s.ok()) {
-      return Status::FailedPrecondition(dir + ": " + s.message());
-    }
-    stored_georeference = *stored_geo;
-    uint32_t stored_format = 0;
-    const std::string& text = format->second;
-    if (std::from_chars(text.data(), text.data() + text.size(), stored_format).ec != std::errc()) {
-      return Status::DataLoss("store format marker is malformed: " + text);
-    }
-    if (stored_format > kStoreFormat) {
-      return Status::FailedPrecondition("the store in " + dir + " has format " + text +
-                                        ", newer than this build reads (" +
-                                        std::to_string(kStoreFormat) + ")");
-    }
-    // An older store upgrades in place: it is read as it is and written from now on in the
-    // current formats, which an older build then refuses by this marker.
-    if (stored_format < kStoreFormat) batch.Put(sdb.meta, kFormatKey, std::to_string(kStoreFormat));
-    std::map<std::string, std::string, std::less<>> kv;
-    for (const auto& [key, value] : *meta) {
-      if (key.starts_with(kParamPrefix)) kv.emplace(key.substr(kParamPrefix.size()), value);
-    }
-    Result<MapParams> stored = ParamsFromKeyValues(kv);
-    if (!stored.ok()) return stored.status();
-    effective = *stored;
-    if (params != nullptr) {
-      if (Status s = CheckParamsCompatible(*stored, *params); !s.ok()) {
-        return Status::FailedPrecondition(dir + ": " + s.message());
-      }
-      effective = *params;
-      if (Status s = PutParams(batch, sdb, effective); !s.ok()) return s;
-    }
+    if (Status s = InitMeta(options, effective, sdb, batch); !s.ok()) return s;
+  } else if (Status s = ReconcileMeta(dir, *meta, params, georeference, sdb, batch, &effective,
+                                      &stored_georeference);
+             !s.ok()) {
+    return s;
   }
   // The first georeference a map is given is kept (a new store, or one written before).
   if (stored_georeference.empty() && !georeference.empty()) {
@@ -199,7 +224,7 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
     stored_georeference = georeference;
   }
   if (batch.Count() > 0 &&
-      !read_only) {  // (read-only: the parameters are updated at the next open)
+      !*read_only) {  // (read-only: the parameters are updated at the next open)
     rocksdb::WriteOptions write;
     write.sync = true;
     if (Status s = FromRocks(sdb.db->Write(write, &batch), "writing the map metadata"); !s.ok()) {
@@ -209,7 +234,7 @@ Result<std::unique_ptr<TileStore>> TileStore::OpenImpl(const std::string& dir,
 
   std::unique_ptr<TileStore> store(new TileStore(dir, options, effective, nullptr));
   store->guard_ = std::move(guard);
-  store->read_only_.store(read_only);
+  store->read_only_.store(*read_only);
   store->georeference_ = std::move(stored_georeference);
   if (Status s = store->Attach(std::move(*db)); !s.ok()) return s;
   return store;

@@ -20,10 +20,10 @@ using testing::TempDir;
 using testing::Terrain;
 
 // Scan `index` of `robot` as the sensor saw it: points in the sensor frame and the true pose.
-ScanSource RawScan(int robot, int index) {
+RawScan MakeRawScan(int robot, int index) {
   std::mt19937 rng(1000u * robot + index);
   std::uniform_real_distribution<double> u(-6.0, 6.0);
-  ScanSource source;
+  RawScan source;
   source.pose.translation = Eigen::Vector3d(0.5 * index, 2.0 * robot, 1.5);
   const Eigen::Vector3d& o = source.pose.translation;
   while (source.points.size() < 1500) {
@@ -45,7 +45,7 @@ Pose Drifted(const Pose& truth, int index) {
 }
 
 // Prepared as the server does: stamped with the scan's map time.
-std::shared_ptr<const PreparedScan> Prepare(const MapParams& params, const ScanSource& source,
+std::shared_ptr<const PreparedScan> Prepare(const MapParams& params, const RawScan& source,
                                             int64_t stamp_ns) {
   Result<PreparedScan> scan = PrepareScan(params, source.points, source.pose, source.frame_is_map);
   EXPECT_TRUE(scan.ok()) << scan.status().ToString();
@@ -79,13 +79,13 @@ struct Drive {
     testing::Checkpointer checkpointer;
     for (int v = 1; v <= versions; ++v) {
       const int robot = v % 2, index = v / 2;
-      auto source = std::make_shared<ScanSource>(RawScan(robot, index));
+      auto source = std::make_shared<RawScan>(MakeRawScan(robot, index));
       if (robot == 0) source->pose = Drifted(source->pose, index);
       const int64_t stamp =
           1'000'000'000LL * v - (half_life_s > 0 && robot == 1 ? 3'500'000'000LL : 0);
       LogRecord record = LogRecord::Scan(v, "robot-" + std::to_string(robot), index + 1,
                                          Prepare(params, *source, stamp), stamp);
-      record.source = source;
+      record.raw_scan = source;
       EXPECT_TRUE(store->log().Append(record).ok());
       checkpointer.MarkDirty(Apply(*map, *record.scan, v));
       records.emplace(v, std::move(record));
@@ -149,13 +149,13 @@ std::map<uint64_t, std::shared_ptr<const PreparedScan>> CorrectRobot0(Drive& dri
   std::set<TileKey> seeds;
   for (const auto& [v, record] : drive.records) {
     if (v % 2 != 0 || static_cast<int>(v / 2) < from) continue;
-    auto source = std::make_shared<ScanSource>(RawScan(0, static_cast<int>(v / 2)));
+    auto source = std::make_shared<RawScan>(MakeRawScan(0, static_cast<int>(v / 2)));
     revised[v] = Prepare(drive.params, *source, record.stamp_ns);  // a new pose, the same time
     const auto old = record.scan->ChangeableTiles();
     seeds.insert(old.begin(), old.end());
     LogRecord r = record;
     r.scan = revised[v];
-    r.source = source;
+    r.raw_scan = source;
     rewritten.push_back(std::move(r));
   }
   ReintegrationRequest request;
@@ -317,7 +317,7 @@ TEST(Retention, TheByteBoundDropsOldBasesWithTheirLogAndHistory) {
   if (stats->records > 0) {
     EXPECT_GT(stats->first_version, bases.front());
   }
-  auto source = drive.store->log().LoadSource(bases.front());
+  auto source = drive.store->log().LoadRawScan(bases.front());
   ASSERT_TRUE(source.ok());
   EXPECT_FALSE(source->has_value());
   // What an old base kept is gone with it.
@@ -342,7 +342,7 @@ TEST(Retention, WithoutItTheLogEndsAtTheCheckpointAndNoScanIsKept) {
   auto stats = drive.store->log().Stats(0);
   ASSERT_TRUE(stats.ok());
   EXPECT_EQ(stats->records, 0u);
-  auto source = drive.store->log().LoadSource(14);
+  auto source = drive.store->log().LoadRawScan(14);
   ASSERT_TRUE(source.ok());
   EXPECT_FALSE(source->has_value());
 }

@@ -34,6 +34,103 @@ Result<uint32_t> ReadLimit(const YAML::Node& node, const std::string& where) {
   }
 }
 
+// The tokens file as YAML, with its list of tokens.
+Result<YAML::Node> ReadTokenList(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Status::IoError(path + ": cannot read");
+  std::stringstream text;
+  text << in.rdbuf();
+  YAML::Node root;
+  try {
+    root = YAML::Load(text.str());
+  } catch (const YAML::Exception& e) {
+    return Status::InvalidArgument(path + ": not YAML: " + e.what());
+  }
+  if (!root.IsMap() || !root["tokens"] || !root["tokens"].IsSequence()) {
+    return Status::InvalidArgument(path + ": expected 'tokens:' holding a list");
+  }
+  return root["tokens"];
+}
+
+Status CheckFields(const YAML::Node& t, const std::string& at) {
+  if (!t.IsMap()) return Status::InvalidArgument(at + ": expected a mapping");
+  for (const auto& field : t) {
+    static const std::set<std::string> kFields = {"name",   "sha256",      "role",
+                                                  "robots", "max_queries", "max_ingest_streams"};
+    const std::string key = field.first.as<std::string>();
+    if (kFields.count(key) == 0) return Status::InvalidArgument(at + "." + key + ": unknown key");
+  }
+  return Status::Ok();
+}
+
+// The entry's role, and for a robot token the ids it may ingest as.
+Status ReadRole(const YAML::Node& t, const std::string& at, Principal* p) {
+  const std::string role = t["role"] ? t["role"].as<std::string>() : "";
+  if (role == "robot") {
+    p->role = Role::kRobot;
+  } else if (role == "planner") {
+    p->role = Role::kPlanner;
+  } else if (role == "admin") {
+    p->role = Role::kAdmin;
+  } else {
+    return Status::InvalidArgument(at + ".role: '" + role + "' is not one of robot|planner|admin");
+  }
+  if (const YAML::Node robots = t["robots"]) {
+    if (p->role != Role::kRobot) {
+      return Status::InvalidArgument(at + ".robots: only a robot token lists robot ids");
+    }
+    if (!robots.IsSequence()) return Status::InvalidArgument(at + ".robots: expected a list");
+    for (const auto& r : robots) p->robots.push_back(r.as<std::string>());
+  }
+  if (p->role == Role::kRobot && p->robots.empty()) {
+    return Status::InvalidArgument(at + ".robots: a robot token lists the ids it ingests as");
+  }
+  return Status::Ok();
+}
+
+// The entry's per-token limits, `defaults` where it names none.
+Status ReadLimits(const YAML::Node& t, const std::string& at, const TokenTable::Defaults& defaults,
+                  Principal* p) {
+  p->max_queries = defaults.max_queries;
+  p->max_ingest_streams = defaults.max_ingest_streams;
+  if (t["max_queries"]) {
+    Result<uint32_t> v = ReadLimit(t["max_queries"], at + ".max_queries");
+    if (!v.ok()) return v.status();
+    p->max_queries = *v;
+  }
+  if (t["max_ingest_streams"]) {
+    Result<uint32_t> v = ReadLimit(t["max_ingest_streams"], at + ".max_ingest_streams");
+    if (!v.ok()) return v.status();
+    p->max_ingest_streams = *v;
+  }
+  return Status::Ok();
+}
+
+// One entry: its principal (without usage counters) and its digest; its name joins `names`
+// (refused if already there). Throws YAML::Exception for a value of the wrong type.
+Status ReadEntry(const YAML::Node& t, const std::string& at, const TokenTable::Defaults& defaults,
+                 std::set<std::string>& names, Principal* p, std::string* digest) {
+  if (Status s = CheckFields(t, at); !s.ok()) return s;
+  p->name = t["name"] ? t["name"].as<std::string>() : "";
+  if (!IsName(p->name)) {
+    return Status::InvalidArgument(at + ".name: '" + p->name +
+                                   "' must be 1..128 of [A-Za-z0-9._-]");
+  }
+  if (!names.insert(p->name).second) {
+    return Status::InvalidArgument(at + ".name: '" + p->name + "' is listed twice");
+  }
+  *digest = t["sha256"] ? t["sha256"].as<std::string>() : "";
+  std::transform(digest->begin(), digest->end(), digest->begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (!IsHexDigest(*digest)) {
+    return Status::InvalidArgument(at +
+                                   ".sha256: expected 64 hex digits (the token's "
+                                   "SHA-256, e.g. `printf %s TOKEN | sha256sum`)");
+  }
+  if (Status s = ReadRole(t, at, p); !s.ok()) return s;
+  return ReadLimits(t, at, defaults, p);
+}
+
 }  // namespace
 
 std::string Sha256Hex(std::string_view data) {
@@ -65,96 +162,31 @@ Status TokenTable::Reload() {
 }
 
 Result<std::shared_ptr<const TokenTable::Digests>> TokenTable::Parse() const {
-  std::ifstream in(path_);
-  if (!in) return Status::IoError(path_ + ": cannot read");
-  std::stringstream text;
-  text << in.rdbuf();
-  YAML::Node root;
-  try {
-    root = YAML::Load(text.str());
-  } catch (const YAML::Exception& e) {
-    return Status::InvalidArgument(path_ + ": not YAML: " + e.what());
-  }
-  if (!root.IsMap() || !root["tokens"] || !root["tokens"].IsSequence()) {
-    return Status::InvalidArgument(path_ + ": expected 'tokens:' holding a list");
-  }
+  Result<YAML::Node> tokens = ReadTokenList(path_);
+  if (!tokens.ok()) return tokens.status();
   auto digests = std::make_shared<Digests>();
   std::set<std::string> names;
-  const YAML::Node tokens = root["tokens"];
-  for (size_t i = 0; i < tokens.size(); ++i) {
-    const YAML::Node t = tokens[i];
+  for (size_t i = 0; i < tokens->size(); ++i) {
     const std::string at = path_ + ": tokens[" + std::to_string(i) + "]";
-    if (!t.IsMap()) return Status::InvalidArgument(at + ": expected a mapping");
-    for (const auto& field : t) {
-      static const std::set<std::string> kFields = {"name",   "sha256",      "role",
-                                                    "robots", "max_queries", "max_ingest_streams"};
-      const std::string key = field.first.as<std::string>();
-      if (kFields.count(key) == 0) return Status::InvalidArgument(at + "." + key + ": unknown key");
-    }
     auto p = std::make_shared<Principal>();
+    std::string digest;
     try {
-      p->name = t["name"] ? t["name"].as<std::string>() : "";
-      if (!IsName(p->name)) {
-        return Status::InvalidArgument(at + ".name: '" + p->name +
-                                       "' must be 1..128 of [A-Za-z0-9._-]");
+      if (Status s = ReadEntry((*tokens)[i], at, defaults_, names, p.get(), &digest); !s.ok()) {
+        return s;
       }
-      if (!names.insert(p->name).second) {
-        return Status::InvalidArgument(at + ".name: '" + p->name + "' is listed twice");
-      }
-      std::string digest = t["sha256"] ? t["sha256"].as<std::string>() : "";
-      std::transform(digest.begin(), digest.end(), digest.begin(),
-                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-      if (!IsHexDigest(digest)) {
-        return Status::InvalidArgument(at +
-                                       ".sha256: expected 64 hex digits (the token's "
-                                       "SHA-256, e.g. `printf %s TOKEN | sha256sum`)");
-      }
-      const std::string role = t["role"] ? t["role"].as<std::string>() : "";
-      if (role == "robot") {
-        p->role = Role::kRobot;
-      } else if (role == "planner") {
-        p->role = Role::kPlanner;
-      } else if (role == "admin") {
-        p->role = Role::kAdmin;
-      } else {
-        return Status::InvalidArgument(at + ".role: '" + role +
-                                       "' is not one of robot|planner|admin");
-      }
-      if (const YAML::Node robots = t["robots"]) {
-        if (p->role != Role::kRobot) {
-          return Status::InvalidArgument(at + ".robots: only a robot token lists robot ids");
-        }
-        if (!robots.IsSequence()) return Status::InvalidArgument(at + ".robots: expected a list");
-        for (const auto& r : robots) p->robots.push_back(r.as<std::string>());
-      }
-      if (p->role == Role::kRobot && p->robots.empty()) {
-        return Status::InvalidArgument(at + ".robots: a robot token lists the ids it ingests as");
-      }
-      p->max_queries = defaults_.max_queries;
-      p->max_ingest_streams = defaults_.max_ingest_streams;
-      if (t["max_queries"]) {
-        Result<uint32_t> v = ReadLimit(t["max_queries"], at + ".max_queries");
-        if (!v.ok()) return v.status();
-        p->max_queries = *v;
-      }
-      if (t["max_ingest_streams"]) {
-        Result<uint32_t> v = ReadLimit(t["max_ingest_streams"], at + ".max_ingest_streams");
-        if (!v.ok()) return v.status();
-        p->max_ingest_streams = *v;
-      }
-      if (digests->count(digest) > 0) {
-        return Status::InvalidArgument(at + ".sha256: the same digest as another token");
-      }
-      {
-        std::lock_guard lock(mu_);
-        std::shared_ptr<TokenUsage>& usage = usage_[p->name];
-        if (usage == nullptr) usage = std::make_shared<TokenUsage>();
-        p->usage = usage;
-      }
-      digests->emplace(std::move(digest), std::move(p));
     } catch (const YAML::Exception& e) {
       return Status::InvalidArgument(at + ": " + e.what());
     }
+    if (digests->count(digest) > 0) {
+      return Status::InvalidArgument(at + ".sha256: the same digest as another token");
+    }
+    {
+      std::lock_guard lock(mu_);
+      std::shared_ptr<TokenUsage>& usage = usage_[p->name];
+      if (usage == nullptr) usage = std::make_shared<TokenUsage>();
+      p->usage = usage;
+    }
+    digests->emplace(std::move(digest), std::move(p));
   }
   return std::shared_ptr<const Digests>(std::move(digests));
 }

@@ -51,12 +51,18 @@ Status EnsureLogStream(const NatsClient& nats, const LogStreamOptions& options) 
 
 namespace {
 
+// A scan's robot, for its entry's headers.
+struct RobotHeaders {
+  const std::string& robot_id;
+  uint64_t sequence;
+};
+
 // Appends `payload` on `subject` with the partitions it touches, the robot's headers when
 // `robot` is set and message id `msg_id` when not empty; retried through a leader's election
 // (a scan's message id stores it once). Unavailable when the log cannot be reached in time.
 Result<Appended> Append(const NatsClient& nats, const char* subject, const std::string& payload,
                         const std::vector<PartitionKey>& touched, const CellBox& changes,
-                        const v1::Scan* robot, const std::string& msg_id) {
+                        const RobotHeaders* robot, const std::string& msg_id) {
   natsMsg* raw = nullptr;
   natsStatus st =
       natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
@@ -77,8 +83,8 @@ Result<Appended> Append(const NatsClient& nats, const char* subject, const std::
     st = natsMsgHeader_Set(msg.get(), kChangesHeader, cells.c_str());
   }
   if (robot != nullptr) {
-    const std::string sequence = std::to_string(robot->sequence());
-    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kRobotHeader, robot->robot_id().c_str());
+    const std::string sequence = std::to_string(robot->sequence);
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kRobotHeader, robot->robot_id.c_str());
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
   }
   if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
@@ -105,18 +111,18 @@ Result<Appended> Append(const NatsClient& nats, const char* subject, const std::
 
 }  // namespace
 
-Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
+Result<Appended> AppendScan(const NatsClient& nats, const std::string& encoded,
+                            const std::string& robot_id, uint64_t sequence,
                             const std::vector<PartitionKey>& touched, const CellBox& changes) {
-  std::string payload;
-  if (!scan.SerializeToString(&payload)) return Status::InvalidArgument("scan: cannot encode");
-  if (static_cast<int64_t>(payload.size()) + 1024 > nats.max_payload()) {
-    return Status::OutOfRange("scan: " + std::to_string(payload.size()) +
+  if (static_cast<int64_t>(encoded.size()) + 1024 > nats.max_payload()) {
+    return Status::OutOfRange("scan: " + std::to_string(encoded.size()) +
                               " bytes exceed the NATS servers' max_payload of " +
                               std::to_string(nats.max_payload()) + " bytes");
   }
   // The robot's own id and sequence: a retry, through this node or another, is stored once.
-  return Append(nats, kScanSubject, payload, touched, changes, &scan,
-                scan.robot_id() + "/" + std::to_string(scan.sequence()));
+  const RobotHeaders robot{robot_id, sequence};
+  return Append(nats, kScanSubject, encoded, touched, changes, &robot,
+                robot_id + "/" + std::to_string(sequence));
 }
 
 Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,

@@ -42,9 +42,12 @@ struct Appended {
   bool duplicate = false;  // already in the log: not stored again
 };
 
-// Appends `scan` once JetStream has stored it on a majority of its replicas (the durability
-// point of a cluster ack). Unavailable when the log cannot be reached in time.
-Result<Appended> AppendScan(const NatsClient& nats, const v1::Scan& scan,
+// Appends robot `robot_id`'s scan `sequence`, `encoded` as it was sent (a bgkmap.v1.Scan), once
+// JetStream has stored it on a majority of its replicas (the durability point of a cluster
+// ack). OutOfRange when it exceeds the servers' max_payload; Unavailable when the log cannot be
+// reached in time.
+Result<Appended> AppendScan(const NatsClient& nats, const std::string& encoded,
+                            const std::string& robot_id, uint64_t sequence,
                             const std::vector<PartitionKey>& touched, const CellBox& changes);
 
 // Appends a clear of `box` (map cells), ordered with the scans like a single server's clear.

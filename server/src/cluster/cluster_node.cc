@@ -25,10 +25,13 @@ std::vector<std::string> SplitServers(const std::string& list) {
 }  // namespace
 
 ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
-                         std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members)
+                         std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members,
+                         Georeference georeference, Executor executor)
     : config_(config),
       params_(params),
       prepare_(std::move(prepare)),
+      executor_(std::move(executor)),
+      georeference_(std::move(georeference)),
       layout_(params, static_cast<int>(config.partition_tiles)),
       nats_(std::move(nats)),
       members_(std::move(members)) {
@@ -37,10 +40,9 @@ ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, S
                                           static_cast<int64_t>(config.lease_s * 1000) + 10000);
 }
 
-Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& config,
-                                                        const MapParams& params,
-                                                        const std::string& params_yaml,
-                                                        ScanPreparer prepare) {
+Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
+    const ClusterConfig& config, const MapParams& params, const std::string& params_yaml,
+    ScanPreparer prepare, Georeference georeference, Executor executor) {
   Result<std::unique_ptr<NatsClient>> nats =
       NatsClient::Connect(SplitServers(config.nats), "bgkmapd-" + config.node);
   if (!nats.ok()) return nats.status();
@@ -67,8 +69,9 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(const ClusterConfig& con
   mo.lease_s = config.lease_s;
   Result<std::unique_ptr<Membership>> members = Membership::Open(**nats, mo, params_yaml);
   if (!members.ok()) return members.status();
-  std::unique_ptr<ClusterNode> node(new ClusterNode(
-      config, params, std::move(prepare), std::move(nats).value(), std::move(members).value()));
+  std::unique_ptr<ClusterNode> node(
+      new ClusterNode(config, params, std::move(prepare), std::move(nats).value(),
+                      std::move(members).value(), std::move(georeference), std::move(executor)));
   if (Status s = node->members_->Heartbeat(); !s.ok()) return s;
   node->loop_ = std::thread([n = node.get()] { n->Run(); });
   node->checkpoint_writer_ = std::thread([n = node.get()] { n->WriteCheckpoints(); });
@@ -98,10 +101,11 @@ ClusterNode::~ClusterNode() {
   replicas_.clear();
 }
 
-Result<Appended> ClusterNode::Append(const v1::Scan& scan, const PreparedScan& prepared) {
+Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const PreparedScan& prepared) {
+  const std::string encoded = origin.encoded();
   // Refused before anything is recorded: the log takes messages up to the servers' max_payload.
-  if (static_cast<int64_t>(scan.ByteSizeLong()) + 1024 > nats_->max_payload()) {
-    return Status::OutOfRange("scan: " + std::to_string(scan.ByteSizeLong()) +
+  if (static_cast<int64_t>(encoded.size()) + 1024 > nats_->max_payload()) {
+    return Status::OutOfRange("scan: " + std::to_string(encoded.size()) +
                               " bytes exceed the NATS servers' max_payload of " +
                               std::to_string(nats_->max_payload()) +
                               " bytes (nats-server: max_payload, up to 64 MB)");
@@ -113,7 +117,7 @@ Result<Appended> ClusterNode::Append(const v1::Scan& scan, const PreparedScan& p
   for (PartitionKey p : touched) {
     if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
   }
-  return AppendScan(*nats_, scan, touched, reach);
+  return AppendScan(*nats_, encoded, origin.robot_id, origin.sequence, touched, reach);
 }
 
 Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {

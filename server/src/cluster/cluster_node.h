@@ -1,9 +1,9 @@
 // A bgkmapd running as a shard of a cluster (docs/scale-out.md): it appends the scans it
 // receives to the cluster's log, builds the partitions it owns from the log (one reader for all
-// of them) and serves their tiles, and answers queries
-// by gathering tiles from their owners. The gRPC service in front is the single server's
-// (rpc/): it calls Append() instead of the served map's SubmitScan(), and reads through
-// reads() instead of the served map.
+// of them) and serves their tiles, and answers queries by gathering tiles from their owners.
+// It is the cluster's implementation of the map port (serving/map_port.h), so the gRPC service
+// and the web map in front are the single server's; the port's methods are in
+// cluster_map_port.cc.
 #pragma once
 
 #include <atomic>
@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "bgkmap/core/georeference.h"
 #include "bgkmap/server/server_config.h"
 #include "cluster/cluster_log.h"
 #include "cluster/cluster_reads.h"
@@ -25,11 +26,14 @@
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 #include "cluster/partition_replica.h"
+#include "serving/map_port.h"
 
 namespace bgkmap::cluster {
 
 // Checks and prepares a scan exactly as the node that accepted it did (the same parameters).
 using ScanPreparer = std::function<Status(const v1::Scan&, PreparedScan*)>;
+// Runs a task on a worker (the server's query pool): what must not run on the caller's thread.
+using Executor = std::function<void(std::function<void()>)>;
 
 struct ClusterStatus {
   std::string node;
@@ -38,33 +42,85 @@ struct ClusterStatus {
   std::vector<ReplicaStats> replicas;  // the partitions this node serves or is catching up
 };
 
-class ClusterNode {
+class ClusterNode final : public MapPort {
  public:
   // Connects, creates or checks the log and the buckets, and starts taking partitions.
+  // `georeference`: the configured one (a shard keeps it in memory); `executor`: where reads
+  // that ask the log run instead of the caller's thread.
   static Result<std::unique_ptr<ClusterNode>> Start(const ClusterConfig& config,
                                                     const MapParams& params,
                                                     const std::string& params_yaml,
-                                                    ScanPreparer prepare);
+                                                    ScanPreparer prepare, Georeference georeference,
+                                                    Executor executor);
   ~ClusterNode();  // leaves: stops the heartbeat (its partitions move when the lease expires)
 
+  // Reports every later log entry's changed cells to `on_change` (Watch on this node); once.
+  void FollowChanges(LogChangeFeed::OnChange on_change);
+  ClusterStatus Describe() const;
+  const PartitionLayout& layout() const { return layout_; }
+
+  // ---- MapPort. Changes go to the log: a scan, a clear or an import is answered (on the
+  // caller's thread) once the log has stored it, its map version the entry's log sequence.
+  // Robots' sequence numbers are judged by the partitions as they read the log; a retry the
+  // log stores once is answered as a duplicate. Exports, pose corrections, scan removals and
+  // robot retirements are not distributed yet: Unimplemented.
+  const MapParams& params() const override { return params_; }
+  const GridGeometry& geometry() const override { return layout_.geometry(); }
+  Status Offers(Operation operation) const override;
+  bool retains_scans() const override { return false; }
+  bool TakeDuplicate(const std::string&, uint64_t, uint64_t*) override { return false; }
+  void CountRejected(const std::string&) override {}
+  RobotAdmission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,
+                            std::function<void(ScanOutcome)> done,
+                            uint64_t* last_sequence = nullptr) override;
+  void SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done) override;
+  // Spooled to the system's temporary directory and checked like a single server's; the tiles
+  // are then stored beside the log and one entry names them (AppendImport). Sums that would
+  // overflow are not checked (no shard holds every tile).
+  Result<std::unique_ptr<ArchiveUpload>> BeginImport() override;
+  void SubmitExport(const std::optional<CellBox>& box,
+                    std::function<void(Result<std::unique_ptr<ArchiveChunks>>)> done) override;
+  void SubmitCorrection(CorrectionSpec spec, std::function<void(CorrectionOutcome)> done) override;
+  void RetireRobot(const std::string& robot_id,
+                   std::function<void(Result<RobotStats>)> done) override;
+  // Reads gather tiles from the partitions' owners (ClusterReads).
+  uint64_t applied_version() const override { return reads_->applied_version(); }
+  Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
+                            int stride) override {
+    return reads_->ReadRegion(box, layers, stride);
+  }
+  Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override {
+    return reads_->ReadCells(cells);
+  }
+  Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) override {
+    return reads_->ReadTile(key, layers);
+  }
+  Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) override {
+    return reads_->ListKnownTiles(min, max);
+  }
+  // Info: the shard's place in the cluster; its counts are its own (empty) local map's.
+  uint64_t known_version() const override { return reads_->known_version(); }
+  std::vector<RobotStats> Robots() const override { return {}; }
+  MapState State(bool with_disk_usage = false) override;
+  void ReadVersion(std::function<void(uint64_t)> done) override;
+
+ private:
+  ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
+              std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members,
+              Georeference georeference, Executor executor);
   // Appends a checked and prepared scan to the log (durable on a majority of the log's replicas
-  // when OK). Unavailable if the log cannot be reached.
-  Result<Appended> Append(const v1::Scan& scan, const PreparedScan& prepared);
+  // when OK). OutOfRange when it is too large for the log; Unavailable if the log cannot be
+  // reached.
+  Result<Appended> Append(const ScanOrigin& origin, const PreparedScan& prepared);
   // Appends a clear of `box` (map cells); its log sequence number once stored.
   Result<uint64_t> AppendClear(const CellBox& box);
   // Appends an import (a merge) of `tiles` at `keys`: the tiles are stored first, then one
   // log entry names them. Its log sequence number once stored.
   Result<uint64_t> AppendImport(std::span<const TileKey> keys,
                                 std::span<const std::unique_ptr<Tile>> tiles);
-  MapReads& reads() { return *reads_; }
-  // Reports every later log entry's changed cells to `on_change` (Watch on this node); once.
-  void FollowChanges(LogChangeFeed::OnChange on_change);
-  ClusterStatus Describe() const;
-  const PartitionLayout& layout() const { return layout_; }
-
- private:
-  ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
-              std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members);
+  Georeference georeference() const;
+  // Ties the shard's map in a local frame to `georeference` (an import's).
+  Status AdoptGeoreference(const Georeference& georeference);
   void Run();        // the membership loop
   void Rebalance();  // starts the partitions this node owns, stops those it no longer does
   // cluster.trim_lag_entries > 0: deletes the log's entries that every partition's newest
@@ -86,6 +142,9 @@ class ClusterNode {
   const ClusterConfig config_;
   const MapParams params_;
   const ScanPreparer prepare_;
+  const Executor executor_;
+  mutable std::mutex georeference_mu_;
+  Georeference georeference_;  // guarded by georeference_mu_
   const PartitionLayout layout_;
   std::unique_ptr<NatsClient> nats_;
   std::unique_ptr<Membership> members_;

@@ -22,7 +22,10 @@ class ClusterReads final : public MapReads {
   ClusterReads(const NatsClient& nats, const PartitionLayout& layout, const Membership& members,
                const MapParams& params, int64_t fetch_timeout_ms);
 
+  // The log's last sequence, asked of the log (a round trip).
   uint64_t applied_version() const override;
+  // The log's last sequence as of the last time it was asked.
+  uint64_t known_version() const { return last_sequence_.load(); }
   Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                             int stride) override;
   Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;

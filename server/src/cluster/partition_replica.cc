@@ -81,10 +81,14 @@ uint64_t PartitionReplica::applied() const {
 }
 
 bool PartitionReplica::Admit(uint64_t /*sequence*/, const LogEntryHeader& header) {
-  // A scan at or below its robot's last sequence is a duplicate, as on a single server.
-  auto [it, is_new] = robot_last_.try_emplace(header.robot_id, 0);
-  if (!is_new && header.robot_sequence <= it->second) return false;
-  it->second = header.robot_sequence;
+  auto it = robot_last_.find(header.robot_id);
+  const std::optional<uint64_t> last =
+      it == robot_last_.end() ? std::nullopt : std::optional<uint64_t>(it->second);
+  if (sequence_rule_.Judge(last, header.robot_sequence, robot_last_.size()) !=
+      RobotAdmission::kAdmitted) {
+    return false;
+  }
+  robot_last_[header.robot_id] = header.robot_sequence;
   return std::binary_search(header.touched.begin(), header.touched.end(), key_);
 }
 

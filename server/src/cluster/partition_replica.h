@@ -4,9 +4,10 @@
 // of its start.
 //
 // The node's log reader (LogReader) hands it every entry after the last it applied, so the robots'
-// sequence numbers are judged as a single server judges them (a scan at or below its robot's
-// last sequence is not applied); only the scans whose halo holds this partition are cut to the
-// halo (RestrictScan) and integrated. Tiles are stamped with the entry's log sequence number.
+// sequence numbers are judged by the single server's rule (serving/robot_sequence.h: a scan at
+// or below its robot's last sequence is not applied; shards apply no limit on jumps or robots);
+// only the scans whose halo holds this partition are cut to the halo (RestrictScan) and
+// integrated. Tiles are stamped with the entry's log sequence number.
 #pragma once
 
 #include <atomic>
@@ -27,6 +28,7 @@
 #include "cluster/nats_client.h"
 #include "cluster/partition_checkpoint.h"
 #include "cluster/partition_layout.h"
+#include "serving/robot_sequence.h"
 
 namespace bgkmap::cluster {
 
@@ -100,6 +102,7 @@ class PartitionReplica {
   uint64_t applied_ = 0;
   uint64_t scans_integrated_ = 0;
   double catch_up_seconds_ = 0;
+  const RobotSequenceRule sequence_rule_;       // duplicates only: no limits on a shard
   std::map<std::string, uint64_t> robot_last_;  // the log reader's thread only
   uint64_t restored_from_ = 0;
   uint64_t checkpointed_scans_ = 0;     // scans_integrated_ at the last checkpoint

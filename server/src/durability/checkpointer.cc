@@ -7,7 +7,7 @@
 namespace bgkmap {
 
 void Checkpointer::MarkChanged(std::span<const TileKey> tiles) {
-  if (!durability_.persists()) return;  // nothing is ever written: keep no set
+  if (!persists_) return;  // nothing is ever written: keep no set
   bool over = false;
   {
     std::lock_guard lock(dirty_mu_);
@@ -40,12 +40,12 @@ CapturedCheckpoint Checkpointer::Capture(uint64_t version) {
   order_->acquire();
   c.order = std::shared_ptr<std::binary_semaphore>(
       order_.get(), [keep = order_](auto* slot) { slot->release(); });
-  if (durability_.write_failed()) {
-    const bool paused = durability_.writes_paused_for_space();
-    const Status resumed = durability_.Resume();
+  if (store_.write_failed()) {
+    const bool paused = store_.writes_paused_for_space();
+    const Status resumed = store_.Resume();
     if (resumed.ok()) {
       if (!paused) spdlog::info("event=storage_resumed");  // (a pause for space logs its own)
-    } else if (durability_.writes_paused_for_space()) {
+    } else if (store_.writes_paused_for_space()) {
       // A full disk is retried every second: logged once when it began (event=storage_full).
       spdlog::debug("event=storage_resume_failed reason=\"{}\"", resumed.message());
     } else {
@@ -63,13 +63,13 @@ CapturedCheckpoint Checkpointer::Capture(uint64_t version) {
 }
 
 Status Checkpointer::Write(CapturedCheckpoint captured) {
-  if (!durability_.persists()) return Status::Ok();
+  if (!persists_) return Status::Ok();
   const auto t0 = std::chrono::steady_clock::now();
-  Status s = durability_.WriteCheckpoint(captured.version, captured.keys, captured.tiles);
+  Status s = store_.WriteCheckpoint(captured.version, captured.keys, captured.tiles);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!s.ok()) {
-    spdlog::log(durability_.writes_paused_for_space() ? spdlog::level::debug : spdlog::level::err,
+    spdlog::log(store_.writes_paused_for_space() ? spdlog::level::debug : spdlog::level::err,
                 "event=checkpoint_failed version={} reason=\"{}\"", captured.version, s.message());
     std::lock_guard lock(dirty_mu_);
     dirty_.insert(captured.keys.begin(), captured.keys.end());

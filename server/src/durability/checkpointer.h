@@ -18,7 +18,7 @@
 #include <span>
 #include <vector>
 
-#include "durability/durability.h"
+#include "durability/checkpoint_store.h"
 
 namespace bgkmap {
 
@@ -33,8 +33,9 @@ struct CapturedCheckpoint {
 
 class Checkpointer {
  public:
-  Checkpointer(Durability& durability, const TileCopier& map)
-      : durability_(durability), map_(map) {}
+  // `persists`: the store keeps tiles (else nothing is ever written and no tile is marked).
+  Checkpointer(CheckpointStore& store, bool persists, const ResidentTiles& map)
+      : store_(store), persists_(persists), map_(map) {}
 
   // After a change was applied: every tile it may have changed. Calls the dirty-limit callback
   // (without locks held) when more tiles than the limit are changed since the last capture.
@@ -53,8 +54,9 @@ class Checkpointer {
   Status CheckpointAt(uint64_t version) { return Write(Capture(version)); }
 
  private:
-  Durability& durability_;
-  const TileCopier& map_;
+  CheckpointStore& store_;
+  const bool persists_;
+  const ResidentTiles& map_;
   std::shared_ptr<std::binary_semaphore> order_ = std::make_shared<std::binary_semaphore>(1);
   mutable std::mutex dirty_mu_;
   std::set<TileKey> dirty_;  // changed since the last capture

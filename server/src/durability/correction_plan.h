@@ -1,5 +1,5 @@
-// A pose correction (or a removal) of one robot's logged scans, as asked and as resolved
-// against the scan log (docs/semantics.md, "Pose corrections").
+// A pose correction (or a removal) of one robot's logged scans, as resolved against the scan
+// log (docs/semantics.md, "Pose corrections").
 #pragma once
 
 #include <cstdint>
@@ -15,12 +15,8 @@
 
 namespace bgkmap {
 
-struct CorrectionSpec {
-  std::string robot_id;
-  std::map<uint64_t, Pose> poses;  // sequence number -> corrected T_map_sensor
-  // Instead: remove the robot's scans with first <= sequence <= last.
-  std::optional<std::pair<uint64_t, uint64_t>> remove;
-};
+// A removal's first and last sequence numbers (nullopt: a correction of poses).
+using CorrectionRange = std::optional<std::pair<uint64_t, uint64_t>>;
 
 struct CorrectionPlan {
   std::string robot_id;

@@ -6,7 +6,7 @@ namespace bgkmap {
 namespace {
 
 // Tiles copied at the barrier, handed out one by one.
-class CopiedTiles final : public TileSource {
+class CopiedTiles final : public TilesAtVersion {
  public:
   CopiedTiles(std::vector<TileKey> keys, std::vector<std::unique_ptr<Tile>> tiles)
       : keys_(std::move(keys)), tiles_(std::move(tiles)) {}
@@ -20,14 +20,14 @@ class CopiedTiles final : public TileSource {
 
 }  // namespace
 
-Result<std::unique_ptr<TileSource>> MemoryDurability::OpenTileSource(TileKey min, TileKey max,
-                                                                     const TileCopier& map) {
+Result<std::unique_ptr<TilesAtVersion>> MemoryDurability::OpenTileSource(TileKey min, TileKey max,
+                                                                         const ResidentTiles& map) {
   std::vector<TileKey> keys = map.ListTiles(min, max);
   std::vector<std::unique_ptr<Tile>> tiles = map.CopyTiles(keys);
-  return std::unique_ptr<TileSource>(new CopiedTiles(std::move(keys), std::move(tiles)));
+  return std::unique_ptr<TilesAtVersion>(new CopiedTiles(std::move(keys), std::move(tiles)));
 }
 
-Status MemoryDurability::AdoptGeoreference(const storage::Georeference& georeference) {
+Status MemoryDurability::AdoptGeoreference(const Georeference& georeference) {
   std::lock_guard lock(georeference_mu_);
   if (Status s = storage::CheckGeoreferenceCompatible(georeference_, georeference); !s.ok()) {
     return s;

@@ -11,7 +11,7 @@ namespace bgkmap {
 class MemoryDurability final : public Durability {
  public:
   // `georeference`: the configured one (server config `georeference`), empty for a local frame.
-  explicit MemoryDurability(storage::Georeference georeference = {})
+  explicit MemoryDurability(Georeference georeference = {})
       : georeference_(std::move(georeference)) {}
 
   bool persists() const override { return false; }
@@ -25,19 +25,19 @@ class MemoryDurability final : public Durability {
   }
   bool write_failed() const override { return false; }
   Status Resume() override { return Status::Ok(); }
-  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
-                                                     const TileCopier& map) override;
+  Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey min, TileKey max,
+                                                         const ResidentTiles& map) override;
   std::vector<TileKey> CorruptTiles() const override { return {}; }
   ScratchDirectory scratch_directory() const override;
   VerifyReport VerifyStoredTiles(const std::atomic<bool>&) const override { return {}; }
   std::optional<StoreStatus> store_status(bool) const override { return std::nullopt; }
-  storage::Georeference georeference() const override {
+  Georeference georeference() const override {
     std::lock_guard lock(georeference_mu_);
     return georeference_;
   }
-  Status AdoptGeoreference(const storage::Georeference& georeference) override;
+  Status AdoptGeoreference(const Georeference& georeference) override;
 
-  // TileBacking: nothing is stored, and nothing in memory is ever clean.
+  // StoredTiles: nothing is stored, and nothing in memory is ever clean.
   bool IsStored(TileKey) const override { return false; }
   void StoredIn(TileKey, TileKey, std::vector<TileKey>*) const override {}
   void ForEachStored(const std::function<void(TileKey, const TileSummary&)>&) const override {}
@@ -47,7 +47,7 @@ class MemoryDurability final : public Durability {
 
  private:
   mutable std::mutex georeference_mu_;
-  storage::Georeference georeference_;  // guarded by georeference_mu_
+  Georeference georeference_;  // guarded by georeference_mu_
 };
 
 }  // namespace bgkmap

@@ -12,7 +12,7 @@ namespace bgkmap {
 namespace {
 
 // The stored tiles of a snapshot taken right after a checkpoint.
-class SnapshotTiles final : public TileSource {
+class SnapshotTiles final : public TilesAtVersion {
  public:
   SnapshotTiles(std::unique_ptr<storage::TileSnapshot> snapshot, std::vector<TileKey> keys)
       : snapshot_(std::move(snapshot)), keys_(std::move(keys)) {}
@@ -26,9 +26,10 @@ class SnapshotTiles final : public TileSource {
 
 }  // namespace
 
-Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(
-    const StorageConfig& config, const MapParams& params, const storage::Georeference& georeference,
-    TerrainMap& map) {
+Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConfig& config,
+                                                               const MapParams& params,
+                                                               const Georeference& georeference,
+                                                               TerrainMap& map) {
   storage::StoreOptions options;
   Result<storage::Durability> durability = storage::ParseDurability(config.durability);
   if (!durability.ok()) return durability.status();
@@ -102,7 +103,7 @@ Status StoreDurability::Record(const ChangeRecord& change) {
                                   ? storage::LogRecord::Scan(change.version, change.robot_id,
                                                              change.sequence, change.scan, stamp_ns)
                                   : storage::LogRecord::Clear(change.version, change.clear_box);
-  record.source = change.source;
+  record.raw_scan = change.raw_scan;
   Status s = store_->log().Append(record);
   if (!store_->log().write_failure().ok()) write_failed_.store(true);
   NotePause(s);
@@ -162,8 +163,8 @@ Status StoreDurability::Resume() {
   return s;
 }
 
-Result<std::unique_ptr<TileSource>> StoreDurability::OpenTileSource(TileKey min, TileKey max,
-                                                                    const TileCopier&) {
+Result<std::unique_ptr<TilesAtVersion>> StoreDurability::OpenTileSource(TileKey min, TileKey max,
+                                                                        const ResidentTiles&) {
   std::shared_lock lock(reopen_mu_);
   // Called right after a checkpoint at the applied version: the store holds the map exactly.
   std::unique_ptr<storage::TileSnapshot> snapshot = store_->NewSnapshot();
@@ -172,7 +173,7 @@ Result<std::unique_ptr<TileSource>> StoreDurability::OpenTileSource(TileKey min,
   std::vector<TileKey> keys;
   keys.reserve(listed->size());
   for (const storage::StoredTileInfo& info : *listed) keys.push_back(info.key);
-  return std::unique_ptr<TileSource>(new SnapshotTiles(std::move(snapshot), std::move(keys)));
+  return std::unique_ptr<TilesAtVersion>(new SnapshotTiles(std::move(snapshot), std::move(keys)));
 }
 
 Durability::ScratchDirectory StoreDurability::scratch_directory() const {

@@ -1,6 +1,6 @@
 // Durability in the persistent store (storage/, storage.data_dir): opens and recovers it at
 // start, journals every change to the scan log before it is applied, writes checkpoints of the
-// changed tiles, and serves the stored tiles back (TileBacking) from an index kept in memory.
+// changed tiles, and serves the stored tiles back (StoredTiles) from an index kept in memory.
 #pragma once
 
 #include <atomic>
@@ -29,7 +29,7 @@ class StoreDurability final : public Durability {
   // one-line message.
   static Result<std::unique_ptr<StoreDurability>> Open(const StorageConfig& config,
                                                        const MapParams& params,
-                                                       const storage::Georeference& georeference,
+                                                       const Georeference& georeference,
                                                        TerrainMap& map);
 
   bool persists() const override { return true; }
@@ -41,7 +41,9 @@ class StoreDurability final : public Durability {
   }
   Status Record(const ChangeRecord& change) override;
   bool retains_scans() const override;
-  Result<CorrectionPlan> PlanCorrection(const CorrectionSpec& spec) const override;
+  Result<CorrectionPlan> PlanCorrection(const std::string& robot_id,
+                                        const std::map<uint64_t, Pose>& poses,
+                                        const CorrectionRange& remove) const override;
   Result<storage::Reintegration> Reintegrate(const CorrectionPlan& plan, uint64_t end,
                                              bool plan_only) const override;
   Status RecordCorrection(const CorrectionPlan& plan, uint64_t version) override;
@@ -55,18 +57,18 @@ class StoreDurability final : public Durability {
   bool writes_paused_for_space() const override;
   std::vector<TileKey> DeferredTiles() const override { return deferred_; }
   Status AdmitScratch(uint64_t bytes) override;
-  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey min, TileKey max,
-                                                     const TileCopier& map) override;
+  Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey min, TileKey max,
+                                                         const ResidentTiles& map) override;
   std::vector<TileKey> CorruptTiles() const override { return store_->CorruptTiles(); }
   ScratchDirectory scratch_directory() const override;
   std::optional<StoreStatus> store_status(bool with_disk_usage) const override;
-  storage::Georeference georeference() const override { return store_->georeference(); }
-  Status AdoptGeoreference(const storage::Georeference& georeference) override {
+  Georeference georeference() const override { return store_->georeference(); }
+  Status AdoptGeoreference(const Georeference& georeference) override {
     std::shared_lock lock(reopen_mu_);
     return store_->AdoptGeoreference(georeference);
   }
 
-  // TileBacking: the stored tiles, as of the last written checkpoint.
+  // StoredTiles: the stored tiles, as of the last written checkpoint.
   bool IsStored(TileKey key) const override { return index_.Contains(key); }
   void StoredIn(TileKey min, TileKey max, std::vector<TileKey>* keys) const override {
     index_.KeysIn(min, max, keys);

@@ -5,8 +5,8 @@
 #include <boost/asio/ssl/context.hpp>
 #include <memory>
 
+#include "auth/tls_files.h"
 #include "bgkmap/core/status.h"
-#include "tls_files.h"
 
 namespace bgkmap {
 

@@ -3,44 +3,42 @@
 #include <fstream>
 #include <sstream>
 
-#include "rpc/service_context.h"
-
 namespace bgkmap {
 namespace {
 
 using Type = ExpositionWriter::Type;
 
-void WriteRobots(const std::vector<RobotProgress>& robots, ExpositionWriter& w) {
+void WriteRobots(const std::vector<RobotStats>& robots, ExpositionWriter& w) {
   struct PerRobot {
     const char* name;
     Type type;
     const char* help;
-    uint64_t RobotProgress::*value;
+    uint64_t RobotStats::*value;
   };
   static constexpr PerRobot kPerRobot[] = {
       {"bgkmap_robot_scans_applied_total", Type::kCounter,
-       "Scans of the robot integrated into the map since start.", &RobotProgress::scans_applied},
+       "Scans of the robot integrated into the map since start.", &RobotStats::scans_applied},
       {"bgkmap_robot_scans_duplicate_total", Type::kCounter,
        "Scans of the robot acknowledged as duplicates (sequence number not above the last) since "
        "start.",
-       &RobotProgress::scans_duplicate},
+       &RobotStats::scans_duplicate},
       {"bgkmap_robot_scans_rejected_total", Type::kCounter,
        "Scans of the robot rejected (bad input, limits, storage failure) since start.",
-       &RobotProgress::scans_rejected},
+       &RobotStats::scans_rejected},
       {"bgkmap_robot_points_kept_total", Type::kCounter,
        "Points of the robot's applied scans that were integrated (after filtering) since start.",
-       &RobotProgress::points_kept},
+       &RobotStats::points_kept},
       {"bgkmap_robot_last_sequence", Type::kGauge,
        "The robot's last admitted sequence number (kept across restarts with a store).",
-       &RobotProgress::last_sequence},
+       &RobotStats::last_sequence},
   };
   for (const PerRobot& m : kPerRobot) {
     w.Family(m.name, m.type, m.help);
-    for (const RobotProgress& r : robots) w.Sample(r.*m.value, {{"robot", r.robot_id}});
+    for (const RobotStats& r : robots) w.Sample(r.*m.value, {{"robot", r.robot_id}});
   }
 }
 
-void WriteStore(const StoreMetrics& s, ExpositionWriter& w) {
+void WriteStore(const StorageState& s, uint64_t memory_limit_bytes, ExpositionWriter& w) {
   w.Gauge("bgkmap_store_checkpoint_version",
           "Map version of the last written checkpoint (every change up to it is in the stored "
           "tiles).",
@@ -66,7 +64,7 @@ void WriteStore(const StoreMetrics& s, ExpositionWriter& w) {
           s.free_bytes);
   w.Gauge("bgkmap_store_free_space_reserve_bytes",
           "storage.min_free_space_mb in bytes: writes are refused below it.", s.reserve_bytes);
-  const storage::StoreCounters& c = s.counters;
+  const StorageState::Counters& c = s.counters;
   w.Counter("bgkmap_store_tiles_loaded_total", "Tiles read from the store since it was opened.",
             c.tiles_loaded);
   w.Counter("bgkmap_store_tiles_written_total", "Tiles written by checkpoints since open.",
@@ -107,39 +105,27 @@ void WriteStore(const StoreMetrics& s, ExpositionWriter& w) {
   w.Gauge("bgkmap_map_memory_limit_bytes",
           "storage.max_memory_mb in bytes: bound on tiles in memory plus checkpoint copies (0: "
           "unbounded).",
-          s.memory_limit_bytes);
+          memory_limit_bytes);
 }
 
 }  // namespace
 
-ServerMetrics CollectMetrics(ServiceContext& ctx) {
+ServerMetrics CollectMetrics(MapPort& map, const ServiceCounts& service,
+                             uint64_t memory_limit_bytes) {
+  MapState state = map.State(/*with_disk_usage=*/true);
   ServerMetrics m;
   m.server_version = BGKMAP_VERSION;
-  m.map_version = ctx.map.applied_version();
-  m.scans_applied = ctx.map.scans_applied();
-  const MapSummary summary = ctx.map.Summary();
-  m.tile_count = summary.tile_count;
-  m.known_cells = summary.known_cells;
-  m.ingest_streams = ctx.sessions.count(SessionRegistry::Kind::kIngest);
-  m.watchers = ctx.sessions.count(SessionRegistry::Kind::kWatch);
-  m.robots = ctx.map.robots().Robots();
-  if (std::optional<StoreStatus> store = ctx.map.store_status(/*with_disk_usage=*/true)) {
-    StoreMetrics& s = m.store.emplace();
-    s.checkpoint_version = store->checkpoint_version;
-    s.corrupt_tiles = store->corrupt_tiles;
-    s.dirty_tiles = ctx.map.checkpointer().dirty_tiles();
-    s.write_failed = store->write_failed;
-    s.writes_paused_for_space = store->writes_paused_for_space;
-    s.read_only = store->read_only;
-    s.free_bytes = store->free_bytes;
-    s.reserve_bytes = store->reserve_bytes;
-    s.counters = store->counters;
-    s.usage = store->usage;
-    s.residency = ctx.map.Residency();
-    s.memory_limit_bytes = ctx.config.storage.max_memory_mb << 20;
-  }
+  m.map_version = state.version;
+  m.scans_applied = state.scans_applied;
+  m.tile_count = state.summary.tile_count;
+  m.known_cells = state.summary.known_cells;
+  m.ingest_streams = service.ingest_streams;
+  m.watchers = service.watchers;
+  m.robots = std::move(state.robots);
+  m.store = std::move(state.storage);
+  m.memory_limit_bytes = memory_limit_bytes;
   m.process_resident_bytes = ProcessResidentBytes();
-  m.corrections = ctx.map.corrections();
+  m.corrections = state.corrections;
   return m;
 }
 
@@ -171,7 +157,7 @@ std::string FormatMetrics(const ServerMetrics& m) {
             c.records_replayed);
   w.Gauge("bgkmap_correction_last_seconds", "Duration of the last correction, request to switch.",
           c.last_seconds);
-  if (m.store) WriteStore(*m.store, w);
+  if (m.store) WriteStore(*m.store, m.memory_limit_bytes, w);
   if (m.process_resident_bytes) {
     w.Gauge("process_resident_memory_bytes", "Resident memory of the bgkmapd process (VmRSS).",
             *m.process_resident_bytes);

@@ -10,29 +10,15 @@
 #include <utility>
 #include <vector>
 
-#include "bgkmap/storage/tile_store.h"
-#include "serving/correction_stats.h"
-#include "serving/robot_registry.h"
-#include "serving/tile_residency.h"
+#include "bgkmap/server/robot_stats.h"
+#include "serving/map_port.h"
 
 namespace bgkmap {
 
-struct ServiceContext;
-
-// The persistent store's side of a snapshot (present only with storage.data_dir).
-struct StoreMetrics {
-  uint64_t checkpoint_version = 0;
-  uint64_t corrupt_tiles = 0;  // listed corrupt now (CorruptTiles())
-  uint64_t dirty_tiles = 0;    // changed since the last checkpoint capture
-  bool write_failed = false;
-  bool writes_paused_for_space = false;  // below storage.min_free_space_mb, or read-only
-  bool read_only = false;                // opened read-only on a full disk
-  uint64_t free_bytes = 0;
-  uint64_t reserve_bytes = 0;
-  storage::StoreCounters counters;
-  storage::DiskUsage usage;
-  ResidencyStats residency;
-  uint64_t memory_limit_bytes = 0;  // storage.max_memory_mb in bytes; 0 = unbounded
+// What the server around the map adds to a scrape (the RPC side's open streams).
+struct ServiceCounts {
+  uint64_t ingest_streams = 0;
+  uint64_t watchers = 0;
 };
 
 // One scrape's values. Taken field by field, not at one map version: each value is current
@@ -45,15 +31,18 @@ struct ServerMetrics {
   uint64_t known_cells = 0;
   uint64_t ingest_streams = 0;
   uint64_t watchers = 0;
-  std::vector<RobotProgress> robots;  // sorted by id
-  std::optional<StoreMetrics> store;
+  std::vector<RobotStats> robots;     // sorted by id
+  std::optional<StorageState> store;  // with storage.data_dir
+  uint64_t memory_limit_bytes = 0;    // storage.max_memory_mb in bytes; 0 = unbounded
   std::optional<uint64_t> process_resident_bytes;
   CorrectionStats corrections;
 };
 
-// Reads every value from the server's accessors. Locks nothing map-wide (the summary is kept
-// incrementally); safe on any thread while the server runs.
-ServerMetrics CollectMetrics(ServiceContext& ctx);
+// Reads every value from the map (MapPort::State) and `service`. Locks nothing map-wide (the
+// summary is kept incrementally) and never waits on a remote; safe on any thread while the
+// server runs.
+ServerMetrics CollectMetrics(MapPort& map, const ServiceCounts& service,
+                             uint64_t memory_limit_bytes);
 
 // The whole exposition: HELP and TYPE for every family, counters named *_total.
 std::string FormatMetrics(const ServerMetrics& metrics);

@@ -25,7 +25,7 @@ struct EventStreams::Session {
   std::atomic<bool> flush_posted{false};
 };
 
-EventStreams::EventStreams(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
+EventStreams::EventStreams(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool,
                            size_t max_clients, std::chrono::milliseconds ping_period)
     : map_(map), hub_(hub), pool_(pool), max_clients_(max_clients), ping_period_(ping_period) {
   pinger_ = std::thread([this] { Ping(); });
@@ -56,7 +56,7 @@ void EventStreams::Open(const HttpRequest& request, std::shared_ptr<HttpExchange
       "HTTP/1.1 200 OK\r\nServer: bgkmapd\r\nContent-Type: text/event-stream\r\n"
       "Cache-Control: no-cache\r\nX-Accel-Buffering: no\r\nConnection: close\r\n\r\n"
       "retry: 1000\n\n" +
-          EventText("hello", {{"map_version", map_.applied_version()}}),
+          EventText("hello", {{"map_version", map_.known_version()}}),
       [this, key] { Remove(key); });
   // The whole map: a key range no tile lies outside of.
   const uint64_t id = hub_.Subscribe({INT_MIN, INT_MIN}, {INT_MAX, INT_MAX},
@@ -92,7 +92,7 @@ void EventStreams::Flush(const std::shared_ptr<Session>& s) {
     }
     if (tiles.empty()) return;
     // Watchers are told after a change counts as applied: this version covers it.
-    const nlohmann::json data = {{"map_version", map_.applied_version()}, {"tiles", tiles}};
+    const nlohmann::json data = {{"map_version", map_.known_version()}, {"tiles", tiles}};
     if (!s->out->Send(EventText("tiles", data))) return;  // closed: on_close removes it
   }
 }

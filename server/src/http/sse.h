@@ -18,14 +18,14 @@
 #include <thread>
 
 #include "http/http_exchange.h"
-#include "serving/served_map.h"
+#include "serving/map_port.h"
 #include "serving/watch_hub.h"
 
 namespace bgkmap {
 
 class EventStreams {
  public:
-  EventStreams(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool, size_t max_clients,
+  EventStreams(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool, size_t max_clients,
                std::chrono::milliseconds ping_period = std::chrono::seconds(15));
   ~EventStreams();  // Stop()
 
@@ -41,7 +41,7 @@ class EventStreams {
   void Remove(uint64_t key);
   void Ping();
 
-  ServedMap& map_;
+  MapPort& map_;
   WatchHub& hub_;
   boost::asio::thread_pool& pool_;
   const size_t max_clients_;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <csetjmp>
+#include <iterator>
 #include <stdexcept>
 
 namespace bgkmap {
@@ -60,42 +61,15 @@ void PngWarning(png_structp, png_const_charp) {}
 
 }  // namespace
 
-Result<WebLayer> ParseWebLayer(std::string_view name) {
-  for (WebLayer l : {WebLayer::kElevation, WebLayer::kElevationVariance, WebLayer::kTraversability,
-                     WebLayer::kTraversabilityVariance}) {
-    if (WebLayerName(l) == name) return l;
+Result<Layer> ParseWebLayer(std::string_view name) {
+  std::vector<Layer> choices(std::begin(kWebLayers), std::end(kWebLayers));
+  std::sort(choices.begin(), choices.end());  // named in the engine's order
+  std::string names;
+  for (Layer l : choices) {
+    if (LayerName(l) == name) return l;
+    names += (names.empty() ? "" : ", ") + std::string(LayerName(l));
   }
-  return Status::InvalidArgument("unknown layer '" + std::string(name) +
-                                 "' (elevation, elevation_variance, traversability, "
-                                 "traversability_variance)");
-}
-
-std::string_view WebLayerName(WebLayer layer) {
-  switch (layer) {
-    case WebLayer::kElevation:
-      return "elevation";
-    case WebLayer::kElevationVariance:
-      return "elevation_variance";
-    case WebLayer::kTraversability:
-      return "traversability";
-    case WebLayer::kTraversabilityVariance:
-      return "traversability_variance";
-  }
-  return "";
-}
-
-std::vector<Layer> WebLayerSources(WebLayer layer) {
-  switch (layer) {
-    case WebLayer::kElevation:
-      return {Layer::kElevation};
-    case WebLayer::kElevationVariance:
-      return {Layer::kElevationVariance};
-    case WebLayer::kTraversability:
-      return {Layer::kTraversability};
-    case WebLayer::kTraversabilityVariance:
-      return {Layer::kTraversabilityVariance};
-  }
-  return {};
+  return Status::InvalidArgument("unknown layer '" + std::string(name) + "' (" + names + ")");
 }
 
 int WebMinZoom(uint64_t max_region_cells) {
@@ -139,7 +113,7 @@ Result<WebTileCells> TileCells(int z, int64_t x, int64_t y, int min_zoom, double
   return t;
 }
 
-std::vector<uint8_t> RenderTile(const Raster& raster, WebLayer layer, const WebTileCells& cells) {
+std::vector<uint8_t> RenderTile(const Raster& raster, Layer layer, const WebTileCells& cells) {
   constexpr int kN = kWebTilePixels;
   std::vector<uint8_t> rgba(static_cast<size_t>(kN) * kN * 4, 0);
   if (raster.data.empty()) return rgba;
@@ -155,21 +129,24 @@ std::vector<uint8_t> RenderTile(const Raster& raster, WebLayer layer, const WebT
       if (std::isnan(value)) continue;
       Rgb c{};
       switch (layer) {
-        case WebLayer::kElevation: {
+        case Layer::kElevation: {
           const float shade = Hillshade(v, cols, row, col, pixel_metres);
           const float g = 45 + 210 * shade;
           c = {g, g * 0.97f, g * 0.9f};
           break;
         }
-        case WebLayer::kElevationVariance:
+        case Layer::kElevationVariance:
           c = SpreadColor(value, 0.5f);
           break;
-        case WebLayer::kTraversability:
+        case Layer::kTraversability:
           c = TraversabilityColor(value);
           break;
-        case WebLayer::kTraversabilityVariance:
+        case Layer::kTraversabilityVariance:
           c = SpreadColor(value, 0.5f);
           break;
+        case Layer::kState:  // not one of kWebLayers
+        case Layer::kElevationWeight:
+          continue;
       }
       uint8_t* p = &rgba[(static_cast<size_t>(py) * kN + px) * 4];
       p[0] = static_cast<uint8_t>(std::lround(c.r));

@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "bgkmap/core/cell_estimate.h"
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/status.h"
@@ -22,10 +23,12 @@ namespace bgkmap {
 inline constexpr int kWebTilePixels = 256;
 inline constexpr int kWebMaxZoom = 4;  // 16 x 16 pixels per cell
 
-// What a tile shows.
-enum class WebLayer { kElevation, kElevationVariance, kTraversability, kTraversabilityVariance };
-Result<WebLayer> ParseWebLayer(std::string_view name);
-std::string_view WebLayerName(WebLayer layer);
+// The layers a tile can show: core's four float layers, under core's names (LayerName), in the
+// order map.json lists them. A tile reads its one layer.
+inline constexpr Layer kWebLayers[] = {Layer::kElevation, Layer::kTraversability,
+                                       Layer::kElevationVariance, Layer::kTraversabilityVariance};
+// One of kWebLayers by its name; InvalidArgument naming the name and the choices otherwise.
+Result<Layer> ParseWebLayer(std::string_view name);
 
 // The cells behind tile (z, x, y), with a border of one raster pixel on every side (hillshade
 // needs the neighbours of the edge pixels, so tiles join without seams).
@@ -44,9 +47,8 @@ Result<WebTileCells> TileCells(int z, int64_t x, int64_t y, int min_zoom, double
                                double max_coordinate);
 
 // The tile's picture, 256 x 256 RGBA (unknown cells transparent), from `raster` read over
-// `cells.box` at `cells.stride` with the layers WebLayerSources(layer) lists.
-std::vector<uint8_t> RenderTile(const Raster& raster, WebLayer layer, const WebTileCells& cells);
-std::vector<Layer> WebLayerSources(WebLayer layer);
+// `cells.box` at `cells.stride` with the one layer `layer`.
+std::vector<uint8_t> RenderTile(const Raster& raster, Layer layer, const WebTileCells& cells);
 
 // A PNG (8-bit RGBA, fast compression) of `rgba`, width x height, rows top first.
 std::string EncodePng(const std::vector<uint8_t>& rgba, int width, int height);

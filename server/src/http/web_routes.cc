@@ -86,9 +86,15 @@ nlohmann::json PointJson(double x, double y, const CellEstimate& e) {
   return p;
 }
 
+nlohmann::json WebLayerNames() {
+  nlohmann::json names = nlohmann::json::array();
+  for (Layer l : kWebLayers) names.push_back(std::string(LayerName(l)));
+  return names;
+}
+
 }  // namespace
 
-WebRoutes::WebRoutes(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
+WebRoutes::WebRoutes(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool,
                      std::atomic<uint32_t>& queries, const ServerLimits& limits,
                      WebRoutesOptions options)
     : map_(map),
@@ -188,7 +194,7 @@ void WebRoutes::Tile(const HttpRequest& request, std::string_view rest,
     return;
   }
   parts[3].remove_suffix(kPng.size());
-  const Result<WebLayer> layer = ParseWebLayer(parts[0]);
+  const Result<Layer> layer = ParseWebLayer(parts[0]);
   if (!layer.ok()) {
     exchange->Reply(Text(request, http::status::not_found, layer.status().message()));
     return;
@@ -206,19 +212,20 @@ void WebRoutes::Tile(const HttpRequest& request, std::string_view rest,
     exchange->Reply(Text(request, http::status::not_found, cells.status().message()));
     return;
   }
-  OffThread(
-      request, std::move(exchange),
-      [this, version = request.version(), cells = *cells, layer = *layer]() -> HttpResponse {
-        HttpRequest head{http::verb::get, "", version};
-        const GridGeometry& g = map_.geometry();
-        if (map_.ListTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max)).empty()) {
-          return Body(head, "image/png", EmptyTilePng());
-        }
-        Result<Raster> raster = map_.ReadRegion(cells.box, WebLayerSources(layer), cells.stride);
-        if (!raster.ok()) return ReadFailed(head, raster.status());
-        return Body(head, "image/png",
-                    EncodePng(RenderTile(*raster, layer, cells), kWebTilePixels, kWebTilePixels));
-      });
+  OffThread(request, std::move(exchange),
+            [this, version = request.version(), cells = *cells, layer = *layer]() -> HttpResponse {
+              HttpRequest head{http::verb::get, "", version};
+              const GridGeometry& g = map_.geometry();
+              Result<std::vector<TileKey>> known =
+                  map_.ListKnownTiles(g.TileOf(cells.box.min), g.TileOf(cells.box.max));
+              if (!known.ok()) return ReadFailed(head, known.status());
+              if (known->empty()) return Body(head, "image/png", EmptyTilePng());
+              Result<Raster> raster = map_.ReadRegion(cells.box, {layer}, cells.stride);
+              if (!raster.ok()) return ReadFailed(head, raster.status());
+              return Body(
+                  head, "image/png",
+                  EncodePng(RenderTile(*raster, layer, cells), kWebTilePixels, kWebTilePixels));
+            });
 }
 
 void WebRoutes::Points(const HttpRequest& request, std::string_view query,
@@ -256,7 +263,7 @@ void WebRoutes::Points(const HttpRequest& request, std::string_view query,
 void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
   OffThread(request, std::move(exchange), [this, version = request.version()]() -> HttpResponse {
     HttpRequest head{http::verb::get, "", version};
-    const MapSummary summary = map_.Summary();
+    const MapSummary summary = map_.State().summary;
     const GridGeometry& g = map_.geometry();
     const double res = g.resolution();
     nlohmann::json bounds = nullptr;
@@ -264,17 +271,15 @@ void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange
       const CellBox& b = summary.known_bounds;
       bounds = {b.min.x * res, b.min.y * res, (b.max.x + 1) * res, (b.max.y + 1) * res};
     }
-    const nlohmann::json out = {
-        {"resolution", res},
-        {"tile_size", g.tile_size()},
-        {"tile_pixels", kWebTilePixels},
-        {"min_zoom", min_zoom_},
-        {"max_zoom", kWebMaxZoom},
-        {"map_version", map_.applied_version()},
-        {"known_cells", summary.known_cells},
-        {"bounds", bounds},
-        {"layers",
-         {"elevation", "traversability", "elevation_variance", "traversability_variance"}}};
+    const nlohmann::json out = {{"resolution", res},
+                                {"tile_size", g.tile_size()},
+                                {"tile_pixels", kWebTilePixels},
+                                {"min_zoom", min_zoom_},
+                                {"max_zoom", kWebMaxZoom},
+                                {"map_version", map_.applied_version()},
+                                {"known_cells", summary.known_cells},
+                                {"bounds", bounds},
+                                {"layers", WebLayerNames()}};
     return Body(head, "application/json", out.dump(2) + "\n");
   });
 }

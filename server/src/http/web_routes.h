@@ -17,7 +17,7 @@
 #include "bgkmap/server/server_config.h"
 #include "http/http_exchange.h"
 #include "http/sse.h"
-#include "serving/served_map.h"
+#include "serving/map_port.h"
 #include "serving/watch_hub.h"
 
 namespace bgkmap {
@@ -30,7 +30,7 @@ struct WebRoutesOptions {
 class WebRoutes {
  public:
   // `queries` counts the queries running (the RPC handlers' counter).
-  WebRoutes(ServedMap& map, WatchHub& hub, boost::asio::thread_pool& pool,
+  WebRoutes(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool,
             std::atomic<uint32_t>& queries, const ServerLimits& limits, WebRoutesOptions options);
 
   // Answers `request` (any path but /metrics). Called on the HTTP thread: it only parses and
@@ -51,7 +51,7 @@ class WebRoutes {
   void OffThread(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange,
                  std::function<HttpResponse()> work);
 
-  ServedMap& map_;
+  MapPort& map_;
   boost::asio::thread_pool& pool_;
   std::atomic<uint32_t>& queries_;
   const ServerLimits limits_;

@@ -2,7 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "log_safe.h"
+#include "bgkmap/server/log_safe.h"
 
 namespace bgkmap {
 

@@ -1,6 +1,7 @@
 #include "rpc/map_service.h"
 
 #include "rpc/handlers/handlers.h"
+#include "rpc/proto_convert.h"
 
 namespace bgkmap {
 namespace {
@@ -34,13 +35,10 @@ grpc::ServerUnaryReactor* RefusedUnary(grpc::CallbackServerContext* call,
   return reactor;
 }
 
-// The calls a cluster node does not take yet (docs/scale-out.md, "What is not distributed yet").
-grpc::Status NotInCluster(const ServiceContext& ctx, const std::string& rpc) {
-  if (ctx.cluster == nullptr) return grpc::Status::OK;
-  return {grpc::StatusCode::UNIMPLEMENTED,
-          rpc +
-              " is not available on a cluster node yet (cluster.nats is set); ingest, "
-              "QueryRegion, QueryPoints, CheckPath, Watch, ClearRegion, ImportMap and Info are"};
+// UNIMPLEMENTED, before the request is looked at, for a call the map does not offer (a cluster
+// node, docs/scale-out.md, "What is not distributed yet").
+grpc::Status Offered(const ServiceContext& ctx, MapWrites::Operation operation) {
+  return ToGrpcStatus(ctx.map.Offers(operation));
 }
 
 }  // namespace
@@ -125,7 +123,7 @@ grpc::ServerWriteReactor<v1::ArchiveChunk>* MapService::ExportMap(
   if (grpc::Status s = access_.Admit(*call, "ExportMap", &who); !s.ok()) {
     return new RefusedWrite<v1::ArchiveChunk>(s);
   }
-  if (grpc::Status s = NotInCluster(ctx_, "ExportMap"); !s.ok()) {
+  if (grpc::Status s = Offered(ctx_, MapWrites::Operation::kExportMap); !s.ok()) {
     return new RefusedWrite<v1::ArchiveChunk>(s);
   }
   return StartExportMap(ctx_, call, std::move(who), request);
@@ -147,7 +145,7 @@ grpc::ServerUnaryReactor* MapService::CorrectPoses(grpc::CallbackServerContext* 
   if (grpc::Status s = access_.Admit(*call, "CorrectPoses", &who); !s.ok()) {
     return RefusedUnary(call, s);
   }
-  if (grpc::Status s = NotInCluster(ctx_, "CorrectPoses"); !s.ok()) {
+  if (grpc::Status s = Offered(ctx_, MapWrites::Operation::kCorrectPoses); !s.ok()) {
     return RefusedUnary(call, s);
   }
   return StartCorrectPoses(ctx_, call, std::move(who), request, response);
@@ -160,7 +158,7 @@ grpc::ServerUnaryReactor* MapService::RemoveScans(grpc::CallbackServerContext* c
   if (grpc::Status s = access_.Admit(*call, "RemoveScans", &who); !s.ok()) {
     return RefusedUnary(call, s);
   }
-  if (grpc::Status s = NotInCluster(ctx_, "RemoveScans"); !s.ok()) {
+  if (grpc::Status s = Offered(ctx_, MapWrites::Operation::kRemoveScans); !s.ok()) {
     return RefusedUnary(call, s);
   }
   return StartRemoveScans(ctx_, call, std::move(who), request, response);
@@ -173,7 +171,7 @@ grpc::ServerUnaryReactor* MapService::RetireRobot(grpc::CallbackServerContext* c
   if (grpc::Status s = access_.Admit(*call, "RetireRobot", &who); !s.ok()) {
     return RefusedUnary(call, s);
   }
-  if (grpc::Status s = NotInCluster(ctx_, "RetireRobot"); !s.ok()) {
+  if (grpc::Status s = Offered(ctx_, MapWrites::Operation::kRetireRobot); !s.ok()) {
     return RefusedUnary(call, s);
   }
   return StartRetireRobot(ctx_, call, std::move(who), request, response);

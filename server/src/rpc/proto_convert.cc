@@ -18,6 +18,8 @@ grpc::Status ToGrpcStatus(const Status& status) {
       return {grpc::StatusCode::INTERNAL, status.message()};
     case Status::Code::kUnavailable:
       return {grpc::StatusCode::UNAVAILABLE, status.message()};
+    case Status::Code::kUnimplemented:
+      return {grpc::StatusCode::UNIMPLEMENTED, status.message()};
   }
   return {grpc::StatusCode::UNKNOWN, status.message()};
 }

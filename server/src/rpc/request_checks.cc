@@ -90,7 +90,7 @@ grpc::Status CheckCoordinate(double value, const std::string& field, const Serve
 
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
                                 const ServerLimits& limits, PreparedScan* out,
-                                std::shared_ptr<storage::ScanSource>* source) {
+                                std::shared_ptr<RawScan>* raw) {
   if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) return s;
   const std::string& bytes = scan.points();
   if (bytes.size() % kBytesPerPoint != 0) {
@@ -121,11 +121,11 @@ grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
     stamp_ns = 0;
   }
   out->stamp_ns = stamp_ns;
-  if (source != nullptr) {
-    auto raw = std::make_shared<storage::ScanSource>();
-    raw->pose = pose;
-    raw->points = std::move(points);
-    *source = std::move(raw);
+  if (raw != nullptr) {
+    auto sent = std::make_shared<RawScan>();
+    sent->pose = pose;
+    sent->points = std::move(points);
+    *raw = std::move(sent);
   }
   return grpc::Status::OK;
 }

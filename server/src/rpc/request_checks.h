@@ -8,19 +8,19 @@
 #include <string>
 
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/raw_scan.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/server/server_config.h"
-#include "bgkmap/storage/scan_source.h"
 #include "bgkmap/v1/ingest.pb.h"
 #include "bgkmap/v1/types.pb.h"
 
 namespace bgkmap {
 
 // Checks a scan (robot id, packed points, pose) and prepares it. Pure: reads no map state.
-// `source` (optional) receives the raw scan as sent, for a map that retains scans.
+// `raw` (optional) receives the raw scan as sent, for a map that retains scans.
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
                                 const ServerLimits& limits, PreparedScan* out,
-                                std::shared_ptr<storage::ScanSource>* source = nullptr);
+                                std::shared_ptr<RawScan>* raw = nullptr);
 
 // A finite pose within the coordinate limits whose quaternion has unit norm (within
 // server.quaternion_tolerance), as the engine's Pose; the message names pose.<field>.

@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <sstream>
 
-#include "log_safe.h"
+#include "bgkmap/server/log_safe.h"
 
 namespace bgkmap {
 

@@ -1,4 +1,4 @@
-// What every RPC handler shares: the served map, the watch hub, the worker pools, the limits,
+// What every RPC handler shares: the map port, the watch hub, the worker pools, the limits,
 // and the registry of long-lived streams that a shutdown has to drain.
 #pragma once
 
@@ -17,8 +17,7 @@
 
 #include "auth/principal.h"
 #include "bgkmap/server/server_config.h"
-#include "serving/map_reads.h"
-#include "serving/served_map.h"
+#include "serving/map_port.h"
 #include "serving/watch_hub.h"
 
 namespace bgkmap {
@@ -97,9 +96,6 @@ std::chrono::steady_clock::duration TimeoutOf(double seconds);
 std::string SecondsText(double seconds);
 
 struct ServiceContext;
-namespace cluster {
-class ClusterNode;
-}
 // RESOURCE_EXHAUSTED: server.max_concurrent_queries queries are running (a retry can succeed).
 grpc::Status QueriesBusy(const ServiceContext& ctx);
 
@@ -150,25 +146,18 @@ class ByteBudget {
 };
 
 struct ServiceContext {
-  // `cluster_node` (optional): the node of a cluster this server is; then scans go to the
-  // cluster's log and queries read through the cluster.
-  ServiceContext(const ServerConfig& cfg, ServedMap& served_map, WatchHub& watch_hub,
-                 boost::asio::thread_pool& ingest, boost::asio::thread_pool& query,
-                 cluster::ClusterNode* cluster_node = nullptr, MapReads* cluster_reads = nullptr)
+  ServiceContext(const ServerConfig& cfg, MapPort& port, WatchHub& watch_hub,
+                 boost::asio::thread_pool& ingest, boost::asio::thread_pool& query)
       : config(cfg),
         limits(cfg.limits),
-        map(served_map),
-        reads(cluster_reads != nullptr ? *cluster_reads : static_cast<MapReads&>(served_map)),
-        cluster(cluster_node),
+        map(port),
         hub(watch_hub),
         ingest_pool(ingest),
         query_pool(query) {}
 
   const ServerConfig config;
   const ServerLimits limits;
-  ServedMap& map;    // on a cluster node: empty, holds the parameters and geometry
-  MapReads& reads;   // what queries read: the served map, or the cluster
-  cluster::ClusterNode* const cluster;  // null: a single server
+  MapPort& map;  // the single server's map or a cluster node: handlers never ask which
   WatchHub& hub;
   boost::asio::thread_pool& ingest_pool;  // scan preparation (changes run there too)
   boost::asio::thread_pool& query_pool;   // queries, watch updates, import and export I/O

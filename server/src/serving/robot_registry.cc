@@ -5,7 +5,7 @@ namespace bgkmap {
 void RobotRegistry::Restore(const std::map<std::string, uint64_t>& sequences) {
   std::lock_guard lock(mu_);
   for (const auto& [id, sequence] : sequences) {
-    RobotProgress& r = robots_[id];
+    RobotStats& r = robots_[id];
     r.robot_id = id;
     r.last_sequence = sequence;
   }
@@ -15,22 +15,18 @@ RobotRegistry::Admission RobotRegistry::Admit(const std::string& robot_id, uint6
                                               Stamp stamp, uint64_t points, uint64_t* previous) {
   std::lock_guard lock(mu_);
   auto it = robots_.find(robot_id);
-  const uint64_t last = it == robots_.end() ? 0 : it->second.last_sequence;
-  *previous = last;
-  if (it != robots_.end() && sequence <= last) {
-    ++it->second.scans_duplicate;
-    return Admission::kDuplicate;
-  }
-  if (max_sequence_jump_ != 0 && sequence - last > max_sequence_jump_) {  // sequence > last here
-    if (it != robots_.end()) ++it->second.scans_rejected;
-    return Admission::kSequenceJump;
-  }
-  if (it == robots_.end()) {
-    if (robots_.size() >= max_robots_) return Admission::kTooManyRobots;
-    it = robots_.emplace(robot_id, RobotProgress{}).first;
+  const bool known = it != robots_.end();
+  *previous = known ? it->second.last_sequence : 0;
+  const Admission a = rule_.Judge(known ? std::optional<uint64_t>(*previous) : std::nullopt,
+                                  sequence, robots_.size());
+  if (known && a == Admission::kDuplicate) ++it->second.scans_duplicate;
+  if (known && a == Admission::kSequenceJump) ++it->second.scans_rejected;
+  if (a != Admission::kAdmitted) return a;
+  if (!known) {
+    it = robots_.emplace(robot_id, RobotStats{}).first;
     it->second.robot_id = robot_id;
   }
-  RobotProgress& r = it->second;
+  RobotStats& r = it->second;
   *previous = r.last_sequence;
   r.last_sequence = sequence;
   r.last_stamp = stamp;
@@ -44,7 +40,7 @@ void RobotRegistry::Withdraw(const std::string& robot_id, uint64_t sequence, uin
   std::lock_guard lock(mu_);
   auto it = robots_.find(robot_id);
   if (it == robots_.end()) return;
-  RobotProgress& r = it->second;
+  RobotStats& r = it->second;
   --r.scans_applied;
   r.points_kept -= points;
   if (r.last_sequence == sequence) r.last_sequence = previous;
@@ -69,16 +65,16 @@ void RobotRegistry::CountDuplicate(const std::string& robot_id) {
   if (auto it = robots_.find(robot_id); it != robots_.end()) ++it->second.scans_duplicate;
 }
 
-std::optional<RobotProgress> RobotRegistry::Retire(const std::string& robot_id) {
+std::optional<RobotStats> RobotRegistry::Retire(const std::string& robot_id) {
   std::lock_guard lock(mu_);
   auto it = robots_.find(robot_id);
   if (it == robots_.end()) return std::nullopt;
-  RobotProgress gone = std::move(it->second);
+  RobotStats gone = std::move(it->second);
   robots_.erase(it);
   return gone;
 }
 
-void RobotRegistry::Unretire(const RobotProgress& robot) {
+void RobotRegistry::Unretire(const RobotStats& robot) {
   std::lock_guard lock(mu_);
   robots_.try_emplace(robot.robot_id, robot);
 }
@@ -90,9 +86,9 @@ std::optional<uint64_t> RobotRegistry::LastSequence(const std::string& robot_id)
   return it->second.last_sequence;
 }
 
-std::vector<RobotProgress> RobotRegistry::Robots() const {
+std::vector<RobotStats> RobotRegistry::Robots() const {
   std::lock_guard lock(mu_);
-  std::vector<RobotProgress> out;
+  std::vector<RobotStats> out;
   out.reserve(robots_.size());
   for (const auto& [_, r] : robots_) out.push_back(r);
   return out;

@@ -26,7 +26,7 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
       table_(std::move(map), /*keep_cleared=*/durability.persists()),
       residency_(table_, durability, durability.persists(), options.tile_memory_limit_bytes,
                  std::move(options.on_over_memory)),
-      checkpointer_(durability, table_),
+      checkpointer_(durability, durability.persists(), copies_),
       robots_(options.max_robots, options.max_sequence_jump),
       scheduler_(workers, std::move(options.on_tiles_changed)) {
   scheduler_.Restore(durability.recovered_version());
@@ -51,6 +51,12 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
 }
 
 ServedMap::~ServedMap() { scheduler_.WaitIdle(); }
+
+bool ServedMap::TakeDuplicate(const std::string& robot_id, uint64_t sequence, uint64_t* last) {
+  if (!robots_.IsDuplicate(robot_id, sequence, last)) return false;
+  robots_.CountDuplicate(robot_id);
+  return true;
+}
 
 ServedMap::Admission ServedMap::SubmitScan(ScanOrigin origin,
                                            std::shared_ptr<const PreparedScan> scan,
@@ -82,8 +88,7 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
   Result<TileResidency::Pins> pins = residency_.PinScan(scan);
   outcome.status = pins.status();
   if (outcome.status.ok()) {
-    ChangeRecord record{version,      shared_scan, origin.robot_id, origin.sequence,
-                        origin.stamp, {},          origin.source};
+    ChangeRecord record{version, shared_scan, origin.robot_id, origin.sequence, {}, origin.raw};
     outcome.status = durability_.Record(record);
   }
   if (!outcome.status.ok()) {
@@ -91,12 +96,12 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
     robots_.Withdraw(origin.robot_id, origin.sequence, previous_sequence, scan.counts.kept);
     return {{}, [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
   }
-  outcome.report = table_.ApplyScan(scan, version);
-  summary_.MarkStale(outcome.report.changed_tiles);
-  checkpointer_.MarkChanged(outcome.report.changed_tiles);
+  outcome.changed_tiles = table_.ApplyScan(scan, version).changed_tiles;
+  summary_.MarkStale(outcome.changed_tiles);
+  checkpointer_.MarkChanged(outcome.changed_tiles);
   scans_applied_.fetch_add(1);
   residency_.SignalIfOverLimit();
-  std::vector<TileKey> tiles = outcome.report.changed_tiles;
+  std::vector<TileKey> tiles = outcome.changed_tiles;
   return {std::move(tiles),
           [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
 }
@@ -184,9 +189,9 @@ ChangeScheduler::Done ServedMap::RunImport(std::span<const TileKey> keys,
 }
 
 void ServedMap::RetireRobot(const std::string& robot_id,
-                            std::function<void(Result<RobotProgress>)> done) {
+                            std::function<void(Result<RobotStats>)> done) {
   std::lock_guard admission(admission_mu_);  // ordered with the admission of scans
-  std::optional<RobotProgress> gone = robots_.Retire(robot_id);
+  std::optional<RobotStats> gone = robots_.Retire(robot_id);
   if (!gone) {
     done(Status::FailedPrecondition("robot_id: '" + robot_id + "' is not a known robot"));
     return;
@@ -196,12 +201,12 @@ void ServedMap::RetireRobot(const std::string& robot_id,
   scheduler_.Submit(ChangeScheduler::Barrier{},
                     [this, robot = std::move(*gone),
                      done = std::move(done)](uint64_t) mutable -> ChangeScheduler::Done {
-                      Result<RobotProgress> result = robot;
+                      Result<RobotStats> result = robot;
                       if (Status s = durability_.RetireRobot(robot.robot_id); !s.ok()) {
                         robots_.Unretire(robot);
                         result = Status::IoError("cannot persist it: " + s.message());
                       }
-                      auto shared = std::make_shared<Result<RobotProgress>>(std::move(result));
+                      auto shared = std::make_shared<Result<RobotStats>>(std::move(result));
                       return {{}, [done = std::move(done), shared] { done(std::move(*shared)); }};
                     });
 }
@@ -215,8 +220,8 @@ void ServedMap::SubmitSnapshot(TileKey min, TileKey max,
         Result<MapSnapshot> snapshot = Status::Ok();
         if (Status s = checkpointer_.CheckpointAt(applied); !s.ok()) {
           snapshot = Status::IoError("cannot checkpoint it first: " + s.message());
-        } else if (Result<std::unique_ptr<TileSource>> tiles =
-                       durability_.OpenTileSource(min, max, table_);
+        } else if (Result<std::unique_ptr<TilesAtVersion>> tiles =
+                       durability_.OpenTileSource(min, max, copies_);
                    !tiles.ok()) {
           snapshot = tiles.status();
         } else {

@@ -1,4 +1,5 @@
-// The served map: the only way RPC handlers (and anything else) reach the map. No gRPC here.
+// The served map: the single server's implementation of the map port (serving/map_port.h), and
+// the only way to its tiles. No gRPC here.
 //
 // It owns the transactions and the rules every caller would otherwise repeat:
 //   - changes (scans, clears, imports) are ordered by ChangeScheduler, pin their tiles, are
@@ -29,60 +30,26 @@
 #include "durability/checkpointer.h"
 #include "durability/durability.h"
 #include "serving/change_scheduler.h"
-#include "serving/correction_stats.h"
-#include "serving/map_reads.h"
+#include "serving/map_port.h"
 #include "serving/map_summary.h"
+#include "serving/map_writes.h"
 #include "serving/robot_registry.h"
+#include "serving/table_copies.h"
 #include "serving/tile_residency.h"
 #include "serving/tile_table.h"
 
 namespace bgkmap {
 
-struct ScanOrigin {
-  std::string robot_id;
-  uint64_t sequence = 0;
-  Stamp stamp;
-  // The raw scan, when the map retains scans for corrections (Durability::retains_scans()).
-  std::shared_ptr<const storage::ScanSource> source;
-};
-
-struct ScanOutcome {
-  uint64_t version = 0;
-  ScanReport report;
-  Status status;  // not OK: the scan could not be made durable and was not applied
-};
-
-struct ClearOutcome {
-  uint64_t version = 0;
-  std::vector<TileKey> changed_tiles;
-  Status status;  // not OK: nothing was cleared
-};
-
-struct CorrectionOutcome {
-  uint64_t version = 0;        // the correction's own map version
-  uint64_t scans_revised = 0;  // corrected or removed
-  uint64_t records_replayed = 0;
-  uint64_t records_in_history = 0;
-  std::vector<TileKey> changed_tiles;
-  double seconds = 0;  // from submission to the switch
-  Status status;       // not OK: nothing changed
-};
-
-struct ImportOutcome {
-  uint64_t version = 0;
-  Status status;  // not OK: nothing was imported
-};
-
 // The map's tiles in a key range as of one version, readable while ingestion goes on.
 struct MapSnapshot {
   uint64_t version = 0;
   std::map<std::string, uint64_t> robot_sequences;  // as logged up to `version` (store only)
-  std::unique_ptr<TileSource> tiles;
+  std::unique_ptr<TilesAtVersion> tiles;
 };
 
 struct ServedMapOptions {
   uint32_t max_robots = 0;
-  uint64_t max_sequence_jump = 0;        // 0: no limit (RobotRegistry)
+  uint64_t max_sequence_jump = 0;        // 0: no limit (RobotSequenceRule)
   uint64_t tile_memory_limit_bytes = 0;  // 0: unbounded
   // Called (from a worker, without locks held) when tiles in memory exceed the limit.
   std::function<void()> on_over_memory;
@@ -90,52 +57,59 @@ struct ServedMapOptions {
   ChangeScheduler::TilesChanged on_tiles_changed;
 };
 
-class ServedMap final : public MapReads {
+class ServedMap final : public MapPort {
  public:
   // `map` holds what the durability recovered; `durability` outlives the served map.
   ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
             boost::asio::thread_pool& workers, ServedMapOptions options);
   ~ServedMap();  // waits for admitted changes
 
-  const MapParams& params() const { return table_.params(); }
-  const GridGeometry& geometry() const { return table_.geometry(); }
+  const MapParams& params() const override { return table_.params(); }
+  const GridGeometry& geometry() const override { return table_.geometry(); }
 
-  // Changes. Each `done` runs on a worker once the change counts as applied (or was refused).
-  using Admission = RobotRegistry::Admission;
-  // A robot's scans must be submitted in the order they were sent. `last_sequence` (optional)
-  // receives the robot's last sequence number before this scan (what a duplicate or a refused
-  // jump is measured against).
+  // ---- MapWrites. Each `done` runs on a worker once the change counts as applied (or was
+  // refused).
+  using Admission = RobotAdmission;
+  Status Offers(Operation) const override { return Status::Ok(); }
+  bool retains_scans() const override { return durability_.retains_scans(); }
+  bool TakeDuplicate(const std::string& robot_id, uint64_t sequence, uint64_t* last) override;
+  void CountRejected(const std::string& robot_id) override { robots_.CountRejected(robot_id); }
   Admission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,
-                       std::function<void(ScanOutcome)> done, uint64_t* last_sequence = nullptr);
-  void SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done);
+                       std::function<void(ScanOutcome)> done,
+                       uint64_t* last_sequence = nullptr) override;
+  void SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done) override;
+  // Spools to the durability's scratch directory, within its free-space reserve; the checked
+  // archive is added by SubmitImport().
+  Result<std::unique_ptr<ArchiveUpload>> BeginImport() override;
+  // An archive written from SubmitSnapshot(): a checkpoint at a barrier, then the store's
+  // snapshot (or copies of the tiles for a map in memory).
+  void SubmitExport(const std::optional<CellBox>& box,
+                    std::function<void(Result<std::unique_ptr<ArchiveChunks>>)> done) override;
+  // Re-integrates a robot's scans with corrected poses, or without the removed ones, so that the
+  // map equals the one built from scratch with them (docs/semantics.md, "Pose corrections").
+  // Runs in the background: queries go on answering from the map as it is, scans into other
+  // tiles go on integrating, and scans into the corrected region wait; the corrected tiles then
+  // switch in as one change at the correction's version (told to watchers).
+  void SubmitCorrection(CorrectionSpec spec, std::function<void(CorrectionOutcome)> done) override;
+  // Scans admitted after this call see the robot as new (its next scan starts a new sequence,
+  // and it no longer counts against max_robots); at the next barrier the store forgets it too.
+  void RetireRobot(const std::string& robot_id,
+                   std::function<void(Result<RobotStats>)> done) override;
+
   // Adds the tiles' statistics (a merge) as one exclusive change, checkpointed at once: if that
   // fails the tiles are put back and the outcome is IoError; a stored tile that fails its
   // checksum is DataLoss; a sum that would not be finite (overflow) is OutOfRange naming the
   // tile and cell, and nothing is added. `keys` (sorted, distinct) and `tiles` must outlive `done`.
   void SubmitImport(std::span<const TileKey> keys, std::span<const std::unique_ptr<Tile>> tiles,
                     std::function<void(ImportOutcome)> done);
-  // Re-integrates a robot's scans with corrected poses, or without the removed ones, so that the
-  // map equals the one built from scratch with them (docs/semantics.md, "Pose corrections").
-  // Runs in the background: queries go on answering from the map as it is, scans into other
-  // tiles go on integrating, and scans into the corrected region wait; the corrected tiles then
-  // switch in as one change at the correction's version (told to watchers). `done` runs once it
-  // is durable (or refused: nothing changed).
-  void SubmitCorrection(CorrectionSpec spec, std::function<void(CorrectionOutcome)> done);
-  CorrectionStats corrections() const;
-  bool retains_scans() const { return durability_.retains_scans(); }
-
-  // Forgets a robot: scans admitted after this call see it as new (its next scan starts a new
-  // sequence, and it no longer counts against max_robots), and at the next barrier the store
-  // forgets it too, so it stays forgotten after a restart. `done` gets what the robot was;
-  // FailedPrecondition if it is not known, IoError (and the robot kept) if the store cannot
-  // write.
-  void RetireRobot(const std::string& robot_id, std::function<void(Result<RobotProgress>)> done);
   // At a barrier, checkpoints the map and opens its tiles in [min, max] as of that version.
   void SubmitSnapshot(TileKey min, TileKey max, std::function<void(Result<MapSnapshot>)> done);
   // Captures the changed tiles at a barrier and writes them outside it.
   Status Checkpoint();
+  CorrectionStats corrections() const;
 
-  // Reads: IoError if the store cannot be read, DataLoss naming a corrupt tile.
+  // ---- MapReads: IoError if the store cannot be read, DataLoss naming a corrupt tile.
+  uint64_t applied_version() const override { return scheduler_.applied_version(); }
   Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                             int stride) override;
   Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
@@ -146,20 +120,16 @@ class ServedMap final : public MapReads {
     return ListTiles(min, max);
   }
 
+  // ---- What Info and /metrics report.
+  uint64_t known_version() const override { return applied_version(); }
+  std::vector<RobotStats> Robots() const override { return robots_.Robots(); }
+  MapState State(bool with_disk_usage = false) override;
+  void ReadVersion(std::function<void(uint64_t)> done) override { done(applied_version()); }
   MapSummary Summary();
-  Durability::ScratchDirectory scratch_directory() const { return durability_.scratch_directory(); }
-  // Before writing `bytes` more to scratch_directory(): refused below the free-space reserve.
-  Status AdmitScratch(uint64_t bytes) { return durability_.AdmitScratch(bytes); }
   // The store's state; nullopt for a map in memory.
   std::optional<StoreStatus> store_status(bool with_disk_usage = false) const {
     return durability_.store_status(with_disk_usage);
   }
-  // Where the map frame sits in a CRS (empty: a local frame); Durability::georeference().
-  storage::Georeference georeference() const { return durability_.georeference(); }
-  Status AdoptGeoreference(const storage::Georeference& georeference) {
-    return durability_.AdoptGeoreference(georeference);
-  }
-  uint64_t applied_version() const override { return scheduler_.applied_version(); }
   uint64_t scans_applied() const { return scans_applied_.load(); }
   RobotRegistry& robots() { return robots_; }
   const RobotRegistry& robots() const { return robots_; }
@@ -196,6 +166,7 @@ class ServedMap final : public MapReads {
 
   Durability& durability_;
   TileTable table_;
+  TableCopies copies_{table_};
   TileResidency residency_;
   Checkpointer checkpointer_;
   MapSummaryIndex summary_;

@@ -36,7 +36,7 @@ void ServedMap::SubmitCorrection(CorrectionSpec spec, std::function<void(Correct
     outcome.status = s;
     done(std::move(outcome));
   };
-  Result<CorrectionPlan> plan = durability_.PlanCorrection(spec);
+  Result<CorrectionPlan> plan = durability_.PlanCorrection(spec.robot_id, spec.poses, spec.remove);
   if (!plan.ok()) return refuse(plan.status());
   // The region as the log holds it now; computed again, complete, when the correction runs.
   Result<storage::Reintegration> region =

@@ -33,7 +33,7 @@ void TileResidency::Pins::Release() {
   keys_.clear();
 }
 
-TileResidency::TileResidency(TileTable& table, const TileBacking& backing, bool persists,
+TileResidency::TileResidency(TileTable& table, const StoredTiles& backing, bool persists,
                              uint64_t memory_limit_bytes, std::function<void()> on_over_limit)
     : table_(table),
       backing_(backing),

@@ -13,17 +13,11 @@
 #include <vector>
 
 #include "bgkmap/core/status.h"
-#include "durability/tile_backing.h"
+#include "durability/stored_tiles.h"
+#include "serving/residency_stats.h"
 #include "serving/tile_table.h"
 
 namespace bgkmap {
-
-struct ResidencyStats {
-  uint64_t resident_tiles = 0;
-  uint64_t resident_bytes = 0;  // tile memory (TileTable::TileBytes each)
-  uint64_t tiles_loaded = 0;    // from the backing, since start
-  uint64_t tiles_evicted = 0;   // since start
-};
 
 class TileResidency {
  public:
@@ -47,7 +41,7 @@ class TileResidency {
   // `persists`: the backing holds tiles (else pins are free and nothing is evicted). When the
   // tiles in memory exceed `memory_limit_bytes` (0: never), `on_over_limit` is called (from the
   // thread that crossed it, without locks held) so that someone calls Evict().
-  TileResidency(TileTable& table, const TileBacking& backing, bool persists,
+  TileResidency(TileTable& table, const StoredTiles& backing, bool persists,
                 uint64_t memory_limit_bytes, std::function<void()> on_over_limit);
 
   // Pins `keys` (sorted, unique) and loads the stored ones not in memory: IoError if the store
@@ -77,7 +71,7 @@ class TileResidency {
   void Unpin(const std::vector<TileKey>& keys);
 
   TileTable& table_;
-  const TileBacking& backing_;
+  const StoredTiles& backing_;
   const bool persists_;
   const uint64_t memory_limit_bytes_;
   const std::function<void()> on_over_limit_;

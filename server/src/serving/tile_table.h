@@ -25,15 +25,16 @@
 #include <vector>
 
 #include "bgkmap/core/raster.h"
+#include "bgkmap/core/scan.h"
+#include "bgkmap/core/scan_integrator.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/core/tile_summary.h"
-#include "durability/durability.h"
 #include "serving/tile_lock_table.h"
 #include "serving/writer_priority_mutex.h"
 
 namespace bgkmap {
 
-class TileTable final : public TileCopier {
+class TileTable final {
  public:
   // `keep_cleared`: a tile a clear empties stays (all zero, stamped) until a checkpoint deletes
   // its stored copy; otherwise the uncleared stored tile could be loaded back.
@@ -71,9 +72,10 @@ class TileTable final : public TileCopier {
   // The tile's cells at stride 1 and its version (0: no such tile).
   std::pair<Raster, uint64_t> ReadTile(TileKey key, const std::vector<Layer>& layers) const;
 
-  // TileCopier (at a barrier). ListTiles() lists the tiles in memory only.
-  std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const override;
-  std::vector<TileKey> ListTiles(TileKey min, TileKey max) const override;
+  // At a barrier: bitwise copies of the tiles at `keys` (null where there is none in memory),
+  // and the keys of the tiles in memory with min <= key <= max, sorted.
+  std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const;
+  std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
   // The keys of `keys` not in memory.
   std::vector<TileKey> NotResident(std::span<const TileKey> keys) const;
   // Summaries of every tile in memory.

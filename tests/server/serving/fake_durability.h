@@ -20,8 +20,8 @@ class FakeDurability final : public Durability {
   uint64_t recovered_version() const override { return 0; }
   std::map<std::string, uint64_t> LoggedRobotSequences() const override { return {}; }
   Status RetireRobot(const std::string&) override { return Status::Ok(); }
-  storage::Georeference georeference() const override { return {}; }
-  Status AdoptGeoreference(const storage::Georeference&) override { return Status::Ok(); }
+  Georeference georeference() const override { return {}; }
+  Status AdoptGeoreference(const Georeference&) override { return Status::Ok(); }
 
   Status Record(const ChangeRecord& change) override {
     std::lock_guard lock(mu_);
@@ -60,7 +60,8 @@ class FakeDurability final : public Durability {
     return Status::Ok();
   }
 
-  Result<std::unique_ptr<TileSource>> OpenTileSource(TileKey, TileKey, const TileCopier&) override {
+  Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey, TileKey,
+                                                         const ResidentTiles&) override {
     return Status::IoError("not used by these tests");
   }
   std::vector<TileKey> CorruptTiles() const override {

@@ -150,7 +150,7 @@ TEST(RobotRegistryTest, JumpsAreRefusedAndRetiredRobotsStartAfresh) {
   EXPECT_EQ(robots.Admit("new", 1001, {}, 1, &previous), RobotRegistry::Admission::kSequenceJump);
   EXPECT_EQ(robots.Admit("b", 1, {}, 1, &previous), RobotRegistry::Admission::kAdmitted);
   EXPECT_EQ(robots.Admit("c", 1, {}, 1, &previous), RobotRegistry::Admission::kTooManyRobots);
-  const std::optional<RobotProgress> gone = robots.Retire("a");
+  const std::optional<RobotStats> gone = robots.Retire("a");
   ASSERT_TRUE(gone.has_value());
   EXPECT_EQ(gone->last_sequence, 1005u);
   EXPECT_FALSE(robots.Retire("a").has_value());

@@ -22,6 +22,7 @@
 
 #include "bgkmap/client/rpc_status.h"
 #include "bgkmap/core/cell_estimate.h"
+#include "bgkmap/core/georeference.h"
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/raster.h"
@@ -199,14 +200,6 @@ struct StorageInfo {
   std::string writes_paused_reason;
 };
 
-// Where the map frame sits in a coordinate reference system, as the map's store keeps it (the
-// first one given by the server config `georeference` or an imported archive): map point
-// (x, y, z) is origin + (x, y, z) in `crs`.
-struct Georeference {
-  std::string crs;  // "EPSG:<code>", WKT or PROJ
-  std::array<double, 3> origin{};
-};
-
 // A cluster shard's view (docs/scale-out.md), in Info from a shard.
 struct ClusterPartitionInfo {
   std::string name;  // "x.y"
@@ -237,8 +230,10 @@ struct MapInfo {
   ServerLimitsInfo limits;
   std::string server_version;
   std::optional<StorageInfo> storage;
-  std::optional<Georeference> georeference;  // absent: the map frame is local
-  std::optional<ClusterInfo> cluster;        // present on a cluster shard
+  // Where the map frame sits (core/georeference.h), as the map's store keeps it (the first one
+  // given by the server config `georeference` or an imported archive); absent: a local frame.
+  std::optional<Georeference> georeference;
+  std::optional<ClusterInfo> cluster;  // present on a cluster shard
   const RobotInfo* FindRobot(const std::string& id) const;
 };
 

@@ -17,7 +17,8 @@ class Status {
     kFailedPrecondition,
     kDataLoss,
     kIoError,
-    kUnavailable  // a remote part (a cluster peer) cannot be reached now; a retry may succeed
+    kUnavailable,   // a remote part (a cluster peer) cannot be reached now; a retry may succeed
+    kUnimplemented  // this implementation does not offer the operation (yet)
   };
 
   Status() = default;
@@ -32,6 +33,7 @@ class Status {
   static Status DataLoss(std::string msg) { return {Code::kDataLoss, std::move(msg)}; }
   static Status IoError(std::string msg) { return {Code::kIoError, std::move(msg)}; }
   static Status Unavailable(std::string msg) { return {Code::kUnavailable, std::move(msg)}; }
+  static Status Unimplemented(std::string msg) { return {Code::kUnimplemented, std::move(msg)}; }
 
   bool ok() const { return code_ == Code::kOk; }
   Code code() const { return code_; }

@@ -9,6 +9,7 @@
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/server/robot_stats.h"
 #include "bgkmap/server/server_config.h"
 
 namespace bgkmap {
@@ -19,14 +20,6 @@ inline constexpr const char* kMapServiceName = "bgkmap.v1.MapService";
 // (storage.min_free_space_mb), when "" and kMapServiceName stay SERVING for the reads.
 inline constexpr const char* kWritesHealthName = "bgkmap.v1.MapService/writes";
 
-struct RobotSummary {
-  std::string robot_id;
-  uint64_t last_sequence = 0;
-  uint64_t scans_applied = 0;
-  uint64_t scans_duplicate = 0;
-  uint64_t scans_rejected = 0;
-};
-
 struct ServerReport {
   uint64_t map_version = 0;
   uint64_t scans_applied = 0;
@@ -34,7 +27,7 @@ struct ServerReport {
   uint64_t known_cells = 0;
   // Most scans ever integrating at the same moment: > 1 shows disjoint scans ran in parallel.
   uint32_t peak_parallel_integrations = 0;
-  std::vector<RobotSummary> robots;  // sorted by id
+  std::vector<RobotStats> robots;  // sorted by id
 };
 
 // glibc hands large buffers (region rasters, chunks, scans) back to the kernel when they are freed
@@ -46,14 +39,14 @@ void KeepLargeAllocationsInHeap();
 class MapServer {
  public:
   // Creates the map and starts listening on config.listen_address (port 0: any free port), and
-  // on config.metrics_address for GET /metrics if it is set.
+  // if it is set on config.metrics_address for HTTP: GET /metrics and the live web map.
   static Result<std::unique_ptr<MapServer>> Start(const ServerConfig& config);
   ~MapServer();  // Shutdown()
 
   int port() const;
-  // The port of the Prometheus endpoint (server.metrics_address; the chosen one for port 0), or
-  // 0 when it is off.
-  int metrics_port() const;
+  // The port of the HTTP endpoint (server.metrics_address: /metrics, the web map, its events,
+  // /login; the chosen one for port 0), or 0 when it is off.
+  int http_port() const;
 
   // Reads server.auth.tokens_file again (bgkmapd: on SIGHUP). A file that does not load keeps
   // the tokens in use; the error says why (also logged).

@@ -142,8 +142,10 @@ struct ServerConfig {
   int worker_nice = 10;
   std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
   double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
-  // metrics_address: host:port of the Prometheus endpoint (GET /metrics over HTTP); "" = off,
-  // port 0 = any free port (logged as event=metrics_listening).
+  // metrics_address: host:port of the HTTP endpoint (`--http`, or `--metrics`): GET /metrics for
+  // Prometheus, the live web map with its event stream, /login; "" = off, port 0 = any free port
+  // (logged as event=metrics_listening). The key keeps its first name, which the tests and
+  // operators' configs use.
   std::string metrics_address;
   TlsConfig tls;
   AuthConfig auth;

@@ -108,6 +108,46 @@ grpc::Status FootprintCells(const v1::PathCheckRequest& req, const v1::Pose2& po
   return grpc::Status::OK;
 }
 
+// Each pose's worst traversability under its footprint (cells first[i] .. first[i + 1] of
+// `estimates`), its variance and the unknown fraction, judged against the thresholds.
+void JudgePoses(const std::vector<CellEstimate>& estimates, const std::vector<size_t>& first,
+                double max_trav, double max_var, double max_unknown,
+                v1::PathCheckResponse* response) {
+  bool all_safe = true;
+  int first_unsafe = -1;
+  for (size_t i = 0; i + 1 < first.size(); ++i) {
+    float worst = std::nanf(""), worst_var = std::nanf("");
+    size_t unknown = 0;
+    for (size_t k = first[i]; k < first[i + 1]; ++k) {
+      const CellEstimate& e = estimates[k];
+      if (std::isnan(e.traversability)) {
+        ++unknown;
+        continue;
+      }
+      if (std::isnan(worst) || e.traversability > worst ||
+          (e.traversability == worst && e.traversability_variance > worst_var)) {
+        worst = e.traversability;
+        worst_var = e.traversability_variance;
+      }
+    }
+    const size_t count = first[i + 1] - first[i];
+    const float unknown_fraction = static_cast<float>(unknown) / static_cast<float>(count);
+    const bool safe = worst < max_trav && worst_var < max_var && unknown_fraction <= max_unknown;
+    v1::PoseCheck* pc = response->add_poses();
+    pc->set_worst_traversability(worst);
+    pc->set_worst_traversability_variance(worst_var);
+    pc->set_unknown_fraction(unknown_fraction);
+    pc->set_cell_count(static_cast<uint32_t>(count));
+    pc->set_safe(safe);
+    if (!safe && all_safe) {
+      all_safe = false;
+      first_unsafe = static_cast<int>(i);
+    }
+  }
+  response->set_safe(all_safe);
+  response->set_first_unsafe_index(first_unsafe);
+}
+
 grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
                        const v1::PathCheckRequest& req, v1::PathCheckResponse* response) {
   const ServerLimits& limits = ctx.limits;
@@ -178,43 +218,10 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
   first[n] = cells.size();
 
   if (grpc::Status s = control.Check(); !s.ok()) return s;
-  const uint64_t version = ctx.reads.applied_version();
-  const Result<std::vector<CellEstimate>> read = ctx.reads.ReadCells(cells);
+  const uint64_t version = ctx.map.applied_version();
+  const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
-  const std::vector<CellEstimate>& estimates = *read;  // one atomic read
-  bool all_safe = true;
-  int first_unsafe = -1;
-  for (size_t i = 0; i < n; ++i) {
-    float worst = std::nanf(""), worst_var = std::nanf("");
-    size_t unknown = 0;
-    for (size_t k = first[i]; k < first[i + 1]; ++k) {
-      const CellEstimate& e = estimates[k];
-      if (std::isnan(e.traversability)) {
-        ++unknown;
-        continue;
-      }
-      if (std::isnan(worst) || e.traversability > worst ||
-          (e.traversability == worst && e.traversability_variance > worst_var)) {
-        worst = e.traversability;
-        worst_var = e.traversability_variance;
-      }
-    }
-    const size_t count = first[i + 1] - first[i];
-    const float unknown_fraction = static_cast<float>(unknown) / static_cast<float>(count);
-    const bool safe = worst < max_trav && worst_var < max_var && unknown_fraction <= max_unknown;
-    v1::PoseCheck* pc = response->add_poses();
-    pc->set_worst_traversability(worst);
-    pc->set_worst_traversability_variance(worst_var);
-    pc->set_unknown_fraction(unknown_fraction);
-    pc->set_cell_count(static_cast<uint32_t>(count));
-    pc->set_safe(safe);
-    if (!safe && all_safe) {
-      all_safe = false;
-      first_unsafe = static_cast<int>(i);
-    }
-  }
-  response->set_safe(all_safe);
-  response->set_first_unsafe_index(first_unsafe);
+  JudgePoses(*read, first, max_trav, max_var, max_unknown, response);  // one atomic read
   response->set_map_version(version);
   return grpc::Status::OK;
 }

@@ -1,7 +1,7 @@
-// ClearRegion (admin): forgets every cell of a box. Ordered with scans as a barrier.
+// ClearRegion (admin): forgets every cell of a box, ordered with the scans (a single server: as
+// a barrier; a cluster: in its log, and each shard clears its copies as it reads it).
 #include <spdlog/spdlog.h>
 
-#include "cluster/cluster_node.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
 #include "rpc/request_checks.h"
@@ -23,25 +23,15 @@ grpc::ServerUnaryReactor* StartClearRegion(ServiceContext& ctx, grpc::CallbackSe
     reactor->Finish(s);
     return reactor;
   }
-  if (ctx.cluster != nullptr) {
-    // In the cluster's log, ordered with the scans; the shards clear their copies as they read
-    // it. The changed tiles are not known here (none are listed).
-    Result<uint64_t> appended = ctx.cluster->AppendClear(box);
-    if (!appended.ok()) {
-      reactor->Finish(ToGrpcStatus(appended.status()));
-      return reactor;
-    }
-    AuditLog(*who, "clear_region",
-             "box_cells=[" + std::to_string(box.min.x) + "," + std::to_string(box.min.y) + "]..[" +
-                 std::to_string(box.max.x) + "," + std::to_string(box.max.y) + "]",
-             *appended, call->peer());
-    response->set_map_version(*appended);
-    reactor->Finish(grpc::Status::OK);
-    return reactor;
-  }
   ctx.map.SubmitClear(box, [reactor, response, box, who,
                             peer = call->peer()](const ClearOutcome& outcome) {
     if (!outcome.status.ok()) {
+      const Status::Code code = outcome.status.code();
+      if (code != Status::Code::kIoError && code != Status::Code::kDataLoss) {
+        // The map refused it (a cluster's log out of reach): its own code.
+        reactor->Finish(ToGrpcStatus(outcome.status));
+        return;
+      }
       spdlog::error("event=clear_not_persisted version={} reason=\"{}\"", outcome.version,
                     outcome.status.message());
       reactor->Finish(

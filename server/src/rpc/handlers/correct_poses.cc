@@ -1,11 +1,11 @@
 // CorrectPoses and RemoveScans: a robot's SLAM revised its trajectory (or its scans are bad);
-// the map re-integrates them in the background (ServedMap::SubmitCorrection).
+// the map re-integrates them in the background (MapWrites::SubmitCorrection).
 #include <spdlog/spdlog.h>
 
 #include <boost/asio/post.hpp>
 #include <set>
 
-#include "log_safe.h"
+#include "bgkmap/server/log_safe.h"
 #include "rpc/access_control.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
@@ -26,9 +26,9 @@ grpc::Status Admissible(ServiceContext& ctx, const Principal& who, const std::st
   if (ctx.sessions.draining()) return {grpc::StatusCode::UNAVAILABLE, "server is shutting down"};
   if (grpc::Status s = CheckRobotId(robot_id); !s.ok()) return s;
   if (!who.MayIngestAs(robot_id)) return NotThisRobot(who, robot_id);
-  const auto robots = ctx.map.robots().Robots();
+  const std::vector<RobotStats> robots = ctx.map.Robots();
   const bool known = std::any_of(robots.begin(), robots.end(),
-                                 [&](const RobotProgress& r) { return r.robot_id == robot_id; });
+                                 [&](const RobotStats& r) { return r.robot_id == robot_id; });
   if (!known) {
     return {grpc::StatusCode::NOT_FOUND, "robot_id: '" + robot_id + "' is not a known robot"};
   }

@@ -4,8 +4,7 @@
 
 #include <memory>
 
-#include "cluster/cluster_node.h"
-#include "log_safe.h"
+#include "bgkmap/server/log_safe.h"
 #include "rpc/access_control.h"
 #include "rpc/proto_convert.h"
 #include "rpc/request_checks.h"
@@ -13,10 +12,22 @@
 namespace bgkmap {
 namespace {
 
+// The robot and sequence number every ack repeats.
 v1::ScanAck BaseAck(const v1::Scan& scan) {
   v1::ScanAck ack;
   ack.set_robot_id(scan.robot_id());
   ack.set_sequence(scan.sequence());
+  return ack;
+}
+
+v1::ScanAck Rejected(ServiceContext& ctx, v1::ScanAck ack, const grpc::Status& status) {
+  spdlog::warn("event=scan_rejected robot=\"{}\" sequence={} code={} reason=\"{}\"",
+               LogSafe(ack.robot_id(), 128), ack.sequence(), static_cast<int>(status.error_code()),
+               LogSafe(status.error_message()));
+  ack.set_status(v1::ACK_REJECTED);
+  ack.set_code(status.error_code());
+  ack.set_message(status.error_message());
+  ack.set_map_version(ctx.map.known_version());
   return ack;
 }
 
@@ -28,7 +39,7 @@ v1::ScanAck DuplicateAck(ServiceContext& ctx, const v1::Scan& scan, uint64_t las
   ack.set_message("duplicate: sequence " + std::to_string(scan.sequence()) +
                   " is not above the robot's last admitted sequence " +
                   std::to_string(last_sequence) + "; not applied again");
-  ack.set_map_version(ctx.map.applied_version());
+  ack.set_map_version(ctx.map.known_version());
   return ack;
 }
 
@@ -40,42 +51,71 @@ grpc::Status SequenceJump(const ServiceContext& ctx, const v1::Scan& scan, uint6
               std::to_string(last) + " (a robot's sequence numbers increase by small steps)"};
 }
 
-// A cluster node: the scan goes to the cluster's log, and the ack says it is there (durable on
-// a majority of the log's replicas). The map version is its log sequence number.
-void AppendToCluster(ServiceContext& ctx, const v1::Scan& scan, const PreparedScan& prepared,
-                     const AckCallback& done) {
-  Result<cluster::Appended> appended = ctx.cluster->Append(scan, prepared);
-  if (!appended.ok()) {
-    const grpc::Status s = ToGrpcStatus(appended.status());
-    done(RejectedAck(ctx, scan, s), s);
+// What the robot hears of an admitted scan once the map is done with it: applied; a duplicate
+// (a retry the map's log had stored already); or not applied. A scan the map could not make
+// durable may be sent again (UNAVAILABLE); one the map refused keeps the map's code.
+void Answer(ServiceContext& ctx, v1::ScanAck ack, const ScanPointCounts& counts,
+            const ScanOutcome& outcome, const AckCallback& done) {
+  const Status::Code code = outcome.status.code();
+  if (code == Status::Code::kIoError || code == Status::Code::kDataLoss) {
+    grpc::Status s(grpc::StatusCode::UNAVAILABLE,
+                   "scan not applied: cannot persist it: " + outcome.status.message());
+    spdlog::error("event=scan_not_persisted robot=\"{}\" sequence={} reason=\"{}\"",
+                  LogSafe(ack.robot_id(), 128), ack.sequence(), LogSafe(outcome.status.message()));
+    ack.set_status(v1::ACK_REJECTED);
+    ack.set_code(s.error_code());
+    ack.set_message(s.error_message());
+    ack.set_map_version(outcome.version);
+    done(std::move(ack), s);
     return;
   }
-  v1::ScanAck ack = BaseAck(scan);
-  if (appended->duplicate) {
+  if (!outcome.status.ok()) {
+    const grpc::Status s = ToGrpcStatus(outcome.status);
+    done(Rejected(ctx, std::move(ack), s), s);
+    return;
+  }
+  if (outcome.already_logged) {
     ack.set_status(v1::ACK_DUPLICATE);
-    ack.set_message("duplicate: robot '" + scan.robot_id() + "' sequence " +
-                    std::to_string(scan.sequence()) +
+    ack.set_message("duplicate: robot '" + ack.robot_id() + "' sequence " +
+                    std::to_string(ack.sequence()) +
                     " is already in the cluster's log; not applied again");
   } else {
     ack.set_status(v1::ACK_APPLIED);
-    ToProto(prepared.counts, ack.mutable_counts());
+    ToProto(counts, ack.mutable_counts());
+    for (TileKey k : outcome.changed_tiles) ToProto(k, ack.add_changed_tiles());
   }
-  ack.set_map_version(appended->sequence);
+  ack.set_map_version(outcome.version);
   done(std::move(ack), grpc::Status::OK);
+}
+
+// What the robot hears of a scan the map did not admit by its sequence number.
+void NotAdmitted(ServiceContext& ctx, const v1::Scan& scan, RobotAdmission admission,
+                 uint64_t last_sequence, const AckCallback& done) {
+  switch (admission) {
+    case RobotAdmission::kAdmitted:
+      return;
+    case RobotAdmission::kDuplicate:
+      done(DuplicateAck(ctx, scan, last_sequence), grpc::Status::OK);
+      return;
+    case RobotAdmission::kSequenceJump: {
+      const grpc::Status s = SequenceJump(ctx, scan, last_sequence);
+      done(RejectedAck(ctx, scan, s), s);
+      return;
+    }
+    case RobotAdmission::kTooManyRobots: {
+      grpc::Status s(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     "robot_id: '" + scan.robot_id() + "' would exceed server.max_robots = " +
+                         std::to_string(ctx.limits.max_robots));
+      done(RejectedAck(ctx, scan, s), s);
+      return;
+    }
+  }
 }
 
 }  // namespace
 
 v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::Status& status) {
-  spdlog::warn("event=scan_rejected robot=\"{}\" sequence={} code={} reason=\"{}\"",
-               LogSafe(scan.robot_id(), 128), scan.sequence(),
-               static_cast<int>(status.error_code()), LogSafe(status.error_message()));
-  v1::ScanAck ack = BaseAck(scan);
-  ack.set_status(v1::ACK_REJECTED);
-  ack.set_code(status.error_code());
-  ack.set_message(status.error_message());
-  ack.set_map_version(ctx.map.applied_version());
-  return ack;
+  return Rejected(ctx, BaseAck(scan), status);
 }
 
 void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan& scan,
@@ -91,71 +131,30 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
     return;
   }
   // Retries after a lost ack are common: answer them before paying for preparation.
-  if (uint64_t last = 0; ctx.cluster == nullptr &&
-                         ctx.map.robots().IsDuplicate(scan.robot_id(), scan.sequence(), &last)) {
-    ctx.map.robots().CountDuplicate(scan.robot_id());
+  if (uint64_t last = 0; ctx.map.TakeDuplicate(scan.robot_id(), scan.sequence(), &last)) {
     done(DuplicateAck(ctx, scan, last), grpc::Status::OK);
     return;
   }
   auto prepared = std::make_shared<PreparedScan>();
-  std::shared_ptr<storage::ScanSource> source;
+  std::shared_ptr<RawScan> raw;
   if (grpc::Status s = PrepareScanMessage(scan, ctx.map.params(), ctx.limits, prepared.get(),
-                                          ctx.map.retains_scans() ? &source : nullptr);
+                                          ctx.map.retains_scans() ? &raw : nullptr);
       !s.ok()) {
-    ctx.map.robots().CountRejected(scan.robot_id());
+    ctx.map.CountRejected(scan.robot_id());
     done(RejectedAck(ctx, scan, s), s);
     return;
   }
-  if (ctx.cluster != nullptr) {
-    AppendToCluster(ctx, scan, *prepared, done);
-    return;
-  }
-  const Stamp stamp{scan.stamp().seconds(), scan.stamp().nanos()};
-  v1::ScanAck applied = BaseAck(scan);
+  ScanOrigin origin{scan.robot_id(), scan.sequence(),
+                    Stamp{scan.stamp().seconds(), scan.stamp().nanos()}, std::move(raw),
+                    [&scan] { return scan.SerializeAsString(); }};
   uint64_t last_sequence = 0;
-  const ServedMap::Admission admission = ctx.map.SubmitScan(
-      {scan.robot_id(), scan.sequence(), stamp, std::move(source)}, prepared,
-      [applied, done, counts = prepared->counts](ScanOutcome outcome) mutable {
-        if (!outcome.status.ok()) {
-          // Not in the log, so not in the map: the robot may send it again.
-          grpc::Status s(grpc::StatusCode::UNAVAILABLE,
-                         "scan not applied: cannot persist it: " + outcome.status.message());
-          spdlog::error("event=scan_not_persisted robot=\"{}\" sequence={} reason=\"{}\"",
-                        LogSafe(applied.robot_id(), 128), applied.sequence(),
-                        LogSafe(outcome.status.message()));
-          applied.set_status(v1::ACK_REJECTED);
-          applied.set_code(s.error_code());
-          applied.set_message(s.error_message());
-          applied.set_map_version(outcome.version);
-          done(std::move(applied), s);
-          return;
-        }
-        applied.set_status(v1::ACK_APPLIED);
-        applied.set_map_version(outcome.version);
-        ToProto(counts, applied.mutable_counts());
-        for (TileKey k : outcome.report.changed_tiles) ToProto(k, applied.add_changed_tiles());
-        done(std::move(applied), grpc::Status::OK);
+  const RobotAdmission admission = ctx.map.SubmitScan(
+      std::move(origin), prepared,
+      [&ctx, ack = BaseAck(scan), counts = prepared->counts, done](ScanOutcome outcome) {
+        Answer(ctx, ack, counts, outcome, done);
       },
       &last_sequence);
-  switch (admission) {
-    case ServedMap::Admission::kAdmitted:
-      return;
-    case ServedMap::Admission::kDuplicate:
-      done(DuplicateAck(ctx, scan, last_sequence), grpc::Status::OK);
-      return;
-    case ServedMap::Admission::kSequenceJump: {
-      const grpc::Status s = SequenceJump(ctx, scan, last_sequence);
-      done(RejectedAck(ctx, scan, s), s);
-      return;
-    }
-    case ServedMap::Admission::kTooManyRobots: {
-      grpc::Status s(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                     "robot_id: '" + scan.robot_id() + "' would exceed server.max_robots = " +
-                         std::to_string(ctx.limits.max_robots));
-      done(RejectedAck(ctx, scan, s), s);
-      return;
-    }
-  }
+  NotAdmitted(ctx, scan, admission, last_sequence, done);
 }
 
 }  // namespace bgkmap

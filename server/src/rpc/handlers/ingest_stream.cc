@@ -12,7 +12,7 @@
 #include <mutex>
 #include <optional>
 
-#include "log_safe.h"
+#include "bgkmap/server/log_safe.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/handlers/ingest_pipeline.h"
 

@@ -38,8 +38,8 @@ grpc::Status QueryPoints(ServiceContext& ctx, const QueryControl& control,
     cells.push_back(g.CellAt(p.x(), p.y()));
   }
   if (grpc::Status s = control.Check(); !s.ok()) return s;
-  const uint64_t version = ctx.reads.applied_version();
-  const Result<std::vector<CellEstimate>> read = ctx.reads.ReadCells(cells);
+  const uint64_t version = ctx.map.applied_version();
+  const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
   const std::vector<CellEstimate>& estimates = *read;
   for (Layer l : layers) response->add_layers(ToProto(l));

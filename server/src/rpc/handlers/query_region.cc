@@ -43,8 +43,8 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     registered_ = ctx_.sessions.Add(&stalled_, SessionRegistry::Kind::kStream, UINT32_MAX) ==
                   SessionRegistry::Admit::kOk;
     boost::asio::post(ctx_.query_pool, [this] {
-      version_ = ctx_.reads.applied_version();
-      Result<Raster> read = ctx_.reads.ReadRegion(box_, layers_, stride_);
+      version_ = ctx_.map.applied_version();
+      Result<Raster> read = ctx_.map.ReadRegion(box_, layers_, stride_);
       if (!read.ok()) {
         Finish(ToGrpcStatus(read.status()));
         return;

@@ -2,7 +2,7 @@
 // gone) stops holding one of server.max_robots slots, also after a restart. Info lists robots.
 #include <spdlog/spdlog.h>
 
-#include "log_safe.h"
+#include "bgkmap/server/log_safe.h"
 #include "rpc/handlers/handlers.h"
 
 namespace bgkmap {
@@ -23,7 +23,7 @@ grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackSe
     return reactor;
   }
   const std::string peer = call->peer();
-  ctx.map.RetireRobot(id, [&ctx, reactor, response, peer, who](Result<RobotProgress> retired) {
+  ctx.map.RetireRobot(id, [&ctx, reactor, response, peer, who](Result<RobotStats> retired) {
     if (!retired.ok()) {
       const Status& s = retired.status();
       if (s.code() == Status::Code::kFailedPrecondition) {
@@ -34,11 +34,11 @@ grpc::ServerUnaryReactor* StartRetireRobot(ServiceContext& ctx, grpc::CallbackSe
       }
       return;
     }
-    const size_t robots = ctx.map.robots().Robots().size();
+    const size_t robots = ctx.map.Robots().size();
     spdlog::info("event=robot_retired robot=\"{}\" last_sequence={} robots={} peer=\"{}\"",
                  LogSafe(retired->robot_id, 128), retired->last_sequence, robots, LogSafe(peer));
     AuditLog(*who, "retire_robot", "robot=\"" + LogSafe(retired->robot_id, 128) + "\"",
-             ctx.map.applied_version(), peer);
+             ctx.map.known_version(), peer);
     response->set_last_sequence(retired->last_sequence);
     response->set_robots(robots);
     reactor->Finish(grpc::Status::OK);

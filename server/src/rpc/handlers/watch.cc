@@ -120,7 +120,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
 
   // On the query pool, with active_ set: the tiles that exist in the box start pending.
   void ListInitial() {
-    Result<std::vector<TileKey>> known = ctx_.reads.ListKnownTiles(min_, max_);
+    Result<std::vector<TileKey>> known = ctx_.map.ListKnownTiles(min_, max_);
     if (!known.ok()) {
       Stop(ToGrpcStatus(known.status()), /*was_active=*/true);
       return;
@@ -153,8 +153,8 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
         return;
       }
     }
-    const uint64_t version = ctx_.reads.applied_version();
-    Result<TileContent> read = ctx_.reads.ReadTile(key, layers_);
+    const uint64_t version = ctx_.map.applied_version();
+    Result<TileContent> read = ctx_.map.ReadTile(key, layers_);
     if (!read.ok()) {
       Stop(ToGrpcStatus(read.status()), /*was_active=*/true);
       return;

@@ -21,9 +21,9 @@
 #include <string_view>
 
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/raw_scan.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
-#include "bgkmap/storage/scan_source.h"
 
 namespace bgkmap::storage {
 
@@ -45,7 +45,7 @@ struct LogRecord {
   CellBox clear_box;                         // kClear: the cleared cells
   // kScan, optional and not part of the encoding: the raw scan, which the log keeps beside the
   // record (in its own family) while corrections may need it.
-  std::shared_ptr<const ScanSource> source;
+  std::shared_ptr<const RawScan> raw_scan;
   // kCorrection: the retained checkpoint the rebuild starts from, the tiles the revised scans
   // changed before they were revised, and the revised scans' versions (removed ones included).
   uint64_t base_version = 0;

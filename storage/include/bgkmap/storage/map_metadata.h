@@ -6,7 +6,6 @@
 // and stays readable with generic RocksDB tools.
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -14,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "bgkmap/core/georeference.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/status.h"
 
@@ -26,18 +26,6 @@ namespace bgkmap::storage {
 // 3: the sources and history families. Format 4 (forgetting): tile format 3 (a tile's stamp), the
 // half_life_s key (legacy 0), the log's stamp is the scan's map time; formats 1-3 upgrade.
 inline constexpr uint32_t kStoreFormat = 4;
-
-// Where the map frame sits in a coordinate reference system (docs/configuration.md): map point
-// (x, y, z) is origin + (x, y, z) in `crs`, axes aligned. An empty crs: the frame is local.
-// Part of the map's identity, like the parameters: a store and its archives keep the one they
-// were given first, and a different one is refused rather than silently replaced.
-struct Georeference {
-  std::string crs;                           // any form GDAL reads: "EPSG:<code>", WKT, PROJ
-  std::array<double, 3> origin = {0, 0, 0};  // easting, northing, height of map (0, 0, 0)
-
-  bool empty() const { return crs.empty(); }
-  bool operator==(const Georeference&) const = default;
-};
 
 struct MapMetadata {
   uint32_t format = kStoreFormat;

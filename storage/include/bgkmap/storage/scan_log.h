@@ -46,7 +46,7 @@ class ScanLog {
   ScanLog(const ScanLog&) = delete;
   ScanLog& operator=(const ScanLog&) = delete;
 
-  // Appends `record` (and its raw scan, record.source, when the store retains them) and, for a
+  // Appends `record` (and its raw scan, record.raw_scan, when the store retains them) and, for a
   // scan, max-merges the robot's last sequence number; the map
   // version is max-merged too. Returns once the record is durable as the store's Durability
   // says; only then may the change be acknowledged. Concurrent appends share fsyncs.
@@ -70,7 +70,7 @@ class ScanLog {
 
   // The raw scan kept beside the record of `version` (StoreOptions::retention); nullopt if none
   // is kept (retention off, or dropped). DataLoss if it fails its checksum.
-  Result<std::optional<ScanSource>> LoadSource(uint64_t version) const;
+  Result<std::optional<RawScan>> LoadRawScan(uint64_t version) const;
 
   // Counts the records after `after` (reads them).
   Result<LogStats> Stats(uint64_t after = 0) const;

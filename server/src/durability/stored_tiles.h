@@ -1,7 +1,9 @@
-// Where the tiles of the served map live when they are not in memory. The served map loads
-// tiles from it on demand and evicts clean tiles back to it (they are already there).
+// The tiles of the served map that live outside memory (Durability's third concern). The
+// served map loads them on demand and evicts clean tiles back (they are already there); a tile
+// that fails its checksum is listed, so queries never answer from it.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -15,7 +17,7 @@
 
 namespace bgkmap {
 
-class TileBacking {
+class StoredTiles {
  public:
   // Thread-safe; every answer is as of the last completed checkpoint.
   virtual bool IsStored(TileKey key) const = 0;
@@ -30,8 +32,22 @@ class TileBacking {
   // at or below it holds exactly what the store holds (it is clean and may be dropped).
   virtual uint64_t durable_version() const = 0;
 
+  // Stored tiles found failing their checksum, sorted: queries must not answer from them.
+  virtual std::vector<TileKey> CorruptTiles() const = 0;
+  // Reads and checks every stored tile without keeping it, so that damage is found and
+  // reported (CorruptTiles(), Info) before a query or scan meets it; tiles are otherwise read
+  // only on demand. Returns early once `stop` is set.
+  struct VerifyReport {
+    uint64_t tiles = 0;
+    uint64_t corrupt = 0;
+    uint64_t unreadable = 0;  // I/O errors
+    double seconds = 0;
+    bool stopped = false;
+  };
+  virtual VerifyReport VerifyStoredTiles(const std::atomic<bool>& stop) const = 0;
+
  protected:
-  ~TileBacking() = default;
+  ~StoredTiles() = default;
 };
 
 }  // namespace bgkmap

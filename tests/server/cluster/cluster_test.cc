@@ -251,6 +251,45 @@ TEST(ClusterTest, RetriesAndDuplicatesChangeNothing) {
   EXPECT_TRUE(SameAnswers(b.client(), ref));
 }
 
+// The calls a shard does not take yet answer UNIMPLEMENTED naming themselves and the calls it
+// does take, before the request is looked at (a bad request too); Info on a shard names it and
+// sees the scans its own acks reported. (Through the map port: MapWrites::Offers, ReadVersion.)
+TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  ServerFixture a(NodeConfig(nats.urls(), "a"));
+  const std::vector<OwnedScan> scans = SubScans("r1", 4, 2);
+  uint64_t acked = 0;
+  for (const OwnedScan& s : scans) {
+    RpcResult<ScanAck> ack = a.client().Insert(s.Data());
+    ASSERT_TRUE(ack.ok()) << ack.status().message();
+    ASSERT_EQ(ack->status, AckStatus::kApplied);
+    acked = ack->map_version;
+  }
+  RpcResult<MapInfo> info = a.client().Info();
+  ASSERT_TRUE(info.ok()) << info.status().message();
+  ASSERT_TRUE(info->cluster.has_value());
+  EXPECT_EQ(info->cluster->node, "a");
+  EXPECT_EQ(info->cluster->partition_tiles, kPartitionTiles);
+  EXPECT_GE(info->map_version, acked);
+
+  const std::string not_yet =
+      " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
+      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap and Info are";
+  auto expect_unimplemented = [&](const RpcStatus& status, const std::string& call) {
+    EXPECT_EQ(status.code(), RpcCode::kUnimplemented) << call << ": " << status.message();
+    EXPECT_EQ(status.message(), call + not_yet);
+  };
+  expect_unimplemented(a.client().ExportMap(std::nullopt, dir.Sub("map.bgkmap")).status(),
+                       "ExportMap");
+  expect_unimplemented(a.client().CorrectPoses("r1", {{1, scans[0].pose}}).status(),
+                       "CorrectPoses");
+  expect_unimplemented(a.client().RemoveScans("r1", 2, 1).status(),  // first > last: still
+                       "RemoveScans");
+  expect_unimplemented(a.client().RetireRobot("").status(), "RetireRobot");  // empty id: still
+}
+
 // Mutations: ReadCheckpoint returning nothing (the takeover replays the log: "no partition was
 // restored"); the restored replica dropping the checkpoint's tiles (the answers differ).
 TEST(ClusterTest, KilledShardsPartitionsAreServedAgain) {

@@ -1,6 +1,7 @@
-// The HTTP side of bgkmapd's metrics endpoint: a small HTTP/1.1 server (Boost.Beast on its own
-// Boost.Asio thread) that answers GET /metrics with whatever `render` returns, in the
-// Prometheus text format's content type. What is exported is metrics.{h,cc}.
+// bgkmapd's HTTP endpoint (server.metrics_address, `--http`): a small HTTP/1.1 server (Boost.Beast
+// on its own Boost.Asio thread) serving GET /metrics, the live web map with its event stream,
+// and /login. /metrics answers with whatever `render` returns, in the Prometheus text format's
+// content type (what is exported: metrics.{h,cc}).
 //
 // Every other path goes to Options::routes (the web map, web_routes.h) if set, else is 404; every
 // other method on /metrics is 405. A /metrics response closes its connection; web routes keep it
@@ -33,7 +34,7 @@ class context;
 
 namespace bgkmap {
 
-class MetricsHttpServer {
+class HttpServer {
  public:
   // The body of a /metrics response. Runs on the endpoint's thread, one request at a time.
   using Render = std::function<std::string()>;
@@ -56,13 +57,12 @@ class MetricsHttpServer {
   // Resolves and binds `address` ("host:port", port 0 = any free port) and listens. Requests
   // wait in the listen backlog until Start(). The error says why the address cannot be used
   // (without naming a config key).
-  static Result<std::unique_ptr<MetricsHttpServer>> Listen(const std::string& address,
-                                                           Render render, Options options);
-  static Result<std::unique_ptr<MetricsHttpServer>> Listen(const std::string& address,
-                                                           Render render) {
+  static Result<std::unique_ptr<HttpServer>> Listen(const std::string& address, Render render,
+                                                    Options options);
+  static Result<std::unique_ptr<HttpServer>> Listen(const std::string& address, Render render) {
     return Listen(address, std::move(render), Options{});
   }
-  ~MetricsHttpServer();  // Stop()
+  ~HttpServer();  // Stop()
 
   // The bound port (the chosen one for port 0).
   int port() const;
@@ -76,7 +76,7 @@ class MetricsHttpServer {
   struct State;  // metrics_http.cc: the io_context, the listener and the open connections
 
  private:
-  explicit MetricsHttpServer(std::unique_ptr<State> state);
+  explicit HttpServer(std::unique_ptr<State> state);
   std::unique_ptr<State> state_;
 };
 

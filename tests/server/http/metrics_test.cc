@@ -206,7 +206,7 @@ TEST(MetricsTest, ScrapeEqualsInfo) {
   // No checkpoint while the test runs, so the store counters have values the test knows.
   config.storage.checkpoint_interval_s = 3600;
   ServerFixture fixture(config);
-  const int port = fixture.server().metrics_port();
+  const int port = fixture.server().http_port();
   ASSERT_GT(port, 0);
   ASSERT_NE(port, fixture.server().port());
   const std::vector<OwnedScan> alpha = SubScans("alpha", 4, 8);
@@ -315,7 +315,7 @@ TEST(MetricsTest, ScrapeEqualsInfo) {
 TEST(MetricsTest, InMemoryMapHasNoStoreMetrics) {
   ServerFixture fixture(MetricsConfig());
   Ingest(fixture.client(), SubScans("alpha", 4, 2));
-  const Exposition e = Scrape(fixture.server().metrics_port());
+  const Exposition e = Scrape(fixture.server().http_port());
   EXPECT_EQ(Value(e, "bgkmap_map_version"), 2u);
   ASSERT_GT(e.samples.size(), 5u);  // the loop below checks real series, not an empty scrape
   for (const auto& [series, value] : e.samples) {
@@ -325,7 +325,7 @@ TEST(MetricsTest, InMemoryMapHasNoStoreMetrics) {
 
 TEST(MetricsTest, OffByDefault) {
   ServerFixture fixture;
-  EXPECT_EQ(fixture.server().metrics_port(), 0);
+  EXPECT_EQ(fixture.server().http_port(), 0);
 }
 
 TEST(MetricsTest, CorruptStoredTileIsCounted) {
@@ -336,7 +336,7 @@ TEST(MetricsTest, CorruptStoredTileIsCounted) {
   }  // the last checkpoint writes every tile
   {
     ServerFixture fixture(MetricsConfig(dir.str()));
-    const Exposition e = Scrape(fixture.server().metrics_port());
+    const Exposition e = Scrape(fixture.server().http_port());
     EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles"), 0u);
     EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles_found_total"), 0u);
   }
@@ -347,7 +347,7 @@ TEST(MetricsTest, CorruptStoredTileIsCounted) {
   Exposition e;
   do {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    e = Scrape(fixture.server().metrics_port());
+    e = Scrape(fixture.server().http_port());
   } while (Value(e, "bgkmap_store_corrupt_tiles") == 0 &&
            std::chrono::steady_clock::now() < deadline);
   EXPECT_EQ(Value(e, "bgkmap_store_corrupt_tiles"), 1u);
@@ -359,7 +359,7 @@ TEST(MetricsTest, CorruptStoredTileIsCounted) {
 
 TEST(MetricsTest, OnlyGetMetricsIsServed) {
   ServerFixture fixture(MetricsConfig());
-  const int port = fixture.server().metrics_port();
+  const int port = fixture.server().http_port();
   // "/" is the web map's page (web_map_test.cc); a web route keeps the connection unless told.
   EXPECT_EQ(Exchange(port, "GET / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").status, 200);
   EXPECT_EQ(Get(port, "/nothing").status, 404);
@@ -376,7 +376,7 @@ TEST(MetricsTest, OnlyGetMetricsIsServed) {
 
 TEST(MetricsTest, BadClientsNeitherCrashNorBlockIt) {
   ServerFixture fixture(MetricsConfig());
-  const int port = fixture.server().metrics_port();
+  const int port = fixture.server().http_port();
   // An idle connection and a half-sent request stay open while others are answered.
   Socket idle(port);
   Socket half(port);
@@ -422,7 +422,7 @@ TEST(MetricsTest, BadClientsNeitherCrashNorBlockIt) {
 
 TEST(MetricsTest, ShutdownWithOpenConnectionsIsClean) {
   ServerFixture fixture(MetricsConfig());
-  const int port = fixture.server().metrics_port();
+  const int port = fixture.server().http_port();
   Socket idle(port);
   ASSERT_TRUE(idle.connected());
   Scrape(port);
@@ -457,7 +457,7 @@ TEST(MetricsConfigTest, AddressIsCheckedAndNamesTheKey) {
 TEST(MetricsConfigTest, AddressInUseFailsTheStart) {
   ServerFixture first(MetricsConfig());
   ServerConfig c = MetricsConfig();
-  c.metrics_address = "127.0.0.1:" + std::to_string(first.server().metrics_port());
+  c.metrics_address = "127.0.0.1:" + std::to_string(first.server().http_port());
   Result<std::unique_ptr<MapServer>> second = MapServer::Start(c);
   ASSERT_FALSE(second.ok());
   EXPECT_EQ(second.status().message().rfind("server.metrics_address: cannot listen on", 0), 0u)

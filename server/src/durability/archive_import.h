@@ -1,8 +1,6 @@
-// An uploaded map archive on its way into the served map: spooled to a file as it arrives, then
-// read and verified in full before anything changes (ImportMap, handlers/import_map.cc).
+// An uploaded map archive on its way into a map: spooled to a file as it arrives, then read and
+// verified in full before anything changes (ImportMap; serving/archive_upload.h drives it).
 #pragma once
-
-#include <grpcpp/support/status.h>
 
 #include <cstdint>
 #include <memory>
@@ -10,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "bgkmap/core/georeference.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/tile.h"
@@ -51,13 +50,13 @@ struct VerifiedArchive {
   uint64_t known_cells = 0;                  // of the archive's tiles
 };
 
-// Reads and checks every byte of the archive at `path` against the served map's `params`:
-// INVALID_ARGUMENT if it is not an archive, holds a tile twice, a tile beyond the map's range
-// or an impossible statistic (negative or non-finite weight); DATA_LOSS if it is damaged or
-// truncated (checksums); FAILED_PRECONDITION naming the first incompatible parameter, or the
-// georeference key if both the archive and the served map (`georeference`) have one and they
-// differ. Messages name the tile and never the spool file.
-grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& params,
-                                 const storage::Georeference& georeference, VerifiedArchive* out);
+// Reads and checks every byte of the archive at `path` against the map's `params`:
+// InvalidArgument if it is not an archive, holds a tile twice, a tile beyond the map's range or
+// an impossible statistic (negative or non-finite weight); DataLoss if it is damaged or
+// truncated (checksums); FailedPrecondition naming the first incompatible parameter, or the
+// georeference key if both the archive and the map (`georeference`) have one and they differ.
+// Messages name the tile and never the spool file.
+Status ReadVerifiedArchive(const std::string& path, const MapParams& params,
+                           const Georeference& georeference, VerifiedArchive* out);
 
 }  // namespace bgkmap

@@ -1,4 +1,4 @@
-#include "tls_files.h"
+#include "auth/tls_files.h"
 
 #include <openssl/bio.h>
 #include <openssl/err.h>

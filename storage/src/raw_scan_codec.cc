@@ -1,4 +1,4 @@
-#include "bgkmap/storage/scan_source.h"
+#include "bgkmap/storage/raw_scan_codec.h"
 
 #include <cstring>
 
@@ -7,14 +7,14 @@
 
 namespace bgkmap::storage {
 namespace {
-constexpr uint8_t kScanSourceFormat = 1;
+constexpr uint8_t kRawScanFormat = 1;
 }
 
-std::string EncodeScanSource(const ScanSource& source) {
+std::string EncodeRawScan(const RawScan& source) {
   std::string out;
   out.reserve(128 + source.points.size() * sizeof(Point3f));
   ByteWriter w(&out);
-  w.PutU8(kScanSourceFormat);
+  w.PutU8(kRawScanFormat);
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) w.PutDouble(source.pose.rotation(r, c));
   }
@@ -27,17 +27,17 @@ std::string EncodeScanSource(const ScanSource& source) {
   return out;
 }
 
-Result<ScanSource> DecodeScanSource(std::string_view encoded) {
-  const Status malformed = Status::DataLoss("scan source is malformed");
+Result<RawScan> DecodeRawScan(std::string_view encoded) {
+  const Status malformed = Status::DataLoss("raw scan is malformed");
   if (encoded.size() < 4) return malformed;
   const std::string_view body = encoded.substr(0, encoded.size() - 4);
   uint32_t stored_crc;
   std::memcpy(&stored_crc, encoded.data() + body.size(), 4);
-  if (Crc32c(body) != stored_crc) return Status::DataLoss("scan source checksum mismatch");
+  if (Crc32c(body) != stored_crc) return Status::DataLoss("raw scan checksum mismatch");
   ByteReader r(body);
   uint8_t format, frame_is_map;
-  if (!r.GetU8(&format) || format != kScanSourceFormat) return malformed;
-  ScanSource source;
+  if (!r.GetU8(&format) || format != kRawScanFormat) return malformed;
+  RawScan source;
   for (int row = 0; row < 3; ++row) {
     for (int c = 0; c < 3; ++c) {
       if (!r.GetDouble(&source.pose.rotation(row, c))) return malformed;

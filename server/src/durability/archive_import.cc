@@ -1,4 +1,4 @@
-#include "rpc/archive_upload.h"
+#include "durability/archive_import.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -123,30 +123,29 @@ void RemoveStaleSpoolFiles(const std::string& dir) {
   }
 }
 
-grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& params,
-                                 const storage::Georeference& georeference, VerifiedArchive* out) {
+Status ReadVerifiedArchive(const std::string& path, const MapParams& params,
+                           const Georeference& georeference, VerifiedArchive* out) {
   if (!StartsLikeAnArchive(path)) {
-    return {grpc::StatusCode::INVALID_ARGUMENT,
-            "archive: the upload is not a bgkmap map archive (it does not start with " +
-                std::string(storage::kMapArchiveMagic) + ")"};
+    return Status::InvalidArgument(
+        "archive: the upload is not a bgkmap map archive (it does not start with " +
+        std::string(storage::kMapArchiveMagic) + ")");
   }
   Result<std::unique_ptr<storage::MapArchiveReader>> reader = storage::MapArchiveReader::Open(path);
   if (!reader.ok()) {
-    return {grpc::StatusCode::DATA_LOSS,
-            "archive: " + WithoutPath(reader.status().message(), path)};
+    return Status::DataLoss("archive: " + WithoutPath(reader.status().message(), path));
   }
   out->metadata = (*reader)->metadata();
   std::string why;
   if (!params.StatisticsCompatibleWith(out->metadata.params, &why)) {
-    return {grpc::StatusCode::FAILED_PRECONDITION,
-            "archive: its map parameters are incompatible with the served map's: " + why +
-                " (served vs archive); statistics of one cannot be added to the other"};
+    return Status::FailedPrecondition(
+        "archive: its map parameters are incompatible with the served map's: " + why +
+        " (served vs archive); statistics of one cannot be added to the other");
   }
   if (Status s = storage::CheckGeoreferenceCompatible(georeference, out->metadata.georeference,
                                                       "served vs archive");
       !s.ok()) {
-    return {grpc::StatusCode::FAILED_PRECONDITION,
-            "archive: its georeference is not the served map's: " + s.message()};
+    return Status::FailedPrecondition("archive: its georeference is not the served map's: " +
+                                      s.message());
   }
   std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;
   for (;;) {
@@ -154,18 +153,15 @@ grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& param
     std::unique_ptr<Tile> tile;
     Result<bool> more = (*reader)->Next(&key, &tile);
     if (!more.ok()) {
-      return {grpc::StatusCode::DATA_LOSS,
-              "archive: " + WithoutPath(more.status().message(), path)};
+      return Status::DataLoss("archive: " + WithoutPath(more.status().message(), path));
     }
     if (!*more) break;
     if (!InRange(key, params.tile_size)) {
-      return {grpc::StatusCode::INVALID_ARGUMENT,
-              "archive: " + TileName(key) + " lies beyond the map's range"};
+      return Status::InvalidArgument("archive: " + TileName(key) + " lies beyond the map's range");
     }
     if (const int cell = FirstImpossibleCell(*tile); cell >= 0) {
-      return {grpc::StatusCode::INVALID_ARGUMENT,
-              "archive: " + TileName(key) + " cell " + std::to_string(cell) +
-                  " holds impossible statistics (negative or non-finite)"};
+      return Status::InvalidArgument("archive: " + TileName(key) + " cell " + std::to_string(cell) +
+                                     " holds impossible statistics (negative or non-finite)");
     }
     if (storage::IsZeroTile(*tile)) continue;  // adds nothing
     tiles.emplace_back(key, std::move(tile));
@@ -174,8 +170,7 @@ grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& param
             [](const auto& a, const auto& b) { return a.first < b.first; });
   for (size_t i = 1; i < tiles.size(); ++i) {
     if (tiles[i].first == tiles[i - 1].first) {
-      return {grpc::StatusCode::INVALID_ARGUMENT,
-              "archive: " + TileName(tiles[i].first) + " appears twice"};
+      return Status::InvalidArgument("archive: " + TileName(tiles[i].first) + " appears twice");
     }
   }
   out->keys.clear();
@@ -186,7 +181,7 @@ grpc::Status ReadVerifiedArchive(const std::string& path, const MapParams& param
     out->keys.push_back(key);
     out->tiles.push_back(std::move(tile));
   }
-  return grpc::Status::OK;
+  return Status::Ok();
 }
 
 }  // namespace bgkmap

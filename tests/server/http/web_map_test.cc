@@ -138,7 +138,7 @@ class WebMapTest : public ::testing::Test {
  protected:
   void SetUp() override {
     for (const OwnedScan& s : StreetScans()) ASSERT_TRUE(fixture_.client().Insert(s.Data()).ok());
-    port_ = fixture_.server().metrics_port();
+    port_ = fixture_.server().http_port();
     ASSERT_GT(port_, 0);
   }
   ServerFixture fixture_{WebConfig()};
@@ -406,7 +406,7 @@ TEST(WebMapStoreTest, CorruptStoredTileIsRefusedNamingIt) {
   }  // the last checkpoint writes every tile
   const TileKey k = CorruptStoredTile(dir.str(), StoredTilePick::kMiddle);
   ServerFixture fixture(WebConfig(dir.str()));
-  const int port = fixture.server().metrics_port();
+  const int port = fixture.server().http_port();
   // The zoom 0 tile holding map tile k (64 cells: 4 x 4 of them per web tile).
   const int64_t cx = int64_t{k.x} * 64, cy = int64_t{k.y} * 64;
   const std::string tile =
@@ -429,7 +429,7 @@ TEST(WebMapLimitsTest, ReadsShareTheQueryLimit) {
   ServerConfig c = WebConfig();
   c.limits.max_concurrent_queries = 0;
   ServerFixture fixture(c);
-  const Reply r = Get(fixture.server().metrics_port(), "/points?x=1&y=2");
+  const Reply r = Get(fixture.server().http_port(), "/points?x=1&y=2");
   EXPECT_EQ(r.status, 503);
   EXPECT_NE(r.body.find("server.max_concurrent_queries = 0"), std::string::npos) << r.body;
   EXPECT_NE(r.headers.find("Retry-After: 1"), std::string::npos);
@@ -440,7 +440,7 @@ TEST(WebMapLimitsTest, ReadsShareTheQueryLimit) {
 // tricklers (more than the 64 slots) reconnect whenever dropped; 18 scrapes must all succeed.
 TEST(HttpSlowClientsTest, TricklingClientsDoNotStarveMetrics) {
   ServerFixture fixture(WebConfig());
-  const int port = fixture.server().metrics_port();
+  const int port = fixture.server().http_port();
   std::atomic<bool> stop{false};
   std::atomic<int> reconnects{0};
   std::vector<std::thread> tricklers;

@@ -1,4 +1,4 @@
-#include "http/metrics_http.h"
+#include "http/http_server.h"
 
 #include <spdlog/spdlog.h>
 
@@ -21,7 +21,7 @@
 #include <thread>
 #include <type_traits>
 
-#include "host_port.h"
+#include "bgkmap/server/host_port.h"
 #include "http/http_exchange.h"
 #include "http/login_cookie.h"
 
@@ -59,7 +59,7 @@ class ConnectionBase {
 
 }  // namespace
 
-struct MetricsHttpServer::State {
+struct HttpServer::State {
   State(Render r, Options o) : render(std::move(r)), options(o) {}
 
   void Accept();
@@ -100,7 +100,7 @@ template <typename Stream>
 class Connection final : public ConnectionBase,
                          public std::enable_shared_from_this<Connection<Stream>> {
  public:
-  using State = MetricsHttpServer::State;
+  using State = HttpServer::State;
   static constexpr bool kTls = !std::is_same_v<Stream, beast::tcp_stream>;
 
   template <typename... StreamArgs>
@@ -358,7 +358,7 @@ class Connection final : public ConnectionBase,
 
 }  // namespace
 
-void MetricsHttpServer::State::Accept() {
+void HttpServer::State::Accept() {
   acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted || !acceptor.is_open()) return;
     if (ec) {
@@ -396,7 +396,7 @@ void MetricsHttpServer::State::Accept() {
   });
 }
 
-void MetricsHttpServer::State::CloseAll() {
+void HttpServer::State::CloseAll() {
   beast::error_code ignored;
   acceptor.close(ignored);
   retry.cancel();
@@ -405,8 +405,7 @@ void MetricsHttpServer::State::CloseAll() {
   io.stop();
 }
 
-std::optional<HttpResponse> MetricsHttpServer::State::CheckAccess(
-    const HttpRequest& request) const {
+std::optional<HttpResponse> HttpServer::State::CheckAccess(const HttpRequest& request) const {
   const std::string_view target(request.target().data(), request.target().size());
   const std::string_view path = target.substr(0, target.find('?'));
   const unsigned version = request.version() == 10 ? 10 : 11;
@@ -447,7 +446,7 @@ std::optional<HttpResponse> MetricsHttpServer::State::CheckAccess(
       "/login?token=<token>)\n");
 }
 
-HttpResponse MetricsHttpServer::State::Answer(const HttpRequest& request) {
+HttpResponse HttpServer::State::Answer(const HttpRequest& request) {
   const auto raw_target = request.target();
   const std::string_view target(raw_target.data(), raw_target.size());
   const std::string_view path = target.substr(0, target.find('?'));
@@ -480,13 +479,12 @@ HttpResponse MetricsHttpServer::State::Answer(const HttpRequest& request) {
   return response;
 }
 
-MetricsHttpServer::MetricsHttpServer(std::unique_ptr<State> state) : state_(std::move(state)) {}
+HttpServer::HttpServer(std::unique_ptr<State> state) : state_(std::move(state)) {}
 
-MetricsHttpServer::~MetricsHttpServer() { Stop(); }
+HttpServer::~HttpServer() { Stop(); }
 
-Result<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::Listen(const std::string& address,
-                                                                     Render render,
-                                                                     Options options) {
+Result<std::unique_ptr<HttpServer>> HttpServer::Listen(const std::string& address, Render render,
+                                                       Options options) {
   Result<HostPort> parsed = ParseHostPort(address);
   if (!parsed.ok()) return parsed.status();
   auto state = std::make_unique<State>(std::move(render), options);
@@ -510,12 +508,12 @@ Result<std::unique_ptr<MetricsHttpServer>> MetricsHttpServer::Listen(const std::
   }
   state->port = acceptor.local_endpoint(ec).port();
   if (ec) return Status::FailedPrecondition("cannot listen on '" + address + "': " + ec.message());
-  return std::unique_ptr<MetricsHttpServer>(new MetricsHttpServer(std::move(state)));
+  return std::unique_ptr<HttpServer>(new HttpServer(std::move(state)));
 }
 
-int MetricsHttpServer::port() const { return state_->port; }
+int HttpServer::port() const { return state_->port; }
 
-void MetricsHttpServer::Start() {
+void HttpServer::Start() {
   std::lock_guard lock(state_->stop_mu);
   if (state_->started || state_->stopped) return;
   state_->started = true;
@@ -532,7 +530,7 @@ void MetricsHttpServer::Start() {
   });
 }
 
-void MetricsHttpServer::Stop() {
+void HttpServer::Stop() {
   std::lock_guard lock(state_->stop_mu);
   if (state_->stopped) return;
   state_->stopped = true;

@@ -7,7 +7,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "../core/stride_oracle.h"
+#include "../../core/stride_oracle.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {

@@ -1,0 +1,15 @@
+// Which tiles of a map on a store are in memory (serving/tile_residency.h), for Info and /metrics.
+#pragma once
+
+#include <cstdint>
+
+namespace bgkmap {
+
+struct ResidencyStats {
+  uint64_t resident_tiles = 0;
+  uint64_t resident_bytes = 0;  // tile memory (TileTable::TileBytes each)
+  uint64_t tiles_loaded = 0;    // from the store, since start
+  uint64_t tiles_evicted = 0;   // since start
+};
+
+}  // namespace bgkmap
