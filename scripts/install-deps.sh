@@ -22,21 +22,27 @@ PACKAGES=(
   chromium chromium-driver
 )
 
-# The web map's npm packages (web/package-lock.json): Leaflet, embedded in bgkmapd, and
-# playwright-core, which drives Debian's chromium in the browser test. Needs npm (Debian's
-# `npm` package, or a Node.js that brings it).
-install_web() {
-  if ! command -v npm >/dev/null; then
-    ${SUDO:-} apt-get install -y -qq --no-install-recommends npm >/dev/null
-  fi
+# The project's npm packages, each folder with its own package-lock.json: web/ (Leaflet, embedded
+# in bgkmapd, and playwright-core, which drives Debian's chromium in the browser test) and
+# tests/interop/ (Foxglove's MCAP, ROS 2 CDR, schema and WebSocket libraries, the independent
+# implementations the ROS 2 and Foxglove tests check bgkmap against). Needs npm (Debian's `npm`
+# package, or a Node.js that brings it).
+install_npm_folder() {  # folder relative to the checkout
   local dir
-  dir="$(cd "$(dirname "$0")/.." && pwd)/web"
+  dir="$(cd "$(dirname "$0")/.." && pwd)/$1"
   # The lock file as last installed: npm ci runs again only when it changed.
   if ! cmp -s "$dir/package-lock.json" "$dir/node_modules/.bgkmap-installed-lock" 2>/dev/null; then
-    echo "install-deps: npm ci in web/"
+    echo "install-deps: npm ci in $1/"
     (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error &&
       cp package-lock.json node_modules/.bgkmap-installed-lock)
   fi
+}
+install_npm() {
+  if ! command -v npm >/dev/null; then
+    ${SUDO:-} apt-get install -y -qq --no-install-recommends npm >/dev/null
+  fi
+  install_npm_folder web
+  install_npm_folder tests/interop
 }
 
 missing=()
@@ -47,7 +53,7 @@ SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#PACKAGES[@]} packages present"
-  install_web
+  install_npm
   exit 0
 fi
 
@@ -56,4 +62,4 @@ export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 echo "install-deps: done"
-install_web
+install_npm
