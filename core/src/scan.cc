@@ -5,8 +5,9 @@
 #include <cmath>
 #include <sstream>
 
-#include "footprint.h"
+#include "bgkmap/core/cell_shapes.h"
 #include "radix_sort.h"
+#include "scan_reach.h"
 
 namespace bgkmap {
 
@@ -82,27 +83,20 @@ std::vector<TileKey> PreparedScan::ChangeableTiles() const {
   return out;
 }
 
-Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3f> points,
-                                 const Pose& T, bool frame_is_map) {
-  if (Status s = ValidatePose(T, params); !s.ok()) return s;
-  PreparedScan scan;
-  scan.sensor_z = T.translation.z();
-  scan.has_sensor = !frame_is_map;
-  scan.sensor_x = T.translation.x();
-  scan.sensor_y = T.translation.y();
-  ScanPointCounts& c = scan.counts;
-  c.input = points.size();
+namespace {
 
+// Filters and transforms the points, and bins the kept ones into cells (semantics 1-2); fills
+// `counts` and the kept points' cell bounds.
+std::vector<BinnedPoint> TransformAndBin(const MapParams& params, std::span<const Point3f> points,
+                                         const Pose& T, bool frame_is_map, ScanPointCounts& c,
+                                         CellBox& bounds) {
+  c.input = points.size();
   const double min_r2 = params.min_range * params.min_range;
   const double max_r2 = params.max_range * params.max_range;
   const double inv_res = 1.0 / params.resolution;
   const double z_limit = T.translation.z() + params.max_height_above_sensor;
-  const Eigen::Matrix3d& R = T.rotation;
-  const Eigen::Vector3d& t = T.translation;
-
   std::vector<BinnedPoint> binned;
   binned.reserve(points.size());
-  CellBox bounds;
   for (const Point3f& p : points) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
       ++c.dropped_nonfinite;
@@ -116,7 +110,7 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
         continue;
       }
     }
-    const Eigen::Vector3d q = R * ps + t;
+    const Eigen::Vector3d q = T.rotation * ps + T.translation;
     if (!frame_is_map && q.z() > z_limit) {
       ++c.dropped_height;
       continue;
@@ -133,43 +127,48 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
     binned.push_back(b);
   }
   c.kept = binned.size();
-  // The ground the robot stands on, which its lidar never sees (min_range): the cells whose
-  // centres lie within robot_radius of the sensor (a path check's rule for a disk), at least the
-  // cell under it.
-  if (!frame_is_map && params.dynamics == Dynamics::kOn && params.sensor_height > 0) {
-    const double r = params.robot_radius, r2 = r * r * (1.0 + 1e-9);
-    const int x0 = static_cast<int>(std::floor((t.x() - r) * inv_res));
-    const int x1 = static_cast<int>(std::floor((t.x() + r) * inv_res));
-    const int y0 = static_cast<int>(std::floor((t.y() - r) * inv_res));
-    const int y1 = static_cast<int>(std::floor((t.y() + r) * inv_res));
-    for (int ix = x0; ix <= x1; ++ix) {
-      for (int iy = y0; iy <= y1; ++iy) {
-        const double dx = (ix + 0.5) * params.resolution - t.x();
-        const double dy = (iy + 0.5) * params.resolution - t.y();
-        if (dx * dx + dy * dy <= r2) scan.footprint_cells.push_back({ix, iy});
-      }
-    }
-    if (scan.footprint_cells.empty()) {
-      scan.footprint_cells.push_back({static_cast<int>(std::floor(t.x() * inv_res)),
-                                      static_cast<int>(std::floor(t.y() * inv_res))});
-    }
-    scan.footprint_y = t.z() - params.sensor_height;
-  }
-  if (binned.empty()) {
-    if (!scan.footprint_cells.empty()) internal::ComputeFootprint(params, scan);
-    return scan;
-  }
+  return binned;
+}
 
-  // Sort points by (ix, iy): a canonical order that makes every later sum independent of how
-  // the map is cut into tiles.
+// The ground the robot stands on, which its lidar never sees (min_range): the cells of the disk
+// of robot_radius around the sensor (cell_shapes.h), at sensor z - sensor_height. Only with
+// dynamics, a sensor and a sensor_height.
+void AddRobotFootprint(const MapParams& params, const Pose& T, PreparedScan& scan) {
+  if (!scan.has_sensor || params.dynamics != Dynamics::kOn || !(params.sensor_height > 0)) return;
+  const GridGeometry grid(params.resolution, params.tile_size);
+  const Eigen::Vector3d& t = T.translation;
+  scan.footprint_cells = CellsInDisk(grid, {t.x(), t.y()}, params.robot_radius);
+  scan.footprint_y = t.z() - params.sensor_height;
+}
+
+// One observation per cell, in the canonical (ix, iy) order that makes every later sum
+// independent of how the map is cut into tiles (semantics 3).
+std::vector<ObservedCell> SortAndReduce(const std::vector<BinnedPoint>& binned,
+                                        const CellBox& bounds, Observation mode) {
   std::vector<uint64_t> keys(binned.size());
   for (size_t i = 0; i < binned.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(binned[i].ix - bounds.min.x) << 32) |
               static_cast<uint64_t>(binned[i].iy - bounds.min.y);
   }
-  const std::vector<uint32_t> order = internal::RadixSortOrder(keys);
-  scan.cells = ReduceCells(binned, order, params.observation);
-  internal::ComputeFootprint(params, scan);
+  return ReduceCells(binned, internal::RadixSortOrder(keys), mode);
+}
+
+}  // namespace
+
+Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3f> points,
+                                 const Pose& T, bool frame_is_map) {
+  if (Status s = ValidatePose(T, params); !s.ok()) return s;
+  PreparedScan scan;
+  scan.sensor_z = T.translation.z();
+  scan.has_sensor = !frame_is_map;
+  scan.sensor_x = T.translation.x();
+  scan.sensor_y = T.translation.y();
+  CellBox bounds;
+  const std::vector<BinnedPoint> binned =
+      TransformAndBin(params, points, T, frame_is_map, scan.counts, bounds);
+  AddRobotFootprint(params, T, scan);
+  if (!binned.empty()) scan.cells = SortAndReduce(binned, bounds, params.observation);
+  if (!binned.empty() || !scan.footprint_cells.empty()) internal::ComputeScanTiles(params, scan);
   return scan;
 }
 
@@ -188,7 +187,7 @@ PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, con
   }
   out.footprint_y = scan.footprint_y;
   out.stamp_ns = scan.stamp_ns;
-  if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeFootprint(params, out);
+  if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeScanTiles(params, out);
   return out;
 }
 

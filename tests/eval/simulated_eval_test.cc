@@ -31,7 +31,7 @@ Simulated Simulate(const sim::Scenario& s, const MapParams& params) {
     out.scans.push_back(sim::SimulateScan(*s.world, s.beams, pose));
   }
   const CellBox box = GridGeometry(params.resolution, params.tile_size)
-                          .BoxCovering(s.xmin, s.ymin, s.xmax - 1e-9, s.ymax - 1e-9);
+                          .CellsOfRegion(s.xmin, s.ymin, s.xmax, s.ymax);
   sim::VisibilityMask mask(params, box);
   for (const Pose& pose : s.truth_poses) {
     EXPECT_TRUE(mask.AddScan(sim::SimulateScan(*s.world, s.beams, pose), pose).ok());

@@ -31,7 +31,7 @@ class TrafficScoreTest : public ::testing::Test {
       std::sort(occupied_.back().begin(), occupied_.back().end());
     }
     // The truth without the vehicle: traversable over [-5, 15] x [-5, 5] m.
-    truth_.box = geometry_.BoxCovering(-5, -5, 15 - 1e-9, 5 - 1e-9);
+    truth_.box = geometry_.CellsOfRegion(-5, -5, 15, 5);
     truth_.cols = truth_.box.width();
     truth_.rows = truth_.box.height();
     truth_.resolution = params_.resolution;

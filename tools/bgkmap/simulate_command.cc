@@ -290,7 +290,7 @@ int RunSimulate(const SimulateOptions& o) {
   // Ground-truth visibility of a world from the dense scan set, one mask per worker.
   const CellBox box =
       GridGeometry(params.resolution, params.tile_size)
-          .BoxCovering(scenario.xmin, scenario.ymin, scenario.xmax - 1e-9, scenario.ymax - 1e-9);
+          .CellsOfRegion(scenario.xmin, scenario.ymin, scenario.xmax, scenario.ymax);
   auto visibility = [&](const sim::World& world, const std::string& label) {
     std::vector<sim::VisibilityMask> masks(o.threads, sim::VisibilityMask(params, box));
     io::ProgressBar progress(label, scenario.truth_poses.size(), "scans");

@@ -142,15 +142,10 @@ grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
     return Invalid(field + ": min (" + Num(box.min_x()) + ", " + Num(box.min_y()) +
                    ") must be below max (" + Num(box.max_x()) + ", " + Num(box.max_y()) + ")");
   }
-  // Half-open: a max edge exactly on a cell border does not add the next cell. Edges within a
-  // micro-cell of a border snap to it, so 200 / 0.1 = 2000.0000000000002 and -10 / 0.1 =
-  // -100.00000000000001 do not add a cell either.
-  const double res = g.resolution();
-  constexpr double kSnap = 1e-6;
-  const auto lo = [&](double x) { return static_cast<int64_t>(std::floor(x / res + kSnap)); };
-  const auto hi = [&](double x) { return static_cast<int64_t>(std::ceil(x / res - kSnap)) - 1; };
-  int64_t x0 = lo(box.min_x()), y0 = lo(box.min_y());
-  int64_t x1 = std::max(x0, hi(box.max_x())), y1 = std::max(y0, hi(box.max_y()));
+  // Half-open, edges snapped to borders within a micro-cell (GridGeometry::CellsOfInterval).
+  const GridGeometry::CellRange xs = g.CellsOfInterval(box.min_x(), box.max_x());
+  const GridGeometry::CellRange ys = g.CellsOfInterval(box.min_y(), box.max_y());
+  int64_t x0 = xs.first, y0 = ys.first, x1 = xs.last, y1 = ys.last;
   // Align pixel blocks with the global grid.
   const auto floor_to = [stride](int64_t a) {
     return (a >= 0 ? a / stride : -((-a + stride - 1) / stride)) * stride;

@@ -577,11 +577,12 @@ ServerConfig HeavyPathConfig() {
   return c;
 }
 
-// Minutes of work without cancellation: 10,000 poses x a 600 x 600 cell box each, polygon tests.
+// Many seconds of work without cancellation: 10,000 poses x a 300 x 300 cell box each (the
+// bounding box of a thin diagonal triangle), polygon tests.
 v1::PathCheckRequest HeavyPath() {
   v1::PathCheckRequest req;
   for (int i = 0; i < 10'000; ++i) req.add_poses()->set_x(0.001 * i);
-  const std::pair<double, double> thin_triangle[] = {{0.0, 0.0}, {30.0, 0.01}, {30.0, -0.01}};
+  const std::pair<double, double> thin_triangle[] = {{0.0, 0.0}, {30.0, 30.01}, {30.01, 30.0}};
   for (auto [x, y] : thin_triangle) {
     v1::Point2* v = req.mutable_polygon()->add_vertices();
     v->set_x(x);

@@ -25,6 +25,7 @@
 #include "bgkmap/core/georeference.h"
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
+#include "bgkmap/core/path_check.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/scan.h"
 
@@ -110,10 +111,6 @@ struct PointValues {
   float at(size_t point, size_t layer) const { return values[point * layers.size() + layer]; }
 };
 
-struct Pose2 {
-  double x = 0, y = 0, yaw = 0;
-};
-
 struct PathQuery {
   std::vector<Pose2> poses;
   double radius = 0;                                  // disk footprint, used when polygon is empty
@@ -121,14 +118,6 @@ struct PathQuery {
   std::optional<double> max_traversability;           // default: the map's trav_threshold
   std::optional<double> max_traversability_variance;  // default: the map's variance_threshold
   std::optional<double> max_unknown_fraction;         // default: 0
-};
-
-struct PoseCheck {
-  float worst_traversability = 0;
-  float worst_traversability_variance = 0;
-  float unknown_fraction = 0;
-  uint32_t cell_count = 0;
-  bool safe = false;
 };
 
 struct PathCheck {

@@ -100,9 +100,31 @@ class GridGeometry {
     return FloorMod(c.y, tile_size_) * tile_size_ + FloorMod(c.x, tile_size_);
   }
 
-  // Smallest cell box covering the metric rectangle [x0, x1] x [y0, y1].
+  // Smallest cell box covering the closed metric rectangle [x0, x1] x [y0, y1]: every point of
+  // it, edges included (a disk's or a footprint's bounding box).
   CellBox BoxCovering(double x0, double y0, double x1, double y1) const {
     return {CellAt(x0, y0), CellAt(x1, y1)};
+  }
+
+  // The cells [first, last] of the half-open interval [lo, hi) along one axis, at least one: an
+  // upper edge on a cell border adds no cell. Edges within a micro-cell (1e-6 of a cell) of a
+  // border snap to it, so 200 / 0.1 = 2000.0000000000002 and -10 / 0.1 = -100.00000000000001 add
+  // no cell either. In int64, so a caller can bound the count before converting.
+  struct CellRange {
+    int64_t first, last;
+  };
+  CellRange CellsOfInterval(double lo, double hi) const {
+    constexpr double kSnap = 1e-6;
+    const auto first = static_cast<int64_t>(std::floor(lo / res_ + kSnap));
+    const auto last = static_cast<int64_t>(std::ceil(hi / res_ - kSnap)) - 1;
+    return {first, std::max(first, last)};
+  }
+  // The cells of the half-open region [x0, x1) x [y0, y1) (a region query's box, a scenario's
+  // extent), by CellsOfInterval on each axis; the caller bounds it within +-kMaxCellIndex cells.
+  CellBox CellsOfRegion(double x0, double y0, double x1, double y1) const {
+    const CellRange x = CellsOfInterval(x0, x1), y = CellsOfInterval(y0, y1);
+    return {{static_cast<int>(x.first), static_cast<int>(y.first)},
+            {static_cast<int>(x.last), static_cast<int>(y.last)}};
   }
 
  private:

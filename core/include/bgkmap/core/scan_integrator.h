@@ -5,6 +5,7 @@
 #include <memory>
 #include <vector>
 
+#include "bgkmap/core/cell_shapes.h"
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/scan.h"
@@ -87,7 +88,7 @@ class ScanIntegrator {
   double ReadFactor(const Tile& tile, int64_t t) const;
 
  private:
-  struct Impl;
+  struct Pass;  // one scan's stages (core/src/scan_pass.h)
   struct Caps {
     double w = 0;             // elevation weight cap (0: none)
     float ab = 0;             // Beta pseudo-count cap (0: none)
@@ -104,9 +105,5 @@ class ScanIntegrator {
   std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
   int neighbourhood_radius_;              // largest |offset| in neighbourhood_
 };
-
-// Offsets (dx, dy) with dx^2 + dy^2 <= (radius/resolution)^2, with a relative tolerance of 1e-9
-// so cells exactly at the radius are never lost to rounding.
-std::vector<CellIndex> DiskOffsets(double radius, double resolution);
 
 }  // namespace bgkmap

@@ -1,10 +1,11 @@
 // CheckPath: footprint safety along a path (after traversability_estimation's
-// check_footprint_path and elevation_mapping_cupy's check_safety): per pose the worst
-// traversability under the footprint, its variance and the unknown fraction; all poses are read
-// in one atomic read.
+// check_footprint_path and elevation_mapping_cupy's check_safety). The geometry and the verdict
+// are core's (path_check.h); here the request is checked and bounded, all poses' cells are read
+// in one atomic read, and the answer encoded.
 #include <cmath>
 #include <sstream>
 
+#include "bgkmap/core/path_check.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
 #include "rpc/request_checks.h"
@@ -12,35 +13,21 @@
 namespace bgkmap {
 namespace {
 
-struct Vec2 {
-  double x, y;
-};
-
-bool InsidePolygon(const std::vector<Vec2>& poly, double x, double y) {
-  bool inside = false;
-  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vec2 a = poly[i], b = poly[j];
-    if ((a.y > y) != (b.y > y) && x < (b.x - a.x) * (y - a.y) / (b.y - a.y) + a.x) {
-      inside = !inside;
-    }
-  }
-  return inside;
-}
-
 std::string Num(double v) {
   std::ostringstream s;
   s << v;
   return s.str();
 }
 
-// Largest distance from the pose to the footprint's edge, metres.
-double FootprintReach(const v1::PathCheckRequest& req) {
-  if (!req.has_polygon()) return req.radius();
-  double reach = 0;
-  for (const v1::Point2& v : req.polygon().vertices()) {
-    reach = std::max(reach, std::hypot(v.x(), v.y()));
+// The request's footprint in core's terms (its fields already checked).
+Footprint FootprintOf(const v1::PathCheckRequest& req) {
+  Footprint f;
+  if (!req.has_polygon()) {
+    f.radius = req.radius();
+    return f;
   }
-  return reach;
+  for (const v1::Point2& v : req.polygon().vertices()) f.polygon.push_back({v.x(), v.y()});
+  return f;
 }
 
 // The cost of a path check, bounded before a single cell is visited. In doubles: a radius of
@@ -71,80 +58,25 @@ grpc::Status CheckFootprintCost(const v1::PathCheckRequest& req, size_t poses, d
   return grpc::Status::OK;
 }
 
-// Cells whose centres lie in the footprint at `pose` (at least the cell under the pose). The
-// pose and the reach have been bounded (CheckCoordinate, CheckFootprintCost), so every cell
-// index fits.
-grpc::Status FootprintCells(const v1::PathCheckRequest& req, const v1::Pose2& pose, double reach,
-                            const GridGeometry& g, const ServerLimits& limits,
-                            std::vector<CellIndex>* out) {
-  const double c = std::cos(pose.yaw()), s = std::sin(pose.yaw());
-  std::vector<Vec2> poly;
-  if (req.has_polygon()) {
-    for (const v1::Point2& v : req.polygon().vertices()) {
-      poly.push_back({pose.x() + c * v.x() - s * v.y(), pose.y() + s * v.x() + c * v.y()});
-    }
-  }
-  const CellIndex lo = g.CellAt(pose.x() - reach, pose.y() - reach);
-  const CellIndex hi = g.CellAt(pose.x() + reach, pose.y() + reach);
-  const uint64_t box_cells = static_cast<uint64_t>(int64_t{hi.x} - lo.x + 1) *
-                             static_cast<uint64_t>(int64_t{hi.y} - lo.y + 1);
-  if (box_cells > limits.max_footprint_cells) {
-    return {grpc::StatusCode::INVALID_ARGUMENT, "footprint: about " + std::to_string(box_cells) +
-                                                    " cells exceed server.max_footprint_cells = " +
-                                                    std::to_string(limits.max_footprint_cells)};
-  }
-  const size_t first = out->size();
-  for (int iy = lo.y; iy <= hi.y; ++iy) {
-    for (int ix = lo.x; ix <= hi.x; ++ix) {
-      const double x = g.CellCenterX(ix), y = g.CellCenterY(iy);
-      const bool in =
-          req.has_polygon()
-              ? InsidePolygon(poly, x, y)
-              : (x - pose.x()) * (x - pose.x()) + (y - pose.y()) * (y - pose.y()) <= reach * reach;
-      if (in) out->push_back({ix, iy});
-    }
-  }
-  if (out->size() == first) out->push_back(g.CellAt(pose.x(), pose.y()));
-  return grpc::Status::OK;
+void SetPoseCheck(const PoseCheck& check, v1::PoseCheck* out) {
+  out->set_worst_traversability(check.worst_traversability);
+  out->set_worst_traversability_variance(check.worst_traversability_variance);
+  out->set_unknown_fraction(check.unknown_fraction);
+  out->set_cell_count(check.cell_count);
+  out->set_safe(check.safe);
 }
 
-// Each pose's worst traversability under its footprint (cells first[i] .. first[i + 1] of
-// `estimates`), its variance and the unknown fraction, judged against the thresholds.
+// Each pose's verdict on its footprint's cells (first[i] .. first[i + 1] of `estimates`).
 void JudgePoses(const std::vector<CellEstimate>& estimates, const std::vector<size_t>& first,
-                double max_trav, double max_var, double max_unknown,
-                v1::PathCheckResponse* response) {
-  bool all_safe = true;
+                const PathThresholds& thresholds, v1::PathCheckResponse* response) {
   int first_unsafe = -1;
   for (size_t i = 0; i + 1 < first.size(); ++i) {
-    float worst = std::nanf(""), worst_var = std::nanf("");
-    size_t unknown = 0;
-    for (size_t k = first[i]; k < first[i + 1]; ++k) {
-      const CellEstimate& e = estimates[k];
-      if (std::isnan(e.traversability)) {
-        ++unknown;
-        continue;
-      }
-      if (std::isnan(worst) || e.traversability > worst ||
-          (e.traversability == worst && e.traversability_variance > worst_var)) {
-        worst = e.traversability;
-        worst_var = e.traversability_variance;
-      }
-    }
-    const size_t count = first[i + 1] - first[i];
-    const float unknown_fraction = static_cast<float>(unknown) / static_cast<float>(count);
-    const bool safe = worst < max_trav && worst_var < max_var && unknown_fraction <= max_unknown;
-    v1::PoseCheck* pc = response->add_poses();
-    pc->set_worst_traversability(worst);
-    pc->set_worst_traversability_variance(worst_var);
-    pc->set_unknown_fraction(unknown_fraction);
-    pc->set_cell_count(static_cast<uint32_t>(count));
-    pc->set_safe(safe);
-    if (!safe && all_safe) {
-      all_safe = false;
-      first_unsafe = static_cast<int>(i);
-    }
+    const std::span<const CellEstimate> cells(estimates.data() + first[i], first[i + 1] - first[i]);
+    const PoseCheck check = JudgeFootprint(cells, thresholds);
+    SetPoseCheck(check, response->add_poses());
+    if (!check.safe && first_unsafe < 0) first_unsafe = static_cast<int>(i);
   }
-  response->set_safe(all_safe);
+  response->set_safe(first_unsafe < 0);
   response->set_first_unsafe_index(first_unsafe);
 }
 
@@ -188,15 +120,19 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
     if (grpc::Status s = CheckCoordinate(p.y(), f + ".y", limits); !s.ok()) return s;
     if (!std::isfinite(p.yaw())) return invalid(f + ".yaw: must be finite");
   }
-  const double max_trav =
+  PathThresholds thresholds;
+  thresholds.max_traversability =
       req.has_max_traversability() ? req.max_traversability() : params.trav_threshold;
-  const double max_var = req.has_max_traversability_variance() ? req.max_traversability_variance()
-                                                               : params.variance_threshold;
-  const double max_unknown = req.has_max_unknown_fraction() ? req.max_unknown_fraction() : 0.0;
+  thresholds.max_traversability_variance = req.has_max_traversability_variance()
+                                               ? req.max_traversability_variance()
+                                               : params.variance_threshold;
+  thresholds.max_unknown_fraction =
+      req.has_max_unknown_fraction() ? req.max_unknown_fraction() : 0.0;
 
   const GridGeometry& g = ctx.map.geometry();
-  const double reach = FootprintReach(req);
-  if (grpc::Status s = CheckFootprintCost(req, n, reach, g.resolution(), limits); !s.ok()) {
+  const Footprint footprint = FootprintOf(req);
+  if (grpc::Status s = CheckFootprintCost(req, n, footprint.Reach(), g.resolution(), limits);
+      !s.ok()) {
     return s;
   }
   std::vector<CellIndex> cells;
@@ -204,11 +140,9 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
   for (size_t i = 0; i < n; ++i) {
     if (grpc::Status s = control.Check(); !s.ok()) return s;
     first[i] = cells.size();
-    if (grpc::Status s =
-            FootprintCells(req, req.poses(static_cast<int>(i)), reach, g, limits, &cells);
-        !s.ok()) {
-      return s;
-    }
+    const v1::Pose2& p = req.poses(static_cast<int>(i));
+    const std::vector<CellIndex> at = FootprintCells(g, footprint, {p.x(), p.y(), p.yaw()});
+    cells.insert(cells.end(), at.begin(), at.end());
     if (cells.size() > limits.max_region_cells) {
       return {grpc::StatusCode::INVALID_ARGUMENT,
               "poses: the footprints cover more than server.max_region_cells = " +
@@ -221,7 +155,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
   const uint64_t version = ctx.map.applied_version();
   const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
-  JudgePoses(*read, first, max_trav, max_var, max_unknown, response);  // one atomic read
+  JudgePoses(*read, first, thresholds, response);  // one atomic read
   response->set_map_version(version);
   return grpc::Status::OK;
 }

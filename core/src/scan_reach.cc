@@ -1,8 +1,9 @@
-#include "footprint.h"
+#include "scan_reach.h"
 
 #include <algorithm>
 #include <functional>
 
+#include "bgkmap/core/cell_shapes.h"
 #include "bgkmap/core/grid.h"
 
 namespace bgkmap::internal {
@@ -36,11 +37,10 @@ void CollectTiles(const GridGeometry& geo, const std::vector<ObservedCell>& cell
 
 }  // namespace
 
-void ComputeFootprint(const MapParams& p, PreparedScan& scan) {
+void ComputeScanTiles(const MapParams& p, PreparedScan& scan) {
   const GridGeometry geo(p.resolution, p.tile_size);
   const int kernel_radius = static_cast<int>(std::ceil(p.kernel_length / p.resolution));
   const int robot_radius = static_cast<int>(std::ceil(p.robot_radius / p.resolution));
-  const double nb_limit = NeighbourhoodLimit(p.robot_radius, p.resolution);
 
   // Writes: the kernel support of every observed cell (the observed cell alone for baseline).
   std::vector<TileKey> writes;
@@ -71,7 +71,8 @@ void ComputeFootprint(const MapParams& p, PreparedScan& scan) {
   } else {
     CollectTiles(
         geo, scan.cells, robot_radius,
-        [&](int dx, int dy) { return InNeighbourhood(dx, dy, nb_limit); }, reads);
+        [&](int dx, int dy) { return OffsetWithinRadius(dx, dy, p.robot_radius, p.resolution); },
+        reads);
   }
   // Rays: the tiles of each ray's last clear_ray_length metres (its bounding box of tiles).
   std::vector<TileKey> rays;

@@ -1,0 +1,130 @@
+// One scan's integration: the scan's window and parameters at hand, and the stages Integrate
+// runs in order (docs/semantics.md 4-7, "Dynamics"). Internal to core.
+#pragma once
+
+#include <algorithm>
+#include <utility>
+#include <vector>
+
+#include "bgkmap/core/scan_integrator.h"
+#include "bgkmap/core/terrain_features.h"
+
+namespace bgkmap {
+
+// The per-scan work, with the scan's window and parameters at hand.
+struct ScanIntegrator::Pass {
+  const ScanIntegrator& self;
+  const TileWindow& window;
+  const int T;          // tile size
+  const int64_t stamp;  // the scan's map time (forgetting)
+  const bool forget;    // forgetting on and the scan stamped
+
+  Tile* TileAt(CellIndex c) const { return window.at(self.geometry_.TileOf(c)); }
+
+  // Forgetting's per-tile factors, remembered for the last tile asked (runs come tile by tile);
+  // 1 without forgetting, so every sum is bitwise the one without it.
+  mutable const Tile* gain_tile = nullptr;
+  mutable double gain = 1.0;
+  double GainOf(const Tile& tile) const {
+    if (!forget) return 1.0;
+    if (&tile != gain_tile) {
+      gain_tile = &tile;
+      gain = self.Gain(tile, stamp);
+    }
+    return gain;
+  }
+  mutable const Tile* read_tile = nullptr;
+  mutable double read_factor = 1.0;
+  double ReadFactorOf(const Tile& tile) const {
+    if (!forget) return 1.0;
+    if (&tile != read_tile) {
+      read_tile = &tile;
+      read_factor = self.ReadFactor(tile, stamp);
+    }
+    return read_factor;
+  }
+
+  // Calls row(tile, start, k_double, k_float, len) for every contiguous run of the kernel
+  // stencil around `c` that lies in one tile. The same runs in the same order whatever the tile
+  // size, up to splitting: each cell sees the same sequence of additions, so sums are bitwise
+  // independent of the tiling.
+  // With kSkipAbsent, runs in tiles the window does not hold (or that do not exist) are
+  // skipped; otherwise every tile must be there.
+  template <bool kSkipAbsent = false, typename RowFn>
+  void ForEachKernelRun(CellIndex c, RowFn&& row) const {
+    const KernelStencil& k = self.kernel_;
+    const int R = k.radius();
+    const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
+    if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
+      Tile* tile = TileAt(c);
+      if (kSkipAbsent && tile == nullptr) return;
+      for (int r = 0; r < k.row_count(); ++r) {
+        const int hw = k.half_width(r);
+        const int start = (ly + r - R) * T + lx - hw;
+        row(*tile, start, k.row_weights_double(r), k.row_weights(r), 2 * hw + 1);
+      }
+      return;
+    }
+    for (int r = 0; r < k.row_count(); ++r) {
+      const int hw = k.half_width(r);
+      const int gy = c.y + r - R;
+      const int row_y = FloorMod(gy, T);
+      int x = c.x - hw;
+      const int x_end = c.x + hw;
+      while (x <= x_end) {
+        const TileKey key{FloorDiv(x, T), FloorDiv(gy, T)};
+        const int seg_end = std::min(x_end, key.x * T + T - 1);
+        Tile* tile = window.at(key);
+        const int off = x - (c.x - hw);
+        if (!kSkipAbsent || tile != nullptr) {
+          row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
+              k.row_weights(r) + off, seg_end - x + 1);
+        }
+        x = seg_end + 1;
+      }
+    }
+  }
+
+  // The stages, in the order Integrate runs them.
+
+  // 0. Free-space evidence (dynamics, a sensor): contradicted cells keep clear_decay of their
+  // statistics per contradiction, and the Beta counts within l of them are re-learnt. Returns the
+  // clear tiles it changed (sorted); counts the contradicted cells in `report`.
+  std::vector<TileKey> ApplyFreeSpace(const PreparedScan& scan, ScanReport& report) const;
+  // 1. Elevation (semantics 4): kernel sums, the plane moments too for bgk-ll, or the raw
+  // running mean for baseline and one-step.
+  void AddElevation(const PreparedScan& scan) const;
+  // 2. Traversability training values (semantics 6): v at each cell it is computed at.
+  std::vector<std::pair<CellIndex, float>> TrainingValues(const PreparedScan& scan) const;
+  // 3. Traversability (semantics 7): Beta pseudo-counts spread by the kernel, or the latest direct
+  // value for baseline and bgk-trav.
+  void AddTraversability(const std::vector<std::pair<CellIndex, float>>& values) const;
+  // 4. The robot's footprint (dynamics, sensor_height > 0): ground and traversable evidence at
+  // each cell under the robot, at the cell only.
+  void AddFootprint(const PreparedScan& scan) const;
+
+ private:
+  std::vector<std::pair<CellIndex, int>> CountContradictions(const PreparedScan& scan) const;
+  void ResetBetaNear(const std::vector<std::pair<CellIndex, int>>& contradicted,
+                     std::vector<const Tile*>& touched) const;
+  void CutContradicted(const std::vector<std::pair<CellIndex, int>>& contradicted,
+                       std::vector<const Tile*>& touched) const;
+  template <bool kSecondMoment>
+  void AddPlaneElevation(const PreparedScan& scan) const;
+  template <bool kSecondMoment, bool kGain>
+  void AddKernelElevation(const PreparedScan& scan) const;
+  void AddRawElevation(const PreparedScan& scan) const;
+  std::vector<CellIndex> KernelReachKnownCells(const PreparedScan& scan) const;
+  template <bool kGain>
+  void SpreadValue(CellIndex cell, float v) const;
+
+  // Reads of the map as the scan finds it.
+  bool SeenTop(const Tile& tile, int i, double f, double* top) const;
+  double Elevation(CellIndex c) const;
+  std::vector<CellIndex> Contradicted(const PreparedScan& scan) const;
+  void AddRayContradictions(const PreparedScan& scan, std::vector<CellIndex>& out) const;
+  double FeatureHeight(CellIndex c) const;
+  float ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const;
+};
+
+}  // namespace bgkmap

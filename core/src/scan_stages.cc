@@ -1,0 +1,417 @@
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "bgkmap/core/cell_estimate.h"
+#include "bgkmap/core/terrain_features.h"
+#include "integration_kernels.h"
+#include "ray_walk.h"
+#include "scan_pass.h"
+
+namespace bgkmap {
+namespace {
+
+using internal::OwnHeight;
+
+constexpr float kNoValue = std::numeric_limits<float>::quiet_NaN();
+
+}  // namespace
+
+// ---- Reads of the map as the scan finds it ----
+
+// The top of what cell i of `tile` (read with factor f) has seen, for the free-space test:
+// its height plus the deviation of the observations within l about their kernel mean. The
+// height is the kernel mean, or a bgk-ll cell's own observations' mean where it has any: the
+// cheap reads, as a ray crosses many cells. False for an unknown cell.
+bool ScanIntegrator::Pass::SeenTop(const Tile& tile, int i, double f, double* top) const {
+  const double w = f * tile.w()[i];
+  if (!(w > 0.0)) return false;
+  const MapParams& p = self.params_;
+  const double s = f * tile.s()[i];
+  double height = (p.lambda * p.prior_mean + s) / (p.lambda + w);
+  if (tile.has_plane() && !std::isnan(OwnHeight(tile, i))) height = OwnHeight(tile, i);
+  *top = height + std::sqrt(Disagreement(w, s, f * tile.q()[i]));
+  return true;
+}
+
+// Elevation of a known cell, NaN otherwise.
+double ScanIntegrator::Pass::Elevation(CellIndex c) const {
+  const Tile* tile = TileAt(c);
+  if (tile == nullptr) return std::numeric_limits<double>::quiet_NaN();
+  const int i = self.geometry_.LocalIndex(c);
+  const double f = ReadFactorOf(*tile);  // a tile the scan does not change, as of its stamp
+  const MapParams& p = self.params_;
+  if (tile->has_plane()) {  // the estimate's own elevation (EstimateCell)
+    const double w = f * tile->w()[i];
+    if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    double m[Tile::kPlaneMoments];
+    tile->PlaneOf(i, m);
+    for (double& x : m) x *= f;
+    return FitLocalPlane(p, w, f * tile->s()[i], 0.0, m).elevation;
+  }
+  const double w = f * tile->w()[i];
+  if (!(w > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w);
+}
+
+// The cells this scan contradicts, sorted, each once per piece of evidence (semantics
+// "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
+// elevation (something appeared), and a ray passing clearly below one on its way to its return
+// (what was there has gone).
+std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(const PreparedScan& scan) const {
+  std::vector<CellIndex> out;
+  const MapParams& p = self.params_;
+  const double margin = p.clear_margin;
+  for (const ObservedCell& oc : scan.cells) {
+    const double m = Elevation(oc.cell);
+    if (oc.y > m + margin) out.push_back(oc.cell);  // false for NaN (unknown)
+  }
+  if (p.clear_ray_length > 0) {
+    const double res = p.resolution;
+    const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
+    const double length = p.clear_ray_length / res;
+    // Cells within l of the return are skipped: there the kernel blends the return's own
+    // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
+    const double skip = p.kernel_length / res;
+    TileKey last_key{0, 0};
+    const Tile* last_tile = nullptr;
+    double last_f = 1.0;
+    bool have_last = false;
+    for (const ObservedCell& oc : scan.cells) {
+      const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
+      if (!(dist > skip)) continue;
+      const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
+      internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
+        if (t < skip) return;
+        const TileKey key = self.geometry_.TileOf(c);
+        if (!have_last || key != last_key) {  // the footprint holds every tile a ray crosses
+          last_key = key;
+          last_tile = window.at(key);
+          last_f = last_tile != nullptr ? ReadFactorOf(*last_tile) : 1.0;
+          have_last = true;
+        }
+        if (last_tile == nullptr) return;
+        const int i = self.geometry_.LocalIndex(c);
+        // The top of what the cell has seen: its elevation plus its disagreement's deviation,
+        // so an old object's remains, mixed with new ground, still stand above a grazing ray.
+        double top;
+        if (!SeenTop(*last_tile, i, last_f, &top)) return;
+        if (oc.y + rise * t < top - margin) out.push_back(c);
+      });
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// The height v is computed from at cell c: its elevation, or for bgk-ll its own observations'
+// mean (NaN if it has none).
+double ScanIntegrator::Pass::FeatureHeight(CellIndex c) const {
+  const Tile* tile = TileAt(c);
+  if (tile == nullptr || !tile->has_plane()) return Elevation(c);
+  return OwnHeight(*tile, self.geometry_.LocalIndex(c));
+}
+
+// Traversability training value v at `c` from the current elevations (semantics 6), or NaN
+// with fewer than three known cells within the robot radius.
+float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const {
+  patch.clear();
+  const MapParams& p = self.params_;
+  const double res = p.resolution;
+  const int R = self.neighbourhood_radius_;
+  const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
+  if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
+    const Tile* tile = TileAt(c);
+    const double* w = tile->w().data();
+    const double* s = tile->s().data();
+    const int centre = ly * T + lx;
+    for (const CellIndex& o : self.neighbourhood_) {
+      const int i = centre + o.y * T + o.x;
+      if (!(w[i] > 0.0)) continue;
+      // bgk-ll: v from the data, the cells' own observations, not from the fitted surface
+      // (which fills unobserved cells, e.g. behind an occluding edge, with planes that would
+      // read as steps).
+      const double z = tile->has_plane() ? OwnHeight(*tile, i)
+                                         : (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i]);
+      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+    }
+  } else {
+    for (const CellIndex& o : self.neighbourhood_) {
+      const double z = FeatureHeight({c.x + o.x, c.y + o.y});
+      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+    }
+  }
+  if (patch.size() < 3) return kNoValue;
+  return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), p));
+}
+
+// ---- 0. Free-space evidence ----
+
+std::vector<std::pair<CellIndex, int>> ScanIntegrator::Pass::CountContradictions(
+    const PreparedScan& scan) const {
+  // Each contradicted cell once, with the number of rays (and returns) that contradict it.
+  std::vector<std::pair<CellIndex, int>> contradicted;
+  for (const CellIndex& c : Contradicted(scan)) {
+    if (!contradicted.empty() && contradicted.back().first == c) {
+      ++contradicted.back().second;
+    } else {
+      contradicted.emplace_back(c, 1);
+    }
+  }
+  return contradicted;
+}
+
+// The traversability evidence within l of a contradicted cell was learnt from a surface that is
+// not there any more: it is re-learnt from this scan on.
+void ScanIntegrator::Pass::ResetBetaNear(const std::vector<std::pair<CellIndex, int>>& contradicted,
+                                         std::vector<const Tile*>& touched) const {
+  for (const auto& [c, count] : contradicted) {
+    ForEachKernelRun<true>(c, [&](Tile& tile, int start, const double*, const float*, int len) {
+      float* a = tile.a().data() + start;
+      float* b = tile.b().data() + start;
+      bool any = false;
+      for (int j = 0; j < len; ++j) any |= (a[j] != 0.0f) | (b[j] != 0.0f);
+      if (!any) return;
+      if (forget) self.Advance(tile, stamp);
+      std::fill_n(a, len, 0.0f);
+      std::fill_n(b, len, 0.0f);
+      if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
+    });
+  }
+}
+
+void ScanIntegrator::Pass::CutContradicted(
+    const std::vector<std::pair<CellIndex, int>>& contradicted,
+    std::vector<const Tile*>& touched) const {
+  for (const auto& [c, count] : contradicted) {
+    Tile& tile = *TileAt(c);
+    if (forget) self.Advance(tile, stamp);
+    const int i = self.geometry_.LocalIndex(c);
+    // Independent rays are independent evidence: each keeps clear_decay of what is left.
+    double keep = 1.0;
+    for (int k = 0; k < count && keep > 0.0; ++k) keep *= self.params_.clear_decay;
+    tile.ScaleCell(i, keep);
+    // What is left is less than a tenth of one observation: forgotten, the cell is unknown
+    // again until something is seen there (a removed object over ground no ray reaches).
+    if (tile.w()[i] < self.caps_.forget_below) tile.ClearCell(i);
+    if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
+  }
+}
+
+std::vector<TileKey> ScanIntegrator::Pass::ApplyFreeSpace(const PreparedScan& scan,
+                                                          ScanReport& report) const {
+  std::vector<TileKey> cleared;
+  if (self.params_.dynamics != Dynamics::kOn || !scan.has_sensor) return cleared;
+  const std::vector<std::pair<CellIndex, int>> contradicted = CountContradictions(scan);
+  // Every tile this changes beyond the write tiles is stamped and reported like them (it must be
+  // checkpointed before it can be evicted).
+  std::vector<const Tile*> touched;
+  ResetBetaNear(contradicted, touched);
+  CutContradicted(contradicted, touched);
+  report.contradicted_cells = contradicted.size();
+  read_tile = nullptr;  // a clear tile read above may have been brought to the scan's time
+  std::sort(touched.begin(), touched.end());
+  for (const TileKey& key : scan.clear_tiles) {
+    const Tile* tile = window.at(key);
+    if (tile != nullptr && std::binary_search(touched.begin(), touched.end(), tile)) {
+      cleared.push_back(key);
+    }
+  }
+  return cleared;
+}
+
+// ---- 1. Elevation ----
+
+template <bool kSecondMoment>
+void ScanIntegrator::Pass::AddPlaneElevation(const PreparedScan& scan) const {
+  const KernelStencil& ks = self.kernel_;
+  const double w_cap = self.caps_.w;
+  for (const ObservedCell& oc : scan.cells) {
+    const double y = oc.y;
+    ForEachKernelRun(oc.cell, [&](Tile& tile, int start, const double* k, const float*, int len) {
+      internal::AddPlaneRun<kSecondMoment>(tile, start, len, ks, k, GainOf(tile), y);
+      if (w_cap > 0) internal::CapElevationPlane(tile, start, len, w_cap);
+    });
+    // The cell's own observations, apart: its elevation is theirs (docs/semantics.md).
+    Tile& own = *TileAt(oc.cell);
+    const int i = self.geometry_.LocalIndex(oc.cell);
+    const double g = GainOf(own);
+    own.plane(Tile::kOwnW)[i] += g;
+    own.plane(Tile::kOwnS)[i] += g * y;
+    if (w_cap > 0) internal::CapElevationPlane(own, i, 1, w_cap);
+  }
+}
+
+// kSecondMoment: dynamics (Q kept, weights capped); kGain: forgetting (a late scan's
+// contribution to a tile already at a later time is aged by Gain).
+template <bool kSecondMoment, bool kGain>
+void ScanIntegrator::Pass::AddKernelElevation(const PreparedScan& scan) const {
+  const double w_cap = self.caps_.w;
+  for (const ObservedCell& oc : scan.cells) {
+    const double y = oc.y, yy = kSecondMoment ? oc.y * oc.y : 0.0;
+    ForEachKernelRun(oc.cell, [&](Tile& tile, int start, const double* k, const float*, int len) {
+      double* w = tile.w().data() + start;
+      double* s = tile.s().data() + start;
+      double* q = tile.q().data() + start;
+      const double g = kGain ? GainOf(tile) : 1.0;
+      internal::AddElevationRun<kSecondMoment, kGain>(w, s, q, k, len, g, y, yy);
+      if constexpr (kSecondMoment) internal::CapElevation(w, s, q, len, w_cap);
+    });
+  }
+}
+
+// Baseline and one-step: the running mean of the cell's own observations.
+void ScanIntegrator::Pass::AddRawElevation(const PreparedScan& scan) const {
+  const bool dynamic = self.params_.dynamics == Dynamics::kOn;
+  for (const ObservedCell& oc : scan.cells) {
+    Tile* tile = TileAt(oc.cell);
+    const int i = self.geometry_.LocalIndex(oc.cell);
+    const double g = GainOf(*tile);  // 1 without forgetting: the sums are unchanged
+    tile->w()[i] += g;
+    tile->s()[i] += g * oc.y;
+    if (dynamic) {
+      tile->q()[i] += g * oc.y * oc.y;
+      internal::CapElevation(&tile->w()[i], &tile->s()[i], &tile->q()[i], 1, self.caps_.w);
+    }
+  }
+}
+
+void ScanIntegrator::Pass::AddElevation(const PreparedScan& scan) const {
+  const Method method = self.params_.method;
+  const bool dynamic = self.params_.dynamics == Dynamics::kOn;
+  if (KeepsPlaneMoments(method)) {
+    dynamic ? AddPlaneElevation<true>(scan) : AddPlaneElevation<false>(scan);
+  } else if (!InfersElevation(method)) {
+    AddRawElevation(scan);
+  } else if (!dynamic) {
+    AddKernelElevation<false, false>(scan);  // forgetting needs dynamics
+  } else if (forget) {
+    AddKernelElevation<true, true>(scan);
+  } else {
+    AddKernelElevation<true, false>(scan);
+  }
+}
+
+// ---- 2. Training values ----
+
+// bgk-trav's training cells: every known cell within l of an observed cell, each once, in
+// canonical order (tile by tile, row-major).
+std::vector<CellIndex> ScanIntegrator::Pass::KernelReachKnownCells(const PreparedScan& scan) const {
+  std::unordered_map<const Tile*, std::vector<uint8_t>> marks;
+  for (const TileKey& key : scan.write_tiles) {
+    marks[window.at(key)].assign(static_cast<size_t>(T) * T, 0);
+  }
+  for (const ObservedCell& oc : scan.cells) {
+    ForEachKernelRun(oc.cell, [&](Tile& tile, int start, const double*, const float*, int len) {
+      std::fill_n(marks[&tile].begin() + start, len, uint8_t{1});
+    });
+  }
+  std::vector<CellIndex> out;
+  for (const TileKey& key : scan.write_tiles) {
+    const Tile* tile = window.at(key);
+    const std::vector<uint8_t>& m = marks[tile];
+    const CellIndex origin = self.geometry_.TileOrigin(key);
+    for (int i = 0; i < tile->cell_count(); ++i) {
+      if (m[i] && tile->w()[i] > 0.0) out.push_back({origin.x + i % T, origin.y + i / T});
+    }
+  }
+  return out;
+}
+
+std::vector<std::pair<CellIndex, float>> ScanIntegrator::Pass::TrainingValues(
+    const PreparedScan& scan) const {
+  std::vector<PatchPoint> patch;
+  patch.reserve(self.neighbourhood_.size());
+  std::vector<std::pair<CellIndex, float>> values;
+  const auto add = [&](CellIndex c) {
+    const float v = ValueAt(c, patch);
+    if (!std::isnan(v)) values.emplace_back(c, v);
+  };
+  if (self.params_.method == Method::kBgkTrav) {
+    for (const CellIndex& c : KernelReachKnownCells(scan)) add(c);
+  } else {
+    values.reserve(scan.cells.size());
+    for (const ObservedCell& oc : scan.cells) add(oc.cell);
+  }
+  return values;
+}
+
+// ---- 3. Traversability ----
+
+template <bool kGain>
+void ScanIntegrator::Pass::SpreadValue(CellIndex cell, float v) const {
+  const float va = v, vb = 1.0f - v;
+  const float ab_cap = self.caps_.ab;
+  ForEachKernelRun(cell, [&](Tile& tile, int start, const double*, const float* k, int len) {
+    float* a = tile.a().data() + start;
+    float* b = tile.b().data() + start;
+    const float g = kGain ? static_cast<float>(GainOf(tile)) : 1.0f;
+    internal::AddBetaRun<kGain>(a, b, k, len, g, va, vb);
+    if (ab_cap > 0) internal::CapBeta(a, b, len, ab_cap);
+  });
+  const float direct = self.direct_weight_;
+  if (direct > 0.0f) {
+    // bgk-obstacle: the cell's own evidence weighs as much as its whole neighbourhood's, so an
+    // obstacle seen at a cell is not averaged away by the ground seen around it.
+    Tile* tile = TileAt(cell);
+    const int i = self.geometry_.LocalIndex(cell);
+    const float dg = direct * static_cast<float>(GainOf(*tile));
+    tile->a()[i] += dg * va;
+    tile->b()[i] += dg * vb;
+    if (ab_cap > 0) internal::CapBeta(&tile->a()[i], &tile->b()[i], 1, ab_cap);
+  }
+}
+
+void ScanIntegrator::Pass::AddTraversability(
+    const std::vector<std::pair<CellIndex, float>>& values) const {
+  if (!InfersTraversability(self.params_.method)) {
+    for (const auto& [cell, v] : values) {
+      Tile* tile = TileAt(cell);
+      const int i = self.geometry_.LocalIndex(cell);
+      tile->a()[i] = v;
+      tile->b()[i] = 1.0f - v;
+    }
+    return;
+  }
+  for (const auto& [cell, v] : values)
+    forget ? SpreadValue<true>(cell, v) : SpreadValue<false>(cell, v);
+}
+
+// ---- 4. The robot's footprint ----
+
+// Each cell under the robot gains footprint_weight of an observation of ground at footprint_y,
+// and as much traversable evidence; at the cell only, so a real return there outweighs it
+// (semantics "Dynamics").
+void ScanIntegrator::Pass::AddFootprint(const PreparedScan& scan) const {
+  const MapParams& p = self.params_;
+  const double y = scan.footprint_y;
+  for (const CellIndex& c : scan.footprint_cells) {
+    Tile* tile = TileAt(c);
+    const int i = self.geometry_.LocalIndex(c);
+    const double wf = p.footprint_weight * GainOf(*tile);
+    const float bf = static_cast<float>(wf);
+    double* w = &tile->w()[i];
+    double* s = &tile->s()[i];
+    double* q = &tile->q()[i];
+    *w += wf;
+    *s += wf * y;
+    *q += wf * y * y;
+    // At the cell itself (u = v = 0): of the plane moments, only its own sums gain.
+    if (tile->has_plane()) {
+      tile->plane(Tile::kOwnW)[i] += wf;
+      tile->plane(Tile::kOwnS)[i] += wf * y;
+      if (self.caps_.w > 0) internal::CapElevationPlane(*tile, i, 1, self.caps_.w);
+    } else {
+      internal::CapElevation(w, s, q, 1, self.caps_.w);
+    }
+    if (InfersTraversability(p.method)) {
+      tile->b()[i] += bf;
+      if (self.caps_.ab > 0) internal::CapBeta(&tile->a()[i], &tile->b()[i], 1, self.caps_.ab);
+    } else if (tile->a()[i] == 0.0f && tile->b()[i] == 0.0f) {
+      tile->b()[i] = 1.0f;  // the latest direct value: none yet, the robot stands here
+    }
+  }
+}
+
+}  // namespace bgkmap
