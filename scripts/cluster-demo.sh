@@ -82,16 +82,22 @@ echo "cluster-demo: NATS cluster of 3 (JetStream, replicas 3) and shards a, b, c
   2>"$OUT/watch-c.err" &
 WATCH_PID=$!
 PIDS+=($!)
-sleep 0.5
+# The watch's call reaches shard c while the first robot streams: it sees at least that robot's
+# later scans and the second robot's, whichever moment it subscribes.
 
 # --- Two robots: r1 through shard a, r2 through shard b; the same order to the single server.
 "$BIN" insert --server "${SHARD_ADDR[a]}" --robot r1 "$DATA" 2>&1 | tail -1
 "$BIN" insert --server "${SHARD_ADDR[b]}" --robot r2 "$DATA" 2>&1 | tail -1
-sleep 1
+# Shard c learns of the scans as it reads the log: wait for the first update (a loaded machine
+# may take seconds), never a fixed time.
+for _ in $(seq 1200); do
+  [ -s "$OUT/watch-c.jsonl" ] && break
+  sleep 0.1
+done
 kill "$WATCH_PID" 2>/dev/null || true
 UPDATES=$(wc -l <"$OUT/watch-c.jsonl")
 if [ "$UPDATES" -eq 0 ]; then
-  echo "cluster-demo: the watch on shard c received nothing ($OUT/watch-c.err)" >&2
+  echo "cluster-demo: the watch on shard c received nothing in 120 s ($OUT/watch-c.err)" >&2
   exit 1
 fi
 echo "cluster-demo: a watch on shard c received $UPDATES tile updates of the scans sent to a and b"

@@ -261,6 +261,9 @@ const std::vector<ServerKey>& ClusterKeys() {
       Key<double>(
           "dedupe_window_s", [](ServerConfig & c) -> auto& { return c.cluster.dedupe_window_s; },
           "cluster"),
+      Key<double>(
+          "startup_wait_s", [](ServerConfig & c) -> auto& { return c.cluster.startup_wait_s; },
+          "cluster"),
       Key<uint32_t>(
           "checkpoint_scans", [](ServerConfig & c) -> auto& { return c.cluster.checkpoint_scans; },
           "cluster"),
@@ -552,6 +555,9 @@ Status ValidateCluster(const ServerConfig& c) {
   }
   if (!(c.cluster.dedupe_window_s >= 1 && c.cluster.dedupe_window_s <= 86400 * 7)) {
     return bad_cluster("dedupe_window_s", "must be in [1, 604800] seconds");
+  }
+  if (!(c.cluster.startup_wait_s >= 0 && c.cluster.startup_wait_s <= 86400)) {
+    return bad_cluster("startup_wait_s", "must be in [0, 86400] seconds");
   }
   if (c.cluster.trim_lag_entries > 0 && c.cluster.checkpoint_scans == 0) {
     return bad_cluster("trim_lag_entries",

@@ -2,9 +2,12 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <chrono>
 #include <future>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "bgkmap/v1/types.pb.h"
 
@@ -21,6 +24,35 @@ std::vector<std::string> SplitServers(const std::string& list) {
   }
   return out;
 }
+
+// NATS may be starting with us: a clustered JetStream answers once it has elected its meta
+// leader, and a new stream or bucket once it has a leader of its own. Each step of a shard's start
+// is retried until one deadline, saying what it waits for; a refusal that waiting cannot change
+// (FailedPrecondition: the cluster's settings differ from this shard's) fails at once.
+class JetStreamWait {
+ public:
+  explicit JetStreamWait(double seconds)
+      : deadline_(std::chrono::steady_clock::now() +
+                  std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000))) {}
+
+  template <typename Step>
+  Status Until(const char* what, Step step) const {
+    for (int attempt = 1;; ++attempt) {
+      Status s = step();
+      if (s.ok() || s.code() == Status::Code::kFailedPrecondition) return s;
+      if (std::chrono::steady_clock::now() > deadline_) {
+        return Status::Unavailable(std::string("cluster: NATS JetStream did not answer for ") +
+                                   what + " within cluster.startup_wait_s: " + s.message());
+      }
+      spdlog::info("event=cluster_waiting_for_jetstream step=\"{}\" attempt={} reason=\"{}\"", what,
+                   attempt, s.message());
+      std::this_thread::sleep_for(std::chrono::milliseconds(std::min(250 * attempt, 2000)));
+    }
+  }
+
+ private:
+  std::chrono::steady_clock::time_point deadline_;
+};
 
 }  // namespace
 
@@ -49,30 +81,39 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
   LogStreamOptions log;
   log.replicas = static_cast<int>(config.replicas);
   log.dedupe_window_s = config.dedupe_window_s;
-  // NATS may be starting with us (a clustered JetStream answers once it has elected its meta
-  // leader): wait for it a while rather than fail the start.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  for (Status s = EnsureLogStream(**nats, log); !s.ok(); s = EnsureLogStream(**nats, log)) {
-    if (s.code() == Status::Code::kFailedPrecondition ||
-        std::chrono::steady_clock::now() > deadline) {
-      return s;
-    }
-    spdlog::info("event=cluster_waiting_for_jetstream reason=\"{}\"", s.message());
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const JetStreamWait wait(config.startup_wait_s);
+  if (Status s = wait.Until("the log stream", [&] { return EnsureLogStream(**nats, log); });
+      !s.ok()) {
+    return s;
   }
-  if (Status s = EnsureCheckpointStream(**nats, static_cast<int>(config.replicas)); !s.ok()) {
+  if (Status s = wait.Until(
+          "the checkpoint stream",
+          [&] { return EnsureCheckpointStream(**nats, static_cast<int>(config.replicas)); });
+      !s.ok()) {
     return s;
   }
   MembershipOptions mo;
   mo.node = config.node;
   mo.replicas = static_cast<int>(config.replicas);
   mo.lease_s = config.lease_s;
-  Result<std::unique_ptr<Membership>> members = Membership::Open(**nats, mo, params_yaml);
-  if (!members.ok()) return members.status();
-  std::unique_ptr<ClusterNode> node(
-      new ClusterNode(config, params, std::move(prepare), std::move(nats).value(),
-                      std::move(members).value(), std::move(georeference), std::move(executor)));
-  if (Status s = node->members_->Heartbeat(); !s.ok()) return s;
+  std::unique_ptr<Membership> opened;
+  if (Status s = wait.Until("the membership buckets",
+                            [&] {
+                              Result<std::unique_ptr<Membership>> m =
+                                  Membership::Open(**nats, mo, params_yaml);
+                              if (m.ok()) opened = std::move(m).value();
+                              return m.status();
+                            });
+      !s.ok()) {
+    return s;
+  }
+  std::unique_ptr<ClusterNode> node(new ClusterNode(config, params, std::move(prepare),
+                                                    std::move(nats).value(), std::move(opened),
+                                                    std::move(georeference), std::move(executor)));
+  if (Status s = wait.Until("the first heartbeat", [&] { return node->members_->Heartbeat(); });
+      !s.ok()) {
+    return s;
+  }
   node->loop_ = std::thread([n = node.get()] { n->Run(); });
   node->checkpoint_writer_ = std::thread([n = node.get()] { n->WriteCheckpoints(); });
   node->reader_ = std::thread([n = node.get()] { n->ReadLog(); });

@@ -101,6 +101,9 @@ struct ClusterConfig {
   uint32_t replicas = 1;          // replicas: JetStream copies of the log and the KV buckets
   double lease_s = 3.0;           // lease_s: a shard silent this long loses its partitions
   double dedupe_window_s = 3600;  // dedupe_window_s: a retried scan inside it is stored once
+  // startup_wait_s: how long a starting shard waits for NATS JetStream to answer (a clustered
+  // JetStream answers once it has elected its leaders), saying so, before it gives up.
+  double startup_wait_s = 120;
   // checkpoint_scans: a partition's owner checkpoints it after this many scans integrated there
   // (0: never; a takeover then reads the log from its start).
   uint32_t checkpoint_scans = 500;
