@@ -14,7 +14,8 @@
 // Environment: BGKMAPD, BGKMAP_CLI, BGKMAP_SHARED_DATA, BGKMAP_TEST_TIMEOUT_SCALE.
 import { test, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { spawn, execFileSync } from 'node:child_process';
+import { spawn, execFile, execFileSync } from 'node:child_process';
+import { promisify } from 'node:util';
 import crypto from 'node:crypto';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -135,16 +136,17 @@ function connect(url, wsOptions = {}) {
   return state;
 }
 
-const insert = (grpc, dir, robot, extra = []) =>
-  execFileSync(cli, ['insert', dir, '--server', grpc, '--robot', robot, ...extra], { stdio: 'pipe' });
+// The CLI runs beside the event loop, so the clients keep reading while it streams.
+const run = promisify(execFile);
+const insert = (grpc, dir, robot) => run(cli, ['insert', dir, '--server', grpc, '--robot', robot]);
 
 // A region query of `box` through the CLI: the GeoTIFF's bands as raw float32 (GDAL's ENVI
 // writer: band after band, rows north to south).
-function queryRegion(grpc, box, layers, extra = []) {
+async function queryRegion(grpc, box, layers) {
   const tif = path.join(tmp, `q${crypto.randomBytes(4).toString('hex')}.tif`);
-  execFileSync(cli, ['query', '--server', grpc, '--bbox', box.join(','), '--layers',
-    layers.join(','), '--out', tif, ...extra], { stdio: 'pipe' });
-  execFileSync('gdal_translate', ['-q', '-of', 'ENVI', tif, tif + '.raw'], { stdio: 'pipe' });
+  await run(cli, ['query', '--server', grpc, '--bbox', box.join(','), '--layers', layers.join(','),
+    '--out', tif]);
+  await run('gdal_translate', ['-q', '-of', 'ENVI', tif, tif + '.raw']);
   return fs.readFileSync(tif + '.raw');
 }
 
@@ -186,9 +188,9 @@ test('the grid is a region query bit for bit; poses and clouds are the scans sen
   assert.deepEqual(empty.message.fields.map((f) => f.name), layers);
   assert.ok(new Float32Array(new Uint8Array(empty.message.data).buffer).every(Number.isNaN));
 
-  insert(grpc, scanDir('a', [0, 1]), 'a');
-  insert(grpc, scanDir('b', [2]), 'b');
-  const want = queryRegion(grpc, region, layers);
+  await insert(grpc, scanDir('a', [0, 1]), 'a');
+  await insert(grpc, scanDir('b', [2]), 'b');
+  const want = await queryRegion(grpc, region, layers);
   assert.equal(want.length, 400 * 400 * 5 * 4);
   let mismatched = -1;
   const grid = await waitFor(fox.client, 'message', () => {
@@ -334,7 +336,7 @@ test('a client that stops reading is dropped; the others are served', async () =
   slow.subscribe('/map');
   slow.ws._socket.pause();  // reads nothing from here on
   const closed = new Promise((resolve) => slow.ws.on('close', resolve));
-  insert(grpc, scanDir('slow', [0, 1, 2]), 'a');
+  await insert(grpc, scanDir('slow', [0, 1, 2]), 'a');
   await waitFor(server.stderr, 'data', () => /event=foxglove_slow_client_dropped/.test(server.log),
     'the slow client dropped');
   slow.ws._socket.resume();
