@@ -250,7 +250,8 @@ function upgradeStatus(url, protocols, options = {}) {
       res.on('end', () => resolve({ status: res.statusCode, body }));
     });
     ws.on('open', () => { ws.close(); resolve({ status: 'open' }); });
-    ws.on('error', () => {});
+    // No HTTP answer at all (a TLS port spoken to in plain text): the first settle wins.
+    ws.on('error', (e) => resolve({ status: 'error', body: String(e) }));
   });
 }
 
