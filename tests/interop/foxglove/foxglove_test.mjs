@@ -152,13 +152,13 @@ async function queryRegion(grpc, box, layers) {
 
 // The grid's cells re-ordered as the query's bytes: band by band, rows north to south.
 function gridAsBands(grid) {
-  const cols = grid.columnCount, fields = grid.fields.length;
-  const rows = grid.data.length / grid.rowStride;
+  const cols = grid.column_count, fields = grid.fields.length;
+  const rows = grid.data.length / grid.row_stride;
   const out = Buffer.alloc(cols * rows * fields * 4);
   for (let f = 0; f < fields; f++) {
     for (let r = 0; r < rows; r++) {
       for (let c = 0; c < cols; c++) {
-        const from = r * grid.rowStride + c * grid.cellStride + grid.fields[f].offset;
+        const from = r * grid.row_stride + c * grid.cell_stride + grid.fields[f].offset;
         const to = ((f * rows + (rows - 1 - r)) * cols + c) * 4;
         out.set(grid.data.subarray(from, from + 4), to);
       }
@@ -182,11 +182,14 @@ test('the grid is a region query bit for bit; poses and clouds are the scans sen
   for (const topic of ['/map', '/tf', '/scans']) fox.subscribe(topic);
   // The empty map's grid first: 400 x 400 cells of 0.1 m, every one unknown.
   const empty = await waitFor(fox.client, 'message', () => fox.latest('/map'), 'the first grid');
-  assert.equal(empty.message.columnCount, 400);
+  assert.equal(empty.message.column_count, 400);
   assert.equal(empty.message.data.length, 400 * 400 * 20);
-  assert.equal(empty.message.frameId, 'map');
+  assert.equal(empty.message.frame_id, 'map');
   assert.deepEqual(empty.message.fields.map((f) => f.name), layers);
-  assert.ok(new Float32Array(new Uint8Array(empty.message.data).buffer).every(Number.isNaN));
+  const emptyCells = new DataView(new Uint8Array(empty.message.data).buffer);
+  for (let i = 0; i < 400 * 400; i++) {
+    assert.ok(Number.isNaN(emptyCells.getFloat32(i * 20, true)), `cell ${i}'s elevation is unknown`);
+  }
 
   await insert(grpc, scanDir('a', [0, 1]), 'a');
   await insert(grpc, scanDir('b', [2]), 'b');
@@ -213,11 +216,11 @@ test('the grid is a region query bit for bit; poses and clouds are the scans sen
   // /tf: map -> a at scan 1's pose, map -> b at scan 2's.
   const tf = await waitFor(fox.client, 'message',
     () => fox.latest('/tf', (m) => m.transforms.length === 2), 'transforms of both robots');
-  const byRobot = Object.fromEntries(tf.message.transforms.map((t) => [t.childFrameId, t]));
+  const byRobot = Object.fromEntries(tf.message.transforms.map((t) => [t.child_frame_id, t]));
   for (const [robot, scan] of [['a', 1], ['b', 2]]) {
     const t = byRobot[robot];
     const p = poses[scan];
-    assert.equal(t.parentFrameId, 'map');
+    assert.equal(t.parent_frame_id, 'map');
     assert.deepEqual([t.translation.x, t.translation.y, t.translation.z], [p[3], p[7], p[11]]);
     const { x, y, z, w } = t.rotation;
     const m = [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
@@ -227,11 +230,11 @@ test('the grid is a region query bit for bit; poses and clouds are the scans sen
     m.forEach((v, i) => assert.ok(Math.abs(v - r[i]) < 1e-9, `${robot} rotation[${i}] ${v} vs ${r[i]}`));
   }
   // /scans: b's cloud is scan 2's points as sent, in b's frame at the transform's stamp.
-  const cloud = fox.latest('/scans', (m) => m.frameId === 'b');
+  const cloud = fox.latest('/scans', (m) => m.frame_id === 'b');
   assert.ok(cloud, 'b\'s cloud arrived');
   const stamp = (t) => `${t.seconds}.${String(t.nanos).padStart(9, '0')}`;
   assert.equal(stamp(cloud.message.timestamp), stamp(byRobot.b.timestamp));
-  assert.equal(cloud.message.pointStride, 12);
+  assert.equal(cloud.message.point_stride, 12);
   assert.deepEqual(cloud.message.fields.map((f) => [f.name, f.offset, f.type]),
     [['x', 0, 7], ['y', 4, 7], ['z', 8, 7]]);
   const sent = scanPoints(2);
@@ -286,7 +289,7 @@ test('a bad request is answered with a status naming it; the connection stays us
   // Still connected and served.
   fox.subscribe('/map');
   const grid = await waitFor(fox.client, 'message', () => fox.latest('/map'), 'a grid after the errors');
-  assert.equal(grid.message.columnCount, 400);
+  assert.equal(grid.message.column_count, 400);
   fox.client.close();
 });
 
@@ -320,7 +323,7 @@ test('over TLS with tokens: 401 without, 403 for a robot, a planner connects; 50
   await waitFor(fox.client, 'advertise', () => fox.channels.size === 3, 'three channels over TLS');
   fox.subscribe('/map');
   const grid = await waitFor(fox.client, 'message', () => fox.latest('/map'), 'a grid over TLS');
-  assert.equal(grid.message.columnCount, 400);
+  assert.equal(grid.message.column_count, 400);
   const full = await upgradeStatus(url, sub, { ca, headers: { Authorization: `Bearer ${planner}` } });
   assert.equal(full.status, 503, 'a second client beyond server.foxglove.max_clients = 1');
   fox.client.close();
@@ -346,6 +349,6 @@ test('a client that stops reading is dropped; the others are served', async () =
   await waitFor(fox.client, 'advertise', () => fox.channels.size === 3, 'a new client served');
   fox.subscribe('/map');
   const grid = await waitFor(fox.client, 'message', () => fox.latest('/map'), 'its grid');
-  assert.equal(grid.message.columnCount, 1200);
+  assert.equal(grid.message.column_count, 1200);
   fox.client.close();
 });
