@@ -28,6 +28,7 @@
 
 #include "foxglove/foxglove_server.h"
 #include "foxglove/live_feed.h"
+#include "foxglove/messages.h"
 #include "foxglove/protocol.h"
 #include "foxglove/upgrade_check.h"
 
@@ -134,6 +135,7 @@ class Session final : public SessionBase,
   struct Outgoing {
     std::shared_ptr<const std::string> bytes;
     bool binary = false;
+    uint32_t grid_subscription = 0;  // a grid for this subscription (0: not a grid)
   };
 
   boost::beast::tcp_stream& Tcp() { return boost::beast::get_lowest_layer(ws_); }
@@ -273,25 +275,42 @@ class Session final : public SessionBase,
   void Send(uint32_t channel, uint64_t time_ns, const std::string& message) {
     for (const auto& [id, subscribed] : subscriptions_) {
       if (subscribed != channel) continue;
-      Queue(std::make_shared<const std::string>(MessageDataFrame(id, time_ns, message)), true);
+      auto frame = std::make_shared<const std::string>(MessageDataFrame(id, time_ns, message));
+      if (channel == kGridChannel && ReplaceWaitingGrid(id, frame)) continue;
+      Queue(std::move(frame), true, channel == kGridChannel ? id : 0);
     }
+  }
+
+  // A newer grid replaces one still waiting for this subscription (not the one being written):
+  // a client slower than the map's changes gets the latest grid, not every grid.
+  bool ReplaceWaitingGrid(uint32_t subscription, std::shared_ptr<const std::string>& frame) {
+    for (size_t i = writing_ ? 1 : 0; i < queue_.size(); ++i) {
+      if (queue_[i].grid_subscription != subscription) continue;
+      queued_bytes_ = queued_bytes_ - queue_[i].bytes->size() + frame->size();
+      queue_[i].bytes = std::move(frame);
+      return true;
+    }
+    return false;
   }
 
   void SendStatus(StatusLevel level, const std::string& message) {
     Queue(std::make_shared<const std::string>(StatusJson(level, message)), false);
   }
 
-  // Sends in order; a client that lets the bound fill up is dropped, not buffered for.
-  void Queue(std::shared_ptr<const std::string> bytes, bool binary) {
+  // Sends in order; a client that lets the bytes waiting behind the one being written fill the
+  // bound is dropped, not buffered for.
+  void Queue(std::shared_ptr<const std::string> bytes, bool binary,
+             uint32_t grid_subscription = 0) {
     if (closed_) return;
-    if (queued_bytes_ > 0 && queued_bytes_ + bytes->size() > state_.options.max_queued_bytes) {
+    const size_t waiting = queued_bytes_ - (writing_ ? queue_.front().bytes->size() : 0);
+    if (waiting > 0 && waiting + bytes->size() > state_.options.max_queued_bytes) {
       spdlog::warn("event=foxglove_slow_client_dropped session={} queued_bytes={}", id_,
                    queued_bytes_);
       Close();
       return;
     }
     queued_bytes_ += bytes->size();
-    queue_.push_back({std::move(bytes), binary});
+    queue_.push_back({std::move(bytes), binary, grid_subscription});
     if (!writing_) WriteNext();
   }
 
