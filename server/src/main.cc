@@ -43,11 +43,14 @@ struct CommandLine {
   std::string data_dir;
   std::string metrics;
   bool metrics_set = false;
+  std::string foxglove;
+  bool foxglove_set = false;
   std::vector<std::string> overrides;
   bool print_config = false;
 };
 
-void DeclareOptions(CLI::App& app, CommandLine& cmd, CLI::Option** metrics_flag) {
+void DeclareOptions(CLI::App& app, CommandLine& cmd, CLI::Option** metrics_flag,
+                    CLI::Option** foxglove_flag) {
   app.add_option("-c,--config", cmd.config_path,
                  "YAML config: engine keys at the top level, server keys under 'server:'")
       ->check(CLI::ExistingFile);
@@ -57,6 +60,11 @@ void DeclareOptions(CLI::App& app, CommandLine& cmd, CLI::Option** metrics_flag)
       app.add_option("--http,--metrics", cmd.metrics,
                      "Serve HTTP on host:port: the live web map at /, GET /metrics (Prometheus); "
                      "\"\" = off (overrides server.metrics_address; --metrics is its old name)");
+  *foxglove_flag =
+      app.add_option("--foxglove", cmd.foxglove,
+                     "Serve the Foxglove WebSocket protocol on host:port: the map around "
+                     "server.foxglove.region, the robots' poses and last scans (docs/foxglove.md); "
+                     "\"\" = off (overrides server.foxglove.address)");
   app.add_option("--worker-threads", cmd.worker_threads, "Ingest worker threads (0 = all cores)");
   app.add_option("--query-threads", cmd.query_threads, "Query worker threads (0 = all cores)");
   app.add_option("--log-level", cmd.log_level, "trace|debug|info|warn|error|off");
@@ -81,6 +89,7 @@ std::vector<std::string> FlagOverrides(const CommandLine& cmd) {
   };
   if (!cmd.listen.empty()) set_string("server.listen_address", cmd.listen);
   if (cmd.metrics_set) set_string("server.metrics_address", cmd.metrics);
+  if (cmd.foxglove_set) set_string("server.foxglove.address", cmd.foxglove);
   if (cmd.worker_threads >= 0) {
     out.push_back("server.worker_threads=" + std::to_string(cmd.worker_threads));
   }
@@ -155,9 +164,11 @@ int main(int argc, char** argv) {
   CLI::App app{"bgkmapd: BGK terrain traversability map server (gRPC bgkmap.v1.MapService)"};
   CommandLine cmd;
   CLI::Option* metrics_flag = nullptr;
-  DeclareOptions(app, cmd, &metrics_flag);
+  CLI::Option* foxglove_flag = nullptr;
+  DeclareOptions(app, cmd, &metrics_flag, &foxglove_flag);
   CLI11_PARSE(app, argc, argv);
   cmd.metrics_set = metrics_flag->count() > 0;
+  cmd.foxglove_set = foxglove_flag->count() > 0;
 
   bgkmap::Result<bgkmap::ServerConfig> config = LoadConfig(cmd);
   if (!config.ok()) return Fail(config.status().message());

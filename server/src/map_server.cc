@@ -32,6 +32,8 @@
 #include "durability/durability.h"
 #include "durability/memory_durability.h"
 #include "durability/store_durability.h"
+#include "foxglove/foxglove_server.h"
+#include "foxglove/messages.h"
 #include "http/http_server.h"
 #include "http/https_context.h"
 #include "http/metrics.h"
@@ -40,6 +42,7 @@
 #include "rpc/map_service.h"
 #include "rpc/request_checks.h"
 #include "rpc/service_context.h"
+#include "serving/latest_scans.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
 
@@ -160,12 +163,15 @@ struct MapServer::Impl {
 
   // Serves GET /metrics and the web map (server.metrics_address).
   Status ListenHttp(const std::optional<TlsMaterial>& tls);
+  // Serves the Foxglove WebSocket protocol (server.foxglove.address).
+  Status ListenFoxglove(const std::optional<TlsMaterial>& tls);
   // Serves gRPC (server.listen_address).
   Status ListenGrpc(const std::optional<TlsMaterial>& tls);
 
   // The RPC service over the map.
   void Serve() {
     ctx = std::make_unique<ServiceContext>(config, *map, hub, ingest_pool, query_pool);
+    ctx->latest_scans = latest_scans.get();
     service = std::make_unique<MapService>(*ctx, tokens.get());
   }
 
@@ -183,6 +189,9 @@ struct MapServer::Impl {
   std::unique_ptr<TokenTable> tokens;      // null: no authentication
   std::unique_ptr<Durability> durability;  // outlives the workers that journal into it
   WatchHub hub;
+  // Each robot's latest scan for the Foxglove port (null when it is off); the ingest workers
+  // record into it.
+  std::unique_ptr<LatestScans> latest_scans;
   boost::asio::thread_pool ingest_pool;
   boost::asio::thread_pool query_pool;
   std::unique_ptr<ServedMap> served;              // a single server's map (else null)
@@ -203,6 +212,9 @@ struct MapServer::Impl {
   // when off. Last: it reads everything above.
   std::unique_ptr<HttpServer> http;
   int http_port = 0;
+  // The Foxglove port (server.foxglove.address); null when off.
+  std::unique_ptr<foxglove::FoxgloveServer> foxglove;
+  int foxglove_port = 0;
 };
 
 void KeepLargeAllocationsInHeap() {
@@ -296,6 +308,32 @@ Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
   return Status::Ok();
 }
 
+// Binds server.foxglove.address: the map around the configured region, the robots' poses and
+// last scans, over TLS with `tls`, behind a token that may watch with tokens.
+Status MapServer::Impl::ListenFoxglove(const std::optional<TlsMaterial>& tls) {
+  foxglove::Options options;
+  const std::vector<double>& r = config.foxglove.region;
+  options.region = foxglove::RegionCells(map->geometry(), r[0], r[1], r[2], r[3]);
+  options.layers = {Layer::kElevation, Layer::kElevationVariance, Layer::kTraversability,
+                    Layer::kTraversabilityVariance, Layer::kState};
+  options.max_clients = config.foxglove.max_clients;
+  options.max_queued_bytes = config.foxglove.max_queued_bytes;
+  options.tokens = tokens.get();
+  if (tls.has_value()) {
+    Result<std::shared_ptr<boost::asio::ssl::context>> context = MakeHttpsContext(*tls);
+    if (!context.ok()) return context.status();
+    options.tls = std::move(context).value();
+  }
+  Result<std::unique_ptr<foxglove::FoxgloveServer>> listening = foxglove::FoxgloveServer::Listen(
+      config.foxglove.address, *map, hub, *latest_scans, query_pool, std::move(options));
+  if (!listening.ok()) {
+    return Status::FailedPrecondition("server.foxglove.address: " + listening.status().message());
+  }
+  foxglove = std::move(listening).value();
+  foxglove_port = foxglove->port();
+  return Status::Ok();
+}
+
 // Builds and starts the gRPC server (health, reflection, the map service).
 Status MapServer::Impl::ListenGrpc(const std::optional<TlsMaterial>& tls) {
   grpc::EnableDefaultHealthCheckService(true);
@@ -339,6 +377,10 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(config.map);
   if (!map.ok()) return map.status();
   auto impl = std::make_unique<Impl>(config, std::move(tokens));
+  if (config.foxglove.enabled()) {
+    impl->latest_scans =
+        std::make_unique<LatestScans>(config.limits.max_robots, config.foxglove.max_scan_points);
+  }
   if (config.cluster.enabled()) {
     if (Status s = impl->JoinCluster(); !s.ok()) return s;
   } else {
@@ -350,6 +392,9 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
   if (!config.metrics_address.empty()) {
     if (Status s = impl->ListenHttp(tls); !s.ok()) return s;
+  }
+  if (config.foxglove.enabled()) {
+    if (Status s = impl->ListenFoxglove(tls); !s.ok()) return s;
   }
   if (impl->maintenance != nullptr) impl->maintenance->Start();
   if (Status s = impl->ListenGrpc(tls); !s.ok()) {
@@ -371,12 +416,19 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
                  HostOf(config.metrics_address), impl->http_port,
                  impl->tokens == nullptr ? "" : "login?token=<token>");
   }
+  if (impl->foxglove != nullptr) {
+    impl->foxglove->Start();
+    spdlog::info("event=foxglove_listening url={}://{}:{}/ port={}", tls.has_value() ? "wss" : "ws",
+                 HostOf(config.foxglove.address), impl->foxglove_port, impl->foxglove_port);
+  }
   return std::unique_ptr<MapServer>(new MapServer(std::move(impl)));
 }
 
 int MapServer::port() const { return impl_->port; }
 
 int MapServer::http_port() const { return impl_->http_port; }
+
+int MapServer::foxglove_port() const { return impl_->foxglove_port; }
 
 Status MapServer::ReloadTokens() {
   if (impl_->tokens == nullptr) {
@@ -417,6 +469,7 @@ void MapServer::Shutdown() {
   // Scrapes see the drain above; the endpoint closes before the store and the pools do.
   if (impl_->web != nullptr) impl_->web->Stop();  // event streams end before their server
   if (impl_->http != nullptr) impl_->http->Stop();
+  if (impl_->foxglove != nullptr) impl_->foxglove->Stop();
   if (impl_->maintenance != nullptr) impl_->maintenance->Stop();
   if (std::optional<StoreStatus> store =
           impl_->served != nullptr ? impl_->served->store_status() : std::nullopt) {

@@ -87,6 +87,18 @@ std::vector<ServerKey> ListenerKeys() {
       Key<std::string>(
           "metrics_address", [](ServerConfig & c) -> auto& { return c.metrics_address; }),
       Key<std::string>(
+          "foxglove.address", [](ServerConfig & c) -> auto& { return c.foxglove.address; }),
+      Key<std::vector<double>>(
+          "foxglove.region", [](ServerConfig & c) -> auto& { return c.foxglove.region; }),
+      Key<uint32_t>(
+          "foxglove.max_clients", [](ServerConfig & c) -> auto& { return c.foxglove.max_clients; }),
+      Key<uint64_t>(
+          "foxglove.max_queued_bytes",
+          [](ServerConfig & c) -> auto& { return c.foxglove.max_queued_bytes; }),
+      Key<uint32_t>(
+          "foxglove.max_scan_points",
+          [](ServerConfig & c) -> auto& { return c.foxglove.max_scan_points; }),
+      Key<std::string>(
           "tls.cert_file", [](ServerConfig & c) -> auto& { return c.tls.cert_file; }),
       Key<std::string>(
           "tls.key_file", [](ServerConfig & c) -> auto& { return c.tls.key_file; }),
@@ -420,6 +432,31 @@ Status Bad(const std::string& key, const std::string& why) {
   return Status::InvalidArgument("server." + key + ": " + why);
 }
 
+// server.foxglove.*: a region the Grid can cover, limits that let a client connect.
+Status ValidateFoxglove(const ServerConfig& c) {
+  const FoxgloveConfig& f = c.foxglove;
+  if (!f.enabled()) return Status::Ok();
+  if (Result<HostPort> a = ParseHostPort(f.address); !a.ok()) {
+    return Bad("foxglove.address", a.status().message() + " (\"\" turns the port off)");
+  }
+  const std::vector<double>& r = f.region;
+  if (r.size() != 4 ||
+      !std::all_of(r.begin(), r.end(), [](double v) { return std::isfinite(v); }) || r[0] >= r[2] ||
+      r[1] >= r[3]) {
+    return Bad("foxglove.region", "must be [xmin, ymin, xmax, ymax] in metres, finite, min < max");
+  }
+  const double cells = std::ceil((r[2] - r[0]) / c.map.resolution + 1) *
+                       std::ceil((r[3] - r[1]) / c.map.resolution + 1);
+  if (cells > static_cast<double>(c.limits.max_region_cells)) {
+    return Bad("foxglove.region", "covers about " + std::to_string(static_cast<uint64_t>(cells)) +
+                                      " cells, more than server.max_region_cells = " +
+                                      std::to_string(c.limits.max_region_cells));
+  }
+  if (f.max_clients == 0) return Bad("foxglove.max_clients", "must be >= 1");
+  if (f.max_queued_bytes < (1u << 20)) return Bad("foxglove.max_queued_bytes", "must be >= 1 MiB");
+  return Status::Ok();
+}
+
 // server.*: the listeners, threads and logging.
 Status ValidateServerKeys(const ServerConfig& c) {
   if (c.listen_address.empty()) return Bad("listen_address", "must not be empty");
@@ -433,6 +470,7 @@ Status ValidateServerKeys(const ServerConfig& c) {
   if (std::find(kLevels.begin(), kLevels.end(), c.log_level) == kLevels.end()) {
     return Bad("log_level", "'" + c.log_level + "' is not one of trace|debug|info|warn|error|off");
   }
+  if (Status s = ValidateFoxglove(c); !s.ok()) return s;
   if (c.worker_threads < 0 || c.worker_threads > 1024) return Bad("worker_threads", "0..1024");
   if (c.query_threads < 0 || c.query_threads > 1024) return Bad("query_threads", "0..1024");
   if (c.worker_nice < 0 || c.worker_nice > 19) return Bad("worker_nice", "0..19");
@@ -585,7 +623,8 @@ Status ValidateSecurity(const ServerConfig& c) {
   if (!c.insecure) {
     for (const auto& [key, address] :
          {std::pair<const char*, const std::string&>{"listen_address", c.listen_address},
-          {"metrics_address", c.metrics_address}}) {
+          {"metrics_address", c.metrics_address},
+          {"foxglove.address", c.foxglove.address}}) {
       if (address.empty() || IsLoopbackAddress(address)) continue;
       if (!c.tls.enabled() || !c.auth.enabled()) {
         return bad(key, "'" + address +

@@ -17,6 +17,7 @@
 
 #include "auth/principal.h"
 #include "bgkmap/server/server_config.h"
+#include "serving/latest_scans.h"
 #include "serving/map_port.h"
 #include "serving/watch_hub.h"
 
@@ -166,6 +167,8 @@ struct ServiceContext {
   std::atomic<uint32_t> unary_scans{0};  // concurrent IngestScan calls
   std::atomic<uint32_t> imports{0};      // ImportMap calls (one at a time)
   ByteBudget region_bytes{limits.max_region_bytes_in_flight};
+  // Each robot's latest applied scan, for live views (the Foxglove port); null when none.
+  LatestScans* latest_scans = nullptr;
 };
 
 // One line per admin action (event=audit): who (token name and role), what, the box or robot

@@ -47,6 +47,8 @@ class MapServer {
   // The port of the HTTP endpoint (server.metrics_address: /metrics, the web map, its events,
   // /login; the chosen one for port 0), or 0 when it is off.
   int http_port() const;
+  // The port of the Foxglove WebSocket endpoint (server.foxglove.address), or 0 when it is off.
+  int foxglove_port() const;
 
   // Reads server.auth.tokens_file again (bgkmapd: on SIGHUP). A file that does not load keeps
   // the tokens in use; the error says why (also logged).

@@ -135,6 +135,18 @@ struct AuthConfig {
   bool enabled() const { return !tokens_file.empty(); }
 };
 
+// `server.foxglove`: the Foxglove WebSocket port (docs/foxglove.md). Off while `address` is "".
+struct FoxgloveConfig {
+  std::string address;  // foxglove.address: host:port (`--foxglove`; port 0 = any free port)
+  // foxglove.region: [xmin, ymin, xmax, ymax] in metres, the map sent as /map (foxglove.Grid);
+  // at most server.max_region_cells cells.
+  std::vector<double> region = {-50, -50, 50, 50};
+  uint32_t max_clients = 16;              // foxglove.max_clients: connected at once
+  uint64_t max_queued_bytes = 64u << 20;  // foxglove.max_queued_bytes: unsent, per client
+  uint32_t max_scan_points = 100'000;     // foxglove.max_scan_points: kept of a robot's scan
+  bool enabled() const { return !address.empty(); }
+};
+
 struct ServerConfig {
   MapParams map;
   std::string listen_address = "127.0.0.1:50051";  // listen_address (host:port; port 0 = any)
@@ -150,6 +162,7 @@ struct ServerConfig {
   // (logged as event=metrics_listening). The key keeps its first name, which the tests and
   // operators' configs use.
   std::string metrics_address;
+  FoxgloveConfig foxglove;
   TlsConfig tls;
   AuthConfig auth;
   // insecure: allow a non-loopback listen or metrics address without TLS and tokens.

@@ -137,20 +137,29 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
   }
   auto prepared = std::make_shared<PreparedScan>();
   std::shared_ptr<RawScan> raw;
+  const bool keep_raw = ctx.map.retains_scans() || ctx.latest_scans != nullptr;
   if (grpc::Status s = PrepareScanMessage(scan, ctx.map.params(), ctx.limits, prepared.get(),
-                                          ctx.map.retains_scans() ? &raw : nullptr);
+                                          keep_raw ? &raw : nullptr);
       !s.ok()) {
     ctx.map.CountRejected(scan.robot_id());
     done(RejectedAck(ctx, scan, s), s);
     return;
   }
-  ScanOrigin origin{scan.robot_id(), scan.sequence(),
-                    Stamp{scan.stamp().seconds(), scan.stamp().nanos()}, std::move(raw),
+  const Stamp stamp{scan.stamp().seconds(), scan.stamp().nanos()};
+  // The live views see a scan once it is applied (not a duplicate, not refused).
+  std::shared_ptr<const RawScan> latest = ctx.latest_scans != nullptr ? raw : nullptr;
+  ScanOrigin origin{scan.robot_id(), scan.sequence(), stamp,
+                    ctx.map.retains_scans() ? std::move(raw) : nullptr,
                     [&scan] { return scan.SerializeAsString(); }};
   uint64_t last_sequence = 0;
   const RobotAdmission admission = ctx.map.SubmitScan(
       std::move(origin), prepared,
-      [&ctx, ack = BaseAck(scan), counts = prepared->counts, done](ScanOutcome outcome) {
+      [&ctx, ack = BaseAck(scan), counts = prepared->counts, done, latest,
+       stamp](ScanOutcome outcome) {
+        if (latest != nullptr && outcome.status.ok() && !outcome.already_logged) {
+          ctx.latest_scans->Record(ack.robot_id(), ack.sequence(), stamp, latest->pose,
+                                   latest->points);
+        }
         Answer(ctx, ack, counts, outcome, done);
       },
       &last_sequence);
