@@ -10,6 +10,7 @@ PACKAGES=(
   libeigen3-dev
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libgdal-dev gdal-bin libpng-dev
+  liblz4-dev libzstd-dev zlib1g-dev  # MCAP chunks (lz4, zstd) and CRC32: tools/io/mcap_*
   libgtest-dev libgmock-dev libbenchmark-dev
   libprotobuf-dev protobuf-compiler libgrpc++-dev libgrpc-dev protobuf-compiler-grpc
   libboost-dev

@@ -27,6 +27,7 @@ struct BuildOptions {
   std::vector<double> bbox;
   std::vector<int> las_classes;
   std::string crs;
+  std::string topic, map_frame = "map";
   bool cog = false;
 };
 
@@ -70,8 +71,14 @@ int RunBuild(const BuildOptions& o) {
       return Usage("--classes: a LAS class is 0..255, got " + std::to_string(c));
     source_options.las_classes.push_back(static_cast<uint8_t>(c));
   }
+  source_options.topic = o.topic;
+  source_options.map_frame = o.map_frame;
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, source_options);
   if (!source.ok()) return Fail(source.status().message());
+  if ((*source)->skipped() > 0) {
+    std::fprintf(stderr, "bgkmap build: skipped %zu clouds with no transform to '%s' (first: %s)\n",
+                 (*source)->skipped(), o.map_frame.c_str(), (*source)->first_skip().c_str());
+  }
 
   ScanPointCounts total;
   StageTimes times;
@@ -153,11 +160,17 @@ int RunBuild(const BuildOptions& o) {
 void RegisterBuildCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<BuildOptions>();
   CLI::App* cmd = app.add_subcommand("build",
-                                     "Map scans offline (a KITTI-like directory, an OctoMap "
-                                     ".graph, or a .las/.pcd cloud) into a GeoTIFF");
+                                     "Map scans offline (a KITTI-like directory, a ROS 2 "
+                                     "recording, an OctoMap .graph, or a .las/.pcd cloud) into a "
+                                     "GeoTIFF");
   cmd->add_option("input", o->input,
-                  "KITTI-like directory (velodyne/*.bin + poses.txt), .graph, .las or .pcd")
+                  "KITTI-like directory (velodyne/*.bin + poses.txt), ROS 2 recording (.mcap, "
+                  ".db3 or a rosbag2 folder; docs/ros2.md), .graph, .las or .pcd")
       ->required();
+  cmd->add_option("--topic", o->topic,
+                  "Recording: the sensor_msgs/msg/PointCloud2 topic (default: the only one)");
+  cmd->add_option("--map-frame", o->map_frame, "Recording: the TF frame of the map")
+      ->capture_default_str();
   cmd->add_option("--config", o->config, "YAML map parameters (docs/configuration.md)");
   cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
   cmd->add_option("--png", o->png, "Also write a PNG preview (hillshade + traversability)");
