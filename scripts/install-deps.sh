@@ -17,6 +17,7 @@ PACKAGES=(
   libssl-dev openssl
   librocksdb-dev
   liboctomap-dev
+  librosbag-storage-dev  # ROS 1 .bag files: tools/io/ros1_bag.cc
   nats-server libnats-dev
   gnuplot-nox
   python3-grpcio python3-protobuf python3-numpy python3-pytest

@@ -1,6 +1,7 @@
-// The ROS 2 recording readers (MCAP, CDR PointCloud2, TF, rosbag2 SQLite) on recordings written
-// by Foxglove's own libraries (@mcap/core, @foxglove/rosmsg2-serialization) from the real Ouster
-// street scans: tests/interop/ros2/write_recordings.mjs, run once for the suite.
+// The recording readers (MCAP, CDR PointCloud2, TF, rosbag2 SQLite, ROS 1 bags) on recordings
+// written by Foxglove's own libraries (@mcap/core, @foxglove/rosmsg2-serialization, and
+// @foxglove/rosmsg-serialization for the ROS 1 bag's messages) from the real Ouster street scans:
+// tests/interop/ros2/write_recordings.mjs, run once for the suite.
 #include "bgkmap/io/ros_recording.h"
 
 #include <gtest/gtest.h>
@@ -75,7 +76,7 @@ double PoseError(const Pose& a, const Pose& b) {
 TEST_F(RosRecordingTest, EveryLayoutAndCompressionReadsTheRealScans) {
   Result<KittiSequence> seq = KittiSequence::Open(kStreet);
   ASSERT_TRUE(seq.ok());
-  for (const char* name : {"direct_none.mcap", "unchunked.mcap", "chain_lz4.mcap"}) {
+  for (const char* name : {"direct_none.mcap", "unchunked.mcap", "chain_lz4.mcap", "street.bag"}) {
     SCOPED_TRACE(name);
     Result<RecordingScans> rec = Scans(Rec(name));
     ASSERT_TRUE(rec.ok()) << rec.status().message();
@@ -153,6 +154,20 @@ TEST_F(RosRecordingTest, TruncatedOrCorruptFilesAreRefused) {
                 why.find("does not decompress") != std::string::npos)
         << why;
     EXPECT_NE(r.status().message().find(name), std::string::npos);
+  }
+}
+
+// A ROS 1 bag cut anywhere is refused by rosbag_storage, as one line naming the file.
+TEST_F(RosRecordingTest, TruncatedRos1BagIsOneLine) {
+  const std::string bytes = ReadBytes(Rec("street.bag"));
+  TempDir dir;
+  for (size_t cut : {size_t{0}, size_t{13}, size_t{3000}, bytes.size() / 2, bytes.size() - 10}) {
+    WriteBytes(dir.Path("cut.bag"), bytes.substr(0, cut));
+    Result<std::vector<RecordedMessage>> r = ReadRecordedMessages(dir.Path("cut.bag"));
+    ASSERT_FALSE(r.ok()) << "cut at " << cut;
+    EXPECT_NE(r.status().message().find("cut.bag: not a readable ROS 1 bag"), std::string::npos)
+        << r.status().message();
+    EXPECT_EQ(r.status().message().find('\n'), std::string::npos);
   }
 }
 

@@ -16,23 +16,16 @@ namespace {
 struct InsertOptions {
   ServerTarget server;
   std::string input, robot = "robot";
-  std::string topic, map_frame = "map";
+  SourceOptions source;
   double rate_hz = 0;  // 0: as fast as flow control allows
   bool restart = false;
 };
 
 int RunInsert(const InsertOptions& o) {
   if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
-  SourceOptions source_options;
-  source_options.topic = o.topic;
-  source_options.map_frame = o.map_frame;
-  Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, source_options);
+  Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, o.source);
   if (!source.ok()) return Fail("insert", source.status().message());
-  if ((*source)->skipped() > 0) {
-    std::fprintf(stderr,
-                 "bgkmap insert: skipped %zu clouds with no transform to '%s' (first: %s)\n",
-                 (*source)->skipped(), o.map_frame.c_str(), (*source)->first_skip().c_str());
-  }
+  ReportSkipped("insert", **source, o.source);
   Result<std::unique_ptr<Client>> connected = Connect(o.server);
   if (!connected.ok()) return Usage("insert", connected.status().message());
   Client& client = **connected;
@@ -149,10 +142,7 @@ void RegisterInsertCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("input", o->input,
                   "KITTI-like directory, or a ROS 2 recording (.mcap, .db3, rosbag2 folder)")
       ->required();
-  cmd->add_option("--topic", o->topic,
-                  "Recording: the sensor_msgs/msg/PointCloud2 topic (default: the only one)");
-  cmd->add_option("--map-frame", o->map_frame, "Recording: the TF frame of the map")
-      ->capture_default_str();
+  AddRecordingOptions(cmd, o->source);
   cmd->add_option("--robot", o->robot, "Robot id (sequence numbers are per robot)")
       ->capture_default_str();
   cmd->add_option("--rate", o->rate_hz,

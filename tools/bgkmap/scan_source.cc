@@ -1,6 +1,8 @@
 #include "scan_source.h"
 
+#include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "bgkmap/io/kitti_sequence.h"
@@ -155,6 +157,19 @@ Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
       path +
       ": unknown input (expected a KITTI-like directory, .mcap, .db3, a rosbag2 folder, .las, "
       ".pcd or .graph)");
+}
+
+void AddRecordingOptions(CLI::App* cmd, SourceOptions& options) {
+  cmd->add_option("--topic", options.topic,
+                  "Recording: the sensor_msgs/msg/PointCloud2 topic (default: the only one)");
+  cmd->add_option("--map-frame", options.map_frame, "Recording: the TF frame of the map")
+      ->capture_default_str();
+}
+
+void ReportSkipped(const char* command, const ScanSource& source, const SourceOptions& options) {
+  if (source.skipped() == 0) return;
+  std::fprintf(stderr, "bgkmap %s: skipped %zu clouds with no transform to '%s' (first: %s)\n",
+               command, source.skipped(), options.map_frame.c_str(), source.first_skip().c_str());
 }
 
 }  // namespace bgkmap::cli

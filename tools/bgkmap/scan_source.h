@@ -12,6 +12,10 @@
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
 
+namespace CLI {
+class App;
+}
+
 namespace bgkmap::cli {
 
 struct SourceScan {
@@ -46,5 +50,11 @@ class ScanSource {
 // graph (one scan per node), *.las and *.pcd are single clouds.
 Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
                                                    const SourceOptions& options = {});
+
+// Registers a recording's --topic and --map-frame on `cmd`, stored into `options`.
+void AddRecordingOptions(CLI::App* cmd, SourceOptions& options);
+
+// One stderr line "bgkmap <command>: skipped N clouds ..." if the source left scans out.
+void ReportSkipped(const char* command, const ScanSource& source, const SourceOptions& options);
 
 }  // namespace bgkmap::cli

@@ -14,23 +14,30 @@
 //                      first two clouds (the third is skipped)
 //   no_z.mcap          a cloud without a z field (refused)
 //   unchunked.mcap     the .bin layout, no chunks at all
+//   street.bag         a ROS 1 bag (ros1_bag.mjs; messages by @foxglove/rosmsg-serialization):
+//                      the .bin layout, tf2_msgs/TFMessage on /tf map -> os_sensor
 import { McapWriter, TempBuffer } from "@mcap/core";
 import { execFileSync } from "node:child_process";
 import fs from "node:fs";
 import path from "node:path";
+import { Ros1BagWriter } from "./ros1_bag.mjs";
 import { schemaText, writerFor } from "./ros_msgs.mjs";
 
-const [dataDir, outDir] = process.argv.slice(2);
+// Or one recording of any KITTI-like sequence (the benchmark's): the .bin layout, direct TF.
+//   node write_recordings.mjs --sequence <sequence-dir> <out.mcap> <none|lz4|zstd>
+const sequenceMode = process.argv[2] === "--sequence";
+const [dataDir, outDir, compressionName] = process.argv.slice(sequenceMode ? 3 : 2);
 if (!dataDir || !outDir) {
-  console.error("usage: node write_recordings.mjs <shared-data-dir> <out-dir>");
+  console.error("usage: node write_recordings.mjs <shared-data-dir> <out-dir>\n" +
+    "       node write_recordings.mjs --sequence <sequence-dir> <out.mcap> <none|lz4|zstd>");
   process.exit(2);
 }
-const seqDir = path.join(dataDir, "ouster_os1_128_street");
+const seqDir = sequenceMode ? dataDir : path.join(dataDir, "ouster_os1_128_street");
 const T0 = 1700000000n * 1000000000n; // first cloud's stamp, ns
 const PERIOD = 100000000n;            // 10 Hz
 
 // The KITTI-like scans: points {x,y,z,i} float32 and row-major 3x4 poses.
-export function readScans(dir) {
+function readScans(dir) {
   const poses = fs.readFileSync(path.join(dir, "poses.txt"), "utf8").trim().split("\n")
     .map((l) => l.trim().split(/\s+/).map(Number));
   const files = fs.readdirSync(path.join(dir, "velodyne")).filter((f) => f.endsWith(".bin")).sort();
@@ -124,7 +131,7 @@ const zstd = (bytes) => ({
   compressedData: new Uint8Array(execFileSync("zstd", ["-c", "-q"], { input: bytes, maxBuffer: 1 << 30 })),
 });
 
-async function writeMcap(file, options, fill) {
+async function writeMcap(file, options, fill) {  // file: relative to outDir, or absolute
   const buffer = new TempBuffer();
   const writer = new McapWriter({ writable: buffer, ...options });
   await writer.start({ profile: "ros2", library: "@mcap/core (bgkmap tests)" });
@@ -145,7 +152,7 @@ async function writeMcap(file, options, fill) {
   };
   await fill(add);
   await writer.end();
-  fs.writeFileSync(path.join(outDir, file), buffer.get());
+  fs.writeFileSync(path.resolve(outDir, file), buffer.get());
 }
 
 const PC2 = "sensor_msgs/msg/PointCloud2", TF = "tf2_msgs/msg/TFMessage";
@@ -192,6 +199,13 @@ async function chainScans(add, scans) {
 }
 
 const scans = readScans(seqDir);
+if (sequenceMode) {
+  const compressChunk = { none: undefined, lz4, zstd }[compressionName];
+  await writeMcap(path.resolve(outDir), { useChunks: true, chunkSize: 1 << 20, compressChunk },
+    (add) => directScans(add, scans, layoutBin));
+  console.log(`wrote ${scans.length} scans to ${outDir}`);
+  process.exit(0);
+}
 fs.mkdirSync(outDir, { recursive: true });
 const full = { useChunks: true, chunkSize: 1 << 20 };
 const bare = { useChunks: true, useStatistics: false, useSummaryOffsets: false, useChunkIndex: false,
@@ -203,4 +217,15 @@ await writeMcap("partial_zstd.mcap", { ...bare, compressChunk: zstd },
   (add) => directScans(add, scans, layoutBin, 2));
 await writeMcap("no_z.mcap", full, (add) => directScans(add, scans.slice(0, 1), (x) => layoutBin(x, { dropZ: true })));
 await writeMcap("unchunked.mcap", { useChunks: false }, (add) => directScans(add, scans, layoutBin));
-console.log(`wrote 5 recordings of ${scans.length} scans to ${outDir}`);
+// ROS 1: the header has a seq, time is {sec, nsec}.
+const bag = new Ros1BagWriter();
+for (let k = 0; k < scans.length; ++k) {
+  const ns = T0 + BigInt(k) * PERIOD;
+  const t = { sec: Number(ns / 1000000000n), nsec: Number(ns % 1000000000n) };
+  bag.add("/tf", "tf2_msgs/TFMessage", ns, { transforms: [{ header: { seq: k, stamp: t, frame_id: "map" },
+    child_frame_id: "os_sensor", transform: { translation: translation(scans[k].pose), rotation: quat(scans[k].pose) } }] });
+  bag.add("/points", "sensor_msgs/PointCloud2", ns, { header: { seq: k, stamp: t, frame_id: "os_sensor" },
+    ...layoutBin(scans[k].xyzi), is_dense: true });
+}
+fs.writeFileSync(path.join(outDir, "street.bag"), bag.bytes());
+console.log(`wrote 6 recordings of ${scans.length} scans to ${outDir}`);

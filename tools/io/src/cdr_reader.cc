@@ -29,8 +29,12 @@ template uint64_t LoadScalar<uint64_t>(const uint8_t*, bool);
 template float LoadScalar<float>(const uint8_t*, bool);
 template double LoadScalar<double>(const uint8_t*, bool);
 
-CdrReader::CdrReader(std::span<const uint8_t> bytes, std::string message)
-    : bytes_(bytes), message_(std::move(message)) {
+CdrReader::CdrReader(std::span<const uint8_t> bytes, std::string message, RosEncoding encoding)
+    : bytes_(bytes), message_(std::move(message)), ros1_(encoding == RosEncoding::kRos1) {
+  if (ros1_) {
+    pos_ = 0;
+    return;
+  }
   if (bytes_.size() < 4 || bytes_[0] != 0 || bytes_[1] > 1) {
     pos_ = bytes_.size();
     status_ = Status::DataLoss(
@@ -48,8 +52,8 @@ void CdrReader::Fail(const char* field, const std::string& why) {
 
 bool CdrReader::Take(size_t align, size_t size, const char* field, const uint8_t** out) {
   if (!status_.ok()) return false;
-  // Alignment counts from the end of the 4-byte encapsulation header.
-  const size_t aligned = 4 + (pos_ - 4 + align - 1) / align * align;
+  // Alignment counts from the end of the 4-byte encapsulation header; ROS 1 packs.
+  const size_t aligned = ros1_ ? pos_ : 4 + (pos_ - 4 + align - 1) / align * align;
   if (aligned > bytes_.size() || size > bytes_.size() - aligned) {
     Fail(field, fmt::format("message ends at byte {} (missing field or truncated)", bytes_.size()));
     return false;
@@ -87,6 +91,7 @@ std::string CdrReader::String(const char* field) {
   if (n == 0) return {};  // some writers omit the NUL of an empty string
   const uint8_t* p;
   if (!Take(1, n, field, &p)) return {};
+  if (ros1_) return std::string(reinterpret_cast<const char*>(p), n);
   if (p[n - 1] != 0) {
     Fail(field, "string without its terminating NUL");
     return {};

@@ -21,6 +21,7 @@ struct Coordinate {
 
 RosHeader ReadHeader(CdrReader& r) {
   RosHeader h;
+  if (r.ros1()) r.U32("header.seq");
   const int32_t sec = r.I32("header.stamp.sec");
   const uint32_t nanosec = r.U32("header.stamp.nanosec");
   h.stamp_ns = int64_t{sec} * 1'000'000'000 + nanosec;
@@ -54,8 +55,8 @@ float LoadCoordinate(const uint8_t* point, const Coordinate& c, bool big_endian)
 
 }  // namespace
 
-Result<PointCloud2> DecodePointCloud2(std::span<const uint8_t> cdr) {
-  CdrReader r(cdr, kPointCloud2Schema);
+Result<PointCloud2> DecodePointCloud2(std::span<const uint8_t> cdr, RosEncoding encoding) {
+  CdrReader r(cdr, kPointCloud2Schema, encoding);
   PointCloud2 cloud;
   cloud.header = ReadHeader(r);
   cloud.height = r.U32("height");

@@ -7,6 +7,7 @@
 
 #include "bgkmap/io/mcap_reader.h"
 #include "bgkmap/io/point_cloud2.h"
+#include "bgkmap/io/ros1_bag.h"
 #include "bgkmap/io/rosbag2_sqlite.h"
 #include "bgkmap/io/tf_buffer.h"
 
@@ -17,6 +18,10 @@ namespace fs = std::filesystem;
 
 std::span<const uint8_t> AsBytes(const std::string& s) {
   return {reinterpret_cast<const uint8_t*>(s.data()), s.size()};
+}
+
+RosEncoding EncodingOf(const RecordedMessage& m) {
+  return m.encoding == "ros1" ? RosEncoding::kRos1 : RosEncoding::kCdr;
 }
 
 std::string Extension(const fs::path& p) {
@@ -64,7 +69,7 @@ Result<TfBuffer> CollectTransforms(std::span<const RecordedMessage> messages,
     const RecordedMessage& m = messages[i];
     const bool is_static = m.topic == "/tf_static";
     if ((m.topic != "/tf" && !is_static) || m.type != kTfMessageSchema) continue;
-    Result<std::vector<StampedTransform>> ts = DecodeTfMessage(AsBytes(m.data));
+    Result<std::vector<StampedTransform>> ts = DecodeTfMessage(AsBytes(m.data), EncodingOf(m));
     Status s = ts.status();
     for (size_t k = 0; s.ok() && k < ts->size(); ++k) s = tf.Add((*ts)[k], is_static);
     if (!s.ok()) {
@@ -108,7 +113,7 @@ bool IsRosRecording(const std::string& path) {
   std::error_code ec;
   if (fs::is_directory(p, ec)) return fs::exists(p / "metadata.yaml", ec);
   const std::string ext = Extension(p);
-  return ext == ".mcap" || ext == ".db3";
+  return ext == ".mcap" || ext == ".db3" || ext == ".bag";
 }
 
 Result<std::vector<RecordedMessage>> ReadRecordedMessages(const std::string& path) {
@@ -121,8 +126,10 @@ Result<std::vector<RecordedMessage>> ReadRecordedMessages(const std::string& pat
   }
   std::vector<RecordedMessage> all;
   for (const std::string& file : files) {
-    Result<std::vector<RecordedMessage>> part =
-        Extension(file) == ".db3" ? ReadRosbag2Sqlite(file) : FromMcap(file);
+    const std::string ext = Extension(file);
+    Result<std::vector<RecordedMessage>> part = ext == ".db3"   ? ReadRosbag2Sqlite(file)
+                                                : ext == ".bag" ? ReadRos1Bag(file)
+                                                                : FromMcap(file);
     if (!part.ok()) return part.status();
     if (all.empty()) {
       all = std::move(part).value();
@@ -144,12 +151,12 @@ Result<RecordingScans> ExtractScans(std::span<const RecordedMessage> messages,
   for (size_t i = 0; i < messages.size(); ++i) {
     const RecordedMessage& m = messages[i];
     if (m.topic != out.topic) continue;
-    if (m.type != kPointCloud2Schema || m.encoding != "cdr") {
+    if (m.type != kPointCloud2Schema || (m.encoding != "cdr" && m.encoding != "ros1")) {
       return Status::InvalidArgument(fmt::format(
           "{}: message {} on {}: unknown schema '{}' in encoding '{}' (expected {} in cdr)", name,
           i, m.topic, m.type, m.encoding, kPointCloud2Schema));
     }
-    Result<PointCloud2> cloud = DecodePointCloud2(AsBytes(m.data));
+    Result<PointCloud2> cloud = DecodePointCloud2(AsBytes(m.data), EncodingOf(m));
     if (!cloud.ok()) {
       return Status::DataLoss(
           fmt::format("{}: message {} on {}: {}", name, i, m.topic, cloud.status().message()));

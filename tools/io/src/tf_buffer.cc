@@ -22,10 +22,12 @@ std::string Stamp(int64_t ns) {
 
 }  // namespace
 
-Result<std::vector<StampedTransform>> DecodeTfMessage(std::span<const uint8_t> cdr) {
-  CdrReader r(cdr, kTfMessageSchema);
+Result<std::vector<StampedTransform>> DecodeTfMessage(std::span<const uint8_t> cdr,
+                                                      RosEncoding encoding) {
+  CdrReader r(cdr, kTfMessageSchema, encoding);
   std::vector<StampedTransform> out(r.SequenceLength("transforms", 4 + 4 + 4 + 4 + 7 * 8));
   for (StampedTransform& t : out) {
+    if (r.ros1()) r.U32("transforms[].header.seq");
     const int32_t sec = r.I32("transforms[].header.stamp.sec");
     const uint32_t nanosec = r.U32("transforms[].header.stamp.nanosec");
     t.stamp_ns = int64_t{sec} * 1'000'000'000 + nanosec;

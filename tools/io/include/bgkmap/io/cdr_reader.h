@@ -3,6 +3,9 @@
 // to their own size counted from the end of that header. Strings are a uint32 length that
 // counts a terminating NUL, then the bytes; sequences a uint32 count, then the elements.
 //
+// The same reader reads ROS 1's serialization (`kRos1`): little-endian, no header, no
+// alignment, strings without the NUL.
+//
 // Reads never go past the buffer: the first short or malformed read records an error naming the
 // field, every later read returns zero, and status() reports the first error.
 #pragma once
@@ -16,11 +19,16 @@
 
 namespace bgkmap::io {
 
+// How a recording's messages are serialized.
+enum class RosEncoding { kCdr, kRos1 };
+
 class CdrReader {
  public:
   // `message` names the message in errors (e.g. "sensor_msgs/msg/PointCloud2").
-  CdrReader(std::span<const uint8_t> bytes, std::string message);
+  CdrReader(std::span<const uint8_t> bytes, std::string message,
+            RosEncoding encoding = RosEncoding::kCdr);
 
+  bool ros1() const { return ros1_; }
   bool big_endian() const { return big_endian_; }
   uint8_t U8(const char* field);
   bool Bool(const char* field);
@@ -46,6 +54,7 @@ class CdrReader {
   std::string message_;
   size_t pos_ = 4;
   bool big_endian_ = false;
+  bool ros1_ = false;
   Status status_;
 };
 

@@ -11,6 +11,7 @@
 
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
+#include "bgkmap/io/cdr_reader.h"
 
 namespace bgkmap::io {
 
@@ -29,6 +30,8 @@ struct PointCloud2 {
 
 // DataLoss naming the field on a truncated message, a missing x/y/z field, an unsupported x/y/z
 // type, or a data array too short for height, width, point_step and row_step.
-Result<PointCloud2> DecodePointCloud2(std::span<const uint8_t> cdr);
+// With RosEncoding::kRos1, ROS 1's sensor_msgs/PointCloud2 (its header has a seq first).
+Result<PointCloud2> DecodePointCloud2(std::span<const uint8_t> cdr,
+                                      RosEncoding encoding = RosEncoding::kCdr);
 
 }  // namespace bgkmap::io

@@ -4,7 +4,8 @@
 // its stamp is skipped and counted, never guessed.
 //
 // Recordings: an MCAP file (`.mcap`, rosbag2's default storage) or a rosbag2 SQLite file
-// (`.db3`), or a rosbag2 folder (`metadata.yaml` beside its storage files). The whole recording is
+// (`.db3`), or a rosbag2 folder (`metadata.yaml` beside its storage files), or a ROS 1 bag
+// (`.bag`, ros1_bag.h: the same clouds and TF in ROS 1's serialization). The whole recording is
 // read and every cloud decoded before anything is returned: a bad recording yields one error
 // line and no scans.
 #pragma once
@@ -23,7 +24,7 @@ namespace bgkmap::io {
 struct RecordedMessage {
   std::string topic;
   std::string type;      // e.g. "sensor_msgs/msg/PointCloud2"
-  std::string encoding;  // e.g. "cdr"
+  std::string encoding;  // "cdr" (ROS 2) or "ros1"
   std::string data;
 };
 

@@ -14,6 +14,7 @@
 
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
+#include "bgkmap/io/cdr_reader.h"
 
 namespace bgkmap::io {
 
@@ -29,7 +30,9 @@ struct StampedTransform {
 
 // DataLoss naming the field on a truncated or malformed message, or a non-finite or zero
 // quaternion.
-Result<std::vector<StampedTransform>> DecodeTfMessage(std::span<const uint8_t> cdr);
+// With RosEncoding::kRos1, ROS 1's tf2_msgs/TFMessage (or tf/tfMessage: the same fields).
+Result<std::vector<StampedTransform>> DecodeTfMessage(std::span<const uint8_t> cdr,
+                                                      RosEncoding encoding = RosEncoding::kCdr);
 
 class TfBuffer {
  public:
