@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <functional>
 #include <map>
+#include <tuple>
 
 #include "binary_file.h"
 
@@ -192,11 +193,11 @@ void McapWriter::WriteSummary(std::string& s, const std::vector<ChunkIndex>& chu
     for (const ChunkIndex& c : chunks) ChunkIndexRecord(s, c);
   });
   const uint64_t offsets_start = s.size();
-  for (const auto& [op, at, length] : groups) {
+  for (const auto& g : groups) {  // not a structured binding: clang 14 cannot capture those
     Record(s, kSummaryOffset, [&](Out& o) {
-      o.Int<uint8_t>(op);
-      o.Int<uint64_t>(at);
-      o.Int<uint64_t>(length);
+      o.Int<uint8_t>(std::get<0>(g));
+      o.Int<uint64_t>(std::get<1>(g));
+      o.Int<uint64_t>(std::get<2>(g));
     });
   }
   // The summary CRC covers the summary up to the footer's summary_crc field.
