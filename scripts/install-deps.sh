@@ -10,12 +10,14 @@ PACKAGES=(
   libeigen3-dev
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libgdal-dev gdal-bin libpng-dev
+  liblz4-dev libzstd-dev zlib1g-dev  # MCAP chunks (lz4, zstd) and CRC32: tools/io/mcap_*
   libgtest-dev libgmock-dev libbenchmark-dev
   libprotobuf-dev protobuf-compiler libgrpc++-dev libgrpc-dev protobuf-compiler-grpc
   libboost-dev
   libssl-dev openssl
   librocksdb-dev
   liboctomap-dev
+  librosbag-storage-dev  # ROS 1 .bag files: tools/io/ros1_bag.cc
   nats-server libnats-dev
   gnuplot-nox
   python3-grpcio python3-protobuf python3-numpy python3-pytest

@@ -224,3 +224,55 @@ TEST(KittiSequenceTest, ScanFileNames) {
 
 }  // namespace
 }  // namespace bgkmap::io
+
+namespace bgkmap::io {
+namespace {
+
+// A folder of PCD scans with poses.txt reads like the .bin folder: the street scans written as
+// binary PCD (x y z float32) give the same points bit for bit and the same poses.
+TEST(KittiSequenceTest, PcdFolderReadsLikeBinFolder) {
+  Result<KittiSequence> bins = KittiSequence::Open(kStreet);
+  ASSERT_TRUE(bins.ok());
+  TempDir dir;
+  fs::create_directories(dir.path() / "velodyne");
+  for (size_t k = 0; k < bins->size(); ++k) {
+    Result<Scan> s = bins->Read(k);
+    ASSERT_TRUE(s.ok());
+    std::string pcd = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " +
+                      std::to_string(s->points.size()) + "\nHEIGHT 1\nPOINTS " +
+                      std::to_string(s->points.size()) + "\nDATA binary\n";
+    pcd.append(reinterpret_cast<const char*>(s->points.data()), s->points.size() * sizeof(Point3f));
+    std::string name = KittiScanFileName(k);
+    name.replace(name.size() - 4, 4, ".pcd");
+    WriteBytes((dir.path() / "velodyne" / name).string(), pcd);
+  }
+  fs::copy_file(kStreet + "/poses.txt", dir.path() / "poses.txt");
+  Result<KittiSequence> pcds = KittiSequence::Open(dir.path().string());
+  ASSERT_TRUE(pcds.ok()) << pcds.status().message();
+  ASSERT_EQ(pcds->size(), bins->size());
+  for (size_t k = 0; k < bins->size(); ++k) {
+    Result<Scan> a = bins->Read(k), b = pcds->Read(k);
+    ASSERT_TRUE(a.ok() && b.ok()) << b.status().message();
+    ASSERT_EQ(a->points.size(), b->points.size());
+    EXPECT_EQ(std::memcmp(a->points.data(), b->points.data(), a->points.size() * sizeof(Point3f)),
+              0);
+    EXPECT_EQ(a->pose.rotation, b->pose.rotation);
+    EXPECT_EQ(a->pose.translation, b->pose.translation);
+  }
+  // A .bin among the .pcd files is refused, and so is a folder with neither (it used to be read
+  // as an empty sequence, "0 scans").
+  fs::copy_file(kStreet + "/velodyne/000000.bin", dir.path() / "velodyne" / "000000.bin");
+  Result<KittiSequence> mixed = KittiSequence::Open(dir.path().string());
+  ASSERT_FALSE(mixed.ok());
+  EXPECT_NE(mixed.status().message().find("mixes .bin and .pcd"), std::string::npos);
+  TempDir empty;
+  fs::create_directories(empty.path() / "velodyne");
+  WriteBytes(empty.Path("poses.txt"), "");
+  Result<KittiSequence> none = KittiSequence::Open(empty.path().string());
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.status().message().find("neither NNNNNN.bin nor NNNNNN.pcd"), std::string::npos)
+      << none.status().message();
+}
+
+}  // namespace
+}  // namespace bgkmap::io

@@ -12,6 +12,7 @@
 #include "bgkmap/io/png_preview.h"
 #include "bgkmap/io/progress_bar.h"
 #include "commands.h"
+#include "map_outputs.h"
 #include "scan_source.h"
 
 namespace bgkmap::cli {
@@ -27,6 +28,7 @@ struct BuildOptions {
   std::vector<double> bbox;
   std::vector<int> las_classes;
   std::string crs;
+  SourceOptions source;  // a recording's topic and map frame; LAS classes set below
   bool cog = false;
 };
 
@@ -64,7 +66,7 @@ int RunBuild(const BuildOptions& o) {
   if (!created.ok()) return Fail(created.status().message());
   TerrainMap& map = **created;
 
-  SourceOptions source_options;
+  SourceOptions source_options = o.source;
   for (int c : o.las_classes) {
     if (c < 0 || c > 255)
       return Usage("--classes: a LAS class is 0..255, got " + std::to_string(c));
@@ -72,6 +74,7 @@ int RunBuild(const BuildOptions& o) {
   }
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, source_options);
   if (!source.ok()) return Fail(source.status().message());
+  ReportSkipped("build", **source, source_options);
 
   ScanPointCounts total;
   StageTimes times;
@@ -119,7 +122,7 @@ int RunBuild(const BuildOptions& o) {
   io::GeoTiffOptions tiff;
   tiff.spatial_reference = !o.crs.empty() ? o.crs : (*source)->spatial_reference();
   tiff.cloud_optimized = o.cog;
-  if (Status s = io::WriteGeoTiff(raster, o.out, tiff); !s.ok()) return Fail(s.message());
+  if (Status s = WriteMapOutput(raster, o.out, tiff, {}); !s.ok()) return Fail(s.message());
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(raster, o.png); !s.ok()) return Fail(s.message());
   }
@@ -153,13 +156,19 @@ int RunBuild(const BuildOptions& o) {
 void RegisterBuildCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<BuildOptions>();
   CLI::App* cmd = app.add_subcommand("build",
-                                     "Map scans offline (a KITTI-like directory, an OctoMap "
-                                     ".graph, or a .las/.pcd cloud) into a GeoTIFF");
+                                     "Map scans offline (a KITTI-like directory, a ROS 2 "
+                                     "recording, an OctoMap .graph, or a .las/.pcd cloud) into a "
+                                     "GeoTIFF");
   cmd->add_option("input", o->input,
-                  "KITTI-like directory (velodyne/*.bin + poses.txt), .graph, .las or .pcd")
+                  "KITTI-like directory (velodyne/*.bin + poses.txt), ROS 2 recording (.mcap, "
+                  ".db3 or a rosbag2 folder; docs/ros2.md), .graph, .las or .pcd")
       ->required();
+  AddRecordingOptions(cmd, o->source);
   cmd->add_option("--config", o->config, "YAML map parameters (docs/configuration.md)");
-  cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
+  cmd->add_option("--out", o->out,
+                  "Output GeoTIFF; X.mcap: ROS 2 GridMap, OccupancyGrid and Nav2 Costmap; X.yaml: "
+                  "Nav2 map_server YAML + PGM (docs/ros2.md)")
+      ->required();
   cmd->add_option("--png", o->png, "Also write a PNG preview (hillshade + traversability)");
   cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
   cmd->add_option(

@@ -16,14 +16,16 @@ namespace {
 struct InsertOptions {
   ServerTarget server;
   std::string input, robot = "robot";
+  SourceOptions source;
   double rate_hz = 0;  // 0: as fast as flow control allows
   bool restart = false;
 };
 
 int RunInsert(const InsertOptions& o) {
   if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
-  Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input);
+  Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, o.source);
   if (!source.ok()) return Fail("insert", source.status().message());
+  ReportSkipped("insert", **source, o.source);
   Result<std::unique_ptr<Client>> connected = Connect(o.server);
   if (!connected.ok()) return Usage("insert", connected.status().message());
   Client& client = **connected;
@@ -134,9 +136,13 @@ int RunInsert(const InsertOptions& o) {
 
 void RegisterInsertCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<InsertOptions>();
-  CLI::App* cmd = app.add_subcommand("insert", "Stream a KITTI-like scan sequence to bgkmapd");
+  CLI::App* cmd = app.add_subcommand(
+      "insert", "Stream a KITTI-like scan sequence or a ROS 2 recording to bgkmapd");
   AddServerOption(cmd, o->server);
-  cmd->add_option("input", o->input, "KITTI-like directory")->required();
+  cmd->add_option("input", o->input,
+                  "KITTI-like directory, or a ROS 2 recording (.mcap, .db3, rosbag2 folder)")
+      ->required();
+  AddRecordingOptions(cmd, o->source);
   cmd->add_option("--robot", o->robot, "Robot id (sequence numbers are per robot)")
       ->capture_default_str();
   cmd->add_option("--rate", o->rate_hz,

@@ -1,4 +1,6 @@
 // `bgkmap query`: a region of the served map to a GeoTIFF (the band contract of `bgkmap build`).
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 
 #include "bgkmap/io/geotiff.h"
@@ -6,6 +8,7 @@
 #include "bgkmap/io/png_preview.h"
 #include "client_options.h"
 #include "commands.h"
+#include "map_outputs.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -17,6 +20,8 @@ struct QueryOptions {
   std::vector<std::string> layers;
   int stride = 1;
   std::string crs;
+  std::string frame_id = "map";
+  double robot_radius = 0;
   bool cog = false;
 };
 
@@ -25,6 +30,9 @@ int RunQuery(const QueryOptions& o) {
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
   if (!layers.ok()) return Usage("query", layers.status().message());
   if (o.stride < 1) return Usage("query", "--stride must be >= 1");
+  if (!(o.robot_radius >= 0) || !std::isfinite(o.robot_radius)) {
+    return Usage("query", "--robot-radius must be a finite number >= 0");
+  }
   Result<std::unique_ptr<Client>> connected = Connect(o.server);
   if (!connected.ok()) return Usage("query", connected.status().message());
   Client& client = **connected;
@@ -51,7 +59,13 @@ int RunQuery(const QueryOptions& o) {
     tiff.spatial_reference = info->georeference->crs;
     tiff.origin = info->georeference->origin;
   }
-  if (Status s = io::WriteGeoTiff(*r, o.out, tiff); !s.ok()) return Fail("query", s.message());
+  io::RosMapOptions ros;
+  ros.frame_id = o.frame_id;
+  ros.robot_radius = o.robot_radius;
+  ros.stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                     std::chrono::system_clock::now().time_since_epoch())
+                     .count();
+  if (Status s = WriteMapOutput(*r, o.out, tiff, ros); !s.ok()) return Fail("query", s.message());
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
   }
@@ -76,7 +90,16 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--bbox", o->bbox, "xmin,ymin,xmax,ymax in metres (default: the known bounds)")
       ->delimiter(',')
       ->expected(4);
-  cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
+  cmd->add_option("--out", o->out,
+                  "Output: a GeoTIFF; X.mcap: ROS 2 GridMap, OccupancyGrid and Nav2 Costmap; "
+                  "X.yaml: Nav2 map_server YAML + PGM (docs/ros2.md)")
+      ->required();
+  cmd->add_option("--frame-id", o->frame_id, ".mcap: the messages' frame_id")
+      ->capture_default_str();
+  cmd->add_option("--robot-radius", o->robot_radius,
+                  ".mcap: the costmap's cells within this many metres of a lethal cell are "
+                  "inscribed (253); 0: no inflation")
+      ->capture_default_str();
   cmd->add_option("--png", o->png, "Also write a PNG preview");
   cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
   cmd->add_option("--layers", o->layers, "Layers (default: the five bands of bgkmap build)")

@@ -1,12 +1,15 @@
 #include "scan_source.h"
 
+#include <CLI/CLI.hpp>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "bgkmap/io/kitti_sequence.h"
 #include "bgkmap/io/las_reader.h"
 #include "bgkmap/io/pcd_reader.h"
 #include "bgkmap/io/point_cloud.h"
+#include "bgkmap/io/ros_recording.h"
 #include "scan_graph_reader.h"
 
 namespace bgkmap::cli {
@@ -76,6 +79,44 @@ class GraphSource : public ScanSource {
   std::vector<GraphScan> scans_;
 };
 
+// The clouds of a ROS 2 recording, posed through its TF tree; all decoded when opened.
+class RecordingSource : public ScanSource {
+ public:
+  RecordingSource(std::string path, io::RecordingScans scans)
+      : path_(std::move(path)), scans_(std::move(scans)) {}
+  size_t size() const override { return scans_.scans.size(); }
+  Result<SourceScan> Read(size_t k) const override {
+    if (k >= size()) return Status::InvalidArgument("scan index out of range");
+    const io::RecordingScan& s = scans_.scans[k];
+    return SourceScan{s.points, s.pose, false, static_cast<double>(s.stamp_ns) * 1e-9};
+  }
+  std::string Describe() const override {
+    return "ROS 2 recording " + path_ + ", topic " + scans_.topic + " (" + std::to_string(size()) +
+           " clouds)";
+  }
+  size_t skipped() const override { return scans_.skipped; }
+  std::string first_skip() const override { return scans_.first_skip; }
+
+ private:
+  std::string path_;
+  io::RecordingScans scans_;
+};
+
+Result<std::unique_ptr<ScanSource>> OpenRecording(const std::string& path,
+                                                  const SourceOptions& options) {
+  Result<std::vector<io::RecordedMessage>> messages = io::ReadRecordedMessages(path);
+  if (!messages.ok()) return messages.status();
+  Result<io::RecordingScans> scans =
+      io::ExtractScans(*messages, {options.topic, options.map_frame}, path);
+  if (!scans.ok()) return scans.status();
+  if (scans->scans.empty()) {
+    return Status::InvalidArgument(path + ": no cloud on " + scans->topic +
+                                   " could be placed in frame '" + options.map_frame + "'" +
+                                   (scans->skipped ? " (" + scans->first_skip + ")" : ""));
+  }
+  return std::unique_ptr<ScanSource>(new RecordingSource(path, std::move(scans).value()));
+}
+
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -87,6 +128,7 @@ Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
                                                    const SourceOptions& options) {
   namespace fs = std::filesystem;
   std::error_code ec;
+  if (io::IsRosRecording(path)) return OpenRecording(path, options);
   if (fs::is_directory(path, ec)) {
     Result<io::KittiSequence> seq = io::KittiSequence::Open(path);
     if (!seq.ok()) return seq.status();
@@ -112,7 +154,22 @@ Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
     return std::unique_ptr<ScanSource>(new GraphSource(path, std::move(scans).value()));
   }
   return Status::InvalidArgument(
-      path + ": unknown input (expected a KITTI-like directory, .las, .pcd or .graph)");
+      path +
+      ": unknown input (expected a KITTI-like directory, .mcap, .db3, a rosbag2 folder, .las, "
+      ".pcd or .graph)");
+}
+
+void AddRecordingOptions(CLI::App* cmd, SourceOptions& options) {
+  cmd->add_option("--topic", options.topic,
+                  "Recording: the sensor_msgs/msg/PointCloud2 topic (default: the only one)");
+  cmd->add_option("--map-frame", options.map_frame, "Recording: the TF frame of the map")
+      ->capture_default_str();
+}
+
+void ReportSkipped(const char* command, const ScanSource& source, const SourceOptions& options) {
+  if (source.skipped() == 0) return;
+  std::fprintf(stderr, "bgkmap %s: skipped %zu clouds with no transform to '%s' (first: %s)\n",
+               command, source.skipped(), options.map_frame.c_str(), source.first_skip().c_str());
 }
 
 }  // namespace bgkmap::cli

@@ -1,5 +1,6 @@
-// Where the CLI's scans come from: a KITTI-like directory or an OctoMap scan graph (sequences of
-// posed scans), or a single georeferenced cloud (LAS, PCD), which is one scan in the map frame.
+// Where the CLI's scans come from: a KITTI-like directory, an OctoMap scan graph or a ROS 2
+// recording (sequences of posed scans), or a single georeferenced cloud (LAS, PCD), which is one
+// scan in the map frame.
 #pragma once
 
 #include <cmath>
@@ -10,6 +11,10 @@
 
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/status.h"
+
+namespace CLI {
+class App;
+}
 
 namespace bgkmap::cli {
 
@@ -22,6 +27,8 @@ struct SourceScan {
 
 struct SourceOptions {
   std::vector<uint8_t> las_classes;  // keep only these LAS classes (empty = all)
+  std::string topic;                 // a recording's PointCloud2 topic (empty: its only one)
+  std::string map_frame = "map";     // a recording's frame the scans are posed in
 };
 
 class ScanSource {
@@ -32,11 +39,22 @@ class ScanSource {
   virtual std::string Describe() const = 0;
   // The coordinate reference system the input declares (a LAS file's), or empty.
   virtual std::string spatial_reference() const { return {}; }
+  // Scans of the input that cannot be used and were left out (a recording's clouds with no
+  // transform to the map frame), and why the first one was.
+  virtual size_t skipped() const { return 0; }
+  virtual std::string first_skip() const { return {}; }
 };
 
-// Picks the reader from the path: a directory is KITTI-like, *.graph an OctoMap scan graph (one
-// scan per node), *.las and *.pcd are single clouds.
+// Picks the reader from the path: *.mcap, *.db3 and a folder with a metadata.yaml are ROS 2
+// recordings (io/ros_recording.h), another directory is KITTI-like, *.graph an OctoMap scan
+// graph (one scan per node), *.las and *.pcd are single clouds.
 Result<std::unique_ptr<ScanSource>> OpenScanSource(const std::string& path,
                                                    const SourceOptions& options = {});
+
+// Registers a recording's --topic and --map-frame on `cmd`, stored into `options`.
+void AddRecordingOptions(CLI::App* cmd, SourceOptions& options);
+
+// One stderr line "bgkmap <command>: skipped N clouds ..." if the source left scans out.
+void ReportSkipped(const char* command, const ScanSource& source, const SourceOptions& options);
 
 }  // namespace bgkmap::cli

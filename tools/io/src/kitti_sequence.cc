@@ -10,6 +10,7 @@
 #include <map>
 #include <system_error>
 
+#include "bgkmap/io/pcd_reader.h"
 #include "binary_file.h"
 
 namespace bgkmap::io {
@@ -24,15 +25,48 @@ constexpr size_t kRecordBytes = 4 * sizeof(float);
 
 bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
 
-// Scan number of "NNNNNN.bin" (digits only), or -1.
+// Scan number of "NNNNNN.bin" or "NNNNNN.pcd" (digits only), or -1.
 long long ScanNumber(const fs::path& p) {
-  if (p.extension() != ".bin") return -1;
+  if (p.extension() != ".bin" && p.extension() != ".pcd") return -1;
   const std::string stem = p.stem().string();
   if (stem.empty()) return -1;
   long long n = 0;
   auto [end, ec] = std::from_chars(stem.data(), stem.data() + stem.size(), n);
   if (ec != std::errc() || end != stem.data() + stem.size() || n < 0) return -1;
   return n;
+}
+
+// The scan files of `scan_dir` in order: numbered 0..n-1 without a gap, all .bin or all .pcd.
+// An empty folder is refused: zero scans would "succeed" with an empty map.
+Result<std::vector<std::string>> ListScans(const fs::path& scan_dir) {
+  std::error_code ec;
+  std::map<long long, std::string> numbered;
+  std::map<std::string, size_t> kinds;  // extension -> files
+  for (const auto& entry : fs::directory_iterator(scan_dir, ec)) {
+    const long long n = ScanNumber(entry.path());
+    if (n >= 0 && entry.is_regular_file()) {
+      numbered[n] = entry.path().string();
+      ++kinds[entry.path().extension().string()];
+    }
+  }
+  if (ec) return Status::IoError(scan_dir.string() + ": cannot list (" + ec.message() + ")");
+  if (numbered.empty()) {
+    return Status::DataLoss(scan_dir.string() +
+                            ": no scans (neither NNNNNN.bin nor NNNNNN.pcd files)");
+  }
+  if (kinds.size() > 1) {
+    return Status::DataLoss(scan_dir.string() + ": mixes .bin and .pcd scans; use one kind");
+  }
+  std::vector<std::string> paths;
+  for (const auto& [n, path] : numbered) {
+    if (n != static_cast<long long>(paths.size())) {
+      return Status::DataLoss(fmt::format("{}: scan {} is missing (found {} instead)",
+                                          scan_dir.string(), KittiScanFileName(paths.size()),
+                                          path));
+    }
+    paths.push_back(path);
+  }
+  return paths;
 }
 
 }  // namespace
@@ -77,23 +111,11 @@ Result<KittiSequence> KittiSequence::Open(const std::string& directory) {
   if (!fs::is_directory(scan_dir, ec))
     return Status::IoError(scan_dir.string() + ": not a directory");
 
-  std::map<long long, std::string> numbered;
-  for (const auto& entry : fs::directory_iterator(scan_dir, ec)) {
-    const long long n = ScanNumber(entry.path());
-    if (n >= 0 && entry.is_regular_file()) numbered[n] = entry.path().string();
-  }
-  if (ec) return Status::IoError(scan_dir.string() + ": cannot list (" + ec.message() + ")");
-
+  Result<std::vector<std::string>> scans = ListScans(scan_dir);
+  if (!scans.ok()) return scans.status();
   KittiSequence seq;
   seq.directory_ = directory;
-  for (const auto& [n, path] : numbered) {
-    if (n != static_cast<long long>(seq.scan_paths_.size())) {
-      return Status::DataLoss(fmt::format("{}: scan {} is missing (found {} instead)",
-                                          scan_dir.string(),
-                                          KittiScanFileName(seq.scan_paths_.size()), path));
-    }
-    seq.scan_paths_.push_back(path);
-  }
+  seq.scan_paths_ = std::move(scans).value();
 
   const std::string poses_path = (fs::path(directory) / "poses.txt").string();
   Result<std::string> text = internal::ReadWholeFile(poses_path);
@@ -161,6 +183,7 @@ Result<Scan> KittiSequence::Read(size_t k) const {
         fmt::format("{}: scan {} requested, sequence has {}", directory_, k, size()));
   }
   const std::string& path = scan_paths_[k];
+  if (fs::path(path).extension() == ".pcd") return ReadPcdScan(path, k);
   Result<std::string> bytes = internal::ReadWholeFile(path);
   if (!bytes.ok()) return bytes.status();
   if (bytes->size() % kRecordBytes != 0) {
@@ -175,6 +198,20 @@ Result<Scan> KittiSequence::Read(size_t k) const {
   scan.points.resize(n);
   for (size_t i = 0; i < n; ++i) {
     std::memcpy(&scan.points[i], bytes->data() + i * kRecordBytes, sizeof(Point3f));
+  }
+  return scan;
+}
+
+Result<Scan> KittiSequence::ReadPcdScan(const std::string& path, size_t k) const {
+  Result<PcdCloud> cloud = ReadPcd(path);
+  if (!cloud.ok()) return cloud.status();
+  Scan scan;
+  scan.pose = poses_[k];
+  if (!times_.empty()) scan.time_s = times_[k];
+  scan.points.reserve(cloud->points.size());
+  for (const Point3d& p : cloud->points) {
+    scan.points.push_back(
+        {static_cast<float>(p.x), static_cast<float>(p.y), static_cast<float>(p.z)});
   }
   return scan;
 }

@@ -2,6 +2,8 @@
 // {x, y, z, intensity}, sensor frame) and `<dir>/poses.txt` (line k = row-major 3x4 T_map_sensor
 // of scan k). Scan files must be numbered 0..n-1 without gaps so that file k pairs with line k.
 // An optional `<dir>/times.txt` (KITTI odometry) gives scan k's time in seconds on line k.
+// The scans may instead be PCD files, `<dir>/velodyne/NNNNNN.pcd` (pcd_reader.h: x, y, z in the
+// sensor frame), paired with poses.txt the same way; one kind per folder.
 #pragma once
 
 #include <cmath>
@@ -25,10 +27,11 @@ struct Scan {
 
 class KittiSequence {
  public:
-  // Lists the scans and parses every pose. Fails on a missing directory, a gap in the scan
-  // numbering, a poses.txt line without exactly 12 finite numbers, or fewer pose lines than
-  // scans. Extra pose lines are ignored. Likewise times.txt, if present: one finite number of
-  // seconds per line, at least one line per scan. Does not read the scans themselves.
+  // Lists the scans and parses every pose. Fails on a missing directory, a folder without
+  // scans or with both .bin and .pcd scans, a gap in the scan numbering, a poses.txt line
+  // without exactly 12 finite numbers, or fewer pose lines than scans. Extra pose lines are
+  // ignored. Likewise times.txt, if present: one finite number of seconds per line, at least one
+  // line per scan. Does not read the scans themselves.
   static Result<KittiSequence> Open(const std::string& directory);
 
   size_t size() const { return scan_paths_.size(); }
@@ -42,6 +45,8 @@ class KittiSequence {
   Result<Scan> Read(size_t k) const;
 
  private:
+  Result<Scan> ReadPcdScan(const std::string& path, size_t k) const;
+
   std::string directory_;
   std::vector<std::string> scan_paths_;
   std::vector<Pose> poses_;
