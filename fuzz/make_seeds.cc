@@ -17,6 +17,8 @@
 
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/io/kitti_sequence.h"
+#include "bgkmap/proto/compact_points.h"
+#include "bgkmap/proto/scan_codec.h"
 #include "bgkmap/storage/log_record.h"
 #include "bgkmap/storage/map_archive.h"
 #include "bgkmap/storage/tile_codec.h"
@@ -65,6 +67,20 @@ MapParams SmallTileParams() {
   return p;
 }
 
+// The compact point target's layout: step, count, order, the zstd frame.
+void CompactPointSeeds(const io::Scan& scan) {
+  const std::vector<Point3f> points = Every(scan.points, 200);
+  for (PointOrder order : {PointOrder::kScanOrder, PointOrder::kSpatialSort}) {
+    const CompactPoints c = Must(EncodeCompactPoints(points, kDefaultCompactStep, nullptr, order));
+    std::string bytes(13, '\0');
+    std::memcpy(bytes.data(), &c.step, 8);
+    std::memcpy(bytes.data() + 8, &c.count, 4);
+    bytes[12] = static_cast<char>(c.order);
+    Put("compact_points", order == PointOrder::kScanOrder ? "street_scan_order" : "street_sorted",
+        bytes + c.data);
+  }
+}
+
 void ScanRequestSeeds(const io::Scan& scan) {
   v1::Scan msg;
   msg.set_robot_id("alpha");
@@ -84,6 +100,8 @@ void ScanRequestSeeds(const io::Scan& scan) {
   Put("scan_request", "street_scan", std::string(1, '\0') + msg.SerializeAsString());
   msg.clear_points();
   Put("scan_request", "no_points", std::string(1, '\0') + msg.SerializeAsString());
+  ToProto(Must(EncodeCompactPoints(points, kDefaultCompactStep)), msg.mutable_compact_points());
+  Put("scan_request", "street_scan_compact", std::string(1, '\0') + msg.SerializeAsString());
 
   v1::RegionRequest region;
   region.mutable_box()->set_min_x(-10);
@@ -221,6 +239,7 @@ int main(int argc, char** argv) {
   const io::KittiSequence street = Must(io::KittiSequence::Open(data + "/ouster_os1_128_street"));
   const io::Scan scan = Must(street.Read(1));
   ScanRequestSeeds(scan);
+  CompactPointSeeds(scan);
   StorageSeeds(scan);
   LasSeeds(data);
   PcdSeeds(scan);

@@ -1,7 +1,7 @@
 // The server's request checks (server/src/rpc/request_checks.h) on arbitrary protobuf bytes,
 // with the default map parameters and limits, as the handlers call them:
-//   first byte even: the bytes are a v1::Scan for PrepareScanMessage (robot id, packed points,
-//     pose; then the engine's scan preparation);
+//   first byte even: the bytes are a v1::Scan for PrepareScanMessage (robot id, packed or
+//     compact points, pose; then the engine's scan preparation);
 //   first byte odd:  a v1::RegionRequest for LayersFromProto and RegionCells (stride up to
 //     QueryRegion's 4096; limited as QueryRegion, unlimited as ClearRegion).
 // Never crashes; an accepted scan accounts for every point it was sent, and an accepted region
@@ -25,7 +25,9 @@ void CheckScan(const uint8_t* data, size_t size, const bgkmap::MapParams& params
   bgkmap::PreparedScan prepared;
   if (!bgkmap::PrepareScanMessage(scan, params, limits, &prepared).ok()) return;
   const bgkmap::ScanPointCounts& c = prepared.counts;
-  if (c.input != scan.points().size() / 12 ||
+  const uint64_t sent =
+      scan.has_compact_points() ? scan.compact_points().count() : scan.points().size() / 12;
+  if (c.input != sent ||
       c.kept + c.dropped_nonfinite + c.dropped_range + c.dropped_height + c.dropped_out_of_bounds !=
           c.input ||
       prepared.cells.size() > c.kept) {

@@ -9,8 +9,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
-TARGETS=(scan_request tile_codec log_record map_archive las_reader pcd_reader scan_graph
-  mcap_reader cdr_reader)
+TARGETS=(scan_request compact_points tile_codec log_record map_archive las_reader pcd_reader
+  scan_graph mcap_reader cdr_reader)
 DIR=build-fuzz
 bash scripts/install-deps.sh
 CXX_CLANG=$(command -v clang++-14 || command -v clang++ || true)

@@ -16,11 +16,13 @@ PACKAGES=(
   libboost-dev
   libssl-dev openssl
   librocksdb-dev
+  libzstd-dev  # the compact point encoding (proto/codec/compact_points.h)
   liboctomap-dev
   librosbag-storage-dev  # ROS 1 .bag files: tools/io/ros1_bag.cc
   nats-server libnats-dev
   gnuplot-nox
   python3-grpcio python3-protobuf python3-numpy python3-pytest
+  python3-zstandard  # the Python client's compact scans (client/python/bgkmap/_codec.py)
   chromium chromium-driver
 )
 

@@ -13,16 +13,22 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "bgkmap/v1/map_service.grpc.pb.h"
 #include "proto_codec.h"
+#include "scan_encoding.h"
 
 namespace bgkmap {
 
+using client_codec::AddDroppedHere;
+using client_codec::EncodeScan;
 using client_codec::FromGrpc;
 using client_codec::FromProto;
+using client_codec::ScanEncoding;
 using client_codec::ToProto;
 
 namespace {
@@ -44,7 +50,8 @@ RpcStatus Malformed(const std::string& what) {
 
 class GrpcIngestStream final : public IngestStream {
  public:
-  GrpcIngestStream(v1::MapService::Stub& stub, const std::string& token) {
+  GrpcIngestStream(v1::MapService::Stub& stub, const std::string& token, ScanEncoding encoding)
+      : encoding_(std::move(encoding)) {
     AddToken(&context_, token);
     stream_ = stub.Ingest(&context_);
   }
@@ -57,7 +64,11 @@ class GrpcIngestStream final : public IngestStream {
 
   bool Send(const ScanData& scan) override {
     v1::Scan message;
-    ToProto(scan, &message);
+    const ScanPointCounts here = EncodeScan(scan, encoding_, &message);
+    {
+      std::lock_guard lock(dropped_mu_);
+      dropped_here_[{scan.robot_id, scan.sequence}] = here;
+    }
     std::lock_guard lock(write_mu_);
     if (send_closed_) return false;
     return stream_->Write(message);
@@ -67,6 +78,12 @@ class GrpcIngestStream final : public IngestStream {
     v1::ScanAck message;
     if (!stream_->Read(&message)) return false;
     *ack = FromProto(message);
+    std::lock_guard lock(dropped_mu_);
+    auto here = dropped_here_.find({ack->robot_id, ack->sequence});
+    if (here != dropped_here_.end()) {
+      if (ack->status == AckStatus::kApplied) AddDroppedHere(here->second, &ack->counts);
+      dropped_here_.erase(here);
+    }
     return true;
   }
 
@@ -92,6 +109,10 @@ class GrpcIngestStream final : public IngestStream {
  private:
   grpc::ClientContext context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::Scan, v1::ScanAck>> stream_;
+  const ScanEncoding encoding_;
+  std::mutex dropped_mu_;  // Send and ReadAck may run on two threads
+  // What each unacked scan lost before sending, by (robot, sequence).
+  std::map<std::pair<std::string, uint64_t>, ScanPointCounts> dropped_here_;
   std::mutex write_mu_;
   bool send_closed_ = false;
   bool finished_ = false;
@@ -142,6 +163,24 @@ struct Client::Impl {
   ClientOptions options;
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::MapService::Stub> stub;
+  std::mutex encoding_mu;
+  std::optional<ScanEncoding> encoding;  // asked for once
+
+  // How scans go out: the options, and the map's filters from one Info call.
+  ScanEncoding Encoding(Client& client) {
+    std::lock_guard lock(encoding_mu);
+    if (!encoding) {
+      ScanEncoding e;
+      e.step = options.compact_step;
+      if (options.drop_filtered_points) {
+        RpcResult<MapInfo> info = client.Info();
+        if (info.ok()) e.filter = info->params;
+        e.drop_height = options.drop_points_above_sensor;
+      }
+      encoding = e;
+    }
+    return *encoding;
+  }
 
   // The deadline and the token of a unary or region call.
   void SetDeadline(grpc::ClientContext* context) const {
@@ -181,17 +220,20 @@ bool Client::WaitForConnected(std::chrono::milliseconds timeout) {
 
 RpcResult<ScanAck> Client::Insert(const ScanData& scan) {
   v1::Scan request;
-  ToProto(scan, &request);
+  const ScanPointCounts here = EncodeScan(scan, impl_->Encoding(*this), &request);
   v1::ScanAck response;
   grpc::ClientContext context;
   impl_->SetDeadline(&context);
   grpc::Status status = impl_->stub->IngestScan(&context, request, &response);
   if (!status.ok()) return FromGrpc(status);
-  return FromProto(response);
+  ScanAck ack = FromProto(response);
+  if (ack.status == AckStatus::kApplied) AddDroppedHere(here, &ack.counts);
+  return ack;
 }
 
 std::unique_ptr<IngestStream> Client::OpenIngest() {
-  return std::make_unique<GrpcIngestStream>(*impl_->stub, impl_->options.token);
+  return std::make_unique<GrpcIngestStream>(*impl_->stub, impl_->options.token,
+                                            impl_->Encoding(*this));
 }
 
 RpcResult<std::vector<ScanAck>> Client::IngestAll(

@@ -1,8 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
+#include "bgkmap/core/point_filter.h"
 #include "bgkmap/core/scan.h"
 
 namespace bgkmap {
@@ -57,6 +59,56 @@ TEST(ScanPreparationTest, DropsAndCountsEveryKindOfBadPoint) {
   EXPECT_EQ(s->counts.dropped_range, 2u);
   EXPECT_EQ(s->counts.dropped_height, 1u);
   EXPECT_EQ(s->cells.size(), 1u);
+}
+
+// FilterSensorPoint is PrepareScan's filter to the last bit: points on either side of each
+// limit, under a tilted pose, decide alike, and the scan of only the kept points prepares to the
+// same cells. Catches a predicate that compares |p| instead of |p|^2, or the height before the
+// rotation.
+TEST(ScanPreparationTest, FilterSensorPointDecidesAsPrepareScan) {
+  MapParams p;
+  const Pose pose = Pose::FromQuaternion(0.995, 0.05, -0.08, 0.02, 3, -4, 1.7);
+  std::vector<Point3f> pts = {{kNaN, 0, 0}, {0, 0, kInf}};
+  for (float r : {0.999999f, 1.0f, 1.000001f, 99.99999f, 100.0f, 100.00001f}) {
+    for (float z : {-1.0f, 0.0f, 0.2f, 0.4f, 0.45f, 0.5f, 0.55f, 0.6f, 3.0f}) {
+      for (float a : {0.0f, 0.7f, 2.1f, 3.5f, 5.0f}) {
+        const float h = std::sqrt(std::max(r * r - z * z, 0.0f));
+        pts.push_back({h * std::cos(a), h * std::sin(a), z});
+      }
+    }
+  }
+  ScanPointCounts counts;
+  std::vector<Point3f> kept;
+  for (const Point3f& q : pts) {
+    switch (FilterSensorPoint(p, pose, q)) {
+      case PointFilter::kNonFinite:
+        ++counts.dropped_nonfinite;
+        break;
+      case PointFilter::kRange:
+        ++counts.dropped_range;
+        break;
+      case PointFilter::kHeight:
+        ++counts.dropped_height;
+        break;
+      case PointFilter::kKept:
+        kept.push_back(q);
+        break;
+    }
+  }
+  Result<PreparedScan> all = PrepareScan(p, pts, pose);
+  Result<PreparedScan> some = PrepareScan(p, kept, pose);
+  ASSERT_TRUE(all.ok() && some.ok());
+  EXPECT_EQ(all->counts.dropped_nonfinite, counts.dropped_nonfinite);
+  EXPECT_EQ(all->counts.dropped_range, counts.dropped_range);
+  EXPECT_EQ(all->counts.dropped_height, counts.dropped_height);
+  EXPECT_GT(counts.dropped_range, 0u);
+  EXPECT_GT(counts.dropped_height, 0u);
+  EXPECT_EQ(all->counts.kept, kept.size());
+  ASSERT_EQ(all->cells.size(), some->cells.size());
+  for (size_t i = 0; i < all->cells.size(); ++i) {
+    EXPECT_EQ(all->cells[i].cell, some->cells[i].cell);
+    EXPECT_EQ(all->cells[i].y, some->cells[i].y);  // bitwise
+  }
 }
 
 TEST(ScanPreparationTest, FrameIsMapSkipsSensorFilters) {

@@ -524,3 +524,37 @@ def test_region_to_xarray(client):
     assert isinstance(ds, xarray.Dataset)
     assert ds["elevation"].shape == (region.rows, region.cols)
     assert float(ds.y[0]) > float(ds.y[-1])  # north to south
+
+
+def _dequantized(points, step=0.002):
+    """The points the server integrates for a compact scan: float32(double(q) * step), q the
+    quantum the client chose (round to nearest; any integer would do, the map is q's)."""
+    xyz = points[:, :3].astype(np.float32).astype(np.float64)
+    return (np.round(xyz / step) * step).astype(np.float32)
+
+
+def test_compact_scans_give_the_map_of_the_dequantized_points(street):
+    """The Python client sends compact by default (docs/server.md "Compact scans"): its map is,
+    bit for bit, the map of the dequantized points sent as float32 by an old client, and every
+    point is counted in the ack. Catches an encoder whose planes or zigzag differ from the C++
+    decoder's (the scan is refused or its points move)."""
+    compact_server, float_server = BgkmapdProcess(), BgkmapdProcess()
+    try:
+        with compact_server.client() as new, float_server.client(compact_step=0) as old:
+            for k, (points, pose) in enumerate(street):
+                with_nan = points.copy()
+                with_nan[:3, 1] = np.nan
+                ack = new.insert(with_nan, pose, robot="r", seq=k + 1, stamp=1.0)
+                assert ack.status == "applied", ack
+                assert ack.counts["input"] == len(points)
+                assert ack.counts["dropped_nonfinite"] == 3
+                sent = _dequantized(points)
+                sent[:3, 1] = np.nan
+                assert old.insert(sent, pose, robot="r", seq=k + 1, stamp=1.0).status == "applied"
+            box = known_box(new.info())
+            a, f = new.query(box), old.query(box)
+            for layer in LAYERS:
+                assert a[layer].tobytes() == f[layer].tobytes(), layer
+    finally:
+        assert compact_server.stop() == 0
+        assert float_server.stop() == 0

@@ -6,7 +6,9 @@
 #include <cmath>
 #include <filesystem>
 
+#include "bgkmap/core/point_filter.h"
 #include "bgkmap/io/kitti_sequence.h"
+#include "bgkmap/proto/compact_points.h"
 
 namespace bgkmap::testing {
 
@@ -69,11 +71,35 @@ Pose WirePose(const ScanPose& p) {
   return Pose::FromQuaternion(p.qw / n, p.qx / n, p.qy / n, p.qz / n, p.tx, p.ty, p.tz);
 }
 
+std::vector<Point3f> PointsAsIntegrated(const OwnedScan& scan, const MapParams& params, Wire wire) {
+  if (wire == Wire::kFloat32) return scan.points;
+  // The client's steps, written out independently: quantize, drop what the map's range filter
+  // drops by the dequantized point (the height filter is left to the server), encode, and the
+  // server's decode.
+  const Pose pose = WirePose(scan.pose);
+  std::vector<Point3f> kept;
+  for (const Point3f& p : scan.points) {
+    QuantizedPoint q;
+    if (!QuantizePoint(p, kDefaultCompactStep, &q)) continue;
+    const PointFilter fate =
+        FilterSensorPoint(params, pose, DequantizePoint(q, kDefaultCompactStep));
+    if (fate == PointFilter::kKept || fate == PointFilter::kHeight) {
+      kept.push_back(p);
+    }
+  }
+  Result<CompactPoints> compact = EncodeCompactPoints(kept, kDefaultCompactStep);
+  EXPECT_TRUE(compact.ok());
+  Result<std::vector<Point3f>> decoded = DecodeCompactPoints(*compact, kept.size());
+  EXPECT_TRUE(decoded.ok());
+  return decoded.ok() ? std::move(decoded).value() : std::vector<Point3f>();
+}
+
 std::unique_ptr<TerrainMap> OfflineMap(const std::vector<const OwnedScan*>& scans,
-                                       const MapParams& params) {
+                                       const MapParams& params, Wire wire) {
   std::unique_ptr<TerrainMap> map = std::move(TerrainMap::Create(params)).value();
   for (const OwnedScan* s : scans) {
-    Result<ScanReport> r = map->IntegrateScan(s->points, WirePose(s->pose));
+    Result<ScanReport> r =
+        map->IntegrateScan(PointsAsIntegrated(*s, params, wire), WirePose(s->pose));
     EXPECT_TRUE(r.ok()) << r.status().ToString();
   }
   return map;

@@ -34,9 +34,20 @@ std::vector<OwnedScan> SubScans(const std::string& robot_id, int parts, size_t m
 // The pose the server builds from a wire pose (normalised quaternion).
 Pose WirePose(const ScanPose& pose);
 
-// An offline map of `scans` integrated in the given order with TerrainMap::IntegrateScan.
+// How a scan's points reach the server: as the client sends them by default (compact, without
+// the points the map drops anyway: docs/server.md "Compact scans"), or as packed float32.
+enum class Wire { kClientDefault, kFloat32 };
+
+// The points the server integrates for `scan` sent over `wire` to a map of `params`, in the
+// order it integrates them.
+std::vector<Point3f> PointsAsIntegrated(const OwnedScan& scan, const MapParams& params,
+                                        Wire wire = Wire::kClientDefault);
+
+// An offline map of `scans` integrated in the given order with TerrainMap::IntegrateScan, each
+// scan's points as the server integrates them after `wire`.
 std::unique_ptr<TerrainMap> OfflineMap(const std::vector<const OwnedScan*>& scans,
-                                       const MapParams& params = MapParams{});
+                                       const MapParams& params = MapParams{},
+                                       Wire wire = Wire::kClientDefault);
 
 // A fresh directory under the system's temporary directory, removed with everything in it.
 class TempDir {

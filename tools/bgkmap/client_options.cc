@@ -57,6 +57,7 @@ Result<std::unique_ptr<Client>> Connect(const ServerTarget& target) {
     *out = std::move(pem).value();
   }
   options.tls_server_name = target.tls_server_name;
+  if (target.float32_points) options.compact_step = 0;
   if (!target.token_file.empty()) {
     Result<std::string> token = ReadWhole("--token-file", target.token_file);
     if (!token.ok()) return token.status();

@@ -22,6 +22,7 @@ struct ServerTarget {
   std::string tls_key;
   std::string tls_server_name;  // --tls-server-name: the name the certificate carries
   std::string token_file;       // --token-file; else $BGKMAP_TOKEN holds the token itself
+  bool float32_points = false;  // --float32 (insert): packed float32, not the compact encoding
 };
 
 // Adds --server (host:port of bgkmapd; default $BGKMAP_SERVER, else kDefaultServer), --tls-ca,

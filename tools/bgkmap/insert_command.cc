@@ -150,6 +150,9 @@ void RegisterInsertCommand(CLI::App& app, int& exit_code) {
   cmd->add_flag("--restart", o->restart,
                 "Send from the first scan even if the server has seen this robot (they are "
                 "acknowledged as duplicates)");
+  cmd->add_flag("--float32", o->server.float32_points,
+                "Send the points as packed float32 (12 bytes each), not compact (quantized to "
+                "2 mm, zstd; docs/server.md \"Compact scans\")");
   cmd->callback([o, &exit_code] { exit_code = RunInsert(*o); });
 }
 

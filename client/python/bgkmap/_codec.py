@@ -93,6 +93,43 @@ def pack_points(points) -> bytes:
     return np.ascontiguousarray(array[:, :3], dtype=_F32).tobytes()
 
 
+# The compact point encoding (docs/server.md "Compact scans"), the C++ codec's scan order
+# (proto/codec/include/bgkmap/proto/compact_points.h). Needs Debian's python3-zstandard; without
+# it scans go as float32, which the server accepts as well.
+try:
+    import zstandard as _zstd
+except ImportError:  # pragma: no cover - install-deps installs it
+    _zstd = None
+
+COMPACT_STEP = 0.002  # metres, as the C++ client
+_SCAN_ORDER_LIMIT = 1 << 30
+
+
+def compact_points(points, step: float, out: ingest_pb2.CompactPoints) -> Optional[int]:
+    """Quantizes Nx3|Nx4 points to `step` and fills `out` in the scan order: per point the
+    zigzagged int32 difference to the previous one, as 12 byte planes (byte b of axis c for every
+    point, b outer, c inner), then zstd. Returns how many non-finite points were left out (the
+    server drops them anyway), or None if a point has no quantized value (|q| >= 2^30) or zstd is
+    missing: then the points must go as float32."""
+    if _zstd is None:
+        return None
+    xyz = np.asarray(points)[:, :3].astype(_F32).astype(np.float64)
+    finite = np.all(np.isfinite(xyz), axis=1)
+    # Any integer is a valid quantum: the server integrates float32(q * step), whatever q is.
+    q = np.round(xyz[finite] / step)
+    if q.size and np.max(np.abs(q)) >= _SCAN_ORDER_LIMIT:
+        return None
+    q = q.astype(np.int64)
+    d = np.diff(q, axis=0, prepend=np.zeros((1, 3), dtype=np.int64))
+    z = ((d << 1) ^ (d >> 63)).astype("<u4")
+    planes = z.view(np.uint8).reshape(len(z), 3, 4).transpose(2, 1, 0)
+    out.step = step
+    out.count = len(z)
+    out.order = ingest_pb2.POINT_ORDER_SCAN
+    out.data = _zstd.ZstdCompressor(level=3).compress(np.ascontiguousarray(planes).tobytes())
+    return int(np.count_nonzero(~finite))
+
+
 def quaternion_from_matrix(r: np.ndarray) -> tuple:
     """A 3x3 rotation matrix -> unit quaternion (w, x, y, z), as Eigen's conversion the C++ client
     uses (ScanPose::FromPose)."""
@@ -151,7 +188,9 @@ def _stamp_ns(stamp) -> int:
     return int(round(seconds * 1e9))
 
 
-def scan_message(points, pose, robot: str, seq: int, stamp=None) -> ingest_pb2.Scan:
+def scan_message(points, pose, robot: str, seq: int, stamp=None,
+                 compact_step: float = COMPACT_STEP) -> tuple:
+    """(the Scan message, how many non-finite points it left out). compact_step 0: float32."""
     scan = ingest_pb2.Scan()
     if not isinstance(robot, str):
         raise invalid_argument(f"robot: expected a string, got {type(robot).__name__}")
@@ -166,8 +205,23 @@ def scan_message(points, pose, robot: str, seq: int, stamp=None) -> ingest_pb2.S
     ns = _stamp_ns(stamp)
     scan.stamp.seconds, scan.stamp.nanos = divmod(ns, 1_000_000_000)
     set_pose(pose, scan.pose)
-    scan.points = pack_points(points)
-    return scan
+    packed = pack_points(points)  # checks the shape and type
+    if compact_step > 0:
+        left_out = compact_points(np.frombuffer(packed, dtype=_F32).reshape(-1, 3), compact_step,
+                                  scan.compact_points)
+        if left_out is not None:
+            return scan, left_out
+        scan.ClearField("compact_points")
+    scan.points = packed
+    return scan, 0
+
+
+def count_left_out(ack: ScanAck, nonfinite: int) -> ScanAck:
+    """The ack's counts as if the non-finite points left out had been sent."""
+    if nonfinite and ack.status == "applied":
+        ack.counts["input"] += nonfinite
+        ack.counts["dropped_nonfinite"] += nonfinite
+    return ack
 
 
 def ack_from_proto(a: ingest_pb2.ScanAck) -> ScanAck:

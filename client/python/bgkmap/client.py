@@ -95,6 +95,8 @@ class Client:
     credentials: grpc.ChannelCredentials for a TLS channel built by the caller instead of tls_*.
     max_message_bytes: largest message sent or accepted (the server's default limit is 64 MiB).
     options: further gRPC channel arguments, [(name, value), ...].
+    compact_step: scans go out compact, quantized to this step in metres, then zstd
+        (docs/server.md "Compact scans"; needs python3-zstandard); 0 sends float32 points.
     """
 
     def __init__(self, address: Optional[str] = None, *, timeout: Optional[float] = 60.0,
@@ -102,9 +104,11 @@ class Client:
                  tls_key: Optional[str] = None, tls_server_name: Optional[str] = None,
                  token: Optional[str] = None,
                  credentials: Optional[grpc.ChannelCredentials] = None,
-                 max_message_bytes: int = 64 << 20, options: Iterable = ()):
+                 max_message_bytes: int = 64 << 20, options: Iterable = (),
+                 compact_step: float = _codec.COMPACT_STEP):
         self.address = address or os.environ.get("BGKMAP_SERVER") or DEFAULT_SERVER
         self.timeout = timeout
+        self.compact_step = compact_step
         channel_options = [("grpc.max_receive_message_length", max_message_bytes),
                            ("grpc.max_send_message_length", max_message_bytes)]
         channel_options += list(options)
@@ -162,15 +166,18 @@ class Client:
     def insert(self, points, pose, robot: str, seq: int, stamp=None) -> ScanAck:
         """One scan (unary IngestScan).
 
-        points: Nx3 or Nx4 (x, y, z[, intensity]) in the sensor frame, sent as float32 x, y, z;
-        NaN or infinite points are dropped by the server and counted in ack.counts.
+        points: Nx3 or Nx4 (x, y, z[, intensity]) in the sensor frame, sent compact (x, y, z
+        quantized to compact_step; the map is that of the dequantized points) or as float32;
+        NaN or infinite points are dropped and counted in ack.counts.
         pose: T_map_sensor, 4x4 (or 3x4) matrix. robot, seq: robot id and its increasing
         sequence number (an old number is acked "duplicate" and not applied again).
         stamp: seconds since the epoch or an aware datetime; None: now.
         A rejected scan raises BgkmapError (INVALID_ARGUMENT: malformed or over a fixed limit;
         RESOURCE_EXHAUSTED: server load, retry later)."""
-        request = _codec.scan_message(points, pose, robot, seq, stamp)
-        return _codec.ack_from_proto(_rpc(self._stub.IngestScan, request, timeout=self.timeout))
+        request, left_out = _codec.scan_message(points, pose, robot, seq, stamp,
+                                                self.compact_step)
+        ack = _codec.ack_from_proto(_rpc(self._stub.IngestScan, request, timeout=self.timeout))
+        return _codec.count_left_out(ack, left_out)
 
     def insert_stream(self, scans: Iterable,
                       on_ack: Optional[Callable[[ScanAck], None]] = None) -> list:
@@ -194,12 +201,14 @@ class Client:
         Scans are sent while the iterator is consumed; leaving it early cancels the stream."""
         problem: list = []
         iterator = iter(scans)
+        left_out: dict = {}  # (robot, sequence) -> non-finite points not sent
 
         def requests():  # runs on gRPC's sending thread: keep exceptions for the caller
             index = 0
             while True:
                 try:
-                    message = _scan_to_message(next(iterator))
+                    message, dropped = _scan_to_message(next(iterator), self.compact_step)
+                    left_out[(message.robot_id, message.sequence)] = dropped
                 except StopIteration:
                     return
                 except BgkmapError as e:
@@ -214,7 +223,8 @@ class Client:
         call = self._stub.Ingest(requests())
         try:
             for message in call:
-                yield _codec.ack_from_proto(message)
+                dropped = left_out.pop((message.robot_id, message.sequence), 0)
+                yield _codec.count_left_out(_codec.ack_from_proto(message), dropped)
         except grpc.RpcError as e:
             raise BgkmapError.from_rpc_error(e) from None
         finally:
@@ -427,17 +437,20 @@ class Client:
     import_ = import_map
 
 
-def _scan_to_message(scan):
+def _scan_to_message(scan, compact_step: float):
     if isinstance(scan, Scan):
-        return _codec.scan_message(scan.points, scan.pose, scan.robot, scan.seq, scan.stamp)
+        return _codec.scan_message(scan.points, scan.pose, scan.robot, scan.seq, scan.stamp,
+                                   compact_step)
     if isinstance(scan, dict):
         try:
             return _codec.scan_message(scan["points"], scan["pose"], scan["robot"], scan["seq"],
-                                       scan.get("stamp"))
+                                       scan.get("stamp"), compact_step)
         except KeyError as e:
             raise invalid_argument(f"missing key {e.args[0]!r} (points, pose, robot, seq)") from None
     if isinstance(scan, (tuple, list)) and len(scan) in (4, 5):
-        return _codec.scan_message(*scan)
+        points, pose, robot, seq = scan[:4]
+        stamp = scan[4] if len(scan) == 5 else None
+        return _codec.scan_message(points, pose, robot, seq, stamp, compact_step)
     raise invalid_argument(
         f"expected a bgkmap.Scan, a dict or a (points, pose, robot, seq[, stamp]) tuple, "
         f"got {type(scan).__name__}")

@@ -22,4 +22,30 @@ ScanPointCounts FromProto(const v1::PointCounts& c) {
   return counts;
 }
 
+void ToProto(const CompactPoints& compact, v1::CompactPoints* out) {
+  out->set_step(compact.step);
+  out->set_count(compact.count);
+  out->set_order(compact.order == PointOrder::kSpatialSort ? v1::POINT_ORDER_SPATIAL_SORT
+                                                           : v1::POINT_ORDER_SCAN);
+  out->set_data(compact.data);
+}
+
+CompactPoints FromProto(const v1::CompactPoints& compact) {
+  CompactPoints out;
+  out.step = compact.step();
+  out.count = compact.count();
+  switch (compact.order()) {
+    case v1::POINT_ORDER_SCAN:
+      out.order = PointOrder::kScanOrder;
+      break;
+    case v1::POINT_ORDER_SPATIAL_SORT:
+      out.order = PointOrder::kSpatialSort;
+      break;
+    default:
+      out.order = static_cast<PointOrder>(0xff);
+  }
+  out.data = compact.data();
+  return out;
+}
+
 }  // namespace bgkmap

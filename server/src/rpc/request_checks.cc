@@ -5,6 +5,7 @@
 #include <sstream>
 #include <vector>
 
+#include "bgkmap/proto/scan_codec.h"
 #include "rpc/proto_convert.h"
 
 namespace bgkmap {
@@ -88,28 +89,57 @@ grpc::Status CheckCoordinate(double value, const std::string& field, const Serve
   return grpc::Status::OK;
 }
 
-grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
-                                const ServerLimits& limits, PreparedScan* out,
-                                std::shared_ptr<RawScan>* raw) {
-  if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) return s;
+namespace {
+
+// The scan's points in the sensor frame: the packed float32 ones as sent, or the compact ones
+// dequantized (docs/server.md "Compact scans"), within server.max_points_per_scan.
+grpc::Status ScanPoints(const v1::Scan& scan, const ServerLimits& limits,
+                        std::vector<Point3f>* points) {
   const std::string& bytes = scan.points();
+  if (scan.has_compact_points()) {
+    if (!bytes.empty()) {
+      return Invalid("points and compact_points: both set; send the points one way");
+    }
+    const uint32_t count = scan.compact_points().count();
+    if (count > limits.max_points_per_scan) {
+      return Invalid("compact_points.count: " + std::to_string(count) +
+                     " points exceed server.max_points_per_scan = " +
+                     std::to_string(limits.max_points_per_scan));
+    }
+    Result<std::vector<Point3f>> decoded =
+        DecodeCompactPoints(FromProto(scan.compact_points()), limits.max_points_per_scan);
+    if (!decoded.ok()) return Invalid(decoded.status().message());
+    *points = std::move(decoded).value();
+    return grpc::Status::OK;
+  }
   if (bytes.size() % kBytesPerPoint != 0) {
     return Invalid("points: " + std::to_string(bytes.size()) +
                    " bytes is not a multiple of 12 (packed little-endian float32 x, y, z)");
   }
   const size_t count = bytes.size() / kBytesPerPoint;
   if (count > limits.max_points_per_scan) {
-    return {grpc::StatusCode::INVALID_ARGUMENT, "points: " + std::to_string(count) +
-                                                    " points exceed server.max_points_per_scan = " +
-                                                    std::to_string(limits.max_points_per_scan)};
+    return Invalid("points: " + std::to_string(count) +
+                   " points exceed server.max_points_per_scan = " +
+                   std::to_string(limits.max_points_per_scan));
   }
+  static_assert(sizeof(Point3f) == kBytesPerPoint);
+  points->resize(count);
+  if (count > 0) std::memcpy(points->data(), bytes.data(), bytes.size());
+  return grpc::Status::OK;
+}
+
+}  // namespace
+
+grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
+                                const ServerLimits& limits, PreparedScan* out,
+                                std::shared_ptr<RawScan>* raw) {
+  if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) return s;
+  std::vector<Point3f> points;
+  if (grpc::Status s = ScanPoints(scan, limits, &points); !s.ok()) return s;
   if (!scan.has_pose()) return Invalid("pose: missing");
   Pose pose;
   if (grpc::Status s = CheckPose(scan.pose(), params, limits, &pose); !s.ok()) return s;
 
-  static_assert(sizeof(Point3f) == kBytesPerPoint);
-  std::vector<Point3f> points(count);
-  if (count > 0) std::memcpy(points.data(), bytes.data(), bytes.size());
   Result<PreparedScan> prepared = PrepareScan(params, points, pose);
   if (!prepared.ok()) return ToGrpcStatus(prepared.status());
   *out = std::move(prepared).value();
@@ -125,6 +155,7 @@ grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
     auto sent = std::make_shared<RawScan>();
     sent->pose = pose;
     sent->points = std::move(points);
+    if (scan.has_compact_points()) sent->quantum = scan.compact_points().step();
     *raw = std::move(sent);
   }
   return grpc::Status::OK;

@@ -16,8 +16,10 @@
 
 namespace bgkmap {
 
-// Checks a scan (robot id, packed points, pose) and prepares it. Pure: reads no map state.
-// `raw` (optional) receives the raw scan as sent, for a map that retains scans.
+// Checks a scan (robot id, packed float32 or compact points, pose) and prepares it. Pure: reads
+// no map state. Compact points are dequantized first (proto/codec's compact_points.h) and the
+// scan is prepared from exactly those points. `raw` (optional) receives the raw scan as
+// integrated, for a map that retains scans.
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
                                 const ServerLimits& limits, PreparedScan* out,
                                 std::shared_ptr<RawScan>* raw = nullptr);

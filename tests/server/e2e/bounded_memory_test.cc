@@ -224,7 +224,7 @@ TEST(BoundedMemoryTest, ReadersRacingEvictionSeeWholeScans) {
   std::unique_ptr<TerrainMap> map = std::move(TerrainMap::Create(MapParams{})).value();
   states.push_back(OfflineRegion(*map, box));
   for (const OwnedScan& s : scans) {
-    ASSERT_TRUE(map->IntegrateScan(s.points, WirePose(s.pose)).ok());
+    ASSERT_TRUE(map->IntegrateScan(PointsAsIntegrated(s, MapParams{}), WirePose(s.pose)).ok());
     states.push_back(OfflineRegion(*map, box));
   }
   for (const auto& [version, raster] : seen) {

@@ -224,7 +224,10 @@ TEST(PersistenceTest, ForgettingReplaysBitwiseAfterSigkill) {
   params.half_life_s = 1;
   std::unique_ptr<TerrainMap> offline = TerrainMap::Create(params).value();
   for (const auto& [scan, stamp] : order) {
-    ASSERT_TRUE(offline->IntegrateScan(scan->points, WirePose(scan->pose), false, stamp).ok());
+    ASSERT_TRUE(
+        offline
+            ->IntegrateScan(PointsAsIntegrated(*scan, params), WirePose(scan->pose), false, stamp)
+            .ok());
   }
   const Raster want = OfflineRegion(*offline, box);
   EXPECT_TRUE(RastersMatch(before, want, 0.0));
@@ -232,7 +235,9 @@ TEST(PersistenceTest, ForgettingReplaysBitwiseAfterSigkill) {
   // Forgetting changed the map: without it the same scans give another one.
   std::unique_ptr<TerrainMap> plain = TerrainMap::Create(MapParams{}).value();
   for (const auto& [scan, stamp] : order) {
-    ASSERT_TRUE(plain->IntegrateScan(scan->points, WirePose(scan->pose), false, stamp).ok());
+    ASSERT_TRUE(
+        plain->IntegrateScan(PointsAsIntegrated(*scan, params), WirePose(scan->pose), false, stamp)
+            .ok());
   }
   EXPECT_FALSE(BitwiseEqual(before, OfflineRegion(*plain, box)));
 
@@ -501,7 +506,8 @@ TEST(PersistenceTest, SigkillLosesNoAcknowledgedScanAndRecoveryIsExact) {
     for (size_t n = 0; n <= scans->size(); ++n) {
       if (n > 0) {
         const OwnedScan& s = (*scans)[n - 1];
-        ASSERT_TRUE(offline->IntegrateScan(s.points, WirePose(s.pose)).ok());
+        ASSERT_TRUE(
+            offline->IntegrateScan(PointsAsIntegrated(s, MapParams{}), WirePose(s.pose)).ok());
       }
       auto it = served->find(n);
       if (it == served->end()) continue;

@@ -140,7 +140,8 @@ TEST_F(BadInputTest, AbsurdCoordinates) {
 
 TEST_F(BadInputTest, TooManyPoints) {
   OwnedScan s = Good();
-  s.points.resize(60'000, Point3f{5, 5, -2});
+  // All within the map's range: the client sends (and the server counts) every one of them.
+  s.points.assign(60'000, Point3f{5, 5, -2});
   // A fixed per-request limit: INVALID_ARGUMENT (no retry outlasts it), not RESOURCE_EXHAUSTED.
   ExpectRejected(s.Data(), RpcCode::kInvalidArgument,
                  {"points", "60000", "server.max_points_per_scan = 50000"});

@@ -106,7 +106,8 @@ TEST(ClearRegionTest, ClearsAmongConcurrentScansApplyInVersionOrder) {
   std::unique_ptr<TerrainMap> offline = std::move(TerrainMap::Create(MapParams{})).value();
   for (const auto& [v, op] : ops) {
     if (const auto* s = std::get_if<const OwnedScan*>(&op)) {
-      ASSERT_TRUE(offline->IntegrateScan((*s)->points, WirePose((*s)->pose)).ok());
+      ASSERT_TRUE(
+          offline->IntegrateScan(PointsAsIntegrated(**s, MapParams{}), WirePose((*s)->pose)).ok());
     } else {
       offline->ClearBox(CellsOf(std::get<MetricBox>(op), 0.1));
     }

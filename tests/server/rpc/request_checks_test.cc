@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/proto/scan_codec.h"
+
 namespace bgkmap {
 namespace {
 
@@ -140,6 +142,71 @@ TEST(RequestChecksTest, AMalformedScanIsRefusedNamingTheField) {
   far.mutable_stamp()->set_seconds(std::numeric_limits<int64_t>::max());
   ASSERT_TRUE(PrepareScanMessage(far, params, ServerLimits{}, &out).ok());
   EXPECT_EQ(out.stamp_ns, 0);
+}
+
+// The scan's points in the compact encoding, quantized to `step`.
+v1::Scan Compact(v1::Scan scan, double step, PointOrder order) {
+  std::vector<Point3f> points(scan.points().size() / sizeof(Point3f));
+  std::memcpy(points.data(), scan.points().data(), scan.points().size());
+  scan.clear_points();
+  ToProto(*EncodeCompactPoints(points, step, nullptr, order), scan.mutable_compact_points());
+  return scan;
+}
+
+// The rule of docs/server.md "Compact scans": a compact scan is prepared from exactly its
+// dequantized points, in the order they decode, and those are what is retained.
+TEST(RequestChecksTest, ACompactScanIsPreparedFromItsDequantizedPoints) {
+  const MapParams params;
+  const ServerLimits limits;
+  for (PointOrder order : {PointOrder::kScanOrder, PointOrder::kSpatialSort}) {
+    const v1::Scan scan = Compact(GroundScan("r1", 300), 0.004, order);
+    PreparedScan prepared;
+    std::shared_ptr<RawScan> raw;
+    ASSERT_TRUE(PrepareScanMessage(scan, params, limits, &prepared, &raw).ok());
+    Result<std::vector<Point3f>> decoded =
+        DecodeCompactPoints(FromProto(scan.compact_points()), 300);
+    ASSERT_TRUE(decoded.ok());
+    ASSERT_EQ(raw->points.size(), 300u);
+    EXPECT_EQ(std::memcmp(raw->points.data(), decoded->data(), 300 * sizeof(Point3f)), 0);
+    Result<PreparedScan> engine = PrepareScan(params, *decoded, raw->pose);
+    ASSERT_TRUE(engine.ok());
+    EXPECT_EQ(prepared.counts.input, 300u);
+    ASSERT_EQ(prepared.cells.size(), engine->cells.size());
+    for (size_t i = 0; i < prepared.cells.size(); ++i) {
+      EXPECT_EQ(prepared.cells[i].cell, engine->cells[i].cell);
+      EXPECT_EQ(prepared.cells[i].y, engine->cells[i].y);  // bitwise
+    }
+  }
+}
+
+TEST(RequestChecksTest, AMalformedCompactScanIsRefusedNamingTheField) {
+  const MapParams params;
+  ServerLimits limits;
+  PreparedScan out;
+  const v1::Scan good = Compact(GroundScan("r1", 10), 0.002, PointOrder::kScanOrder);
+  v1::Scan both = good;
+  both.set_points(std::string(12, '\0'));
+  EXPECT_EQ(PrepareScanMessage(both, params, limits, &out).error_message(),
+            "points and compact_points: both set; send the points one way");
+  v1::Scan zero = good;
+  zero.mutable_compact_points()->set_step(0);
+  EXPECT_EQ(PrepareScanMessage(zero, params, limits, &out).error_message(),
+            "compact_points.step: 0 m must be finite and in (0, 0.01]");
+  v1::Scan nan = good;
+  nan.mutable_compact_points()->set_step(std::nan(""));
+  EXPECT_EQ(PrepareScanMessage(nan, params, limits, &out).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  v1::Scan truncated = good;
+  truncated.mutable_compact_points()->mutable_data()->pop_back();
+  EXPECT_TRUE(
+      StartsWith(PrepareScanMessage(truncated, params, limits, &out), "compact_points.data: "));
+  v1::Scan inflating = good;  // the frame holds 10 points, the count says 2
+  inflating.mutable_compact_points()->set_count(2);
+  EXPECT_EQ(PrepareScanMessage(inflating, params, limits, &out).error_message(),
+            "compact_points.data: inflates to 120 bytes, more than count allows (24)");
+  limits.max_points_per_scan = 5;
+  EXPECT_EQ(PrepareScanMessage(good, params, limits, &out).error_message(),
+            "compact_points.count: 10 points exceed server.max_points_per_scan = 5");
 }
 
 TEST(RequestChecksTest, ABoxCoversItsCellsHalfOpenAlignedToTheStride) {

@@ -46,6 +46,18 @@ struct ClientOptions {
   std::string tls_server_name;
   // Sent on every call as "authorization: Bearer <token>" (server.auth.tokens_file); "" = none.
   std::string token;
+  // Scans go out compact (docs/server.md "Compact scans"): quantized in the sensor frame to this
+  // step (metres, in (0, 0.01]), then zstd; the map is that of the dequantized points. 0 sends
+  // packed float32, 12 bytes a point.
+  double compact_step = 0.002;
+  // Before sending, drop the points the map drops anyway whatever the pose: non-finite ones and
+  // those outside [min_range, max_range] (the map's, read once by Info; without the right to call
+  // Info, only non-finite ones). Acks count them as if they had been sent.
+  bool drop_filtered_points = true;
+  // Also drop the points above max_height_above_sensor under the pose sent. Off by default: a
+  // later pose correction re-prepares the retained points with the new pose, and may keep some
+  // of these (docs/server.md "Compact scans").
+  bool drop_points_above_sensor = false;
 };
 
 // A rectangle in the map frame, metres; regions cover the cells meeting [min, max).

@@ -1,0 +1,258 @@
+#include "bgkmap/proto/compact_points.h"
+
+#include <zstd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+namespace bgkmap {
+namespace {
+
+constexpr int64_t kScanOrderLimit = int64_t{1} << 30;  // |q| below it: deltas fit int32
+constexpr int64_t kMortonOffset = int64_t{1} << 20;    // 21 bits per axis
+constexpr size_t kBytesPerScanOrderPoint = 12;
+constexpr size_t kMaxVarintBytes = 10;
+constexpr int kZstdLevel = 3;
+
+Status CheckStep(double step) {
+  if (!std::isfinite(step) || !(step > 0.0) || step > kMaxCompactStep) {
+    std::ostringstream m;
+    m << "compact_points.step: " << step << " m must be finite and in (0, " << kMaxCompactStep
+      << "]";
+    return Status::InvalidArgument(m.str());
+  }
+  return Status::Ok();
+}
+
+uint32_t ZigZag(int64_t d) { return static_cast<uint32_t>((d << 1) ^ (d >> 63)); }
+int64_t UnZigZag(uint32_t z) { return static_cast<int64_t>(z >> 1) ^ -static_cast<int64_t>(z & 1); }
+
+// Spreads the low 21 bits of v to every third bit.
+uint64_t Spread(uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+uint64_t Compact(uint64_t v) {
+  v &= 0x1249249249249249ULL;
+  v = (v ^ (v >> 2)) & 0x10c30c30c30c30c3ULL;
+  v = (v ^ (v >> 4)) & 0x100f00f00f00f00fULL;
+  v = (v ^ (v >> 8)) & 0x1f0000ff0000ffULL;
+  v = (v ^ (v >> 16)) & 0x1f00000000ffffULL;
+  v = (v ^ (v >> 32)) & 0x1fffff;
+  return v;
+}
+
+std::string ScanOrderBytes(const std::span<const QuantizedPoint> points) {
+  const size_t n = points.size();
+  std::string out(n * kBytesPerScanOrderPoint, '\0');
+  int64_t prev[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const uint32_t z = ZigZag(points[i].q[c] - prev[c]);
+      prev[c] = points[i].q[c];
+      for (int b = 0; b < 4; ++b) out[(b * 3 + c) * n + i] = static_cast<char>(z >> (8 * b));
+    }
+  }
+  return out;
+}
+
+std::string SpatialSortBytes(const std::span<const QuantizedPoint> points) {
+  std::vector<uint64_t> keys;
+  keys.reserve(points.size());
+  for (const QuantizedPoint& p : points) {
+    uint64_t key = 0;
+    for (int c = 0; c < 3; ++c) key |= Spread(static_cast<uint64_t>(p.q[c] + kMortonOffset)) << c;
+    keys.push_back(key);
+  }
+  std::sort(keys.begin(), keys.end());
+  std::string out;
+  out.reserve(keys.size() * 3);
+  uint64_t prev = 0;
+  for (uint64_t key : keys) {
+    uint64_t d = key - prev;
+    prev = key;
+    while (d >= 0x80) {
+      out.push_back(static_cast<char>(d | 0x80));
+      d >>= 7;
+    }
+    out.push_back(static_cast<char>(d));
+  }
+  return out;
+}
+
+std::string Compress(const std::string& bytes) {
+  std::string out(ZSTD_compressBound(bytes.size()), '\0');
+  const size_t n = ZSTD_compress(out.data(), out.size(), bytes.data(), bytes.size(), kZstdLevel);
+  out.resize(ZSTD_isError(n) ? 0 : n);  // cannot fail with a bound-sized buffer
+  return out;
+}
+
+// Inflates into at most `capacity` bytes; a frame that needs more is refused unread.
+Result<std::string> Inflate(const std::string& data, size_t capacity) {
+  const unsigned long long declared = ZSTD_getFrameContentSize(data.data(), data.size());
+  if (declared == ZSTD_CONTENTSIZE_ERROR) {
+    return Status::InvalidArgument("compact_points.data: not a zstd frame");
+  }
+  if (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared > capacity) {
+    return Status::InvalidArgument("compact_points.data: inflates to " + std::to_string(declared) +
+                                   " bytes, more than count allows (" + std::to_string(capacity) +
+                                   ")");
+  }
+  std::string out(capacity, '\0');
+  const size_t n = ZSTD_decompress(out.data(), out.size(), data.data(), data.size());
+  if (ZSTD_isError(n)) {
+    return Status::InvalidArgument(std::string("compact_points.data: ") + ZSTD_getErrorName(n) +
+                                   " (inflating to at most " + std::to_string(capacity) +
+                                   " bytes, as count allows)");
+  }
+  out.resize(n);
+  return out;
+}
+
+Result<std::vector<Point3f>> DecodeScanOrder(const std::string& bytes, uint32_t count,
+                                             double step) {
+  const size_t n = count;
+  if (bytes.size() != n * kBytesPerScanOrderPoint) {
+    return Status::InvalidArgument(
+        "compact_points.data: inflates to " + std::to_string(bytes.size()) +
+        " bytes, not 12 x count = " + std::to_string(n * kBytesPerScanOrderPoint));
+  }
+  std::vector<Point3f> points(n);
+  int64_t q[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; ++i) {
+    float xyz[3];
+    for (int c = 0; c < 3; ++c) {
+      uint32_t z = 0;
+      for (int b = 0; b < 4; ++b) {
+        z |= static_cast<uint32_t>(static_cast<uint8_t>(bytes[(b * 3 + c) * n + i])) << (8 * b);
+      }
+      q[c] += UnZigZag(z);
+      if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) {
+        return Status::InvalidArgument("compact_points.data: point " + std::to_string(i) +
+                                       " leaves the quantized range |q| < 2^30");
+      }
+      xyz[c] = Dequantize(q[c], step);
+    }
+    points[i] = {xyz[0], xyz[1], xyz[2]};
+  }
+  return points;
+}
+
+Result<std::vector<Point3f>> DecodeSpatialSort(const std::string& bytes, uint32_t count,
+                                               double step) {
+  std::vector<Point3f> points;
+  points.reserve(count);
+  uint64_t key = 0;
+  size_t at = 0;
+  for (uint32_t i = 0; i < count; ++i) {
+    uint64_t d = 0;
+    for (int shift = 0;; shift += 7) {
+      if (at >= bytes.size() || shift > 63) {
+        return Status::InvalidArgument("compact_points.data: key " + std::to_string(i) +
+                                       " is truncated or over 64 bits");
+      }
+      const auto byte = static_cast<uint8_t>(bytes[at++]);
+      d |= static_cast<uint64_t>(byte & 0x7f) << shift;
+      if ((byte & 0x80) == 0) break;
+    }
+    if (__builtin_add_overflow(key, d, &key) || key >= (uint64_t{1} << 63)) {
+      return Status::InvalidArgument("compact_points.data: key " + std::to_string(i) +
+                                     " exceeds 63 bits");
+    }
+    float xyz[3];
+    for (int c = 0; c < 3; ++c) {
+      xyz[c] = Dequantize(static_cast<int64_t>(Compact(key >> c)) - kMortonOffset, step);
+    }
+    points.push_back({xyz[0], xyz[1], xyz[2]});
+  }
+  if (at != bytes.size()) {
+    return Status::InvalidArgument("compact_points.data: " + std::to_string(bytes.size() - at) +
+                                   " bytes after the last of count keys");
+  }
+  return points;
+}
+
+}  // namespace
+
+bool QuantizePoint(const Point3f& p, double step, QuantizedPoint* out) {
+  const double xyz[3] = {p.x, p.y, p.z};
+  for (int c = 0; c < 3; ++c) {
+    const double r = std::round(xyz[c] / step);
+    if (!(std::abs(r) < static_cast<double>(kScanOrderLimit))) return false;  // also NaN
+    out->q[c] = static_cast<int64_t>(r);
+  }
+  return true;
+}
+
+Result<CompactPoints> EncodeQuantizedPoints(std::span<const QuantizedPoint> points, double step,
+                                            std::optional<PointOrder> order) {
+  if (Status s = CheckStep(step); !s.ok()) return s;
+  if (points.size() > std::numeric_limits<uint32_t>::max()) {
+    return Status::InvalidArgument("points: more than 2^32 - 1 points");
+  }
+  bool fits_morton = true;
+  for (const QuantizedPoint& p : points) {
+    for (int64_t q : p.q) fits_morton = fits_morton && std::abs(q) < kMortonOffset;
+  }
+  CompactPoints out;
+  out.step = step;
+  out.count = static_cast<uint32_t>(points.size());
+  if (order != PointOrder::kSpatialSort || !fits_morton) {
+    out.data = Compress(ScanOrderBytes(points));
+  }
+  if (fits_morton && order != PointOrder::kScanOrder) {
+    std::string sorted = Compress(SpatialSortBytes(points));
+    if (out.data.empty() || sorted.size() < out.data.size()) {
+      out.order = PointOrder::kSpatialSort;
+      out.data = std::move(sorted);
+    }
+  }
+  return out;
+}
+
+Result<CompactPoints> EncodeCompactPoints(std::span<const Point3f> points, double step,
+                                          uint64_t* skipped, std::optional<PointOrder> order) {
+  if (Status s = CheckStep(step); !s.ok()) return s;
+  std::vector<QuantizedPoint> quantized;
+  quantized.reserve(points.size());
+  for (const Point3f& p : points) {
+    QuantizedPoint q;
+    if (QuantizePoint(p, step, &q)) quantized.push_back(q);
+  }
+  if (skipped != nullptr) *skipped = points.size() - quantized.size();
+  return EncodeQuantizedPoints(quantized, step, order);
+}
+
+Result<std::vector<Point3f>> DecodeCompactPoints(const CompactPoints& compact,
+                                                 uint64_t max_points) {
+  if (Status s = CheckStep(compact.step); !s.ok()) return s;
+  if (compact.count > max_points) {
+    return Status::InvalidArgument("compact_points.count: " + std::to_string(compact.count) +
+                                   " points exceed the limit of " + std::to_string(max_points));
+  }
+  if (compact.count == 0 && compact.data.empty()) return std::vector<Point3f>();
+  switch (compact.order) {
+    case PointOrder::kScanOrder: {
+      Result<std::string> bytes = Inflate(compact.data, compact.count * kBytesPerScanOrderPoint);
+      if (!bytes.ok()) return bytes.status();
+      return DecodeScanOrder(*bytes, compact.count, compact.step);
+    }
+    case PointOrder::kSpatialSort: {
+      Result<std::string> bytes = Inflate(compact.data, compact.count * kMaxVarintBytes);
+      if (!bytes.ok()) return bytes.status();
+      return DecodeSpatialSort(*bytes, compact.count, compact.step);
+    }
+  }
+  return Status::InvalidArgument(
+      "compact_points.order: " + std::to_string(static_cast<int>(compact.order)) + " is unknown");
+}
+
+}  // namespace bgkmap
