@@ -18,7 +18,7 @@ PACKAGES=(
   liboctomap-dev
   nats-server libnats-dev
   gnuplot-nox
-  python3-grpcio python3-protobuf python3-numpy python3-pytest
+  python3-grpcio python3-protobuf python3-numpy python3-pytest python3-pip python3-setuptools
   chromium chromium-driver
 )
 
