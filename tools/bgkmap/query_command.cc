@@ -1,11 +1,14 @@
 // `bgkmap query`: a region of the served map to a GeoTIFF (the band contract of `bgkmap build`).
 #include <cstdio>
 
+#include "bgkmap/io/crs_check.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/octomap_export.h"
 #include "bgkmap/io/png_preview.h"
+#include "bgkmap/io/qgis_style.h"
 #include "client_options.h"
 #include "commands.h"
+#include "output_file.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -17,20 +20,53 @@ struct QueryOptions {
   std::vector<std::string> layers;
   int stride = 1;
   std::string crs;
+  std::vector<double> origin;
   bool cog = false;
 };
+
+// --crs (checked already) with --origin, or the server's georeference.
+Result<io::GeoTiffOptions> TiffOptions(const QueryOptions& o, const MapInfo& info) {
+  io::GeoTiffOptions tiff;
+  tiff.cloud_optimized = o.cog;
+  if (o.crs.empty()) {
+    if (!o.origin.empty()) {
+      return Status::InvalidArgument("--origin places the map frame in a CRS: pass --crs too");
+    }
+    if (info.georeference) {
+      tiff.spatial_reference = info.georeference->crs;
+      tiff.origin = info.georeference->origin;
+    }
+    return tiff;
+  }
+  tiff.spatial_reference = o.crs;
+  for (size_t i = 0; i < o.origin.size(); ++i) tiff.origin[i] = o.origin[i];
+  return tiff;
+}
 
 int RunQuery(const QueryOptions& o) {
   // The command line first: a usage error is one whatever the server says.
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
   if (!layers.ok()) return Usage("query", layers.status().message());
   if (o.stride < 1) return Usage("query", "--stride must be >= 1");
+  if (!o.origin.empty() && o.origin.size() != 2 && o.origin.size() != 3) {
+    return Usage("query", "--origin: expected E,N or E,N,H");
+  }
+  Result<OutputKind> kind = OutputKindOf(o.out, "--out");
+  if (!kind.ok()) return Usage("query", kind.status().message());
+  if (!o.crs.empty()) {
+    // The map frame is local unless told where it lies: the server's georeference places it in
+    // its own CRS, not in --crs.
+    const io::CrsUse use{o.crs, "--crs", true, !o.origin.empty()};
+    if (Status s = io::CheckCrsUse(use); !s.ok()) return Usage("query", s.message());
+  }
   Result<std::unique_ptr<Client>> connected = Connect(o.server);
   if (!connected.ok()) return Usage("query", connected.status().message());
   Client& client = **connected;
   // Info gives the known bounds and where the map frame sits (server config `georeference`).
   RpcResult<MapInfo> info = client.Info();
   if (!info.ok()) return Fail("query", info.status().ToString());
+  Result<io::GeoTiffOptions> tiff = TiffOptions(o, *info);
+  if (!tiff.ok()) return Usage("query", tiff.status().message());
   MetricBox box;
   if (o.bbox.empty()) {  // default: everything the map knows
     if (info->known_cells == 0) return Fail("query", "the map is empty");
@@ -43,15 +79,13 @@ int RunQuery(const QueryOptions& o) {
   uint64_t version = 0;
   RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride}, &version);
   if (!r.ok()) return Fail("query", r.status().ToString());
-  io::GeoTiffOptions tiff;
-  tiff.cloud_optimized = o.cog;
-  if (!o.crs.empty()) {
-    tiff.spatial_reference = o.crs;  // the map frame is in this CRS as it is
-  } else if (info->georeference) {
-    tiff.spatial_reference = info->georeference->crs;
-    tiff.origin = info->georeference->origin;
+  if (*kind == OutputKind::kPng) {
+    if (Status s = io::WritePreviewPng(*r, o.out); !s.ok()) return Fail("query", s.message());
+  } else if (Status s = io::WriteGeoTiff(*r, o.out, *tiff); !s.ok()) {
+    return Fail("query", s.message());
+  } else if (Status q = io::WriteQgisStyle(r->layers, o.out); !q.ok()) {
+    return Fail("query", q.message());
   }
-  if (Status s = io::WriteGeoTiff(*r, o.out, tiff); !s.ok()) return Fail("query", s.message());
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
   }
@@ -76,7 +110,8 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--bbox", o->bbox, "xmin,ymin,xmax,ymax in metres (default: the known bounds)")
       ->delimiter(',')
       ->expected(4);
-  cmd->add_option("--out", o->out, "Output GeoTIFF")->required();
+  cmd->add_option("--out", o->out, "Output GeoTIFF (.tif); a .png name writes the PNG preview")
+      ->required();
   cmd->add_option("--png", o->png, "Also write a PNG preview");
   cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
   cmd->add_option("--layers", o->layers, "Layers (default: the five bands of bgkmap build)")
@@ -85,6 +120,10 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--crs", o->crs,
                   "Coordinate system of the map frame for the GeoTIFF (EPSG:code, WKT or PROJ); "
                   "default: the server's georeference");
+  cmd->add_option("--origin", o->origin,
+                  "E,N[,H]: where the map frame's origin lies in --crs (a projected --crs needs "
+                  "it)")
+      ->delimiter(',');
   cmd->add_flag("--cog", o->cog, "Write a Cloud-Optimized GeoTIFF (with overviews)");
   cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });
 }

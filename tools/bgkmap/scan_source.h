@@ -32,6 +32,9 @@ class ScanSource {
   virtual std::string Describe() const = 0;
   // The coordinate reference system the input declares (a LAS file's), or empty.
   virtual std::string spatial_reference() const { return {}; }
+  // Whether the map frame is the input's own local frame (a scan sequence: the first scan's
+  // pose) rather than the coordinates the input was given in (a cloud).
+  virtual bool map_frame_is_local() const { return true; }
 };
 
 // Picks the reader from the path: a directory is KITTI-like, *.graph an OctoMap scan graph (one
