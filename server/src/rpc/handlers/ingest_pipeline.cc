@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <memory>
 
 #include "bgkmap/server/log_safe.h"
@@ -11,6 +12,15 @@
 
 namespace bgkmap {
 namespace {
+
+// The scan's sensor position and heading (the yaw of its x axis) on the map's ground plane; the
+// pose was checked (unit quaternion) by PrepareScanMessage.
+RobotPose SensorPose(const v1::Scan& scan) {
+  const v1::Quaternion& q = scan.pose().rotation();
+  const double yaw =
+      std::atan2(2 * (q.w() * q.z() + q.x() * q.y()), 1 - 2 * (q.y() * q.y() + q.z() * q.z()));
+  return {scan.sequence(), scan.pose().translation().x(), scan.pose().translation().y(), yaw};
+}
 
 // The robot and sequence number every ack repeats.
 v1::ScanAck BaseAck(const v1::Scan& scan) {
@@ -144,9 +154,12 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
     done(RejectedAck(ctx, scan, s), s);
     return;
   }
-  ScanOrigin origin{scan.robot_id(), scan.sequence(),
-                    Stamp{scan.stamp().seconds(), scan.stamp().nanos()}, std::move(raw),
-                    [&scan] { return scan.SerializeAsString(); }};
+  ScanOrigin origin{scan.robot_id(),
+                    scan.sequence(),
+                    Stamp{scan.stamp().seconds(), scan.stamp().nanos()},
+                    std::move(raw),
+                    [&scan] { return scan.SerializeAsString(); },
+                    SensorPose(scan)};
   uint64_t last_sequence = 0;
   const RobotAdmission admission = ctx.map.SubmitScan(
       std::move(origin), prepared,
