@@ -21,7 +21,7 @@ PACKAGES=(
   librosbag-storage-dev  # ROS 1 .bag files: tools/io/ros1_bag.cc
   nats-server libnats-dev
   gnuplot-nox
-  python3-grpcio python3-protobuf python3-numpy python3-pytest
+  python3-grpcio python3-protobuf python3-numpy python3-pytest python3-pip python3-setuptools
   python3-zstandard  # the Python client's compact scans (client/python/bgkmap/_codec.py)
   chromium chromium-driver
 )

@@ -129,8 +129,8 @@ TEST(GeoreferencedQueryTest, QueryWritesTheServersCrsAndOrigin) {
   const std::string geo = (dir / "geo.tif").string(), local = (dir / "local.tif").string();
   const std::string box = " --bbox -10,-10,10,10";
   ASSERT_EQ(Cli("query --cog --out " + geo + box + s).exit_code, 0);
-  // --crs names the map frame's own system: no shift.
-  ASSERT_EQ(Cli("query --crs EPSG:32610 --out " + local + box + s).exit_code, 0);
+  // --crs with --origin 0,0: the map frame's coordinates taken as the CRS's, no shift.
+  ASSERT_EQ(Cli("query --crs EPSG:32610 --origin 0,0 --out " + local + box + s).exit_code, 0);
   const testing::CliRun info = testing::RunCommand("gdalinfo " + geo + " 2>&1");
   EXPECT_NE(info.output.find("ID[\"EPSG\",32610]"), std::string::npos) << info.output;
   EXPECT_NE(info.output.find("LAYOUT=COG"), std::string::npos) << info.output;

@@ -558,3 +558,26 @@ def test_compact_scans_give_the_map_of_the_dequantized_points(street):
     finally:
         assert compact_server.stop() == 0
         assert float_server.stop() == 0
+
+
+def test_a_region_over_the_server_limit_is_read_in_pieces_and_stitched(street, client):
+    """A server whose max_region_cells is far below the street map (20,000 cells, ~1% of it):
+    query splits the box into pieces of whole pixel blocks and stitches them into exactly the
+    region one read gives on a server without that limit, at strides 1 and 3 (mutation caught:
+    a piece placed a row off, or pieces not aligned with the stride's blocks)."""
+    small = BgkmapdProcess("--set", "server.max_region_cells=20000")
+    try:
+        with small.client() as c:
+            for k, (points, pose) in enumerate(street):
+                assert c.insert(points, pose, robot="street", seq=k + 1).status == "applied"
+            box = known_box(client.info())
+            for stride in (1, 3):
+                whole = client.query(box, layers=LAYERS, stride=stride)
+                stitched = c.query(box, layers=LAYERS, stride=stride)
+                assert stitched.cells == whole.cells and stitched.geotransform == whole.geotransform
+                for name in LAYERS:
+                    assert np.array_equal(stitched[name], whole[name], equal_nan=True), name
+            with pytest.raises(bgkmap.BgkmapError):
+                c.query((1, 1, 0, 0))  # still refused by the server, naming the box
+    finally:
+        assert small.stop() == 0

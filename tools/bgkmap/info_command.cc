@@ -58,6 +58,11 @@ int RunInfo(const ServerTarget& server) {
         {"max_path_poses", r->limits.max_path_poses},
         {"max_coordinate", r->limits.max_coordinate},
         {"max_message_bytes", r->limits.max_message_bytes}}}};
+  out["georeference"] = nullptr;  // a local frame
+  if (r->georeference.has_value()) {
+    const std::array<double, 3>& o = r->georeference->origin;
+    out["georeference"] = {{"crs", r->georeference->crs}, {"origin", {o[0], o[1], o[2]}}};
+  }
   if (r->storage.has_value()) {
     const StorageInfo& st = *r->storage;
     out["storage"] = {{"data_dir", st.data_dir},

@@ -5,12 +5,18 @@
 #include <cstdio>
 #include <string>
 
+#include "bgkmap/io/progress_bar.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"bgkmap: BGK terrain traversability maps for ground robots"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("bgkmap ") + BGKMAP_VERSION);
+  // --quiet anywhere on the line (fallthrough: also after the subcommand), before any bar is made.
+  app.add_flag_callback(
+         "--quiet,-q", [] { bgkmap::io::ProgressBar::SilenceAll(); }, "No progress bars on stderr")
+      ->trigger_on_parse();
+  app.fallthrough();
   int exit_code = 0;
   bgkmap::cli::RegisterBuildCommand(app, exit_code);
   bgkmap::cli::RegisterSimulateCommand(app, exit_code);

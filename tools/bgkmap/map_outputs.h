@@ -1,6 +1,5 @@
-// Where a queried or built region goes, by the output's extension: `.mcap` ROS 2 map messages
-// (io/ros_map_messages.h), `.yaml` Nav2 map_server's YAML + PGM (io/nav2_map_files.h), anything
-// else a GeoTIFF.
+// Writes a queried or built region where `--out` names it (output_file.h): a GeoTIFF with its QGIS
+// style beside it, a PNG preview, ROS 2 map messages or a Nav2 map.
 #pragma once
 
 #include <string>
@@ -12,10 +11,7 @@
 
 namespace bgkmap::cli {
 
-enum class MapOutputKind { kGeoTiff, kRosMcap, kNav2Yaml };
-
-MapOutputKind MapOutputKindOf(const std::string& path);
-
+// `path` must have passed OutputKindOf.
 Status WriteMapOutput(const Raster& raster, const std::string& path, const io::GeoTiffOptions& tiff,
                       const io::RosMapOptions& ros);
 

@@ -3,12 +3,14 @@
 #include <cmath>
 #include <cstdio>
 
+#include "bgkmap/io/crs_check.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/octomap_export.h"
 #include "bgkmap/io/png_preview.h"
 #include "client_options.h"
 #include "commands.h"
 #include "map_outputs.h"
+#include "output_file.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -20,10 +22,30 @@ struct QueryOptions {
   std::vector<std::string> layers;
   int stride = 1;
   std::string crs;
+  std::vector<double> origin;
   std::string frame_id = "map";
   double robot_radius = 0;
   bool cog = false;
 };
+
+// --crs (checked already) with --origin, or the server's georeference.
+Result<io::GeoTiffOptions> TiffOptions(const QueryOptions& o, const MapInfo& info) {
+  io::GeoTiffOptions tiff;
+  tiff.cloud_optimized = o.cog;
+  if (o.crs.empty()) {
+    if (!o.origin.empty()) {
+      return Status::InvalidArgument("--origin places the map frame in a CRS: pass --crs too");
+    }
+    if (info.georeference) {
+      tiff.spatial_reference = info.georeference->crs;
+      tiff.origin = info.georeference->origin;
+    }
+    return tiff;
+  }
+  tiff.spatial_reference = o.crs;
+  for (size_t i = 0; i < o.origin.size(); ++i) tiff.origin[i] = o.origin[i];
+  return tiff;
+}
 
 int RunQuery(const QueryOptions& o) {
   // The command line first: a usage error is one whatever the server says.
@@ -33,12 +55,25 @@ int RunQuery(const QueryOptions& o) {
   if (!(o.robot_radius >= 0) || !std::isfinite(o.robot_radius)) {
     return Usage("query", "--robot-radius must be a finite number >= 0");
   }
+  if (!o.origin.empty() && o.origin.size() != 2 && o.origin.size() != 3) {
+    return Usage("query", "--origin: expected E,N or E,N,H");
+  }
+  Result<OutputKind> kind = OutputKindOf(o.out, "--out");
+  if (!kind.ok()) return Usage("query", kind.status().message());
+  if (!o.crs.empty()) {
+    // The map frame is local unless told where it lies: the server's georeference places it in
+    // its own CRS, not in --crs.
+    const io::CrsUse use{o.crs, "--crs", true, !o.origin.empty()};
+    if (Status s = io::CheckCrsUse(use); !s.ok()) return Usage("query", s.message());
+  }
   Result<std::unique_ptr<Client>> connected = Connect(o.server);
   if (!connected.ok()) return Usage("query", connected.status().message());
   Client& client = **connected;
   // Info gives the known bounds and where the map frame sits (server config `georeference`).
   RpcResult<MapInfo> info = client.Info();
   if (!info.ok()) return Fail("query", info.status().ToString());
+  Result<io::GeoTiffOptions> tiff = TiffOptions(o, *info);
+  if (!tiff.ok()) return Usage("query", tiff.status().message());
   MetricBox box;
   if (o.bbox.empty()) {  // default: everything the map knows
     if (info->known_cells == 0) return Fail("query", "the map is empty");
@@ -51,21 +86,13 @@ int RunQuery(const QueryOptions& o) {
   uint64_t version = 0;
   RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride}, &version);
   if (!r.ok()) return Fail("query", r.status().ToString());
-  io::GeoTiffOptions tiff;
-  tiff.cloud_optimized = o.cog;
-  if (!o.crs.empty()) {
-    tiff.spatial_reference = o.crs;  // the map frame is in this CRS as it is
-  } else if (info->georeference) {
-    tiff.spatial_reference = info->georeference->crs;
-    tiff.origin = info->georeference->origin;
-  }
   io::RosMapOptions ros;
   ros.frame_id = o.frame_id;
   ros.robot_radius = o.robot_radius;
   ros.stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                      std::chrono::system_clock::now().time_since_epoch())
                      .count();
-  if (Status s = WriteMapOutput(*r, o.out, tiff, ros); !s.ok()) return Fail("query", s.message());
+  if (Status s = WriteMapOutput(*r, o.out, *tiff, ros); !s.ok()) return Fail("query", s.message());
   if (!o.png.empty()) {
     if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
   }
@@ -91,8 +118,9 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
       ->delimiter(',')
       ->expected(4);
   cmd->add_option("--out", o->out,
-                  "Output: a GeoTIFF; X.mcap: ROS 2 GridMap, OccupancyGrid and Nav2 Costmap; "
-                  "X.yaml: Nav2 map_server YAML + PGM (docs/ros2.md)")
+                  "Output GeoTIFF (.tif); X.png: the PNG preview; X.mcap: ROS 2 GridMap, "
+                  "OccupancyGrid and Nav2 Costmap; X.yaml: Nav2 map_server YAML + PGM "
+                  "(docs/ros2.md)")
       ->required();
   cmd->add_option("--frame-id", o->frame_id, ".mcap: the messages' frame_id")
       ->capture_default_str();
@@ -108,6 +136,10 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--crs", o->crs,
                   "Coordinate system of the map frame for the GeoTIFF (EPSG:code, WKT or PROJ); "
                   "default: the server's georeference");
+  cmd->add_option("--origin", o->origin,
+                  "E,N[,H]: where the map frame's origin lies in --crs (a projected --crs needs "
+                  "it)")
+      ->delimiter(',');
   cmd->add_flag("--cog", o->cog, "Write a Cloud-Optimized GeoTIFF (with overviews)");
   cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });
 }

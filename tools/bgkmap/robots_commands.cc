@@ -29,9 +29,9 @@ struct RetireOptions {
 
 int RunRetire(const RetireOptions& o) {
   if (!o.yes) {
-    return Fail("retire-robot",
-                "the robot's sequence number is forgotten (its next scan starts afresh); pass "
-                "--yes to confirm");
+    return Usage("retire-robot",
+                 "the robot's sequence number is forgotten (its next scan starts afresh); pass "
+                 "--yes to confirm");
   }
   Result<std::unique_ptr<Client>> connected = Connect(o.server);
   if (!connected.ok()) return Usage("retire-robot", connected.status().message());

@@ -53,6 +53,7 @@ class CloudSource : public ScanSource {
     return "point cloud " + path_ + " (" + std::to_string(scan_.points.size()) + " points)";
   }
   std::string spatial_reference() const override { return crs_; }
+  bool map_frame_is_local() const override { return false; }
 
  private:
   std::string path_;

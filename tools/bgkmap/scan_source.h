@@ -43,6 +43,9 @@ class ScanSource {
   // transform to the map frame), and why the first one was.
   virtual size_t skipped() const { return 0; }
   virtual std::string first_skip() const { return {}; }
+  // Whether the map frame is the input's own local frame (a scan sequence: the first scan's
+  // pose) rather than the coordinates the input was given in (a cloud).
+  virtual bool map_frame_is_local() const { return true; }
 };
 
 // Picks the reader from the path: *.mcap, *.db3 and a folder with a metadata.yaml are ROS 2

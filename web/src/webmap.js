@@ -17,6 +17,11 @@
       await new Promise((resolve) => setTimeout(resolve, 1000 * Math.min(after, 5)));
     }
   };
+  // The view in the address (docs/webmap.md): ?x=&y=&z= (metres, zoom), &layer= (a base layer),
+  // &still: no live stream, and data-ready="true" on <html> once the tiles and the fleet are drawn,
+  // so a headless browser can take the picture.
+  const params = new URLSearchParams(window.location.search);
+  const still = params.has('still');
   const info = await (await fetchRetrying('/map.json')).json();
   const res = info.resolution;
   // Map-local metres, y up (Leaflet's lat = y, lng = x); zoom 0 draws one map cell per pixel.
@@ -27,7 +32,7 @@
     crs, minZoom: info.min_zoom, maxZoom: info.max_zoom, zoomSnap: 1, attributionControl: false,
   });
   const hook = { map, info, events: 0, version: info.map_version, lastPoint: null, layers: {},
-    tileRetries: 0 };
+    tileRetries: 0, robots: [], ready: false, still };
   window.bgkmap = hook;  // for the browser test and the curious
 
   // A tile layer that can reload the tiles meeting a box of metres.
@@ -97,39 +102,68 @@
     'traversability variance': layer('traversability_variance', {}),
   };
   const overlays = { traversability: layer('traversability', { opacity: 0.55 }) };
-  base['elevation (hillshade)'].addTo(map);
+  const baseByName = { elevation: 'elevation (hillshade)', elevation_variance: 'elevation variance',
+    traversability_variance: 'traversability variance' };
+  const firstBase = base[baseByName[params.get('layer')] || 'elevation (hillshade)'];
+  firstBase.addTo(map);
   overlays.traversability.addTo(map);
   L.control.layers(base, overlays, { collapsed: false }).addTo(map);
   L.control.scale({ imperial: false }).addTo(map);
-  if (info.bounds) {
-    const b = info.bounds;
-    map.fitBounds([[b[1], b[0]], [b[3], b[2]]]);
+  const fleet = await loadFleet();
+  const view = ['x', 'y', 'z'].map((k) => Number(params.get(k)));
+  if (params.has('x') && params.has('y') && view.every(Number.isFinite)) {
+    map.setView([view[1], view[0]], params.has('z') ? view[2] : 0, { animate: false });
   } else {
-    map.setView([0, 0], 0);
+    map.fitBounds(firstView(fleet), { animate: false });
   }
+  addLegend(map, firstBase === base['elevation (hillshade)'] ? 'elevation' : params.get('layer'));
+  addCursor(map);
+  // The address follows the view, so a link (or a reload) shows the same place.
+  map.on('moveend zoomend baselayerchange', () => {
+    const c = map.getCenter();
+    const q = new URLSearchParams(window.location.search);
+    q.set('x', c.lng.toFixed(1));
+    q.set('y', c.lat.toFixed(1));
+    q.set('z', String(map.getZoom()));
+    window.history.replaceState(null, '', '?' + q.toString().replace(/still=(&|$)/, 'still$1'));
+  });
 
   const showStatus = (state) => {
     status.textContent = 'map version ' + hook.version + ' \u00b7 ' + state;
   };
   const visible = () => Object.values(hook.layers).filter((l) => map.hasLayer(l));
-  const events = new EventSource('/events');
-  let connectedBefore = false;
-  events.addEventListener('hello', (e) => {
-    const d = JSON.parse(e.data);
-    // Changes between the page's first tiles (or a lost connection) and now: reload everything.
-    if (connectedBefore || d.map_version !== hook.version) visible().forEach((l) => l.refreshAll(d.map_version));
-    connectedBefore = true;
-    hook.version = d.map_version;
-    showStatus('live');
-  });
-  events.addEventListener('tiles', (e) => {
-    const d = JSON.parse(e.data);
-    hook.version = d.map_version;
-    hook.events += 1;
-    for (const l of visible()) d.tiles.forEach((box) => l.refreshBox(box, d.map_version));
-    showStatus('live');
-  });
-  events.onerror = () => showStatus('reconnecting...');
+  if (still) {
+    // A picture: every visible layer's tiles loaded, then the flag a headless browser waits for.
+    showStatus('still');
+    await Promise.all(visible().map((l) => new Promise((resolve) => {
+      if (!l.isLoading()) resolve(); else l.once('load', resolve);
+    })));
+    hook.ready = true;
+    document.documentElement.dataset.ready = 'true';
+  } else {
+    followEvents();
+  }
+  function followEvents() {
+    const events = new EventSource('/events');
+    let connectedBefore = false;
+    events.addEventListener('hello', (e) => {
+      const d = JSON.parse(e.data);
+      // Changes between the page's first tiles (or a lost connection) and now: reload everything.
+      if (connectedBefore || d.map_version !== hook.version) visible().forEach((l) => l.refreshAll(d.map_version));
+      connectedBefore = true;
+      hook.version = d.map_version;
+      showStatus('live');
+    });
+    events.addEventListener('tiles', (e) => {
+      const d = JSON.parse(e.data);
+      hook.version = d.map_version;
+      hook.events += 1;
+      for (const l of visible()) d.tiles.forEach((box) => l.refreshBox(box, d.map_version));
+      loadFleet();  // a scan moved its robot
+      showStatus('live');
+    });
+    events.onerror = () => showStatus('reconnecting...');
+  }
 
   // A click: the cell's values, as `bgkmap points x,y` prints them.
   const panel = document.getElementById('cell');
@@ -155,11 +189,118 @@
       const name = document.createElement('td');
       name.textContent = k;
       const value = document.createElement('td');
-      value.textContent = p[k] === null ? 'unknown' : String(p[k]);
+      value.textContent = formatValue(k, p[k]);
+      value.dataset.value = p[k] === null ? 'unknown' : String(p[k]);  // exact, as /points
       tr.append(name, value);
       return tr;
     }));
     panel.hidden = false;
     hook.lastPoint = answer;
   });
+
+  // The fleet: each robot's recent trajectory and an arrow at its latest pose, pointing along its
+  // heading (/robots.json, from the server's robot registry).
+  async function loadFleet() {
+    const reply = await fetchRetrying('/robots.json');
+    if (!reply.ok) return hook.robots;
+    const robots = (await reply.json()).robots;
+    hook.fleetLayer = hook.fleetLayer || L.layerGroup().addTo(map);
+    hook.fleetLayer.clearLayers();
+    robots.forEach((r, i) => {
+      if (!r.pose) return;
+      const color = robotColor(i);
+      L.polyline(r.trail.map(([x, y]) => [y, x]), { color, weight: 3, opacity: 0.9, interactive: false })
+        .addTo(hook.fleetLayer);
+      const deg = -r.pose.yaw * 180 / Math.PI;  // screen rotation is clockwise, yaw counter-clockwise
+      const icon = L.divIcon({
+        className: 'robot-marker',
+        iconSize: [28, 28],
+        html: `<svg width="28" height="28" viewBox="-14 -14 28 28" style="transform: rotate(${deg}deg)">` +
+          `<polygon points="12,0 -8,-8 -4,0 -8,8" fill="${color}" stroke="#fff" stroke-width="1.5"/></svg>`,
+      });
+      L.marker([r.pose.y, r.pose.x], { icon, keyboard: false })
+        .bindTooltip(r.id, { permanent: true, direction: 'right', offset: [12, 0], className: 'robot-label' })
+        .addTo(hook.fleetLayer);
+    });
+    hook.robots = robots;
+    return robots;
+  }
+
+  function robotColor(i) {
+    return ['#ff2bd6', '#2bd9ff', '#ffd21f', '#ffffff', '#8a5cff'][i % 5];
+  }
+
+  // The first view: where the robots went (their trajectories, 30 m around), within the known
+  // cells; else the known cells; else the origin. Stray far returns then do not shrink the map.
+  function firstView(robots) {
+    const b = info.bounds;
+    const known = b ? L.latLngBounds([[b[1], b[0]], [b[3], b[2]]]) : L.latLngBounds([[-20, -20], [20, 20]]);
+    const points = robots.flatMap((r) => r.trail.map(([x, y]) => [y, x]));
+    if (points.length === 0) return known;
+    const trail = L.latLngBounds(points);
+    const margin = 30;
+    const around = L.latLngBounds(
+      [trail.getSouth() - margin, trail.getWest() - margin],
+      [trail.getNorth() + margin, trail.getEast() + margin]);
+    if (!b || !known.intersects(around)) return around;
+    return L.latLngBounds(
+      [Math.max(around.getSouth(), known.getSouth()), Math.max(around.getWest(), known.getWest())],
+      [Math.min(around.getNorth(), known.getNorth()), Math.min(around.getEast(), known.getEast())]);
+  }
+
+  // A legend for the overlay (traversability) and the base layer shown.
+  function addLegend(m, baseName) {
+    const legend = L.control({ position: 'topleft' });
+    const ramps = {
+      traversability: ['traversability', 'linear-gradient(90deg, #1a9641, #ffffbf, #d7191c)',
+        '0 flat', '1 not traversable'],
+      elevation: ['elevation: hillshade, light from the north-west', 'linear-gradient(90deg, #222, #eee)',
+        'shade', 'light'],
+      variance: ['standard deviation', 'linear-gradient(90deg, #08306b, #00e5ff, #ffffff)', '0', '0.5'],
+    };
+    const row = ([title, gradient, lo, hi]) =>
+      `<div class="legend-title">${title}</div><div class="legend-ramp" style="background:${gradient}"></div>` +
+      `<div class="legend-ends"><span>${lo}</span><span>${hi}</span></div>`;
+    legend.onAdd = () => {
+      const div = L.DomUtil.create('div', 'panel legend');
+      div.id = 'legend';
+      const draw = (name) => {
+        const baseRamp = name === 'elevation' ? ramps.elevation : ramps.variance;
+        div.innerHTML = row(ramps.traversability) + row(baseRamp) +
+          '<div class="legend-title">robots: arrow = heading, line = recent path</div>';
+      };
+      draw(baseName || 'elevation');
+      m.on('baselayerchange', (e) => draw(e.name.startsWith('elevation (') ? 'elevation' : 'variance'));
+      return div;
+    };
+    legend.addTo(m);
+  }
+
+  // The map-frame coordinates under the cursor.
+  function addCursor(m) {
+    const cursor = L.control({ position: 'topright' });
+    cursor.onAdd = () => {
+      const div = L.DomUtil.create('div', 'panel cursor');
+      div.id = 'cursor';
+      div.textContent = 'x, y (map frame, m)';
+      m.on('mousemove', (e) => {
+        div.textContent = 'x ' + e.latlng.lng.toFixed(2) + ' m, y ' + e.latlng.lat.toFixed(2) + ' m';
+      });
+      return div;
+    };
+    cursor.addTo(m);
+  }
+
+  // A value as a person reads it: a few digits and its unit.
+  function formatValue(k, v) {
+    if (v === null) return 'unknown';
+    switch (k) {
+      case 'elevation': return v.toFixed(2) + ' m';
+      case 'elevation_variance': return v.toPrecision(2) + ' m\u00b2 (\u03c3 ' + Math.sqrt(v).toFixed(3) + ' m)';
+      case 'traversability': return v.toFixed(3) + ' (0 flat, 1 not traversable)';
+      case 'traversability_variance': return v.toPrecision(2);
+      case 'state': return ['unknown', 'traversable', 'not traversable'][v] || String(v);
+      default: return String(v);
+    }
+  }
 })();

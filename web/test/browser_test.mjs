@@ -2,7 +2,10 @@
 // playwright-core, against the real bgkmapd with the real street scans. Checks that
 //   1. the page draws map pixels (screenshot analysis), fetching nothing but loopback;
 //   2. a scan inserted afterwards appears on the page within 2 s (Server-Sent Events);
-//   3. a click shows the values `bgkmap points` prints for the clicked point.
+//   3. a click shows the values `bgkmap points` prints for the clicked point (rounded, with units;
+//      exact in the cell's data-value);
+//   4. the still view (?still&x=&y=&z=): no live stream, a ready flag once drawn, and in its
+//      picture the KITTI car's marker and trajectory drawn where the car was.
 // With BGKMAP_WEB_AUTH=1 the same over HTTPS with tokens (a certificate made by the openssl CLI):
 // the page is 401 before /login?token=, and everything above works with the cookie it sets.
 // Exit 0 pass, 1 fail, 77 skip (chromium missing). Environment: BGKMAPD, BGKMAP_CLI,
@@ -39,12 +42,12 @@ const check = (ok, what) => {
 
 const tmp = fs.mkdtempSync(path.join(os.tmpdir(), 'bgkmap_browser_'));
 // A KITTI-like directory holding some of the street scans, each pose moved by `dx` metres in x.
-function scanDir(name, indices, dx) {
+function scanDir(name, indices, dx, source = street) {
   const dir = path.join(tmp, name);
   fs.mkdirSync(path.join(dir, 'velodyne'), { recursive: true });
-  const poses = fs.readFileSync(path.join(street, 'poses.txt'), 'utf8').trim().split('\n');
+  const poses = fs.readFileSync(path.join(source, 'poses.txt'), 'utf8').trim().split('\n');
   const lines = indices.map((i, k) => {
-    fs.symlinkSync(path.join(street, 'velodyne', String(i).padStart(6, '0') + '.bin'),
+    fs.symlinkSync(path.join(source, 'velodyne', String(i).padStart(6, '0') + '.bin'),
       path.join(dir, 'velodyne', String(k).padStart(6, '0') + '.bin'));
     const v = poses[i].trim().split(/\s+/).map(Number);
     v[3] += dx;
@@ -101,6 +104,72 @@ const ports = await new Promise((resolve, reject) => {
 const insert = (dir, robot) =>
   execFileSync(cli, ['insert', dir, '--server', ports.grpc, '--robot', robot, ...cliAuth],
     { stdio: 'pipe' });
+
+// The still view of the KITTI car's drive (every other scan, 300 m west of the street): the page
+// opened at the car's trajectory with ?still, its ready flag awaited, and its screenshot checked
+// for the car's arrow at its last pose and its trajectory's line at its first, in the car's colour,
+// and not 15 m beside the drive (mutation: markers drawn at (x, y) swapped, or the trail left out).
+async function stillView(context, base, livePage) {
+  const kitti = path.join(process.env.BGKMAP_SHARED_DATA, 'kitti_raw_0048');
+  insert(scanDir('car', [0, 3, 6, 9, 12, 15, 18, 21], -300, kitti), 'car');
+  const fleet = await livePage.evaluate(() => fetch('/robots.json').then((r) => r.json())).catch(() => null);
+  const car = fleet && fleet.robots.find((r) => r.id === 'car');
+  check(car && car.trail.length === 8 && car.pose, `/robots.json has the car's 8 poses (${car && car.trail.length})`);
+  if (!car) return;
+  const [x0, y0] = car.trail[0];
+  const cx = (x0 + car.pose.x) / 2, cy = (y0 + car.pose.y) / 2;
+  const page = await context.newPage();
+  const opened = `${base}/?still&x=${cx.toFixed(1)}&y=${cy.toFixed(1)}&z=0`;
+  await page.goto(opened, { waitUntil: 'load' });
+  await page.waitForFunction(() => document.documentElement.dataset.ready === 'true', null, { timeout: 15000 });
+  await page.waitForTimeout(300);  // Leaflet fades tiles in
+  const png = await page.screenshot();
+  fs.writeFileSync('webmap-still.png', png);
+  const shot = decodePng(png);
+  const index = await page.evaluate(() => window.bgkmap.robots.findIndex((r) => r.id === 'car'));
+  const color = await page.evaluate((i) => ['#ff2bd6', '#2bd9ff', '#ffd21f', '#ffffff', '#8a5cff'][i % 5], index);
+  const rgb = [1, 3, 5].map((i) => parseInt(color.slice(i, i + 2), 16));
+  const near = async (x, y, radius) => {
+    const at = await page.evaluate(([lat, lng]) => window.bgkmap.map.latLngToContainerPoint([lat, lng]), [y, x]);
+    let n = 0;
+    for (let dy = -radius; dy <= radius; dy++) {
+      for (let dx = -radius; dx <= radius; dx++) {
+        const px = Math.round(at.x) + dx, py = Math.round(at.y) + dy;
+        if (px < 0 || py < 0 || px >= shot.width || py >= shot.height) continue;
+        const i = (py * shot.width + px) * 4;
+        const d = Math.abs(shot.rgba[i] - rgb[0]) + Math.abs(shot.rgba[i + 1] - rgb[1]) + Math.abs(shot.rgba[i + 2] - rgb[2]);
+        if (d < 60) n += 1;
+      }
+    }
+    return n;
+  };
+  const atPose = await near(car.pose.x, car.pose.y, 6);
+  const atStart = await near(x0, y0, 3);
+  // 15 m beside the drive's middle, across its direction.
+  const len = Math.hypot(car.pose.x - x0, car.pose.y - y0) || 1;
+  const sideX = cx - 15 * (car.pose.y - y0) / len, sideY = cy + 15 * (car.pose.x - x0) / len;
+  const beside = await near(sideX, sideY, 6);
+  log(`still view: ${atPose} marker pixels at the last pose, ${atStart} trail pixels at the first, ${beside} beside`);
+  check(atPose >= 20, `the car's arrow is drawn at its last pose (${atPose} pixels of ${color})`);
+  check(atStart >= 3, `the car's trajectory is drawn through its first pose (${atStart} pixels)`);
+  check(beside === 0, `nothing of the car 15 m beside its drive (${beside} pixels)`);
+  const status = await page.evaluate(() => document.getElementById('status').textContent);
+  check(status.includes('still'), `the status says still (${status})`);
+  const streamed = await page.evaluate(() =>
+    performance.getEntriesByType('resource').some((e) => e.name.includes('/events')));
+  check(!streamed, 'the still view opens no event stream');
+  const url = new URL(page.url());
+  check(url.searchParams.has('still') && url.searchParams.get('z') === '0',
+    `the address keeps the view (${url.search})`);
+  const legend = await page.evaluate(() => document.getElementById('legend').textContent);
+  check(legend.includes('traversability') && legend.includes('robots'), `a legend (${legend.slice(0, 60)}...)`);
+  await page.mouse.move(shot.width / 2, shot.height / 2);
+  const cursor = await page.evaluate(() => document.getElementById('cursor').textContent);
+  const xy = /^x (-?[\d.]+) m, y (-?[\d.]+) m$/.exec(cursor);
+  check(xy && Math.abs(Number(xy[1]) - cx) < 1 && Math.abs(Number(xy[2]) - cy) < 1,
+    `the cursor's map coordinates at the view's centre (${cursor})`);
+  await page.close();
+}
 
 let context;
 try {
@@ -216,10 +285,16 @@ try {
   check(p.elevation !== null && p.traversability !== null, 'the clicked cell is known');
   for (const k of layers) check(p[k] === q[k], `${k}: page ${p[k]}, bgkmap points ${q[k]}`);
   const table = await page.evaluate(() => Object.fromEntries(
-    [...document.querySelectorAll('#cell-values tr')].map((tr) => [tr.dataset.layer, tr.cells[1].textContent])));
+    [...document.querySelectorAll('#cell-values tr')].map((tr) => [tr.dataset.layer,
+      [tr.cells[1].textContent, tr.cells[1].dataset.value]])));
   for (const k of layers) {
-    check(table[k] === (q[k] === null ? 'unknown' : String(q[k])), `the panel shows ${k} = ${table[k]}`);
+    check(table[k][1] === (q[k] === null ? 'unknown' : String(q[k])),
+      `the panel holds ${k} = ${table[k][1]} exactly and shows "${table[k][0]}"`);
   }
+  check(table.elevation[0] === q.elevation.toFixed(2) + ' m', `elevation rounded with its unit (${table.elevation[0]})`);
+  check(['traversable', 'not traversable'].includes(table.state[0]), `state in words (${table.state[0]})`);
+
+  await stillView(context, base, page);
   check(offsite.length === 0, `nothing fetched beyond loopback (${offsite.join(', ') || 'none'})`);
   check(pageErrors.length === 0, `no script errors (${pageErrors.join('; ') || 'none'})`);
 } catch (e) {

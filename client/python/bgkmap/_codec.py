@@ -80,6 +80,73 @@ def set_box(box, out: types_pb2.BoundingBox, what: str = "bbox") -> None:
     out.min_x, out.min_y, out.max_x, out.max_y = values
 
 
+# --- regions larger than the server's limit ---------------------------------------------------
+
+
+def _region_cells(box, resolution: float, stride: int):
+    """The server's cell box of a half-open metric box (rpc/request_checks.cc, RegionCells):
+    edges within a micro-cell of a border snap to it, blocks aligned with the global grid."""
+    snap = 1e-6
+    x0 = math.floor(box[0] / resolution + snap)
+    y0 = math.floor(box[1] / resolution + snap)
+    x1 = max(x0, math.ceil(box[2] / resolution - snap) - 1)
+    y1 = max(y0, math.ceil(box[3] / resolution - snap) - 1)
+    floor_to = lambda a: (a // stride) * stride  # noqa: E731  (Python's // floors)
+    return floor_to(x0), floor_to(y0), floor_to(x1) + stride - 1, floor_to(y1) + stride - 1
+
+
+MAX_REGION_PIECES = 256  # a larger box is sent whole, for the server to refuse by its limit
+
+
+def split_region(box, resolution: float, stride: int, max_cells: int) -> list:
+    """Metric boxes of whole pixel blocks, north-west first, each within max_cells map cells,
+    that together cover the cells the server would read for `box`; [box] when it fits, when the
+    box is not valid (the server names the problem) or when it would take more than
+    MAX_REGION_PIECES pieces (the server then names its limit)."""
+    try:
+        values = [float(v) for v in box]
+    except (TypeError, ValueError):
+        return [box]
+    if len(values) != 4 or not all(math.isfinite(v) for v in values) or \
+            not (values[0] < values[2] and values[1] < values[3]):
+        return [box]
+    x0, y0, x1, y1 = _region_cells(values, resolution, stride)
+    width, height = x1 - x0 + 1, y1 - y0 + 1
+    if width * height <= max_cells or max_cells < stride * stride:
+        return [box]
+    cols = width if width * stride <= max_cells else max(stride, max_cells // stride // stride * stride)
+    rows = max(stride, max_cells // cols // stride * stride)
+    if -(-height // rows) * -(-width // cols) > MAX_REGION_PIECES:
+        return [box]
+    pieces = []
+    for top in range(y1, y0 - 1, -rows):  # north first
+        bottom = max(y0, top - rows + 1)
+        for left in range(x0, x1 + 1, cols):
+            right = min(x1, left + cols - 1)
+            pieces.append((left * resolution, bottom * resolution,
+                           (right + 1) * resolution, (top + 1) * resolution))
+    return pieces
+
+
+def stitch_regions(pieces: list) -> Region:
+    """One Region from pieces of the same stride that tile a box of cells."""
+    stride = pieces[0].stride
+    min_x = min(p.cells[0] for p in pieces)
+    min_y = min(p.cells[1] for p in pieces)
+    max_x = max(p.cells[2] for p in pieces)
+    max_y = max(p.cells[3] for p in pieces)
+    rows, cols = (max_y - min_y + 1) // stride, (max_x - min_x + 1) // stride
+    layers = {name: np.empty((rows, cols), dtype=_F32) for name in pieces[0].layers}
+    for p in pieces:
+        r, c = (max_y - p.cells[3]) // stride, (p.cells[0] - min_x) // stride
+        for name, values in p.layers.items():
+            layers[name][r:r + p.rows, c:c + p.cols] = values
+    first = pieces[0]  # the north-west piece: its corner is the region's
+    return Region(layers, x0=first.x0, y1=first.y1, resolution=first.resolution, stride=stride,
+                  cells=(min_x, min_y, max_x, max_y),
+                  map_version=max(p.map_version for p in pieces))
+
+
 # --- scans -----------------------------------------------------------------------------------
 
 

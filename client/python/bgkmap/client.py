@@ -135,6 +135,7 @@ class Client:
         intercepted = (grpc.intercept_channel(self._channel, _BearerToken(token)) if token
                        else self._channel)
         self._stub = map_service_pb2_grpc.MapServiceStub(intercepted)
+        self._limits = None  # (resolution, max_region_cells): Info, on the first query
 
     # --- lifetime ----------------------------------------------------------------------------
 
@@ -247,10 +248,29 @@ class Client:
         layers: names ("elevation", "elevation_variance", "traversability",
         "traversability_variance", "state", "elevation_weight") or None for every layer.
         stride: map cells per pixel edge. Returns a Region: a mapping from layer name to a float32
-        (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform."""
+        (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform.
+
+        A box of more map cells than the server's max_region_cells is read in pieces of whole
+        pixel blocks and stitched; each piece is one consistent read, but pieces may see
+        different map versions (region.map_version is the newest)."""
         if int(stride) < 1:
             raise invalid_argument(f"stride: {stride} must be >= 1")
-        request = query_pb2.RegionRequest(stride=int(stride))
+        stride = int(stride)
+        resolution, limit = self._region_limit()
+        pieces = _codec.split_region(bbox, resolution, stride, limit)
+        if len(pieces) == 1:
+            return self._query_piece(bbox, layers, stride)
+        return _codec.stitch_regions([self._query_piece(p, layers, stride) for p in pieces])
+
+    def _region_limit(self) -> tuple:
+        """The map's resolution and the server's max_region_cells, asked once."""
+        if self._limits is None:
+            info = self.info()
+            self._limits = (info["params"]["resolution"], info["limits"]["max_region_cells"])
+        return self._limits
+
+    def _query_piece(self, bbox, layers, stride: int) -> Region:
+        request = query_pb2.RegionRequest(stride=stride)
         _codec.set_box(bbox, request.box)
         request.layers.extend(_codec.layer_numbers(layers))
         call = self._stub.QueryRegion(request, timeout=self.timeout)

@@ -86,6 +86,26 @@ nlohmann::json PointJson(double x, double y, const CellEstimate& e) {
   return p;
 }
 
+// The fleet for the page: each robot's latest pose and its recent trajectory (RobotStats). Read
+// from the registry under its lock alone, so it is answered on the HTTP thread.
+nlohmann::json RobotsJson(const std::vector<RobotStats>& robots) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const RobotStats& r : robots) {
+    nlohmann::json trail = nlohmann::json::array();
+    for (const RobotPose& p : r.recent_poses) trail.push_back({p.x, p.y});
+    nlohmann::json robot = {{"id", r.robot_id},
+                            {"last_sequence", r.last_sequence},
+                            {"pose", nullptr},
+                            {"trail", trail}};
+    if (!r.recent_poses.empty()) {
+      const RobotPose& p = r.recent_poses.back();
+      robot["pose"] = {{"x", p.x}, {"y", p.y}, {"yaw", p.yaw}, {"sequence", p.sequence}};
+    }
+    list.push_back(robot);
+  }
+  return {{"robots", list}};
+}
+
 nlohmann::json WebLayerNames() {
   nlohmann::json names = nlohmann::json::array();
   for (Layer l : kWebLayers) names.push_back(std::string(LayerName(l)));
@@ -130,12 +150,14 @@ void WebRoutes::Handle(const HttpRequest& request, std::shared_ptr<HttpExchange>
     Points(request, query, std::move(exchange));
   } else if (path == "/map.json") {
     MapJson(request, std::move(exchange));
+  } else if (path == "/robots.json") {
+    exchange->Reply(Body(request, "application/json", RobotsJson(map_.Robots()).dump(2) + "\n"));
   } else if (path == "/events") {
     events_.Open(request, std::move(exchange));
   } else {
     exchange->Reply(Text(request, http::status::not_found,
                          "not found: bgkmapd serves /, /tiles/, /points, /events, /map.json, "
-                         "/metrics (docs/webmap.md)"));
+                         "/robots.json, /metrics (docs/webmap.md)"));
   }
 }
 

@@ -34,6 +34,8 @@ struct ScanOrigin {
   // The scan's message as it arrived (bgkmap.v1.Scan, encoded), for a map that logs scans as
   // they were sent (a cluster's log). Called at most once.
   std::function<std::string()> encoded = nullptr;
+  // The scan's pose in the map frame, for the robot's recent poses (RobotStats); absent: none.
+  std::optional<RobotPose> pose;
 };
 
 struct ScanOutcome {

@@ -35,6 +35,15 @@ RobotRegistry::Admission RobotRegistry::Admit(const std::string& robot_id, uint6
   return Admission::kAdmitted;
 }
 
+void RobotRegistry::RecordPose(const std::string& robot_id, const RobotPose& pose) {
+  std::lock_guard lock(mu_);
+  auto it = robots_.find(robot_id);
+  if (it == robots_.end()) return;
+  std::vector<RobotPose>& poses = it->second.recent_poses;
+  if (poses.size() >= RobotStats::kRecentPoses) poses.erase(poses.begin());
+  poses.push_back(pose);
+}
+
 void RobotRegistry::Withdraw(const std::string& robot_id, uint64_t sequence, uint64_t previous,
                              uint64_t points) {
   std::lock_guard lock(mu_);

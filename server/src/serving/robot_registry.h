@@ -30,6 +30,9 @@ class RobotRegistry {
   // number before it (for Withdraw(); for a duplicate or a jump, what to tell the robot).
   Admission Admit(const std::string& robot_id, uint64_t sequence, Stamp stamp, uint64_t points,
                   uint64_t* previous);
+  // Appends the pose of an admitted scan to the robot's recent poses (dropping the oldest
+  // beyond RobotStats::kRecentPoses); a robot not known is ignored.
+  void RecordPose(const std::string& robot_id, const RobotPose& pose);
   // Undoes Admit() of a scan that was not applied.
   void Withdraw(const std::string& robot_id, uint64_t sequence, uint64_t previous, uint64_t points);
 

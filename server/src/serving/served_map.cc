@@ -68,6 +68,7 @@ ServedMap::Admission ServedMap::SubmitScan(ScanOrigin origin,
       robots_.Admit(origin.robot_id, origin.sequence, origin.stamp, scan->counts.kept, &previous);
   if (last_sequence != nullptr) *last_sequence = previous;
   if (a != Admission::kAdmitted) return a;
+  if (origin.pose) robots_.RecordPose(origin.robot_id, *origin.pose);
   ChangeScheduler::TileChange kind{scan->ChangeableTiles(), scan->read_tiles};
   scheduler_.Submit(std::move(kind), [this, origin = std::move(origin), scan = std::move(scan),
                                       previous, done = std::move(done)](uint64_t version) mutable {

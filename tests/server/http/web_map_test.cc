@@ -305,6 +305,29 @@ TEST_F(WebMapTest, PageAndMapJson) {
   EXPECT_GT(j["bounds"][2].get<double>(), 0);
 }
 
+// The fleet the page draws: each robot's latest pose (the sensor's x, y and the heading of its x
+// axis from the rotation) and its poses in scan order, as the robot sent them. Mutation caught:
+// the yaw taken from the wrong quaternion terms, or the trail kept newest first.
+TEST_F(WebMapTest, RobotsJsonHasEachRobotsPosesInOrder) {
+  const Reply r = Get(port_, "/robots.json");
+  ASSERT_EQ(r.status, 200) << r.body;
+  const nlohmann::json j = nlohmann::json::parse(r.body);
+  ASSERT_EQ(j["robots"].size(), 1u) << r.body;
+  const nlohmann::json& robot = j["robots"][0];
+  EXPECT_EQ(robot["id"], "street");
+  const std::vector<OwnedScan>& scans = StreetScans();
+  ASSERT_EQ(robot["trail"].size(), scans.size());
+  for (size_t k = 0; k < scans.size(); ++k) {
+    EXPECT_EQ(robot["trail"][k][0].get<double>(), scans[k].pose.tx);
+    EXPECT_EQ(robot["trail"][k][1].get<double>(), scans[k].pose.ty);
+  }
+  const Pose last = WirePose(scans.back().pose);
+  const Eigen::Vector3d heading = last.rotation * Eigen::Vector3d::UnitX();
+  EXPECT_NEAR(robot["pose"]["yaw"].get<double>(), std::atan2(heading.y(), heading.x()), 1e-6);
+  EXPECT_EQ(robot["pose"]["sequence"].get<uint64_t>(), scans.back().sequence);
+  EXPECT_EQ(robot["last_sequence"].get<uint64_t>(), scans.back().sequence);
+}
+
 // Web routes keep the connection; /metrics closes it, as before.
 TEST_F(WebMapTest, KeepAlive) {
   Socket s(port_);

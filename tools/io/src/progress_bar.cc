@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace bgkmap::io {
@@ -11,6 +12,7 @@ namespace {
 
 constexpr int kBarWidth = 30;
 constexpr auto kRedrawInterval = std::chrono::milliseconds(100);
+std::atomic<bool> silenced{false};
 
 }  // namespace
 
@@ -18,12 +20,14 @@ ProgressBar::ProgressBar(std::string label, uint64_t total, std::string unit, st
     : label_(std::move(label)),
       unit_(std::move(unit)),
       total_(total),
-      out_(out),
-      tty_(out != nullptr && isatty(fileno(out))),
+      out_(silenced ? nullptr : out),
+      tty_(out_ != nullptr && isatty(fileno(out_))),
       start_(Clock::now()),
       last_draw_(start_ - kRedrawInterval) {}
 
 ProgressBar::~ProgressBar() { Finish(); }
+
+void ProgressBar::SilenceAll() { silenced = true; }
 
 void ProgressBar::Add(uint64_t n) {
   std::lock_guard lock(mu_);

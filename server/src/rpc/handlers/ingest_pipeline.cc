@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cmath>
 #include <memory>
 
 #include "bgkmap/server/log_safe.h"
@@ -11,6 +12,15 @@
 
 namespace bgkmap {
 namespace {
+
+// The scan's sensor position and heading (the yaw of its x axis) on the map's ground plane; the
+// pose was checked (unit quaternion) by PrepareScanMessage.
+RobotPose SensorPose(const v1::Scan& scan) {
+  const v1::Quaternion& q = scan.pose().rotation();
+  const double yaw =
+      std::atan2(2 * (q.w() * q.z() + q.x() * q.y()), 1 - 2 * (q.y() * q.y() + q.z() * q.z()));
+  return {scan.sequence(), scan.pose().translation().x(), scan.pose().translation().y(), yaw};
+}
 
 // The robot and sequence number every ack repeats.
 v1::ScanAck BaseAck(const v1::Scan& scan) {
@@ -148,9 +158,12 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
   const Stamp stamp{scan.stamp().seconds(), scan.stamp().nanos()};
   // The live views see a scan once it is applied (not a duplicate, not refused).
   std::shared_ptr<const RawScan> latest = ctx.latest_scans != nullptr ? raw : nullptr;
-  ScanOrigin origin{scan.robot_id(), scan.sequence(), stamp,
+  ScanOrigin origin{scan.robot_id(),
+                    scan.sequence(),
+                    stamp,
                     ctx.map.retains_scans() ? std::move(raw) : nullptr,
-                    [&scan] { return scan.SerializeAsString(); }};
+                    [&scan] { return scan.SerializeAsString(); },
+                    SensorPose(scan)};
   uint64_t last_sequence = 0;
   const RobotAdmission admission = ctx.map.SubmitScan(
       std::move(origin), prepared,

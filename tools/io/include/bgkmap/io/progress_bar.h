@@ -27,6 +27,9 @@ class ProgressBar {
   // Prints the final state (once) and ends the terminal line.
   void Finish();
 
+  // Bars made after this print nothing (a command line's --quiet).
+  static void SilenceAll();
+
   // "1:02:03", "02:03"; "--:--" for a negative or non-finite number of seconds.
   static std::string FormatDuration(double seconds);
 

@@ -1,0 +1,196 @@
+#include "parallel_mapping.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <thread>
+
+#include "bgkmap/io/progress_bar.h"
+
+namespace bgkmap::cli {
+namespace {
+
+// How far a scan's observations change the map, in cells: an observation at i changes elevation
+// within l of i; a traversability value reads elevation within the robot radius and spreads
+// within l; a free-space ray changes cells up to clear_ray_length back from its return. Two cells
+// of margin absorb rounding. (The cluster's PartitionLayout grows its partitions by the same.)
+int HaloCells(const MapParams& p) {
+  const double reach = 2 * p.kernel_length + p.robot_radius +
+                       (p.dynamics == Dynamics::kOn ? p.clear_ray_length : 0.0);
+  return static_cast<int>(std::ceil(reach / p.resolution)) + 2;
+}
+
+// Runs fn(0..threads-1) on `threads` threads (the caller's included) and joins them.
+template <typename Fn>
+void RunOnThreads(int threads, Fn fn) {
+  std::vector<std::thread> others;
+  for (int t = 1; t < threads; ++t) others.emplace_back(fn, t);
+  fn(0);
+  for (std::thread& t : others) t.join();
+}
+
+struct PreparedScans {
+  std::vector<PreparedScan> scans;
+  Status error;  // the lowest-numbered scan's failure
+};
+
+// Reads and prepares every scan on `threads` threads; scans are taken in order from a counter.
+PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int threads) {
+  PreparedScans out;
+  out.scans.resize(source.size());
+  std::vector<Status> errors(source.size());
+  double first_time = std::nan("");
+  if (source.size() > 0) {
+    Result<SourceScan> first = source.Read(0);
+    if (!first.ok()) return {{}, first.status()};
+    first_time = first->time_s;
+  }
+  std::atomic<size_t> next{0};
+  std::atomic<bool> failed{false};
+  RunOnThreads(threads, [&](int) {
+    for (size_t k = next++; k < source.size() && !failed; k = next++) {
+      Result<SourceScan> scan = source.Read(k);
+      if (!scan.ok()) {
+        errors[k] = scan.status();
+        failed = true;
+        break;
+      }
+      Result<PreparedScan> prepared =
+          PrepareScan(params, scan->points, scan->pose, scan->frame_is_map);
+      if (!prepared.ok()) {
+        // Only the message reaches the user (one line, exit 1).
+        errors[k] = Status::InvalidArgument("scan " + std::to_string(k) + ": " +
+                                            prepared.status().message());
+        failed = true;
+        break;
+      }
+      // Map time (forgetting): the first scan at 1 s (0 would be unstamped); without times,
+      // unstamped.
+      prepared->stamp_ns = std::isfinite(scan->time_s) && std::isfinite(first_time)
+                               ? 1'000'000'000 + std::llround((scan->time_s - first_time) * 1e9)
+                               : 0;
+      out.scans[k] = std::move(prepared).value();
+    }
+  });
+  for (Status& s : errors) {
+    if (!s.ok()) {
+      out.error = s;
+      break;
+    }
+  }
+  return out;
+}
+
+// A band of whole tiles along one axis: cells with lo <= coordinate < hi.
+struct Band {
+  bool along_x = true;
+  int64_t lo = std::numeric_limits<int>::min();
+  int64_t hi = int64_t{std::numeric_limits<int>::max()} + 1;
+
+  bool Owns(TileKey key, int tile_size) const {
+    const int64_t first = int64_t{along_x ? key.x : key.y} * tile_size;
+    return first >= lo && first < hi;
+  }
+  // The band grown by `halo` cells along its axis, the whole map across it.
+  CellBox Reach(int halo) const {
+    constexpr int kLow = std::numeric_limits<int>::min(), kHigh = std::numeric_limits<int>::max();
+    const int a = static_cast<int>(std::max<int64_t>(kLow, lo - halo));
+    const int b = static_cast<int>(std::min<int64_t>(kHigh, hi - 1 + halo));
+    return along_x ? CellBox{{a, kLow}, {b, kHigh}} : CellBox{{kLow, a}, {kHigh, b}};
+  }
+};
+
+// Cuts the map into up to `count` bands along its longer axis, at tile borders, so that each
+// holds about as many observed cells (the integration's work).
+std::vector<Band> CutIntoBands(const std::vector<PreparedScan>& scans, int tile_size, int count) {
+  CellBox box;
+  for (const PreparedScan& s : scans) {
+    for (const ObservedCell& c : s.cells) box.Extend(c.cell);
+  }
+  if (count <= 1 || box.empty()) return {Band{}};
+  const bool along_x = box.width() >= box.height();
+  std::vector<int> coords;
+  for (const PreparedScan& s : scans) {
+    for (const ObservedCell& c : s.cells) coords.push_back(along_x ? c.cell.x : c.cell.y);
+  }
+  std::vector<Band> bands;
+  Band band;
+  band.along_x = along_x;
+  for (int b = 1; b < count; ++b) {
+    const auto nth = coords.begin() + static_cast<ptrdiff_t>(coords.size() * b / count);
+    std::nth_element(coords.begin(), nth, coords.end());
+    // The tile border at or below the quantile.
+    const int64_t border = int64_t{tile_size} *
+                           static_cast<int64_t>(std::floor(static_cast<double>(*nth) / tile_size));
+    if (border <= band.lo) continue;
+    band.hi = border;
+    bands.push_back(band);
+    band.lo = border;
+    band.hi = Band{}.hi;
+  }
+  bands.push_back(band);
+  return bands;
+}
+
+// Integrates every scan, restricted to the band's reach, into `map`, in scan order.
+StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan>& scans,
+                         const Band& band, TerrainMap& map, io::ProgressBar* progress) {
+  const CellBox keep = band.Reach(HaloCells(params));
+  StageTimes times;
+  for (size_t k = 0; k < scans.size(); ++k) {
+    if (progress != nullptr) progress->Add();
+    const PreparedScan restricted = RestrictScan(params, scans[k], keep);
+    if (restricted.cells.empty() && restricted.footprint_cells.empty()) continue;
+    const TileWindow window = map.MakeWindow(restricted);
+    const ScanReport r = map.Integrate(restricted, window, k + 1);
+    times.elevation += r.times.elevation;
+    times.features += r.times.features;
+    times.traversability += r.times.traversability;
+  }
+  return times;
+}
+
+}  // namespace
+
+Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const ScanSource& source,
+                                             int threads, MappingTotals* totals) {
+  Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params);
+  if (!created.ok()) return created.status();
+  threads = std::max(1, threads);
+  PreparedScans prepared = PrepareAll(params, source, threads);
+  if (!prepared.error.ok()) return prepared.error;
+  for (const PreparedScan& s : prepared.scans) {
+    totals->counts.input += s.counts.input;
+    totals->counts.kept += s.counts.kept;
+    totals->counts.dropped_nonfinite += s.counts.dropped_nonfinite;
+    totals->counts.dropped_range += s.counts.dropped_range;
+    totals->counts.dropped_height += s.counts.dropped_height;
+    totals->counts.dropped_out_of_bounds += s.counts.dropped_out_of_bounds;
+  }
+  const std::vector<Band> bands = CutIntoBands(prepared.scans, params.tile_size, threads);
+  std::vector<std::unique_ptr<TerrainMap>> maps(bands.size());
+  std::vector<StageTimes> times(bands.size());
+  // One bar, as the first band's thread integrates (the bands keep about the same pace).
+  io::ProgressBar progress("mapping", prepared.scans.size(), "scans");
+  RunOnThreads(static_cast<int>(bands.size()), [&](int b) {
+    maps[b] = std::move(TerrainMap::Create(params)).value();  // the same params validated above
+    times[b] =
+        IntegrateBand(params, prepared.scans, bands[b], *maps[b], b == 0 ? &progress : nullptr);
+  });
+  TerrainMap& map = **created;
+  for (size_t b = 0; b < bands.size(); ++b) {
+    maps[b]->ForEachTile([&](TileKey key, const Tile& tile) {
+      if (bands[b].Owns(key, params.tile_size)) map.SetTile(key, tile);
+    });
+    maps[b].reset();
+    totals->times.elevation += times[b].elevation;
+    totals->times.features += times[b].features;
+    totals->times.traversability += times[b].traversability;
+  }
+  map.set_version(source.size());
+  return created;
+}
+
+}  // namespace bgkmap::cli
