@@ -106,7 +106,7 @@ uint64_t ResidentBytes(int pid) {
 
 // Robot `r`'s street: the sequence shifted 60 m north per robot, so each maps its own ground.
 Pose Shifted(Pose pose, int r) {
-  pose.t.y() += 60.0 * r;
+  pose.translation.y() += 60.0 * r;
   return pose;
 }
 

@@ -279,7 +279,7 @@ TEST(BgkmapdProcessTest, ASecondServerOnTheSameGrpcAddressIsRefusedAtStart) {
   BgkmapdProcess first;
   ASSERT_TRUE(first.started());
   BgkmapdProcess second({BGKMAPD_PATH, "--listen", first.target()},
-                        "event=(listening|start_failed)");
+                        "event=(?:listening|start_failed)");
   EXPECT_EQ(second.Wait(30), 1) << "the second server did not exit";
   const std::string failed = second.FindLine("event=start_failed");
   EXPECT_NE(failed.find(first.target()), std::string::npos) << failed;

@@ -60,7 +60,9 @@ TEST(BoundedDiskTest, RetentionBoundsTheStoreOnDiskWhateverIsStreamed) {
   // checkpoints, RocksDB's write-ahead log (at most twice the memory-table budget, 32 MiB by
   // default) and the map's tiles (~1 MiB here).
   const uint64_t bound = kRetentionMb * kMiB * 3 / 2 + 2 * 32 * kMiB + 8 * kMiB;
-  EXPECT_GT(raw_bytes, 4 * bound) << "too little streamed for the bound to mean anything";
+  // More than the bound is streamed (without the reclaim and the trim by size the store keeps
+  // it all: the raw scans alone outgrow the bound).
+  EXPECT_GT(raw_bytes, bound * 3 / 2) << "too little streamed for the bound to mean anything";
   EXPECT_LE(peak, bound) << "peak " << peak / kMiB << " MiB of store for " << raw_bytes / kMiB
                          << " MiB of raw scans streamed";
   RpcResult<MapInfo> info = client.Info();
