@@ -467,11 +467,18 @@ TEST_F(Roles, RevokingATokenEndsItsOpenStreamsWithinASecond) {
   ScanAck ack;
   ASSERT_TRUE(stream->ReadAck(&ack));
   ASSERT_EQ(ack.status, AckStatus::kApplied);
-  std::atomic<int> ops_updates{0};
+  std::atomic<int> ops_updates{0}, planner_updates{0};
   std::unique_ptr<WatchSubscription> planner_watch =
-      planner.Watch({{-10, -10, 10, 10}, {}, false}, [](const TileUpdate&) {});
+      planner.Watch({{-10, -10, 10, 10}, {}, false}, [&](const TileUpdate&) { ++planner_updates; });
   std::unique_ptr<WatchSubscription> ops_watch =
       ops.Watch({{-10, -10, 10, 10}, {}, false}, [&](const TileUpdate&) { ++ops_updates; });
+  // Both watches are open on the server before the reload: each has seen a change.
+  ASSERT_TRUE(ops.Insert(ScanAs("r9", 1).Data()).ok());
+  for (int i = 0; i < 400 && (planner_updates.load() == 0 || ops_updates.load() == 0); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_GT(planner_updates.load(), 0);
+  ops_updates = 0;
 
   WriteTokens(tokens_, {{"ops", "admin-secret", "admin", ""}});  // "lidar" and "planner" go
   const auto signalled = std::chrono::steady_clock::now();
@@ -492,7 +499,7 @@ TEST_F(Roles, RevokingATokenEndsItsOpenStreamsWithinASecond) {
       << ingest_end.message();
   EXPECT_EQ(ops.LastSequence("r1")->value_or(0), 1u);
   // The admin's watch, whose token stays, is still open and sees a new scan.
-  ASSERT_TRUE(ops.Insert(ScanAs("r9", 1).Data()).ok());
+  ASSERT_TRUE(ops.Insert(ScanAs("r9", 2).Data()).ok());
   for (int i = 0; i < 200 && ops_updates.load() == 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
