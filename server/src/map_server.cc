@@ -340,6 +340,8 @@ Status MapServer::Impl::ListenGrpc(const std::optional<TlsMaterial>& tls) {
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   builder.AddListeningPort(config.listen_address, GrpcCredentials(tls), &port);
+  // gRPC sets SO_REUSEPORT by default: a second server on the address would share its calls.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.RegisterService(service.get());
   // A request that does not parse answers INVALID_ARGUMENT naming its type, not UNIMPLEMENTED.
   builder.experimental().SetInterceptorCreators(MapServiceInterceptors());
@@ -350,7 +352,8 @@ Status MapServer::Impl::ListenGrpc(const std::optional<TlsMaterial>& tls) {
   if (server == nullptr || port == 0) {
     server.reset();
     return Status::FailedPrecondition("server.listen_address: cannot listen on '" +
-                                      config.listen_address + "'");
+                                      config.listen_address +
+                                      "' (in use by another process, or not this host's)");
   }
   if (auto* health = server->GetHealthCheckService()) {
     health->SetServingStatus(kMapServiceName, true);

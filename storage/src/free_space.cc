@@ -46,21 +46,32 @@ Status FreeSpaceGuard::RefreshLocked(bool force) {
   return Status::Ok();
 }
 
-Status FreeSpaceGuard::DecideLocked(uint64_t bytes) {
+Status FreeSpaceGuard::DecideLocked(uint64_t bytes, bool freeing) {
   const uint64_t free =
       probed_free_ > admitted_since_probe_ ? probed_free_ - admitted_since_probe_ : 0;
-  if (free >= bytes && free - bytes >= options_.reserve_bytes) {
-    below_ = false;
+  const uint64_t floor = freeing ? options_.reserve_bytes / 2 : options_.reserve_bytes;
+  const bool admitted = free >= bytes && free - bytes >= floor;
+  if (!freeing) below_ = !admitted;
+  if (admitted) {
     admitted_since_probe_ += bytes;
     return Status::Ok();
   }
-  below_ = true;
+  if (freeing) {
+    return Status::IoError("data dir " + path_ + " has " + Megabytes(free) +
+                           " free, below half the reserve of " + Megabytes(options_.reserve_bytes) +
+                           " (storage.min_free_space_mb), which even a write that frees space "
+                           "must leave to the store");
+  }
   return Status::IoError("data dir " + path_ + " has " + Megabytes(free) +
                          " free, below the reserve of " + Megabytes(options_.reserve_bytes) +
                          " (storage.min_free_space_mb); writes resume when space is freed");
 }
 
-Status FreeSpaceGuard::Admit(uint64_t bytes) {
+Status FreeSpaceGuard::Admit(uint64_t bytes) { return AdmitAs(bytes, /*freeing=*/false); }
+
+Status FreeSpaceGuard::AdmitFreeing(uint64_t bytes) { return AdmitAs(bytes, /*freeing=*/true); }
+
+Status FreeSpaceGuard::AdmitAs(uint64_t bytes, bool freeing) {
   if (!enabled()) return Status::Ok();
   std::lock_guard lock(mu_);
   // Refused writes admit nothing, so a paused writer would not re-probe by bytes: while below
@@ -69,7 +80,7 @@ Status FreeSpaceGuard::Admit(uint64_t bytes) {
     below_ = true;  // unknown counts as full: RocksDB must not find out by writing
     return s;
   }
-  return DecideLocked(bytes);
+  return DecideLocked(bytes, freeing);
 }
 
 Status FreeSpaceGuard::Check() {
@@ -79,7 +90,7 @@ Status FreeSpaceGuard::Check() {
     below_ = true;
     return s;
   }
-  return DecideLocked(0);
+  return DecideLocked(0, /*freeing=*/false);
 }
 
 uint64_t FreeSpaceGuard::free_bytes() const {

@@ -66,6 +66,14 @@ Status ScanLog::write_failure() const {
 
 Status ScanLog::AdmitWrite(uint64_t bytes) {
   Status s = guard_->Admit(read_only_ ? 0 : bytes);
+  return CountRefusal(std::move(s));
+}
+
+Status ScanLog::AdmitFreeingWrite(uint64_t bytes) {
+  return CountRefusal(guard_->AdmitFreeing(read_only_ ? 0 : bytes));
+}
+
+Status ScanLog::CountRefusal(Status s) {
   if (read_only_) {
     // Opened on a full disk (or a reopen for writing failed): TileStore::Resume() reopens it.
     s = Status::IoError("the store is read-only until it can be reopened for writing" +
@@ -115,8 +123,14 @@ Status ScanLog::Append(const LogRecord& record) {
     append_errors_.fetch_add(1);
     return FromRocks(s, "appending log record " + std::to_string(record.version));
   }
-  // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h).
-  if (Status refused = AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
+  // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h). A
+  // clear is an operator freeing space: it may use the upper half of the reserve.
+  const uint64_t bytes = batch.GetDataSize();
+  if (Status refused =
+          record.type == LogRecord::Type::kClear ? AdmitFreeingWrite(bytes) : AdmitWrite(bytes);
+      !refused.ok()) {
+    return refused;
+  }
   rocksdb::WriteOptions write;
   write.sync = durability_ == Durability::kSync;
   s = db_->db->Write(write, &batch);
@@ -128,6 +142,7 @@ Status ScanLog::Append(const LogRecord& record) {
   }
   appended_.fetch_add(1);
   appended_bytes_.fetch_add(value.size());
+  written_bytes_.fetch_add(batch.GetDataSize());
   std::lock_guard<std::mutex> lock(mu_);
   last_version_ = std::max(last_version_, record.version);
   if (record.type == LogRecord::Type::kScan) {
@@ -209,7 +224,7 @@ Status ScanLog::RetireRobot(std::string_view robot_id) {
   }
   rocksdb::WriteBatch batch;
   rocksdb::Status s = batch.Delete(db_->meta, std::string(kRobotPrefix) + std::string(robot_id));
-  if (Status refused = AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
+  if (Status refused = AdmitFreeingWrite(batch.GetDataSize()); !refused.ok()) return refused;
   rocksdb::WriteOptions write;
   write.sync = true;  // an administrator's action: durable when answered, in either mode
   if (s.ok()) s = db_->db->Write(write, &batch);

@@ -149,6 +149,10 @@ rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options
   // 2 x 64 MiB of records between checkpoints, and the tiles as much again.
   db_options.write_buffer_manager =
       std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
+  // A write-ahead log file goes only once every family has flushed what it holds; the meta
+  // family's few bytes would keep the oldest alive for ever. Past twice the memory budget,
+  // RocksDB flushes the families that hold it (docs/storage.md, "Sizing").
+  db_options.max_total_wal_size = 2 * options.memtable_bytes;
   return db_options;
 }
 

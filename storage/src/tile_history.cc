@@ -38,7 +38,7 @@ uint64_t TileStore::RetainedBytesAbove(uint64_t version) const {
   options.include_memtables = true;
   options.include_files = true;
   uint64_t total = 0;
-  for (rocksdb::ColumnFamilyHandle* family : {db_->log, db_->sources}) {
+  for (rocksdb::ColumnFamilyHandle* family : {db_->log, db_->sources, db_->history}) {
     if (family == nullptr) continue;
     uint64_t size = 0;
     if (db_->db->GetApproximateSizes(options, family, &range, 1, &size).ok()) total += size;
@@ -64,10 +64,13 @@ int64_t TileStore::LastStamp() const {
 
 Result<std::vector<uint64_t>> TileStore::AddRetention(rocksdb::WriteBatch* batch, uint64_t version,
                                                       std::span<const TileUpdate> tiles,
-                                                      bool forget_earlier_bases) {
+                                                      bool forget_earlier_bases,
+                                                      uint64_t* dropped_through) {
   std::vector<uint64_t> bases = Bases();
+  *dropped_through = 0;
   if (!options_.retention.enabled() || db_->history == nullptr) {
     log_->AddTruncation(batch, version);
+    *dropped_through = version;
     if (!bases.empty()) {  // retention was switched off: its history goes too
       batch->Delete(db_->meta, kBasesKey);
       batch->DeleteRange(db_->history, std::string(), std::string(17, '\xff'));
@@ -110,6 +113,7 @@ Result<std::vector<uint64_t>> TileStore::AddRetention(rocksdb::WriteBatch* batch
   }
   const uint64_t horizon = bases.front();
   log_->AddTruncation(batch, horizon);
+  *dropped_through = horizon;
   batch->DeleteRange(db_->history, std::string(), VersionKeyBytes(horizon + 1));
   batch->Put(db_->meta, kBasesKey, EncodeVersionList(bases));
   return bases;
@@ -197,7 +201,12 @@ Status TileStore::ApplyCorrection(const LogRecord& correction, std::span<const L
                 [&](uint64_t b) { return b > correction.base_version && b < correction.version; });
   batch.Put(db_->meta, kBasesKey, EncodeVersionList(bases));
   batch.Put(db_->meta, kBasesFloorKey, U64Bytes(correction.version));
-  if (Status refused = log_->AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
+  // A removal rewrites nothing: an operator freeing space, admitted below the reserve.
+  const uint64_t bytes = batch.GetDataSize();
+  if (Status refused = rewritten.empty() ? log_->AdmitFreeingWrite(bytes) : log_->AdmitWrite(bytes);
+      !refused.ok()) {
+    return refused;
+  }
   rocksdb::WriteOptions write;
   write.sync = true;  // acknowledged only once durable, in either durability mode
   if (Status s = FromRocks(db_->db->Write(write, &batch),
@@ -207,9 +216,16 @@ Status TileStore::ApplyCorrection(const LogRecord& correction, std::span<const L
     return s;
   }
   log_->NoteAppended(correction.version);
-  std::lock_guard<std::mutex> bases_lock(bases_mu_);
-  bases_ = std::move(bases);
-  bases_floor_ = correction.version;
+  {
+    std::lock_guard<std::mutex> bases_lock(bases_mu_);
+    bases_ = std::move(bases);
+    bases_floor_ = correction.version;
+  }
+  if (!removed.empty()) {
+    // The removed records' files leave the disk now (an operator may be freeing a full one).
+    const auto [first, last] = std::minmax_element(removed.begin(), removed.end());
+    CompactVersions(*first, *last);
+  }
   return Status::Ok();
 }
 

@@ -355,7 +355,41 @@ Result<std::unique_ptr<Tile>> TileStore::LoadTileAt(TileKey key,
 
 Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles,
                              bool forget_earlier_bases) {
-  std::lock_guard<std::mutex> lock(checkpoint_mu_);
+  uint64_t dropped_through = 0;
+  {
+    std::lock_guard<std::mutex> lock(checkpoint_mu_);
+    Status s = WriteCheckpoint(version, tiles, forget_earlier_bases, &dropped_through);
+    if (!s.ok()) return s;
+  }
+  // Outside the lock: appends and the next checkpoint need not wait for the compaction.
+  if (dropped_through > 0) ReclaimDropped(dropped_through);
+  // Short of space: the tiles it deleted (an operator's clear) leave the disk now too.
+  if (guard_->enabled() && guard_->free_bytes() < guard_->reserve_bytes()) {
+    ReclaimDeletedTiles(tiles);
+  }
+  return Status::Ok();
+}
+
+void TileStore::ReclaimDeletedTiles(std::span<const TileUpdate> tiles) {
+  std::string first, last;
+  for (const TileUpdate& update : tiles) {
+    if (update.tile != nullptr && !IsZeroTile(*update.tile)) continue;
+    const std::string key = TileKeyBytes(update.key);
+    if (first.empty() || key < first) first = key;
+    if (last.empty() || key > last) last = key;
+  }
+  if (first.empty()) return;
+  const rocksdb::Slice from(first), to(last);
+  rocksdb::CompactRangeOptions compact;
+  compact.exclusive_manual_compaction = false;
+  for (rocksdb::ColumnFamilyHandle* family : {db_->tiles, db_->tile_index}) {
+    if (!db_->db->CompactRange(compact, family, &from, &to).ok()) reclaim_errors_.fetch_add(1);
+  }
+  reclaims_.fetch_add(1);
+}
+
+Status TileStore::WriteCheckpoint(uint64_t version, std::span<const TileUpdate> tiles,
+                                  bool forget_earlier_bases, uint64_t* dropped_through) {
   if (Status failed = log_->write_failure(); !failed.ok()) {
     // RocksDB must not write through a log writer that has failed (7.8 asserts): refuse, like
     // an append, until Resume().
@@ -370,7 +404,9 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
   }
   rocksdb::WriteBatch batch;
   // First, so that the history reads the tiles as they were before this checkpoint.
-  Result<std::vector<uint64_t>> bases = AddRetention(&batch, version, tiles, forget_earlier_bases);
+  const uint64_t written_before = log_->written_bytes();
+  Result<std::vector<uint64_t>> bases =
+      AddRetention(&batch, version, tiles, forget_earlier_bases, dropped_through);
   if (!bases.ok()) {
     checkpoint_errors_.fetch_add(1);
     return bases.status();
@@ -397,8 +433,15 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
   }
   batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));
   batch.Merge(db_->meta, kMapVersionKey, U64Bytes(version));
-  // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h).
-  if (Status refused = log_->AdmitWrite(batch.GetDataSize()); !refused.ok()) return refused;
+  // Refused before RocksDB writes a byte: it must never meet a full disk (free_space.h). A
+  // small one (a clear's deletions, the rest once robots were refused) truncates more log than
+  // it writes: it may use the upper half of the reserve, so an operator can free a full disk.
+  const uint64_t bytes = batch.GetDataSize();
+  if (Status refused = bytes <= guard_->reserve_bytes() / 4 ? log_->AdmitFreeingWrite(bytes)
+                                                            : log_->AdmitWrite(bytes);
+      !refused.ok()) {
+    return refused;
+  }
   rocksdb::WriteOptions write;
   write.sync = true;  // rare and large: always durable before it counts
   if (Status s =
@@ -409,7 +452,7 @@ Status TileStore::Checkpoint(uint64_t version, std::span<const TileUpdate> tiles
     return s;
   }
   checkpoint_version_.store(version);
-  log_->OnCheckpoint(version);
+  log_->OnCheckpoint(version, written_before);
   {
     std::lock_guard<std::mutex> bases_lock(bases_mu_);
     bases_ = std::move(*bases);
@@ -465,6 +508,27 @@ Status TileStore::Flush() {
   std::vector<rocksdb::ColumnFamilyHandle*> families = {db_->meta, db_->tiles, db_->tile_index,
                                                         db_->log};
   return FromRocks(db_->db->Flush(flush, families), "flushing the store");
+}
+
+void TileStore::ReclaimDropped(uint64_t through) {
+  // A range delete only hides the records: RocksDB 7.8 left their SST files on disk for hours
+  // (issue 25). Compacting the dropped range removes them now. It runs beside the automatic
+  // compactions and writes little: what it reads is mostly covered by the range delete.
+  CompactVersions(0, through);
+}
+
+void TileStore::CompactVersions(uint64_t first, uint64_t last) {
+  const std::string begin = VersionKeyBytes(first), end = VersionKeyBytes(last + 1);
+  const rocksdb::Slice from(begin), limit(end);
+  rocksdb::CompactRangeOptions compact;
+  compact.exclusive_manual_compaction = false;
+  for (rocksdb::ColumnFamilyHandle* family : {db_->log, db_->sources, db_->history}) {
+    if (family == nullptr) continue;
+    if (!db_->db->CompactRange(compact, family, first == 0 ? nullptr : &from, &limit).ok()) {
+      reclaim_errors_.fetch_add(1);  // the space comes back at a later checkpoint
+    }
+  }
+  reclaims_.fetch_add(1);
 }
 
 Status TileStore::Compact() {
@@ -525,6 +589,8 @@ StoreCounters TileStore::counters() const {
   c.log_bytes_appended = log_->bytes_appended();
   c.write_errors = log_->append_errors() + checkpoint_errors_.load();
   c.writes_refused_for_space = log_->space_refusals();
+  c.reclaims = reclaims_.load();
+  c.reclaim_errors = reclaim_errors_.load();
   return c;
 }
 

@@ -176,6 +176,9 @@ TEST(StoreReserveTest, WritesBelowTheReserveAreRefusedAndLatchNothing) {
   ASSERT_EQ(refused.code(), Status::Code::kIoError);
   EXPECT_NE(refused.message().find("below the reserve of 10.0 MB"), std::string::npos)
       << refused.message();
+  // A checkpoint and a robot's retirement free space: they may use the upper half of the
+  // reserve (FreeSpaceGuard::AdmitFreeing, issue 25); below half of it they are refused too.
+  disk.free = 4 * kMB;
   EXPECT_EQ(store->Checkpoint(3, {}).code(), Status::Code::kIoError);
   EXPECT_EQ(store->log().RetireRobot("r").code(), Status::Code::kIoError);
   // Nothing written, nothing latched: the robot, versions and log are as before.

@@ -25,6 +25,7 @@ bool RoleHas(Role role, Right right);
 struct TokenUsage {
   std::atomic<uint32_t> queries{0};
   std::atomic<uint32_t> ingest_streams{0};
+  std::atomic<uint32_t> corrections{0};  // CorrectPoses and RemoveScans running (at most one)
 };
 
 struct Principal {
@@ -35,8 +36,12 @@ struct Principal {
   uint32_t max_queries = 0;
   uint32_t max_ingest_streams = 0;
   std::shared_ptr<TokenUsage> usage;
+  // Set when a reload of the tokens file dropped this token: its open streams end within the
+  // streams' watchdog period, at most a second (issue 25).
+  std::shared_ptr<std::atomic<bool>> revoked = std::make_shared<std::atomic<bool>>(false);
 
   bool Has(Right right) const { return RoleHas(role, right); }
+  bool Revoked() const { return revoked->load(); }
   // A robot token ingests only as its own ids; planners never; admins (and anonymous) as any.
   bool MayIngestAs(std::string_view robot_id) const;
 };

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <utility>
 
 namespace bgkmap {
 namespace {
@@ -156,8 +157,17 @@ Result<std::unique_ptr<TokenTable>> TokenTable::Load(const std::string& path, De
 Status TokenTable::Reload() {
   Result<std::shared_ptr<const Digests>> parsed = Parse();
   if (!parsed.ok()) return parsed.status();
-  std::lock_guard lock(mu_);
-  digests_ = std::move(parsed).value();
+  std::shared_ptr<const Digests> old;
+  {
+    std::lock_guard lock(mu_);
+    old = std::exchange(digests_, *parsed);
+  }
+  // A token the new file no longer holds is revoked: the calls it has open see it and end.
+  if (old != nullptr) {
+    for (const auto& [digest, principal] : *old) {
+      if (!(*parsed)->contains(digest)) principal->revoked->store(true);
+    }
+  }
   return Status::Ok();
 }
 

@@ -34,7 +34,8 @@ class TokenTable {
   // Reads `path`; the message names the file and the entry at fault.
   static Result<std::unique_ptr<TokenTable>> Load(const std::string& path, Defaults defaults);
 
-  // Reads the file again and replaces the tokens; on failure keeps them and says why.
+  // Reads the file again and replaces the tokens; on failure keeps them and says why. The
+  // principals of tokens the file no longer holds are marked revoked (Principal::Revoked).
   Status Reload();
 
   // The principal for an "authorization" header value ("Bearer <token>"), or null with `*why`

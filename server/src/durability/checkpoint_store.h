@@ -48,6 +48,9 @@ class CheckpointStore {
   virtual Status Resume() = 0;
   // Writes are refused for lack of free space (a full disk): logged quietly, retried each second.
   virtual bool writes_paused_for_space() const { return false; }
+  // The journal written since the last checkpoint has grown past its share of the retention
+  // bound: checkpoint now, before the interval is up, so retention can trim it (issue 25).
+  virtual bool checkpoint_due_by_size() const { return false; }
   // Tiles the map holds newer than the store whose checkpoint was deferred at start (recovered
   // on a full disk): the first checkpoint after writes resume must write them.
   virtual std::vector<TileKey> DeferredTiles() const { return {}; }

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <chrono>
 
+#include "bgkmap/storage/free_space.h"
 #include "bgkmap/storage/log_record.h"
 #include "bgkmap/storage/tile_snapshot.h"
+#include "durability/disk_sizing.h"
 
 namespace bgkmap {
 namespace {
@@ -23,6 +25,19 @@ class SnapshotTiles final : public TilesAtVersion {
   std::unique_ptr<storage::TileSnapshot> snapshot_;
   std::vector<TileKey> keys_;
 };
+
+// The sizing rule (disk_sizing.h) against the free space plus what the store holds already.
+void WarnIfUndersized(const storage::TileStore& store, const StorageConfig& config) {
+  Result<uint64_t> free = storage::StatvfsFreeBytes(store.directory());
+  if (!free.ok()) return;
+  const storage::DiskUsage usage = store.Usage();
+  const DiskSizing sizing = SizingFor(config.retention_mb, config.min_free_space_mb,
+                                      store.options().memtable_bytes, usage.tile_bytes);
+  const std::string why = CheckSizing(sizing, *free + usage.total_bytes);
+  if (!why.empty()) {
+    spdlog::warn("event=storage_undersized data_dir={} reason=\"{}\"", store.directory(), why);
+  }
+}
 
 }  // namespace
 
@@ -43,6 +58,7 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
   if (!store.ok()) return store.status();
   std::unique_ptr<StoreDurability> d(new StoreDurability(std::move(store).value()));
   storage::TileStore& ts = *d->store_;
+  WarnIfUndersized(ts, config);
   if (ts.read_only()) {
     spdlog::warn(
         "event=storage_read_only data_dir={} reason=\"{}\" detail=\"opened read-only: queries "
@@ -114,13 +130,23 @@ bool StoreDurability::writes_paused_for_space() const {
   return store_->read_only() || store_->free_space().below_reserve();
 }
 
+bool StoreDurability::checkpoint_due_by_size() const {
+  // Retention keeps at most its bound below the newest checkpoint, but never trims above it:
+  // without this the journal since the checkpoint (robots x rate x scan size x interval) would
+  // add to the bound unchecked. Half the bound between checkpoints keeps the total within
+  // 1.5 x the bound (docs/storage.md, "Sizing").
+  const uint64_t bound = store_->options().retention.max_bytes;
+  return bound > 0 && store_->log().bytes_since_checkpoint() > bound / 2;
+}
+
 void StoreDurability::NotePause(const Status& outcome) {
   if (!outcome.ok() && writes_paused_for_space()) {
     if (!pause_logged_.exchange(true)) {
       spdlog::warn("event=storage_full reason=\"{}\" detail=\"writes refused, queries answered\"",
                    outcome.message());
     }
-  } else if (outcome.ok() && pause_logged_.exchange(false)) {
+  } else if (outcome.ok() && !writes_paused_for_space() && pause_logged_.exchange(false)) {
+    // (A write that frees space is admitted below the reserve: writes stay paused then.)
     spdlog::info("event=storage_resumed reason=\"free space above the reserve again\"");
   }
 }

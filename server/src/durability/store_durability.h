@@ -55,6 +55,8 @@ class StoreDurability final : public Durability {
   bool write_failed() const override { return write_failed_.load() || writes_paused_for_space(); }
   Status Resume() override;
   bool writes_paused_for_space() const override;
+  // Half of storage.retention_mb written since the last checkpoint (never without retention).
+  bool checkpoint_due_by_size() const override;
   std::vector<TileKey> DeferredTiles() const override { return deferred_; }
   Status AdmitScratch(uint64_t bytes) override;
   Result<std::unique_ptr<TilesAtVersion>> OpenTileSource(TileKey min, TileKey max,

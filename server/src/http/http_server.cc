@@ -48,8 +48,10 @@ class ConnectionBase {
  public:
   // Aborts whatever is pending and frees the slot; the handlers then release the connection.
   virtual void Close() = 0;
-  // Waiting for (or receiving) a request, or in the TLS handshake: the connection a full server
-  // evicts first, oldest first. 0 while a request is being answered or a stream is open.
+  // Waiting on its client: for (or receiving) a request, in the TLS handshake, or for the client
+  // to take a response (issue 25: pipelining clients that read nothing held every slot). The
+  // connections a full server evicts, oldest first. 0 while a request is being answered or a
+  // stream is open.
   uint64_t reading_since() const { return reading_since_; }
 
  protected:
@@ -248,8 +250,10 @@ class Connection final : public ConnectionBase,
     response.prepare_payload();
     response_ = std::move(response);
     Tcp().expires_after(state_.options.read_timeout);
+    reading_since_ = ++state_.read_sequence;  // evictable: the client may not be reading
     http::async_write(stream_, *response_,
                       [self = this->shared_from_this()](beast::error_code write_ec, size_t) {
+                        self->reading_since_ = 0;
                         if (write_ec) return;
                         if (self->keep_alive_) {
                           self->Read();

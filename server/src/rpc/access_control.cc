@@ -45,8 +45,10 @@ grpc::Status AccessControl::Admit(const grpc::CallbackServerContext& call,
   std::string why;
   PrincipalRef p = tokens_->Authenticate(authorization, &why);
   if (p == nullptr) {
-    spdlog::warn("event=unauthenticated method={} reason=\"{}\" peer=\"{}\"", method, why,
-                 LogSafe(call.peer()));
+    if (uint64_t suppressed = 0; refusal_log_.Allow(&suppressed)) {
+      spdlog::warn("event=unauthenticated method={} reason=\"{}\" peer=\"{}\" suppressed={}",
+                   method, why, LogSafe(call.peer()), suppressed);
+    }
     return {grpc::StatusCode::UNAUTHENTICATED, why};
   }
   if (!p->Has(right->second)) {

@@ -12,6 +12,7 @@
 
 #include "auth/principal.h"
 #include "auth/token_table.h"
+#include "rpc/log_rate_limit.h"
 
 namespace bgkmap {
 
@@ -30,6 +31,8 @@ class AccessControl {
 
  private:
   const TokenTable* tokens_;
+  // Refusals are logged at most 10 times a second (a client retrying without a token).
+  mutable LogRateLimit refusal_log_{10};
 };
 
 // PERMISSION_DENIED for a robot token sending a scan as an id it does not list.

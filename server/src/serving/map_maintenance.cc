@@ -81,7 +81,8 @@ void MapMaintenance::CheckpointLoop() {
       reported_writable_ = writable;
       on_writable_(writable);
     }
-    if (!durability_.write_failed() && std::chrono::steady_clock::now() - last < interval) {
+    if (!durability_.write_failed() && !durability_.checkpoint_due_by_size() &&
+        std::chrono::steady_clock::now() - last < interval) {
       continue;
     }
     lock.unlock();

@@ -6,11 +6,14 @@
 #include <grpcpp/security/credentials.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <thread>
 
 #include "auth/token_table.h"
 #include "bgkmap/v1/map_service.grpc.pb.h"
@@ -183,6 +186,41 @@ TEST_F(Security, MetricsOverHttpsNeedAToken) {
   EXPECT_EQ(HttpsGet(port, Path("other_ca.pem"), "Authorization: Bearer planner-secret\\r\\n")
                 .find("200 OK"),
             std::string::npos);
+}
+
+// The cipher `openssl s_client` agrees on with TLS 1.2 and `ciphers` offered ("" if the
+// handshake fails).
+std::string NegotiatedCipher(int port, const std::string& ca, const std::string& ciphers) {
+  const std::string cmd = "timeout 10 openssl s_client -tls1_2 -cipher '" + ciphers +
+                          "' -connect 127.0.0.1:" + std::to_string(port) + " -CAfile " + ca +
+                          " </dev/null 2>/dev/null";
+  std::string out;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (p == nullptr) return out;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  pclose(p);
+  std::smatch m;
+  if (!std::regex_search(out, m, std::regex("Cipher is ([A-Z0-9-]+)"))) return "";
+  return m[1] == "0000" ? "" : std::string(m[1]);
+}
+
+// Issue 25, finding 7: HTTPS offered TLS 1.2 ciphers without forward secrecy (plain RSA key
+// exchange). Only ECDHE with AEAD ciphers are offered now (TLS 1.3's all have it).
+// Mutation caught: MakeHttpsContext without its cipher list (AES128-GCM-SHA256 is agreed).
+TEST_F(Security, HttpsOffersOnlyForwardSecretCiphers) {
+  BgkmapdProcess server(Concat(TlsArgs(), {"--metrics", "127.0.0.1:0"}));
+  ASSERT_TRUE(server.started());
+  std::smatch m;
+  const std::string line = server.WaitForLine("event=metrics_listening", 10);
+  ASSERT_TRUE(std::regex_search(line, m, std::regex("port=([0-9]+)"))) << line;
+  const int port = std::stoi(m[1]);
+  const std::string ca = Path("ca.pem");
+  EXPECT_EQ(NegotiatedCipher(port, ca, "AES128-GCM-SHA256:AES256-GCM-SHA384:AES128-SHA"), "");
+  EXPECT_EQ(NegotiatedCipher(port, ca, "ECDHE-RSA-AES128-GCM-SHA256"),
+            "ECDHE-RSA-AES128-GCM-SHA256");
+  EXPECT_EQ(NegotiatedCipher(port, ca, "ECDHE-RSA-AES128-SHA"), "") << "CBC is not offered";
 }
 
 // The web map shares the HTTPS port and its tokens: every route needs one, from the
@@ -415,6 +453,60 @@ TEST_F(Roles, SighupReloadsTheTokensAndABadFileKeepsThem) {
   EXPECT_EQ(server_->Poll(), -1);     // and the server runs
 }
 
+// Issue 25, finding 4: after SIGHUP removed a robot's token, its open Ingest and Watch streams
+// went on (13 more scans applied in 4 s). A revoked token's streams now end within the
+// watchdog period (at most 1 s) with UNAUTHENTICATED; the tokens that stay keep theirs.
+// Mutation caught: TokenTable::Reload not marking the dropped principals revoked (the streams
+// keep going and the scan sent after the reload is applied).
+TEST_F(Roles, RevokingATokenEndsItsOpenStreamsWithinASecond) {
+  Client robot = Connect("robot-secret");
+  Client planner = Connect("planner-secret");
+  Client ops = Connect("admin-secret");
+  std::unique_ptr<IngestStream> stream = robot.OpenIngest();
+  ASSERT_TRUE(stream->Send(ScanAs("r1", 1).Data()));
+  ScanAck ack;
+  ASSERT_TRUE(stream->ReadAck(&ack));
+  ASSERT_EQ(ack.status, AckStatus::kApplied);
+  std::atomic<int> ops_updates{0}, planner_updates{0};
+  std::unique_ptr<WatchSubscription> planner_watch =
+      planner.Watch({{-10, -10, 10, 10}, {}, false}, [&](const TileUpdate&) { ++planner_updates; });
+  std::unique_ptr<WatchSubscription> ops_watch =
+      ops.Watch({{-10, -10, 10, 10}, {}, false}, [&](const TileUpdate&) { ++ops_updates; });
+  // Both watches are open on the server before the reload: each has seen a change.
+  ASSERT_TRUE(ops.Insert(ScanAs("r9", 1).Data()).ok());
+  for (int i = 0; i < 400 && (planner_updates.load() == 0 || ops_updates.load() == 0); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_GT(planner_updates.load(), 0);
+  ops_updates = 0;
+
+  WriteTokens(tokens_, {{"ops", "admin-secret", "admin", ""}});  // "lidar" and "planner" go
+  const auto signalled = std::chrono::steady_clock::now();
+  server_->Signal(SIGHUP);
+  // The idle watch ends by itself: the watchdog (every second at most) sees the revocation.
+  const RpcStatus watch_end = planner_watch->Wait();
+  const auto ended = std::chrono::steady_clock::now() - signalled;
+  ASSERT_FALSE(server_->WaitForLine("event=tokens_reloaded", 10).empty());
+  EXPECT_LT(ended, std::chrono::seconds(3));  // one period plus the reload, on a loaded machine
+  EXPECT_EQ(watch_end.code(), RpcCode::kUnauthenticated) << watch_end.ToString();
+  EXPECT_NE(watch_end.message().find("token 'planner' revoked"), std::string::npos)
+      << watch_end.message();
+  // The idle ingest stream ends too: no ack comes, the stream's status names the revocation.
+  EXPECT_FALSE(stream->ReadAck(&ack));
+  const RpcStatus ingest_end = stream->Finish();
+  EXPECT_EQ(ingest_end.code(), RpcCode::kUnauthenticated) << ingest_end.ToString();
+  EXPECT_NE(ingest_end.message().find("token 'lidar' revoked"), std::string::npos)
+      << ingest_end.message();
+  EXPECT_EQ(ops.LastSequence("r1")->value_or(0), 1u);
+  // The admin's watch, whose token stays, is still open and sees a new scan.
+  ASSERT_TRUE(ops.Insert(ScanAs("r9", 2).Data()).ok());
+  for (int i = 0; i < 200 && ops_updates.load() == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  EXPECT_GT(ops_updates.load(), 0) << "the remaining token's watch ended too";
+  ops_watch->Cancel();
+}
+
 TEST_F(Security, PerTokenIngestStreamQuota) {
   const std::string tokens = Path("quota_tokens.yaml");
   WriteTokens(tokens,
@@ -454,6 +546,57 @@ TEST_F(Security, PerTokenIngestStreamQuota) {
     acks = fleet.IngestAll(again_data);
   }
   EXPECT_TRUE(acks.ok()) << acks.status().ToString();
+}
+
+// Issue 25, finding 5: 20 pose corrections at once from one robot token were all accepted, and
+// another robot's acks waited up to 27.5 s behind them. A token runs one correction at a time;
+// the others are RESOURCE_EXHAUSTED at once, and another token is not held back.
+// Mutation caught: Submit in correct_poses.cc without its Permit (all 16 accepted).
+TEST_F(Security, OneCorrectionAtATimePerToken) {
+  const std::string tokens = Path("correction_tokens.yaml");
+  WriteTokens(tokens, {{"lidar", "robot-secret", "robot", "robots: [r1]"},
+                       {"other", "other-secret", "robot", "robots: [r2]"}});
+  TempDir dir("bgkmap_correction_quota");
+  BgkmapdProcess server({"--set", "server.auth.tokens_file=" + tokens, "--data-dir", dir.str(),
+                         "--set", "storage.checkpoint_interval_s=0.1"});
+  ASSERT_TRUE(server.started());
+  Client robot(server.target(), Options("robot-secret"));
+  ASSERT_TRUE(robot.Insert(ScanAs("r1", 1).Data()).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // a retained checkpoint first
+  std::vector<std::pair<uint64_t, ScanPose>> poses;
+  for (uint64_t s = 2; s <= 9; ++s) {
+    const OwnedScan scan = ScanAs("r1", s);
+    ASSERT_TRUE(robot.Insert(scan.Data()).ok());
+    ScanPose moved = scan.pose;
+    moved.tx += 0.05;
+    poses.emplace_back(s, moved);
+  }
+  std::atomic<int> ok{0}, busy{0}, other{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 16; ++i) {
+    threads.emplace_back([&] {
+      Client c(server.target(), Options("robot-secret"));
+      RpcResult<CorrectionResult> r = c.CorrectPoses("r1", poses);
+      if (r.ok()) {
+        ++ok;
+      } else if (r.status().code() == RpcCode::kResourceExhausted &&
+                 r.status().message().find("already has a correction running") !=
+                     std::string::npos) {
+        ++busy;
+      } else {
+        ++other;
+        ADD_FAILURE() << r.status().ToString();
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_GE(ok.load(), 1);
+  EXPECT_GE(busy.load(), 1) << "every correction was taken at once";
+  EXPECT_EQ(other.load(), 0);
+  // The token's slot is free again, and another token was never held back.
+  EXPECT_TRUE(robot.CorrectPoses("r1", poses).ok());
+  Client second(server.target(), Options("other-secret"));
+  EXPECT_TRUE(second.Insert(ScanAs("r2", 1).Data()).ok());
 }
 
 // A region stream the client stops reading holds its query slot (until

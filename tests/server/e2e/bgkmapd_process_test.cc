@@ -270,5 +270,26 @@ TEST(BgkmapdProcessTest, AStartBelowTheFreeSpaceReserveServesReadsOnly) {
   std::filesystem::remove_all(dir);
 }
 
+// Issue 25, finding 3: gRPC sets SO_REUSEPORT by default, so a second bgkmapd on the same address
+// started, said "listening" and took part of the calls (an empty map answering). The listener
+// is exclusive: the second start fails with one line naming the address, the first serves on.
+// Mutation caught: dropping the GRPC_ARG_ALLOW_REUSEPORT=0 argument in ListenGrpc (the second
+// process then logs event=listening and keeps running).
+TEST(BgkmapdProcessTest, ASecondServerOnTheSameGrpcAddressIsRefusedAtStart) {
+  BgkmapdProcess first;
+  ASSERT_TRUE(first.started());
+  BgkmapdProcess second({BGKMAPD_PATH, "--listen", first.target()},
+                        "event=(?:listening|start_failed)");
+  EXPECT_EQ(second.Wait(30), 1) << "the second server did not exit";
+  const std::string failed = second.FindLine("event=start_failed");
+  EXPECT_NE(failed.find(first.target()), std::string::npos) << failed;
+  EXPECT_NE(failed.find("in use"), std::string::npos) << failed;
+  EXPECT_TRUE(second.FindLine("event=listening").empty());
+  EXPECT_EQ(Health(first.target(), "bgkmap.v1.MapService"),
+            grpc::health::v1::HealthCheckResponse::SERVING);
+  first.Signal(SIGTERM);
+  EXPECT_EQ(first.Wait(), 0);
+}
+
 }  // namespace
 }  // namespace bgkmap::testing

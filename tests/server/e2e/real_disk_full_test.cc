@@ -38,40 +38,13 @@
 #include <vector>
 
 #include "bgkmapd_process.h"
+#include "small_file_system.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
 namespace {
 
 namespace fs = std::filesystem;
-
-// A tmpfs of `megabytes` mounted on a fresh directory, unmounted (lazily) and removed on exit.
-class SmallFileSystem {
- public:
-  explicit SmallFileSystem(int megabytes) {
-    path_ = (fs::temp_directory_path() / ("bgkmap_small_fs_" + std::to_string(getpid()))).string();
-    fs::create_directories(path_);
-    const std::string options = "size=" + std::to_string(megabytes) + "m,mode=0700";
-    if (mount("tmpfs", path_.c_str(), "tmpfs", MS_NOSUID | MS_NODEV, options.c_str()) != 0) {
-      error_ = std::strerror(errno);
-      return;
-    }
-    mounted_ = true;
-  }
-  ~SmallFileSystem() {
-    if (mounted_) umount2(path_.c_str(), MNT_DETACH);
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  bool mounted() const { return mounted_; }
-  const std::string& error() const { return error_; }
-  std::string Sub(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-  std::string error_;
-  bool mounted_ = false;
-};
 
 // Writes `megabytes` of real pages (tmpfs counts them against its size).
 bool WriteBallast(const std::string& path, int megabytes) {
@@ -393,15 +366,6 @@ TEST(RealDiskFullTest, ARestartOnTheFullDiskOpensTheStoreReadOnly) {
   EXPECT_TRUE(BitwiseEqual(*region, Reference(base, kScans + 1)));
   again.Signal(SIGTERM);
   EXPECT_EQ(again.Wait(60), 0);
-}
-
-uint64_t DirectoryBytes(const std::string& dir) {
-  uint64_t total = 0;
-  std::error_code ec;
-  for (const auto& e : fs::recursive_directory_iterator(dir, ec)) {
-    if (e.is_regular_file(ec)) total += e.file_size(ec);
-  }
-  return total;
 }
 
 // Measurement, not a check (run with --gtest_also_run_disabled_tests; docs/storage.md,

@@ -496,6 +496,49 @@ TEST(HttpSlowClientsTest, TricklingClientsDoNotStarveMetrics) {
   EXPECT_GT(reconnects.load(), 0);  // tricklers were evicted (or timed out)
 }
 
+// Issue 25, finding 6: 70 connections pipelining requests for the page without reading the
+// answers made a third of real scrapes fail: a connection whose response was being written was
+// never evicted, and its write only timed out after server read_timeout. Such a connection waits
+// on its client as much as one that trickles its request, and is evicted the same way.
+// Mutation caught: Write() not marking the connection as waiting on its client (scrapes fail).
+TEST(HttpSlowClientsTest, PipeliningClientsThatReadNothingDoNotStarveMetrics) {
+  ServerFixture fixture(WebConfig());
+  const int port = fixture.server().http_port();
+  std::atomic<bool> stop{false};
+  std::atomic<int> reconnects{0};
+  std::string pipelined;
+  for (int i = 0; i < 400; ++i) pipelined += "GET / HTTP/1.1\r\nHost: localhost\r\n\r\n";
+  std::vector<std::thread> pipeliners;
+  for (int i = 0; i < 70; ++i) {
+    pipeliners.emplace_back([&] {
+      while (!stop) {
+        Socket s(port);
+        // Each answer is the whole page: 400 of them fill the socket buffers, so the server's
+        // write stalls. A send that fails tells that the server dropped the connection.
+        bool open = s.connected() && s.Send(pipelined);
+        while (!stop && open) {
+          for (int k = 0; k < 10 && !stop; ++k) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          }
+          open = s.Send("GET / HTTP/1.1\r\nHost: localhost\r\n\r\n");
+        }
+        ++reconnects;
+      }
+    });
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // every slot taken
+  int ok = 0;
+  for (int i = 0; i < 18; ++i) {
+    const Reply r = Get(port, "/metrics");
+    ok += r.status == 200 && r.body.find("bgkmap_build_info") != std::string::npos;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  stop = true;
+  for (std::thread& t : pipeliners) t.join();
+  EXPECT_EQ(ok, 18);
+  EXPECT_GT(reconnects.load(), 0);
+}
+
 // Tiles render on the query pool: scrapes keep answering quickly while tiles are requested.
 TEST_F(WebMapTest, MetricsAnswerWhileTilesRender) {
   std::atomic<bool> stop{false};

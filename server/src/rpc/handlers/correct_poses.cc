@@ -35,12 +35,28 @@ grpc::Status Admissible(ServiceContext& ctx, const Principal& who, const std::st
   return grpc::Status::OK;
 }
 
+// A token runs one correction at a time (issue 25: 20 at once from one robot token delayed
+// another robot's acks by 27.5 s). The permit is held until the correction is answered.
+constexpr uint32_t kCorrectionsPerToken = 1;
+
 template <typename Response>
 void Submit(ServiceContext& ctx, grpc::ServerUnaryReactor* reactor, PrincipalRef who,
             const std::string& peer, CorrectionSpec spec, Response* response, const char* action) {
+  std::shared_ptr<Permit> permit;
+  if (who->usage != nullptr) {
+    permit = std::make_shared<Permit>(who->usage->corrections, kCorrectionsPerToken);
+    if (!*permit) {
+      reactor->Finish({grpc::StatusCode::RESOURCE_EXHAUSTED,
+                       "token '" + who->name +
+                           "' already has a correction running (one at a time per token); "
+                           "retry once it is answered"});
+      return;
+    }
+  }
   const std::string robot = spec.robot_id;
-  auto done = [reactor, response, peer, who = std::move(who), robot,
-               action](CorrectionOutcome outcome) {
+  auto done = [reactor, response, peer, who = std::move(who), robot, action,
+               permit = std::move(permit)](CorrectionOutcome outcome) mutable {
+    permit.reset();  // before the answer: the token's next correction may follow at once
     if (!outcome.status.ok()) {
       spdlog::warn("event={}_refused robot=\"{}\" reason=\"{}\"", action, LogSafe(robot, 128),
                    LogSafe(outcome.status.message()));

@@ -69,9 +69,11 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
       Slot& slot = slots_.emplace_back();
       if (draining_ || broken_) {
         // Read after the drain began: answered, never applied.
-        slot.ack = RejectedAck(ctx_, incoming_,
-                               grpc::Status(grpc::StatusCode::UNAVAILABLE,
-                                            "server is shutting down: scan not applied"));
+        slot.ack =
+            RejectedAck(ctx_, incoming_,
+                        revoked_ ? RevokedStatus("scan not applied")
+                                 : grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                                                "server is shutting down: scan not applied"));
         slot.ready = true;
       } else {
         to_prepare_.push_back({std::move(incoming_), &slot});
@@ -117,6 +119,13 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   void Tick(std::chrono::steady_clock::time_point now) override {
     std::unique_lock lock(mu_);
     if (finished_) return;
+    if (who_->Revoked() && !revoked_) {
+      // The token was revoked: no more reads; what was read is answered, then the call ends.
+      revoked_ = true;
+      draining_ = true;
+      Step(lock);
+      return;
+    }
     const auto zero = std::chrono::steady_clock::duration::zero();
     if (writing_ && !broken_ && stalled_timeout_ != zero &&
         now - last_activity_ > stalled_timeout_) {
@@ -204,6 +213,8 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
                               "no scan for server.ingest_idle_timeout_s = " +
                                   SecondsText(ctx_.limits.ingest_idle_timeout_s) +
                                   " s: the idle stream is closed; open a new one to send more");
+      } else if (revoked_) {
+        status = RevokedStatus("the stream is closed");
       } else if (draining_ && !read_closed_) {
         status = grpc::Status(grpc::StatusCode::UNAVAILABLE,
                               "server is shutting down: every scan read was acknowledged");
@@ -221,6 +232,12 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
     if (write != nullptr) StartWrite(write);
     if (read) StartRead(&incoming_);
     if (finish) Finish(status);
+  }
+
+  grpc::Status RevokedStatus(const std::string& what) const {
+    return grpc::Status(
+        grpc::StatusCode::UNAUTHENTICATED,
+        "token '" + who_->name + "' revoked (server.auth.tokens_file reloaded): " + what);
   }
 
   ServiceContext& ctx_;
@@ -242,6 +259,7 @@ class IngestStream final : public grpc::ServerBidiReactor<v1::Scan, v1::ScanAck>
   bool preparing_ = false;
   bool read_closed_ = false;
   bool draining_ = false;
+  bool revoked_ = false;  // draining because the token was revoked (Tick)
   bool broken_ = false;
   bool finished_ = false;
   bool idle_ = false;     // closed for idling (server.ingest_idle_timeout_s)

@@ -5,6 +5,8 @@
 #include <boost/asio/post.hpp>
 #include <cstdint>
 #include <mutex>
+#include <string>
+#include <utility>
 
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
@@ -15,9 +17,9 @@ namespace {
 
 class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, public DrainListener {
  public:
-  WatchStream(ServiceContext& ctx, grpc::CallbackServerContext* call,
+  WatchStream(ServiceContext& ctx, grpc::CallbackServerContext* call, PrincipalRef who,
               const v1::WatchRequest& request)
-      : ctx_(ctx), stalled_(call, ctx.limits.stalled_write_timeout_s) {
+      : ctx_(ctx), who_(std::move(who)), stalled_(call, ctx.limits.stalled_write_timeout_s) {
     if (grpc::Status s = Parse(request); !s.ok()) {
       Finish(s);
       return;
@@ -76,6 +78,18 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     std::unique_lock lock(mu_);
     stopping_ = true;
     status_ = grpc::Status(grpc::StatusCode::UNAVAILABLE, "server is shutting down");
+    MaybeFinish(lock);
+  }
+
+  // A revoked token's watch ends within the watchdog period (an update being written first).
+  void Tick(std::chrono::steady_clock::time_point /*now*/) override {
+    if (!who_->Revoked()) return;
+    std::unique_lock lock(mu_);
+    if (stopping_) return;
+    stopping_ = true;
+    status_ = grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                           "token '" + who_->name +
+                               "' revoked (server.auth.tokens_file reloaded): the watch is closed");
     MaybeFinish(lock);
   }
 
@@ -190,6 +204,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
   }
 
   ServiceContext& ctx_;
+  const PrincipalRef who_;
   StalledWriteWatch stalled_;
   bool registered_ = false;
   bool stalled_registered_ = false;
@@ -210,9 +225,9 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
 
 grpc::ServerWriteReactor<v1::TileUpdate>* StartWatch(ServiceContext& ctx,
                                                      grpc::CallbackServerContext* call,
-                                                     PrincipalRef /*who*/,
+                                                     PrincipalRef who,
                                                      const v1::WatchRequest* request) {
-  return new WatchStream(ctx, call, *request);
+  return new WatchStream(ctx, call, std::move(who), *request);
 }
 
 }  // namespace bgkmap

@@ -40,6 +40,11 @@ class FreeSpaceGuard {
   // otherwise IoError "data dir <path> has X MB free, below the reserve of Y MB; writes resume
   // when space is freed", and nothing is counted. The caller writes nothing then.
   Status Admit(uint64_t bytes);
+  // Admit() for a write that frees more than it adds (an operator's clear, removal or robot
+  // retirement, a checkpoint that truncates the log): it may use the upper half of the reserve,
+  // so the space the reserve stopped the robots at can still be freed (issue 25), while RocksDB
+  // keeps half the reserve for its flushes. Does not change below_reserve().
+  Status AdmitFreeing(uint64_t bytes);
   // Probes now and answers as Admit(0) would (a paused writer asking whether to resume).
   Status Check();
 
@@ -53,7 +58,9 @@ class FreeSpaceGuard {
  private:
   // With mu_ held: probes if forced, stale by time, or stale by bytes admitted.
   Status RefreshLocked(bool force);
-  Status DecideLocked(uint64_t bytes);
+  // `freeing`: only half the reserve must stay free, and below_ is left as it is.
+  Status DecideLocked(uint64_t bytes, bool freeing);
+  Status AdmitAs(uint64_t bytes, bool freeing);  // takes mu_
   std::chrono::steady_clock::time_point Now() const;
 
   const std::string path_;

@@ -96,6 +96,11 @@ class ScanLog {
   Durability durability() const { return durability_; }
   uint64_t records_appended() const { return appended_.load(); }
   uint64_t bytes_appended() const { return appended_bytes_.load(); }
+  // Bytes written to the database by appends (records and raw scans) since the last
+  // checkpoint: what a checkpoint would let retention trim (TileStore::Checkpoint).
+  uint64_t bytes_since_checkpoint() const {
+    return written_bytes_.load() - written_at_checkpoint_.load();
+  }
   uint64_t corrupt_records() const { return corrupt_.load(); }
   uint64_t append_errors() const { return append_errors_.load(); }
   // Writes refused by the free-space reserve or because the store is read-only.
@@ -113,10 +118,19 @@ class ScanLog {
   // OK if `bytes` may be written now (the reserve stays free, the store is writable); the
   // refusal otherwise, counted. Checked before every write to the database.
   Status AdmitWrite(uint64_t bytes);
+  // AdmitWrite() for a write that frees more than it adds (FreeSpaceGuard::AdmitFreeing).
+  Status AdmitFreeingWrite(uint64_t bytes);
+  // The guard's answer `s`, refused if the store is read-only; a refusal is counted.
+  Status CountRefusal(Status s);
 
   // Adds to `batch` the deletion of every record (and raw scan) with version <= `through`.
   void AddTruncation(rocksdb::WriteBatch* batch, uint64_t through);
-  void OnCheckpoint(uint64_t version) { checkpoint_version_.store(version); }
+  // `written_before`: written_bytes_ when the checkpoint started (appends may run beside it).
+  void OnCheckpoint(uint64_t version, uint64_t written_before) {
+    checkpoint_version_.store(version);
+    written_at_checkpoint_.store(written_before);
+  }
+  uint64_t written_bytes() const { return written_bytes_.load(); }
   // A record was written by the store itself (a correction).
   void NoteAppended(uint64_t version) {
     std::lock_guard<std::mutex> lock(mu_);
@@ -135,6 +149,7 @@ class ScanLog {
 
   std::atomic<uint64_t> checkpoint_version_;
   std::atomic<uint64_t> appended_{0}, appended_bytes_{0};
+  std::atomic<uint64_t> written_bytes_{0}, written_at_checkpoint_{0};
   mutable std::atomic<uint64_t> corrupt_{0};
   std::atomic<uint64_t> append_errors_{0};
   std::atomic<uint64_t> space_refusals_{0};

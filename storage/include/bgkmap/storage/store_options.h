@@ -55,8 +55,9 @@ struct StoreOptions {
   // What the store keeps for pose corrections (scan_history.h). max_bytes 0: nothing is kept
   // (the log ends at the last checkpoint, no scan can be corrected).
   struct Retention {
-    // Bound on the raw scans and log records kept below the last checkpoint (RocksDB's
-    // estimate of their files and memory tables).
+    // Bound on the raw scans, log records and tile history kept for corrections (RocksDB's
+    // estimate of their files and memory tables), enforced at each checkpoint; the dropped
+    // ranges are compacted away at once (TileStore::Checkpoint).
     uint64_t max_bytes = 0;
     // Bound on their age in map time: scans older than this before the newest scan's stamp are
     // dropped at the next checkpoint. 0: no bound by age.

@@ -65,6 +65,9 @@ struct StoreCounters {
   uint64_t write_errors = 0;  // failed appends and checkpoints
   // Writes refused before they were tried: below the free-space reserve, or read-only.
   uint64_t writes_refused_for_space = 0;
+  // Compactions of the ranges checkpoints dropped (TileStore::Checkpoint), and those that failed.
+  uint64_t reclaims = 0;
+  uint64_t reclaim_errors = 0;
 };
 
 struct DiskUsage {
@@ -218,10 +221,22 @@ class TileStore {
   // Retention at a checkpoint of `version`: the replaced tiles go to the history, the
   // bases are updated and what falls out of the bound is deleted (all into `batch`). Returns
   // the new bases. Requires checkpoint_mu_.
+  // `dropped_through`: the log, raw scans and history at or below it are dropped (0: none).
   Result<std::vector<uint64_t>> AddRetention(rocksdb::WriteBatch* batch, uint64_t version,
                                              std::span<const TileUpdate> tiles,
-                                             bool forget_earlier_bases);
-  // RocksDB's estimate of the log and raw-scan bytes above `version`.
+                                             bool forget_earlier_bases, uint64_t* dropped_through);
+  // Checkpoint() under checkpoint_mu_; sets `dropped_through` as AddRetention does.
+  Status WriteCheckpoint(uint64_t version, std::span<const TileUpdate> tiles,
+                         bool forget_earlier_bases, uint64_t* dropped_through);
+  // Compacts the log, raw scans and history at or below `through`, which a checkpoint has
+  // just range-deleted, so their files leave the disk now and not whenever RocksDB would
+  // compact them. A failure is counted (StoreCounters::reclaim_errors), not returned.
+  void ReclaimDropped(uint64_t through);
+  // Compacts the tiles a checkpoint of `tiles` deleted (null or zero), when space is short.
+  void ReclaimDeletedTiles(std::span<const TileUpdate> tiles);
+  // Compacts the log, raw scans and history between versions `first` and `last` (inclusive).
+  void CompactVersions(uint64_t first, uint64_t last);
+  // RocksDB's estimate of the log, raw-scan and tile-history bytes above `version`.
   uint64_t RetainedBytesAbove(uint64_t version) const;
   // The stamp of the first scan record above `version`, and of the newest one (0: none).
   int64_t FirstStampAbove(uint64_t version) const;
@@ -250,6 +265,7 @@ class TileStore {
   uint64_t bases_floor_ = 0;     // guarded by bases_mu_ (store_keys.h, kBasesFloorKey)
   mutable std::atomic<uint64_t> tiles_loaded_{0};
   std::atomic<uint64_t> tiles_written_{0}, tiles_deleted_{0}, checkpoints_{0};
+  std::atomic<uint64_t> reclaims_{0}, reclaim_errors_{0};
   std::atomic<uint64_t> checkpoint_errors_{0};
   mutable std::mutex corrupt_mu_;
   mutable std::set<TileKey> corrupt_;  // until rewritten by a checkpoint

@@ -1,0 +1,34 @@
+#include "durability/disk_sizing.h"
+
+namespace bgkmap {
+namespace {
+
+// What is asked is rounded up, what is there down: a shortfall never reads as "1725 of 1725".
+std::string Mb(uint64_t bytes) { return std::to_string((bytes + (1 << 20) - 1) >> 20); }
+std::string MbDown(uint64_t bytes) { return std::to_string(bytes >> 20); }
+
+}  // namespace
+
+DiskSizing SizingFor(uint64_t retention_mb, uint64_t min_free_space_mb, uint64_t memtable_bytes,
+                     uint64_t map_bytes) {
+  DiskSizing s;
+  s.retention_bytes = retention_mb << 20;
+  // Retention trims only at checkpoints; one is forced once half the bound was written since
+  // the last (StoreDurability::checkpoint_due_by_size), so the journal adds half the bound.
+  s.journal_bytes = s.retention_bytes / 2;
+  s.wal_bytes = 2 * memtable_bytes;  // StoreOptions' max_total_wal_size
+  s.map_bytes = map_bytes;
+  s.reserve_bytes = min_free_space_mb << 20;
+  return s;
+}
+
+std::string CheckSizing(const DiskSizing& s, uint64_t available) {
+  if (available >= s.total()) return "";
+  return "the data dir's file system has " + MbDown(available) +
+         " MB for the store, the sizing rule asks " + Mb(s.total()) + " MB: retention " +
+         Mb(s.retention_bytes) + " + journal " + Mb(s.journal_bytes) + " + write-ahead log " +
+         Mb(s.wal_bytes) + " + map " + Mb(s.map_bytes) + " + reserve " + Mb(s.reserve_bytes) +
+         " (storage.retention_mb, storage.min_free_space_mb)";
+}
+
+}  // namespace bgkmap
