@@ -12,7 +12,8 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 // Running aggregate of the cells behind one raster pixel.
 struct PixelAggregate {
   double w = 0, s = 0, q = 0;
-  float worst_trav = -1, worst_var = -1;
+  float worst_trav = -1, worst_var = -1, worst_disagreement = -1;
+  uint8_t block_reasons = 0;  // every reason any of its cells is blocked for
   bool known = false;
   bool any_non_traversable = false;  // the pixel is traversable only if all its cells are
 
@@ -27,6 +28,10 @@ struct PixelAggregate {
     s += cs;
     q += cq;
     any_non_traversable |= e.state == CellState::kNonTraversable;
+    block_reasons |= e.block_reasons;
+    if (!std::isnan(e.disagreement)) {
+      worst_disagreement = std::max(worst_disagreement, e.disagreement);
+    }
     if (std::isnan(e.traversability)) return;
     worst_trav = std::max(worst_trav, e.traversability);
     worst_var = std::max(worst_var, e.traversability_variance);
@@ -39,6 +44,8 @@ struct PixelAggregate {
     e.traversability_variance = worst_var >= 0 ? worst_var : kNaN;
     e.state = any_non_traversable ? CellState::kNonTraversable : CellState::kTraversable;
     e.elevation_weight = static_cast<float>(w);
+    e.disagreement = worst_disagreement >= 0 ? worst_disagreement : kNaN;
+    e.block_reasons = block_reasons;
     return e;
   }
 };

@@ -43,9 +43,10 @@ TEST_F(BuildCommandTest, MapsTheRealStreetScansIntoTheBandContract) {
   EXPECT_NE(run.output.find("3 scans"), std::string::npos) << run.output;
   Result<Raster> r = io::ReadGeoTiff(Path("street.tif"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  const std::vector<Layer> bands = {Layer::kElevation, Layer::kElevationVariance,
+  const std::vector<Layer> bands = {Layer::kElevation,      Layer::kElevationVariance,
                                     Layer::kTraversability, Layer::kTraversabilityVariance,
-                                    Layer::kState};
+                                    Layer::kState,          Layer::kDisagreement,
+                                    Layer::kBlockReason};
   EXPECT_EQ(r->layers, bands);
   EXPECT_DOUBLE_EQ(r->resolution, 0.1);
   // The same scans through the engine directly give the same values.

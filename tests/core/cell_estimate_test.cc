@@ -100,5 +100,41 @@ TEST(CellEstimateTest, DisagreementEntersVarianceAndStateWithDynamics) {
   EXPECT_EQ(EstimateCell(p, 2.0, 0.1, 0.01, 0.1f, 19.9f).state, CellState::kTraversable);
 }
 
+// The block reason names each condition of the state rule a cell fails, and is 0 exactly when
+// the cell is traversable. Catches: a condition tested with the wrong threshold (each case
+// below fails one alone), kBlockedNoValue not reported alone, and a reason on an unknown cell.
+TEST(CellEstimateTest, BlockReasonNamesTheFailedConditions) {
+  MapParams p;  // bgk+, dynamics on, trav_threshold 0.5, variance_threshold 0.05
+  auto reasons = [&](double w, double s, double q, float a, float b) {
+    const CellEstimate e = EstimateCell(p, w, s, q, a, b);
+    EXPECT_EQ(e.block_reasons == 0, e.state != CellState::kNonTraversable);
+    return e.block_reasons;
+  };
+  EXPECT_EQ(reasons(10.0, 5.0, 2.5, 0.5f, 9.5f), 0);                    // flat, much evidence
+  EXPECT_EQ(reasons(0.0, 0.0, 0.0, 0.0f, 0.0f), 0);                     // unknown
+  EXPECT_EQ(reasons(1.0, 0.5, 0.25, 0.0f, 0.0f), kBlockedNoValue);      // elevation only
+  EXPECT_EQ(reasons(10.0, 5.0, 2.5, 8.0f, 2.0f), kBlockedMean);         // an obstacle
+  EXPECT_EQ(reasons(1.0, 0.5, 0.25, 0.05f, 0.3f), kBlockedVariance);    // flat but thin
+  EXPECT_EQ(reasons(2.0, 1.0, 1.0, 0.5f, 9.5f), kBlockedDisagreement);  // sqrt(D) = 0.5 m
+  EXPECT_EQ(reasons(2.0, 1.0, 1.0, 8.0f, 2.0f), kBlockedMean | kBlockedDisagreement);
+  p.dynamics = Dynamics::kOff;  // the paper judges no disagreement
+  EXPECT_EQ(reasons(2.0, 1.0, 1.0, 0.5f, 9.5f), 0);
+}
+
+// The explanation layers through CellEstimate::Get: the disagreement in metres (NaN without
+// dynamics, where the map keeps no Q, and without weight), the reason as a number (NaN where
+// unknown, 0 where traversable).
+TEST(CellEstimateTest, ExplanationLayers) {
+  MapParams p;
+  const CellEstimate e = EstimateCell(p, 2.0, 1.0, 1.0, 8.0f, 2.0f);  // D = 0.25
+  EXPECT_FLOAT_EQ(e.Get(Layer::kDisagreement), 0.5f);
+  EXPECT_EQ(e.Get(Layer::kBlockReason), static_cast<float>(kBlockedMean | kBlockedDisagreement));
+  EXPECT_EQ(EstimateCell(p, 10.0, 5.0, 2.5, 0.5f, 9.5f).Get(Layer::kBlockReason), 0.0f);
+  EXPECT_TRUE(std::isnan(EstimateCell(p, 0.0, 0.0, 0.0, 0.0f, 0.0f).Get(Layer::kBlockReason)));
+  EXPECT_TRUE(std::isnan(EstimateCell(p, 0.0, 0.0, 0.0, 1.0f, 1.0f).Get(Layer::kDisagreement)));
+  p.dynamics = Dynamics::kOff;
+  EXPECT_TRUE(std::isnan(EstimateCell(p, 2.0, 1.0, 1.0, 8.0f, 2.0f).Get(Layer::kDisagreement)));
+}
+
 }  // namespace
 }  // namespace bgkmap

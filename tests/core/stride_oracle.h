@@ -2,8 +2,9 @@
 // docs/semantics.md ("Rasters") and independent of ExtractRaster's aggregation: for each block of
 // stride x stride cells, the elevation layers come from EstimateCell on the summed W, S and Q of
 // the block's known cells; traversability and its variance are each the maximum over the known
-// cells' own estimates (TerrainMap::Estimate, cell by cell); the state is traversable only if
-// every known cell's own state is traversable. A block without a known cell is unknown (NaN,
+// cells' own estimates (TerrainMap::Estimate, cell by cell), as is the disagreement; the state is
+// traversable only if every known cell's own state is traversable, and the block reason is the
+// union of the cells' reasons. A block without a known cell is unknown (NaN,
 // state 0).
 #pragma once
 
@@ -25,7 +26,8 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
   const float nan = std::numeric_limits<float>::quiet_NaN();
   double w = 0, s = 0, q = 0;
   bool known = false, all_traversable = true;
-  float worst_trav = nan, worst_var = nan;
+  float worst_trav = nan, worst_var = nan, worst_disagreement = nan;
+  int reasons = 0;
   const int x0 = box.min.x + col * stride;
   const int ytop = box.max.y - row * stride;
   for (int y = ytop; y > ytop - stride && y >= box.min.y; --y) {
@@ -39,6 +41,12 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
       s += t->s()[i];
       q += t->q()[i];
       all_traversable &= e.state == CellState::kTraversable;
+      reasons |= e.block_reasons;
+      if (!std::isnan(e.disagreement)) {
+        worst_disagreement = std::isnan(worst_disagreement)
+                                 ? e.disagreement
+                                 : std::max(worst_disagreement, e.disagreement);
+      }
       if (std::isnan(e.traversability)) continue;
       worst_trav =
           std::isnan(worst_trav) ? e.traversability : std::max(worst_trav, e.traversability);
@@ -66,6 +74,12 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
         break;
       case Layer::kTraversabilityVariance:
         out.push_back(worst_var);
+        break;
+      case Layer::kDisagreement:
+        out.push_back(worst_disagreement);
+        break;
+      case Layer::kBlockReason:
+        out.push_back(static_cast<float>(reasons));
         break;
       case Layer::kState: {
         out.push_back(static_cast<float>(all_traversable ? CellState::kTraversable

@@ -246,6 +246,25 @@ def test_stride_aggregates_blocks_on_the_global_grid(client):
     assert coarse.rows * 4 >= fine.rows and coarse.cols * 4 >= fine.cols
 
 
+def test_block_reason_explains_every_blocked_cell(client):
+    """The explanation layers on real street scans: a reason exactly where a cell is blocked, none
+    where it is traversable, NaN where unknown; the disagreement blocks only beyond step_crit."""
+    info = client.info()
+    region = client.query(known_box(info), layers=["state", "block_reason", "disagreement"])
+    state, reason = region["state"], region["block_reason"]
+    assert np.all(np.isnan(reason[state == 0]))
+    assert np.all(reason[state == 1] == 0)
+    blocked = reason[state == 2]
+    assert len(blocked) > 0 and np.all(blocked > 0)
+    assert set(np.unique(blocked).astype(int)) <= set(range(1, 16))
+    # Bit 8 (disagreement) exactly where sqrt(D) > step_crit.
+    step_crit = info["params"]["step_crit"]
+    d = region["disagreement"]
+    has_bit = (np.nan_to_num(reason).astype(int) & 8) != 0
+    np.testing.assert_array_equal(has_bit, np.nan_to_num(d) > np.float32(step_crit))
+    assert np.all(np.isnan(d[state == 0]))
+
+
 def test_check_path_safe_on_the_road_unsafe_into_the_unknown(client):
     info = client.info()
     region = client.query(known_box(info), layers=["state"])
