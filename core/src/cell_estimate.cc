@@ -9,7 +9,8 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr Layer kAllLayers[] = {Layer::kElevation,      Layer::kElevationVariance,
                                 Layer::kTraversability, Layer::kTraversabilityVariance,
-                                Layer::kState,          Layer::kElevationWeight};
+                                Layer::kState,          Layer::kElevationWeight,
+                                Layer::kDisagreement,   Layer::kBlockReason};
 }  // namespace
 
 std::string_view LayerName(Layer layer) {
@@ -26,6 +27,10 @@ std::string_view LayerName(Layer layer) {
       return "state";
     case Layer::kElevationWeight:
       return "elevation_weight";
+    case Layer::kDisagreement:
+      return "disagreement";
+    case Layer::kBlockReason:
+      return "block_reason";
   }
   return "?";
 }
@@ -36,7 +41,8 @@ Result<Layer> ParseLayer(std::string_view name) {
   }
   return Status::InvalidArgument("layer '" + std::string(name) +
                                  "': must be one of elevation, elevation_variance, traversability, "
-                                 "traversability_variance, state, elevation_weight");
+                                 "traversability_variance, state, elevation_weight, disagreement, "
+                                 "block_reason");
 }
 
 float CellEstimate::Get(Layer layer) const {
@@ -53,6 +59,10 @@ float CellEstimate::Get(Layer layer) const {
       return static_cast<float>(state);
     case Layer::kElevationWeight:
       return elevation_weight;
+    case Layer::kDisagreement:
+      return disagreement;
+    case Layer::kBlockReason:
+      return std::isnan(elevation_weight) ? kNaN : static_cast<float>(block_reasons);
   }
   return kNaN;
 }
@@ -112,9 +122,42 @@ LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const
   return out;
 }
 
+namespace {
+
+// The conditions of the state rule a known cell fails (BlockReason bits), on the estimate's own
+// float values so that 0 is exactly "traversable".
+uint8_t FailedConditions(const MapParams& p, const CellEstimate& e, double ab, double d) {
+  const bool no_value = InfersTraversability(p.method) ? ab == 0.0 : std::isnan(e.traversability);
+  // bgk-obstacle: an uncertain cell is not traversable; its Beta mean must clear the threshold
+  // by two standard deviations.
+  const double margin = p.method == Method::kBgkObstacle
+                            ? 2.0 * std::sqrt(static_cast<double>(e.traversability_variance))
+                            : 0.0;
+  // NaN comparisons are false: a known cell without a traversability value is non-traversable.
+  uint8_t r = 0;
+  if (!(e.traversability + margin < p.trav_threshold)) r |= kBlockedMean;
+  if (!(e.traversability_variance < p.variance_threshold)) r |= kBlockedVariance;
+  if (!(d <= p.step_crit * p.step_crit)) r |= kBlockedDisagreement;
+  // No evidence at all fails the mean and the variance through the prior alone: say so instead.
+  if (r != 0 && no_value) r = kBlockedNoValue | (r & kBlockedDisagreement);
+  return r;
+}
+
+// With dynamics, a cell that fails only for want of evidence (no traversability value, or a mean
+// below the threshold whose variance is too large) is unknown, not an obstacle: nothing seen
+// there says it is one, and a planner treats it as a place not seen enough (docs/semantics.md,
+// "Seen too little"). Without dynamics the paper's rule: non-traversable.
+CellState StateOf(const MapParams& p, uint8_t reasons) {
+  if (reasons == 0) return CellState::kTraversable;
+  const bool thin = reasons == kBlockedNoValue || reasons == kBlockedVariance;
+  return thin && p.dynamics == Dynamics::kOn ? CellState::kUnknown : CellState::kNonTraversable;
+}
+
+}  // namespace
+
 CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b,
                           const double* plane) {
-  CellEstimate e{kNaN, kNaN, kNaN, kNaN, CellState::kUnknown, static_cast<float>(w)};
+  CellEstimate e{kNaN, kNaN, kNaN, kNaN, CellState::kUnknown, static_cast<float>(w), kNaN, 0};
   const double ab = static_cast<double>(a) + static_cast<double>(b);
   const bool known = w > 0.0 || ab > 0.0;
   if (!known) {
@@ -136,6 +179,7 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
       e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
       e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
     }
+    if (dynamic) e.disagreement = static_cast<float>(std::sqrt(disagreement));
   }
   if (InfersTraversability(p.method)) {
     const double alpha = p.alpha0 + a;
@@ -147,16 +191,8 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
     e.traversability = static_cast<float>(a / ab);
     e.traversability_variance = 0.0f;
   }
-  // bgk-obstacle: an uncertain cell is not traversable; its Beta mean must clear the threshold
-  // by two standard deviations.
-  const double margin = p.method == Method::kBgkObstacle
-                            ? 2.0 * std::sqrt(static_cast<double>(e.traversability_variance))
-                            : 0.0;
-  // NaN comparisons are false: a known cell without a traversability value is non-traversable.
-  const bool traversable = e.traversability + margin < p.trav_threshold &&
-                           e.traversability_variance < p.variance_threshold &&
-                           disagreement <= p.step_crit * p.step_crit;
-  e.state = traversable ? CellState::kTraversable : CellState::kNonTraversable;
+  e.block_reasons = FailedConditions(p, e, ab, disagreement);
+  e.state = StateOf(p, e.block_reasons);
   return e;
 }
 

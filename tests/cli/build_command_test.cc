@@ -44,9 +44,10 @@ TEST_F(BuildCommandTest, MapsTheRealStreetScansIntoTheBandContract) {
   EXPECT_NE(run.output.find("3 scans"), std::string::npos) << run.output;
   Result<Raster> r = io::ReadGeoTiff(Path("street.tif"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  const std::vector<Layer> bands = {Layer::kElevation, Layer::kElevationVariance,
+  const std::vector<Layer> bands = {Layer::kElevation,      Layer::kElevationVariance,
                                     Layer::kTraversability, Layer::kTraversabilityVariance,
-                                    Layer::kState};
+                                    Layer::kState,          Layer::kDisagreement,
+                                    Layer::kBlockReason};
   EXPECT_EQ(r->layers, bands);
   EXPECT_DOUBLE_EQ(r->resolution, 0.1);
   // The same scans through the engine directly give the same values.
@@ -68,7 +69,7 @@ TEST_F(BuildCommandTest, MapsTheRealStreetScansIntoTheBandContract) {
       const CellEstimate e = map->Estimate(c);
       const size_t i = static_cast<size_t>(row * r->cols + col);
       ASSERT_EQ(static_cast<float>(e.state), state[i]);
-      if (e.state == CellState::kUnknown) {
+      if (std::isnan(e.elevation_weight)) {  // no data (state 0 may also be: seen too little)
         ASSERT_TRUE(std::isnan(elev[i]));
         continue;
       }
@@ -76,8 +77,9 @@ TEST_F(BuildCommandTest, MapsTheRealStreetScansIntoTheBandContract) {
       ++compared;
     }
   }
+  const std::vector<float>& reason = *r->Find(Layer::kBlockReason);
   for (size_t i = 0; i < state.size(); ++i) {
-    known += state[i] != 0.0f;
+    known += !std::isnan(reason[i]);  // has data
     traversable += state[i] == 1.0f;
   }
   EXPECT_GT(compared, 1000);
@@ -153,7 +155,7 @@ TEST_F(BuildCommandTest, CogAndCrsOnRequest) {
   EXPECT_NE(info.output.find("Overviews"), std::string::npos) << info.output;
   Result<Raster> r = io::ReadGeoTiff(Path("s.tif"));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  EXPECT_EQ(r->layers.size(), 5u);
+  EXPECT_EQ(r->layers.size(), 7u);
   EXPECT_DOUBLE_EQ(r->x0, r->box.min.x * r->resolution + 551000);  // placed by --origin
 }
 
@@ -164,8 +166,8 @@ TEST_F(BuildCommandTest, GeoTiffCarriesBandNamesNoDataAndAQgisStyle) {
   const CliRun run = RunCli("-q build " + kStreet + " --out " + Path("s.tif"));
   ASSERT_EQ(run.exit_code, 0) << run.output;
   const CliRun info = RunCommand("gdalinfo " + Path("s.tif") + " 2>&1");
-  for (const char* name :
-       {"elevation", "elevation_variance", "traversability", "traversability_variance", "state"}) {
+  for (const char* name : {"elevation", "elevation_variance", "traversability",
+                           "traversability_variance", "state", "disagreement", "block_reason"}) {
     EXPECT_NE(info.output.find(std::string("Description = ") + name + "\n"), std::string::npos)
         << name << "\n"
         << info.output;
@@ -175,7 +177,7 @@ TEST_F(BuildCommandTest, GeoTiffCarriesBandNamesNoDataAndAQgisStyle) {
        at = info.output.find("NoData Value=nan", at + 1)) {
     ++nodata;
   }
-  EXPECT_EQ(nodata, 5u) << info.output;
+  EXPECT_EQ(nodata, 7u) << info.output;
   std::ifstream in(Path("s.qml"));
   const std::string qml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_NE(qml.find("type=\"singlebandpseudocolor\" band=\"3\""), std::string::npos) << qml;
@@ -226,7 +228,7 @@ TEST_F(BuildCommandTest, OutputNamesAndQuiet) {
   EXPECT_NE(noisy.output.find("mapping "), std::string::npos) << noisy.output;
   const CliRun jpg = RunCli("-q build " + kStreet + " --out " + Path("s.jpg"));
   EXPECT_EQ(jpg.exit_code, 2) << jpg.output;
-  EXPECT_NE(jpg.output.find("writes a GeoTIFF (.tif) or a PNG preview (.png)"), std::string::npos)
+  EXPECT_NE(jpg.output.find("writes a GeoTIFF (.tif), a PNG preview (.png)"), std::string::npos)
       << jpg.output;
 }
 

@@ -114,7 +114,7 @@ TEST(RasterTest, StrideKeepsTheWorstVarianceOfAnyCellAndItDecidesTheState) {
   EXPECT_EQ(state[1], 1.0f);  // every mean and variance under its threshold
   EXPECT_EQ(trav[2], f.traversability);
   EXPECT_EQ(var[2], f.traversability_variance);
-  EXPECT_EQ(state[2], 2.0f);  // means fine, F's variance is not
+  EXPECT_EQ(state[2], 0.0f);  // means fine, F's variance is not: seen too little (dynamics)
   EXPECT_LT(c.traversability, d.traversability);
 }
 
@@ -122,7 +122,8 @@ TEST(RasterTest, StrideKeepsTheWorstVarianceOfAnyCellAndItDecidesTheState) {
 // (stride_oracle.h, from the rule in docs/semantics.md and per-cell TerrainMap::Estimate) on a
 // map with real scans: an obstacle step, unknown holes, blocks split over tile borders.
 // Elevation and its variance sum W and S in another order than ExtractRaster, so they are
-// compared to a float's rounding; traversability, its variance, the state and W exactly.
+// compared to a float's rounding; traversability, its variance, the state, W, the disagreement
+// and the block reason exactly.
 // Mutations checked (core/src/raster.cc): `std::min` for `std::max` in worst_trav; the last
 // cell's variance instead of the maximum; dropping the variance threshold from the state; not
 // summing `s` (elevation of one cell) -- each fails here.
@@ -141,7 +142,8 @@ TEST(RasterTest, StrideEqualsBruteForceOracle) {
   ASSERT_GT(known.width(), 40);
   const std::vector<Layer> all = {Layer::kElevation,      Layer::kElevationVariance,
                                   Layer::kTraversability, Layer::kTraversabilityVariance,
-                                  Layer::kState,          Layer::kElevationWeight};
+                                  Layer::kState,          Layer::kElevationWeight,
+                                  Layer::kDisagreement,   Layer::kBlockReason};
   int states[3] = {0, 0, 0};
   for (int stride : {2, 3, 5, 8}) {
     // Unaligned: start 3 cells outside the known area (unknown blocks too), odd size.

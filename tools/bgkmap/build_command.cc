@@ -39,9 +39,10 @@ struct BuildOptions {
 };
 
 // The GeoTIFF band contract shared with `bgkmap query`.
-const std::vector<Layer> kBands = {Layer::kElevation, Layer::kElevationVariance,
+const std::vector<Layer> kBands = {Layer::kElevation,      Layer::kElevationVariance,
                                    Layer::kTraversability, Layer::kTraversabilityVariance,
-                                   Layer::kState};
+                                   Layer::kState,          Layer::kDisagreement,
+                                   Layer::kBlockReason};
 
 int Fail(const std::string& msg) {
   std::fprintf(stderr, "bgkmap build: %s\n", msg.c_str());

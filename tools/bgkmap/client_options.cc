@@ -106,9 +106,10 @@ int Usage(const std::string& command, const std::string& message) {
 }
 
 const std::vector<Layer>& GeoTiffBands() {
-  static const std::vector<Layer> bands = {Layer::kElevation, Layer::kElevationVariance,
+  static const std::vector<Layer> bands = {Layer::kElevation,      Layer::kElevationVariance,
                                            Layer::kTraversability, Layer::kTraversabilityVariance,
-                                           Layer::kState};
+                                           Layer::kState,          Layer::kDisagreement,
+                                           Layer::kBlockReason};
   return bands;
 }
 

@@ -27,7 +27,8 @@ inline Result<OutputKind> OutputKindOf(const std::string& path, const std::strin
   for (const char* other : {".jpg", ".jpeg", ".gif", ".bmp", ".webp"}) {
     if (ext == other) {
       return Status::InvalidArgument(option + " " + path +
-                                     ": bgkmap writes a GeoTIFF (.tif), a PNG preview (.png), ROS 2 maps (.mcap) or a Nav2 map (.yaml)");
+                                     ": bgkmap writes a GeoTIFF (.tif), a PNG preview (.png), ROS "
+                                     "2 maps (.mcap) or a Nav2 map (.yaml)");
     }
   }
   return OutputKind::kGeoTiff;

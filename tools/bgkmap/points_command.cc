@@ -47,7 +47,7 @@ void RegisterPointsCommand(CLI::App& app, int& exit_code) {
   CLI::App* cmd = app.add_subcommand("points", "Layers at map points (JSON; null = unknown)");
   AddServerOption(cmd, o->server);
   cmd->add_option("xy", o->xy, "Points as x,y pairs")->delimiter(',')->required();
-  cmd->add_option("--layers", o->layers, "Layers (default: the five bands)")->delimiter(',');
+  cmd->add_option("--layers", o->layers, "Layers (default: the seven bands)")->delimiter(',');
   cmd->callback([o, &exit_code] { exit_code = RunPoints(*o); });
 }
 

@@ -130,7 +130,7 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
       ->capture_default_str();
   cmd->add_option("--png", o->png, "Also write a PNG preview");
   cmd->add_option("--ot", o->ot, "Also write an OctoMap ColorOcTree (.ot) for octovis");
-  cmd->add_option("--layers", o->layers, "Layers (default: the five bands of bgkmap build)")
+  cmd->add_option("--layers", o->layers, "Layers (default: the seven bands of bgkmap build)")
       ->delimiter(',');
   cmd->add_option("--stride", o->stride, "Map cells per output pixel edge")->capture_default_str();
   cmd->add_option("--crs", o->crs,

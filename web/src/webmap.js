@@ -100,8 +100,14 @@
     'elevation (hillshade)': layer('elevation', {}),
     'elevation variance': layer('elevation_variance', {}),
     'traversability variance': layer('traversability_variance', {}),
+    'disagreement': layer('disagreement', {}),
   };
-  const overlays = { traversability: layer('traversability', { opacity: 0.55 }) };
+  // What a planner gets: the state, and why a cell is blocked (webmap.md has the colours).
+  const overlays = {
+    traversability: layer('traversability', { opacity: 0.55 }),
+    state: layer('state', { opacity: 0.55 }),
+    'why blocked': layer('block_reason', { opacity: 0.7 }),
+  };
   const baseByName = { elevation: 'elevation (hillshade)', elevation_variance: 'elevation variance',
     traversability_variance: 'traversability variance' };
   const firstBase = base[baseByName[params.get('layer')] || 'elevation (hillshade)'];
@@ -181,7 +187,8 @@
     marker.setLatLng(e.latlng).addTo(map);
     document.getElementById('cell-where').textContent =
       'x ' + p.x.toFixed(2) + ' m, y ' + p.y.toFixed(2) + ' m (version ' + answer.map_version + ')';
-    const rows = ['elevation', 'elevation_variance', 'traversability', 'traversability_variance', 'state'];
+    const rows = ['elevation', 'elevation_variance', 'traversability', 'traversability_variance', 'state',
+      'disagreement', 'block_reason'];
     const table = document.getElementById('cell-values');
     table.replaceChildren(...rows.map((k) => {
       const tr = document.createElement('tr');

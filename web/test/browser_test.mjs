@@ -278,7 +278,8 @@ try {
   const printed = JSON.parse(execFileSync(cli,
     ['points', '--server', ports.grpc, `${p.x},${p.y}`, ...cliAuth], { encoding: 'utf8' }));
   const q = printed.points[0];
-  const layers = ['elevation', 'elevation_variance', 'traversability', 'traversability_variance', 'state'];
+  const layers = ['elevation', 'elevation_variance', 'traversability', 'traversability_variance', 'state',
+    'disagreement', 'block_reason'];
   log(`clicked x ${p.x} y ${p.y}:`, JSON.stringify(p));
   check(q.x === p.x && q.y === p.y, 'the CLI was asked about the clicked point');
   check(printed.map_version === shown.map_version, 'same map version');

@@ -16,7 +16,7 @@ from bgkmap.v1 import admin_pb2, ingest_pb2, query_pb2, types_pb2
 
 _LAYER_PREFIX = "LAYER_"
 
-# Layer names, in the API's numbering ("elevation", ..., "elevation_weight").
+# Layer names, in the API's numbering ("elevation", ..., "block_reason").
 LAYERS = tuple(
     v.name[len(_LAYER_PREFIX):].lower()
     for v in sorted(types_pb2.Layer.DESCRIPTOR.values, key=lambda v: v.number)

@@ -246,7 +246,8 @@ class Client:
         """Layers over the cells meeting the half-open box (xmin, ymin, xmax, ymax), metres.
 
         layers: names ("elevation", "elevation_variance", "traversability",
-        "traversability_variance", "state", "elevation_weight") or None for every layer.
+        "traversability_variance", "state", "elevation_weight", "disagreement", "block_reason") or
+        None for every layer.
         stride: map cells per pixel edge. Returns a Region: a mapping from layer name to a float32
         (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform.
 

@@ -52,6 +52,22 @@ float Hillshade(const std::vector<float>& z, int64_t cols, int64_t row, int64_t 
   return static_cast<float>(std::clamp(shade, 0.0, 1.0));
 }
 
+// Traversable green, non-traversable red; unknown (0) is left transparent by the caller.
+Rgb StateColor(float state) {
+  return state == static_cast<float>(CellState::kTraversable) ? Rgb{40, 170, 70} : Rgb{205, 40, 40};
+}
+
+// The most telling reason first: evidence of an obstacle (dark red), observations that disagree
+// (magenta), evidence too thin (blue), no traversability evidence (grey); traversable green.
+Rgb BlockReasonColor(float reason) {
+  const int r = static_cast<int>(reason);
+  if (r & kBlockedMean) return {150, 20, 20};
+  if (r & kBlockedDisagreement) return {200, 40, 200};
+  if (r & kBlockedVariance) return {50, 90, 220};
+  if (r & kBlockedNoValue) return {140, 140, 140};
+  return {40, 170, 70};
+}
+
 void PngWrite(png_structp png, png_bytep data, png_size_t length) {
   auto* out = static_cast<std::string*>(png_get_io_ptr(png));
   out->append(reinterpret_cast<const char*>(data), length);
@@ -144,8 +160,17 @@ std::vector<uint8_t> RenderTile(const Raster& raster, Layer layer, const WebTile
         case Layer::kTraversabilityVariance:
           c = SpreadColor(value, 0.5f);
           break;
-        case Layer::kState:  // not one of kWebLayers
-        case Layer::kElevationWeight:
+        case Layer::kState:
+          if (value == static_cast<float>(CellState::kUnknown)) continue;
+          c = StateColor(value);
+          break;
+        case Layer::kBlockReason:
+          c = BlockReasonColor(value);
+          break;
+        case Layer::kDisagreement:  // metres: white at 0.3 m, twice the default step_crit
+          c = SpreadColor(value * value, 0.3f);
+          break;
+        case Layer::kElevationWeight:  // not one of kWebLayers
           continue;
       }
       uint8_t* p = &rgba[(static_cast<size_t>(py) * kN + px) * 4];

@@ -23,10 +23,15 @@ namespace bgkmap {
 inline constexpr int kWebTilePixels = 256;
 inline constexpr int kWebMaxZoom = 4;  // 16 x 16 pixels per cell
 
-// The layers a tile can show: core's four float layers, under core's names (LayerName), in the
-// order map.json lists them. A tile reads its one layer.
-inline constexpr Layer kWebLayers[] = {Layer::kElevation, Layer::kTraversability,
-                                       Layer::kElevationVariance, Layer::kTraversabilityVariance};
+// The layers a tile can show, under core's names (LayerName), in the order map.json lists them:
+// what a planner gets from a region query, drawn (webmap.md). A tile reads its one layer.
+inline constexpr Layer kWebLayers[] = {Layer::kElevation,
+                                       Layer::kTraversability,
+                                       Layer::kElevationVariance,
+                                       Layer::kTraversabilityVariance,
+                                       Layer::kState,
+                                       Layer::kBlockReason,
+                                       Layer::kDisagreement};
 // One of kWebLayers by its name; InvalidArgument naming the name and the choices otherwise.
 Result<Layer> ParseWebLayer(std::string_view name);
 

@@ -78,8 +78,9 @@ const std::string& EmptyTilePng() {
 // The JSON of one point as `bgkmap points` prints it (NaN: null).
 nlohmann::json PointJson(double x, double y, const CellEstimate& e) {
   nlohmann::json p = {{"x", x}, {"y", y}};
-  for (Layer l : {Layer::kElevation, Layer::kElevationVariance, Layer::kTraversability,
-                  Layer::kTraversabilityVariance, Layer::kState}) {
+  for (Layer l :
+       {Layer::kElevation, Layer::kElevationVariance, Layer::kTraversability,
+        Layer::kTraversabilityVariance, Layer::kState, Layer::kDisagreement, Layer::kBlockReason}) {
     const double v = e.Get(l);
     p[std::string(LayerName(l))] = std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
   }

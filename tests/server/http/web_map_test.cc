@@ -146,13 +146,16 @@ class WebMapTest : public ::testing::Test {
 };
 
 // Zoom 0 draws a cell per pixel, zoom -1 a 2 x 2 block (the region query's stride 2): every
-// layer's tile is opaque exactly where the region query knows the cell.
+// layer's tile is opaque exactly where the region query has a value (NaN, or state 0: none).
 TEST_F(WebMapTest, TilesAreTransparentExactlyWhereTheMapIsUnknown) {
   const std::pair<const char*, Layer> layers[] = {
       {"elevation", Layer::kElevation},
       {"traversability", Layer::kTraversability},
       {"elevation_variance", Layer::kElevationVariance},
-      {"traversability_variance", Layer::kTraversabilityVariance}};
+      {"traversability_variance", Layer::kTraversabilityVariance},
+      {"state", Layer::kState},
+      {"block_reason", Layer::kBlockReason},
+      {"disagreement", Layer::kDisagreement}};
   for (int z : {0, -1}) {
     const int stride = z == 0 ? 1 : 2;
     const double edge = 25.6 * stride;  // metres of a tile
@@ -177,7 +180,9 @@ TEST_F(WebMapTest, TilesAreTransparentExactlyWhereTheMapIsUnknown) {
         int known = 0, mismatched = 0;
         for (int y = 0; y < 256; ++y) {
           for (int x = 0; x < 256; ++x) {
-            const bool is_known = !std::isnan(region->data[0][static_cast<size_t>(y) * 256 + x]);
+            const float v = region->data[0][static_cast<size_t>(y) * 256 + x];
+            // The state layer says unknown with 0, the others with NaN.
+            const bool is_known = layer == Layer::kState ? v != 0.0f : !std::isnan(v);
             known += is_known;
             mismatched += is_known != (image->alpha(x, y) == 255);
           }
@@ -244,9 +249,10 @@ TEST_F(WebMapTest, BadTilesAreRefused) {
 TEST_F(WebMapTest, PointsEqualQueryPoints) {
   const std::vector<std::array<double, 2>> points = {
       {8, 0}, {-8, 0}, {0, 20}, {3.25, -7.75}, {500, 500}};
-  const std::vector<Layer> layers = {Layer::kElevation, Layer::kElevationVariance,
+  const std::vector<Layer> layers = {Layer::kElevation,      Layer::kElevationVariance,
                                      Layer::kTraversability, Layer::kTraversabilityVariance,
-                                     Layer::kState};
+                                     Layer::kState,          Layer::kDisagreement,
+                                     Layer::kBlockReason};
   RpcResult<PointValues> expected = fixture_.client().QueryPoints(points, layers);
   ASSERT_TRUE(expected.ok());
   int known = 0;

@@ -150,26 +150,7 @@ std::vector<DrivenCell> DrivenCells(const GridGeometry& geometry, std::span<cons
 
 uint8_t BlockReasons(const MapParams& p, double w, double s, double q, float a, float b,
                      const double* plane) {
-  const CellEstimate e = EstimateCell(p, w, s, q, a, b, plane);
-  if (e.state != CellState::kNonTraversable) return 0;
-  double disagreement = 0.0;
-  if (p.dynamics == Dynamics::kOn && w > 0.0) {
-    disagreement =
-        plane != nullptr ? FitLocalPlane(p, w, s, q, plane).residual : Disagreement(w, s, q);
-  }
-  const bool no_value = InfersTraversability(p.method)
-                            ? static_cast<double>(a) + static_cast<double>(b) == 0.0
-                            : std::isnan(e.traversability);
-  if (no_value) return kNoValue;
-  // The conditions of EstimateCell's state, on its own float values.
-  const double margin = p.method == Method::kBgkObstacle
-                            ? 2.0 * std::sqrt(static_cast<double>(e.traversability_variance))
-                            : 0.0;
-  uint8_t r = 0;
-  if (!(e.traversability + margin < p.trav_threshold)) r |= kHighMean;
-  if (!(e.traversability_variance < p.variance_threshold)) r |= kHighVariance;
-  if (!(disagreement <= p.step_crit * p.step_crit)) r |= kDisagreement;
-  return r;
+  return EstimateCell(p, w, s, q, a, b, plane).block_reasons;
 }
 
 uint8_t BlockReasonsAt(const TerrainMap& map, CellIndex cell) {

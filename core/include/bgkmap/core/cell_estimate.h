@@ -19,10 +19,24 @@ enum class Layer : uint8_t {
   kTraversabilityVariance = 3,
   kState = 4,
   kElevationWeight = 5,  // W, the kernel-weighted observation count behind the elevation
+  kDisagreement = 6,     // sqrt(D), metres: how far the cell's observations disagree (dynamics)
+  kBlockReason = 7,      // why a known cell is non-traversable: BlockReason bits, 0 = traversable
 };
-inline constexpr int kLayerCount = 6;
+inline constexpr int kLayerCount = 8;
 std::string_view LayerName(Layer layer);
 Result<Layer> ParseLayer(std::string_view name);
+
+// Why a known cell is non-traversable: the conditions of the state rule below that it fails
+// (docs/semantics.md, "Why a cell is blocked"). A cell may fail several. kBlockedNoValue (no
+// traversability evidence at all, only elevation) is reported alone: the prior's mean and
+// variance then fail the others by construction. kBlockedMean is evidence of an obstacle;
+// kBlockedVariance alone is evidence too thin to call the cell traversable.
+enum BlockReason : uint8_t {
+  kBlockedNoValue = 1,       // A + B = 0 (a Beta method) or no direct value
+  kBlockedMean = 2,          // traversability mean (+ bgk-obstacle's margin) >= trav_threshold
+  kBlockedVariance = 4,      // traversability variance >= variance_threshold
+  kBlockedDisagreement = 8,  // sqrt(D) > step_crit (dynamics on)
+};
 
 // NaN marks "unknown" in every float layer.
 struct CellEstimate {
@@ -32,6 +46,8 @@ struct CellEstimate {
   float traversability_variance;
   CellState state;
   float elevation_weight;
+  float disagreement;     // sqrt of what the state rule judges; NaN without weight or dynamics
+  uint8_t block_reasons;  // BlockReason bits: the conditions failed; 0 = traversable or none
 
   float Get(Layer layer) const;
 };
@@ -45,7 +61,8 @@ struct CellEstimate {
 //    variance_threshold; otherwise non-traversable (also when the mean is undefined).
 // With dynamics on, the observations' disagreement D = Q/W - (S/W)^2 (their kernel-weighted
 // variance) is added to the elevation variance, and a cell whose observations disagree by more
-// than a step the robot can take (sqrt(D) > step_crit) is non-traversable.
+// than a step the robot can take (sqrt(D) > step_crit) is non-traversable; one that fails only
+// for want of evidence (kBlockedNoValue or kBlockedVariance alone) is unknown, seen too little.
 // bgk-ll: `plane` holds the cell's Tile::kPlaneMoments plane moments (Tile::PlaneOf), and the
 // elevation is the intercept of the local plane fit (FitLocalPlane) instead of the kernel mean;
 // the disagreement is the fit's residual instead of the spread around the mean; the elevation

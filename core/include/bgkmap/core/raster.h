@@ -29,8 +29,9 @@ struct Raster {
 
 // Extracts `layers` over `box` (clipped to nothing: unknown cells come out as NaN).
 // Aggregation over a stride block: statistics are summed (the posterior of the union of the
-// block's training data) for elevation, and the block's worst (largest) traversability and
-// variance are kept, so a coarse view never hides an obstacle; state is recomputed from those.
+// block's training data) for elevation, and the block's worst (largest) traversability,
+// variance and disagreement are kept, so a coarse view never hides an obstacle; state: blocked if
+// a cell is, else unknown if one was seen too little, else traversable; reasons: all the cells'.
 Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vector<Layer>& layers,
                      int stride = 1);
 

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/cell_estimate.h"
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/scan.h"
@@ -55,20 +56,15 @@ struct DrivenCell {
 std::vector<DrivenCell> DrivenCells(const GridGeometry& geometry, std::span<const Pose> poses,
                                     const Footprint& footprint, double sensor_height);
 
-// Why a known cell is non-traversable: the conditions of the state rule (docs/semantics.md,
-// "Derived layers" and "Dynamics") that it fails. A cell may fail several. kNoValue (no
-// traversability evidence at all: only elevation) is reported alone, as the prior's mean and
-// variance then fail the others by construction.
-enum BlockReason : uint8_t {
-  kNoValue = 1,       // A + B = 0 (a Beta method) or no direct value: nothing says traversable
-  kHighMean = 2,      // traversability mean (+ bgk-obstacle's margin) >= trav_threshold
-  kHighVariance = 4,  // traversability variance >= variance_threshold
-  kDisagreement = 8,  // sqrt(D) > step_crit (dynamics on)
-};
+// Why a known cell is non-traversable: core's BlockReason (cell_estimate.h), the conditions of
+// the state rule it fails, under the names the drive scores use.
+inline constexpr uint8_t kNoValue = kBlockedNoValue;
+inline constexpr uint8_t kHighMean = kBlockedMean;
+inline constexpr uint8_t kHighVariance = kBlockedVariance;
+inline constexpr uint8_t kDisagreement = kBlockedDisagreement;
 
 // The reasons a cell with these statistics is non-traversable under `params` (0: traversable or
-// unknown). The same rule as EstimateCell's state, condition by condition; `plane` is bgk-ll's
-// plane moments (else null). tests/eval/drive_score_test.cc holds the two equal.
+// unknown): EstimateCell's block_reasons; `plane` is bgk-ll's plane moments (else null).
 uint8_t BlockReasons(const MapParams& params, double w, double s, double q, float a, float b,
                      const double* plane = nullptr);
 // The same for a cell of a map (0 if the cell is unknown).
