@@ -35,7 +35,7 @@ struct ScanOrigin {
   // they were sent (a cluster's log). Called at most once.
   std::function<std::string()> encoded = nullptr;
   // The scan's pose in the map frame, for the robot's recent poses (RobotStats); absent: none.
-  std::optional<RobotPose> pose;
+  std::optional<RobotPose> pose = std::nullopt;
 };
 
 struct ScanOutcome {
