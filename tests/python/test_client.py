@@ -15,7 +15,8 @@ import pytest
 import bgkmap
 from conftest import BgkmapdProcess
 
-LAYERS = ["elevation", "elevation_variance", "traversability", "traversability_variance", "state"]
+LAYERS = ["elevation", "elevation_variance", "traversability", "traversability_variance", "state",
+          "disagreement", "block_reason"]
 
 
 def known_box(info: dict) -> tuple:

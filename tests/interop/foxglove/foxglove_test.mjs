@@ -59,6 +59,20 @@ function scanPoints(i) {
   return out;
 }
 
+// The points the client sends of `xyz`: finite, with min_range^2 <= |p|^2 <= max_range^2 (the
+// engine's range filter, in doubles as it computes it).
+function sentPoints(xyz, minRange, maxRange) {
+  const out = [];
+  for (let i = 0; i < xyz.length; i += 3) {
+    const [x, y, z] = [xyz[i], xyz[i + 1], xyz[i + 2]];
+    if (![x, y, z].every(Number.isFinite)) continue;
+    const r2 = x * x + y * y + z * z;
+    if (r2 < minRange * minRange || r2 > maxRange * maxRange) continue;
+    out.push(x, y, z);
+  }
+  return new Float32Array(out);
+}
+
 // bgkmapd on loopback ports chosen by the system, read from its log.
 async function startServer(args) {
   const server = spawn(bgkmapd, ['--listen', '127.0.0.1:0', '--foxglove', '127.0.0.1:0', ...args],
@@ -138,7 +152,10 @@ function connect(url, wsOptions = {}) {
 
 // The CLI runs beside the event loop, so the clients keep reading while it streams.
 const run = promisify(execFile);
-const insert = (grpc, dir, robot) => run(cli, ['insert', dir, '--server', grpc, '--robot', robot]);
+// As float32 (--float32), so the last scan's cloud is exactly the points in the files (the default
+// compact encoding drops out-of-range points and moves the rest by up to a millimetre).
+const insert = (grpc, dir, robot) =>
+  run(cli, ['insert', dir, '--server', grpc, '--robot', robot, '--float32']);
 
 // A region query of `box` through the CLI: the GeoTIFF's bands as raw float32 (GDAL's ENVI
 // writer: band after band, rows north to south).
@@ -237,7 +254,11 @@ test('the grid is a region query bit for bit; poses and clouds are the scans sen
   assert.equal(cloud.message.point_stride, 12);
   assert.deepEqual(cloud.message.fields.map((f) => [f.name, f.offset, f.type]),
     [['x', 0, 7], ['y', 4, 7], ['z', 8, 7]]);
-  const sent = scanPoints(2);
+  // The client sends what the map keeps: finite points within [min_range, max_range] of the
+  // sensor (docs/server.md "Compact scans"), judged on the map's own parameters.
+  const params = JSON.parse((await run(cli, ['info', '--server', grpc])).stdout).params;
+  const sent = sentPoints(scanPoints(2), params.min_range, params.max_range);
+  assert.ok(sent.length > 0);
   assert.ok(Buffer.from(cloud.message.data).equals(Buffer.from(sent.buffer)),
     `the cloud holds the ${sent.length / 3} points sent`);
   fox.client.close();

@@ -115,7 +115,8 @@ test("the MCAP reads back with @mcap/core, indexed and streamed, and decodes wit
 test("GridMap: grid_map's layers, storage order and index conventions, cell by cell against bgkmap points", async () => {
   const { message: g } = (await readIndexed(fs.readFileSync(path.join(tmp, "map.mcap"))))["/grid_map"];
   assert.equal(g.header.frame_id, "map");
-  assert.deepEqual(g.layers, ["elevation", "elevation_variance", "traversability", "traversability_variance", "state"]);
+  assert.deepEqual(g.layers, ["elevation", "elevation_variance", "traversability", "traversability_variance", "state",
+    "disagreement", "block_reason"]);
   assert.deepEqual(g.basic_layers, ["elevation"]);
   const res = g.info.resolution;
   const sizeX = Math.round(g.info.length_x / res), sizeY = Math.round(g.info.length_y / res);

@@ -43,7 +43,10 @@ std::unique_ptr<TerrainMap> RestrictedMap(const std::vector<OwnedScan>& scans,
   std::unique_ptr<TerrainMap> map = TerrainMap::Create(params).value();
   uint64_t version = 0;
   for (const OwnedScan& s : scans) {
-    Result<PreparedScan> prepared = PrepareScan(params, s.points, WirePose(s.pose));
+    // The points a shard integrates: as the client sends them (compact by default), like the
+    // whole map's OfflineMap.
+    const std::vector<Point3f> points = PointsAsIntegrated(s, params);
+    Result<PreparedScan> prepared = PrepareScan(params, points, WirePose(s.pose));
     EXPECT_TRUE(prepared.ok());
     const PreparedScan cut = RestrictScan(params, *prepared, keep);
     ++version;
