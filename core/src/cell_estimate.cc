@@ -62,7 +62,7 @@ float CellEstimate::Get(Layer layer) const {
     case Layer::kDisagreement:
       return disagreement;
     case Layer::kBlockReason:
-      return std::isnan(elevation_weight) ? kNaN : static_cast<float>(block_reasons);
+      return state == CellState::kUnknown ? kNaN : static_cast<float>(block_reasons);
   }
   return kNaN;
 }
@@ -139,18 +139,8 @@ uint8_t FailedConditions(const MapParams& p, const CellEstimate& e, double ab, d
   if (!(e.traversability_variance < p.variance_threshold)) r |= kBlockedVariance;
   if (!(d <= p.step_crit * p.step_crit)) r |= kBlockedDisagreement;
   // No evidence at all fails the mean and the variance through the prior alone: say so instead.
-  if (r != 0 && no_value) r = kBlockedNoValue | (r & kBlockedDisagreement);
+  if (r != 0 && no_value) r = kBlockedNoValue;
   return r;
-}
-
-// With dynamics, a cell that fails only for want of evidence (no traversability value, or a mean
-// below the threshold whose variance is too large) is unknown, not an obstacle: nothing seen
-// there says it is one, and a planner treats it as a place not seen enough (docs/semantics.md,
-// "Seen too little"). Without dynamics the paper's rule: non-traversable.
-CellState StateOf(const MapParams& p, uint8_t reasons) {
-  if (reasons == 0) return CellState::kTraversable;
-  const bool thin = reasons == kBlockedNoValue || reasons == kBlockedVariance;
-  return thin && p.dynamics == Dynamics::kOn ? CellState::kUnknown : CellState::kNonTraversable;
 }
 
 }  // namespace
@@ -192,7 +182,7 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
     e.traversability_variance = 0.0f;
   }
   e.block_reasons = FailedConditions(p, e, ab, disagreement);
-  e.state = StateOf(p, e.block_reasons);
+  e.state = e.block_reasons == 0 ? CellState::kTraversable : CellState::kNonTraversable;
   return e;
 }
 

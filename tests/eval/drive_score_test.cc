@@ -133,12 +133,7 @@ TEST(BlockReasonsTest, BlockedExactlyWhenTheMapsStateRuleBlocks) {
         if (!InfersTraversability(method) && a + b > 0.0f) b = 1.0f - (a = std::min(a, 1.0f));
         const CellEstimate e = EstimateCell(p, w, s, q, a, b);
         const uint8_t r = BlockReasons(p, w, s, q, a, b);
-        const bool known = !std::isnan(e.elevation_weight);
-        EXPECT_EQ(r != 0, known && e.state != CellState::kTraversable)
-            << MethodName(method) << " w=" << w << " a=" << a << " b=" << b;
-        // Seen too little (dynamics): unknown exactly when only a want of evidence fails.
-        const bool thin = r == kNoValue || r == kHighVariance;
-        EXPECT_EQ(known && e.state == CellState::kUnknown, thin && dynamics == Dynamics::kOn)
+        EXPECT_EQ(r != 0, e.state == CellState::kNonTraversable)
             << MethodName(method) << " w=" << w << " a=" << a << " b=" << b;
         blocked += e.state == CellState::kNonTraversable;
         traversable += e.state == CellState::kTraversable;
@@ -152,8 +147,7 @@ TEST(BlockReasonsTest, BlockedExactlyWhenTheMapsStateRuleBlocks) {
 // A map whose cells are filled by hand, one statistic set per cell.
 class HandMap {
  public:
-  explicit HandMap(const MapParams& p = MapParams{})
-      : map_(std::move(TerrainMap::Create(p)).value()) {}
+  HandMap() : map_(std::move(TerrainMap::Create(MapParams{})).value()) {}
   void Set(CellIndex c, double w, double s, double q, float a, float b) {
     Tile& t = map_->GetOrCreateTile(map_->geometry().TileOf(c));
     const int i = map_->geometry().LocalIndex(c);
@@ -172,11 +166,7 @@ class HandMap {
 };
 
 TEST(ScoreDriveTest, SharesAndReasonsOfTheDrivenCells) {
-  // The paper's state (dynamics off), under which the thin cells below are blocked, so that
-  // every reason is counted (with dynamics they are unknown: CellEstimateTest.SeenTooLittle...).
-  MapParams paper;
-  paper.dynamics = Dynamics::kOff;
-  HandMap m(paper);
+  HandMap m;
   std::vector<DrivenCell> driven;
   for (int x = 0; x < 10; ++x) driven.push_back({{x, 0}, 0.0});
   for (int x = 0; x < 10; ++x) m.Ground({x, 1}, 0.0);  // a row beside the path: a 2-D patch

@@ -47,7 +47,7 @@ struct CellEstimate {
   CellState state;
   float elevation_weight;
   float disagreement;     // sqrt of what the state rule judges; NaN without weight or dynamics
-  uint8_t block_reasons;  // BlockReason bits: the conditions failed; 0 = traversable or none
+  uint8_t block_reasons;  // BlockReason bits; 0 unless state is kNonTraversable
 
   float Get(Layer layer) const;
 };
@@ -61,8 +61,8 @@ struct CellEstimate {
 //    variance_threshold; otherwise non-traversable (also when the mean is undefined).
 // With dynamics on, the observations' disagreement D = Q/W - (S/W)^2 (their kernel-weighted
 // variance) is added to the elevation variance, and a cell whose observations disagree by more
-// than a step the robot can take (sqrt(D) > step_crit) is non-traversable; one that fails only
-// for want of evidence (kBlockedNoValue or kBlockedVariance alone) is unknown, seen too little.
+// than a step the robot can take (sqrt(D) > step_crit) is non-traversable.
+// block_reasons: the conditions above that a non-traversable cell fails (BlockReason).
 // bgk-ll: `plane` holds the cell's Tile::kPlaneMoments plane moments (Tile::PlaneOf), and the
 // elevation is the intercept of the local plane fit (FitLocalPlane) instead of the kernel mean;
 // the disagreement is the fit's residual instead of the spread around the mean; the elevation
