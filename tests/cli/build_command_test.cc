@@ -256,7 +256,8 @@ Raster EngineRaster(const std::string& dir) {
   }
   return ExtractRaster(*map, map->KnownBounds(),
                        {Layer::kElevation, Layer::kElevationVariance, Layer::kTraversability,
-                        Layer::kTraversabilityVariance, Layer::kState});
+                        Layer::kTraversabilityVariance, Layer::kState, Layer::kDisagreement,
+                        Layer::kBlockReason});
 }
 
 // Scans prepared in parallel and the map integrated in bands, one per thread: the same map bit

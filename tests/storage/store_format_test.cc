@@ -20,7 +20,7 @@ using namespace testing;  // NOLINT
 void EditMeta(const std::string& dir, const std::string& key,
               const std::optional<std::string>& value, std::string* old = nullptr) {
   bgkmap::testing::RawStore store(dir);
-  ASSERT_NE(store.db(), nullptr) << "cannot open " << dir;
+  ASSERT_NE(store.db(), nullptr) << "cannot open " << dir << ": " << store.error();
   rocksdb::DB* db = store.db();
   rocksdb::ColumnFamilyHandle* meta = store.Family("meta");
   ASSERT_NE(meta, nullptr);
