@@ -66,6 +66,24 @@ rocksdb::ColumnFamilyOptions SourceFamilyOptions(const std::shared_ptr<rocksdb::
   return cf;
 }
 
+// The log, raw scans and tile history are keyed by map version and dropped oldest first, so a
+// flush writes a file of consecutive versions and retention drops whole files (ReclaimDropped).
+// RocksDB's own compactions would merge them into ever larger files and, while doing so, hold
+// their inputs and outputs on disk at once: the transient that broke the disk bound (issue 25).
+// Without them, L0's file count does not stall writes (RocksDB ignores it then).
+rocksdb::ColumnFamilyOptions VersionKeyedLayout(rocksdb::ColumnFamilyOptions cf) {
+  cf.disable_auto_compactions = true;
+  return cf;
+}
+
+// Every checkpoint rewrites its dirty tiles, and their older copies stay on disk until a
+// compaction of level 0 merges them away: at RocksDB's default of four files, a map whose
+// tiles are all dirty stood five times on disk. Two keeps it under three.
+rocksdb::ColumnFamilyOptions MapLayout(rocksdb::ColumnFamilyOptions cf) {
+  cf.level0_file_num_compaction_trigger = 2;
+  return cf;
+}
+
 }  // namespace
 
 // POSIX record locks do not exclude the process holding them, so, like RocksDB, the
@@ -150,9 +168,10 @@ rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options
   db_options.write_buffer_manager =
       std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
   // A write-ahead log file goes only once every family has flushed what it holds; the meta
-  // family's few bytes would keep the oldest alive for ever. Past twice the memory budget,
-  // RocksDB flushes the families that hold it (docs/storage.md, "Sizing").
-  db_options.max_total_wal_size = 2 * options.memtable_bytes;
+  // family's few bytes would keep the oldest alive for ever. Past the memory budget, RocksDB
+  // flushes the families that hold it; the sizing rule counts twice that, for what arrives
+  // while those flushes run (docs/storage.md, "Sizing").
+  db_options.max_total_wal_size = options.memtable_bytes;
   return db_options;
 }
 
@@ -167,13 +186,13 @@ std::vector<rocksdb::ColumnFamilyDescriptor> Families(const StoreOptions& option
   return {
       {rocksdb::kDefaultColumnFamilyName, rocksdb::ColumnFamilyOptions()},
       {kMetaFamily, meta},
-      {kTilesFamily, TileFamilyOptions(options, cache)},
+      {kTilesFamily, MapLayout(TileFamilyOptions(options, cache))},
       {kTileIndexFamily, rocksdb::ColumnFamilyOptions()},
-      {kLogFamily, log},
+      {kLogFamily, VersionKeyedLayout(log)},
       // Raw scans and superseded tiles, kept for corrections (scan_history.h): written once,
       // read rarely, large; compressed like the tiles.
-      {kSourcesFamily, SourceFamilyOptions(cache)},
-      {kHistoryFamily, TileFamilyOptions(options, cache)},
+      {kSourcesFamily, VersionKeyedLayout(SourceFamilyOptions(cache))},
+      {kHistoryFamily, VersionKeyedLayout(TileFamilyOptions(options, cache))},
   };
 }
 
