@@ -165,8 +165,8 @@ rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options
   }
   // One budget for the memory tables of all families: the log alone would otherwise hold up to
   // 2 x 64 MiB of records between checkpoints, and the tiles as much again.
-  db_options.write_buffer_manager =
-      std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
+  store.write_buffers = std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
+  db_options.write_buffer_manager = store.write_buffers;
   // A write-ahead log file goes only once every family has flushed what it holds; the meta
   // family's few bytes would keep the oldest alive for ever. Past the memory budget, RocksDB
   // flushes the families that hold it; the sizing rule counts twice that, for what arrives

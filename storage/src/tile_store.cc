@@ -272,6 +272,8 @@ Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
     bases_ = std::move(bases);
     bases_floor_ = floor;
   }
+  // The memory tables go to disk at their next flush, whatever the robots are told.
+  guard_->SetPendingBytes([buffers = db->write_buffers] { return buffers->memory_usage(); });
   db_ = std::move(db);
   checkpoint_version_.store(*checkpoint);
   log_.reset(new ScanLog(db_.get(), options_, std::max(*map_version, *checkpoint),
