@@ -3,7 +3,9 @@
 sequence of ../shared/data, a fresh bgkmapd gets the first scans, a planner reads the region
 whole, then asks a delta after 1 new scan and after 10 more (QueryRegion with since_version).
 Bytes are the serialized RegionChunk messages the client received (what gRPC carries before its
-5-byte message prefix and HTTP/2 framing; no compression on either side).
+5-byte message prefix and HTTP/2 framing; no compression on either side). The zstd columns say
+what compressing the float32 payloads would give (each layer of each answer or patch compressed
+on its own at level 3, python3-zstandard): an estimate, the server does not compress them.
 
     PYTHONPATH=build/python /usr/bin/python3 scripts/bench-region-delta.py \
         --bgkmapd build/server/bgkmapd --data ../shared/data
@@ -19,6 +21,8 @@ import sys
 import threading
 
 import numpy as np
+
+import zstandard
 
 import bgkmap
 
@@ -61,6 +65,12 @@ def box_around(poses, margin: float, limit_cells: int, resolution: float = 0.1):
     return tuple(float(v) for v in (*(centre - half), *(centre + half)))
 
 
+def zstd_bytes(arrays) -> int:
+    """Bytes of the arrays' float32 payloads, each compressed alone (zstd level 3)."""
+    c = zstandard.ZstdCompressor(level=3)
+    return sum(len(c.compress(np.ascontiguousarray(a).tobytes())) for a in arrays)
+
+
 def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: float,
         layers) -> dict:
     server = Server(binary)
@@ -79,7 +89,8 @@ def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: fl
             mirror = bgkmap.MapMirror(client, box, layers=layers)
             full = mirror.region.wire_bytes
             tiles = mirror.region.rows * mirror.region.cols / 64 / 64
-            out = {"sequence": name, "box": box, "base": base, "full": full,
+            zfull = zstd_bytes(mirror.region.layers.values())
+            out = {"sequence": name, "box": box, "base": base, "full": full, "zfull": zfull,
                    "region_tiles": tiles, "pixels": mirror.region.rows * mirror.region.cols}
             for label, count in (("after 1", 1), ("after 10", 10)):
                 sent = insert(base, count)
@@ -89,7 +100,8 @@ def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: fl
                 delta = mirror.refresh()
                 assert not delta.full, delta.resync_reason
                 out[label] = (sent, delta.wire_bytes, len(delta.patches),
-                              sum(p.tombstone for p in delta.patches))
+                              sum(p.tombstone for p in delta.patches),
+                              zstd_bytes(a for p in delta.patches for a in p.layers.values()))
                 # The copy is exact: the benchmark would be meaningless otherwise.
                 fresh = client.query(box, layers=layers)
                 assert all(np.array_equal(mirror.region[n].view(np.uint32),
@@ -113,8 +125,8 @@ def main() -> int:
         ("BALM hall, path +- 10 m", "balm_hall", 48, 10.0, None),
     ]
     print("| sequence | region (pixels, tiles) | full answer bytes | after 1 scan: bytes (tiles, "
-          "ratio) | after 10 scans: bytes (tiles, ratio) |")
-    print("|---|---|---|---|---|")
+          "ratio) | after 10 scans: bytes (tiles, ratio) | zstd payload: full, after 1, after 10 |")
+    print("|---|---|---|---|---|---|")
     for name, folder, base, margin, layers in runs:
         seq = bgkmap.KittiSequence(os.path.join(args.data, folder))
         r = run(args.bgkmapd, name, seq, base, margin, layers)
@@ -122,10 +134,12 @@ def main() -> int:
         def cell(label):
             if label not in r:
                 return "n/a (no more scans)"
-            sent, b, tiles, tomb = r[label]
+            sent, b, tiles, tomb, z = r[label]
             return f"{b:,} ({tiles} tiles, 1/{r['full'] / b:.1f})" if b else "0"
+
+        zs = [f"{r['zfull']:,}"] + [f"{r[k][4]:,}" for k in ("after 1", "after 10") if k in r]
         print(f"| {name} | {r['pixels']:,}, {r['region_tiles']:.0f} | {r['full']:,} | "
-              f"{cell('after 1')} | {cell('after 10')} |", flush=True)
+              f"{cell('after 1')} | {cell('after 10')} | {', '.join(zs)} |", flush=True)
     return 0
 
 
