@@ -97,11 +97,17 @@ def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: fl
                 base += sent
                 if sent == 0:
                     continue
+                before = {n: a.copy() for n, a in mirror.region.layers.items()}
                 delta = mirror.refresh()
                 assert not delta.full, delta.resync_reason
+                # Pixels whose value changed in any layer: the floor of a cell-level delta.
+                differ = np.zeros(before[next(iter(before))].shape, dtype=bool)
+                for n, a in before.items():
+                    differ |= a.view(np.uint32) != mirror.region[n].view(np.uint32)
                 out[label] = (sent, delta.wire_bytes, len(delta.patches),
                               sum(p.tombstone for p in delta.patches),
-                              zstd_bytes(a for p in delta.patches for a in p.layers.values()))
+                              zstd_bytes(a for p in delta.patches for a in p.layers.values()),
+                              int(differ.sum()), sum(p.rows * p.cols for p in delta.patches))
                 # The copy is exact: the benchmark would be meaningless otherwise.
                 fresh = client.query(box, layers=layers)
                 assert all(np.array_equal(mirror.region[n].view(np.uint32),
@@ -134,8 +140,9 @@ def main() -> int:
         def cell(label):
             if label not in r:
                 return "n/a (no more scans)"
-            sent, b, tiles, tomb, z = r[label]
-            return f"{b:,} ({tiles} tiles, 1/{r['full'] / b:.1f})" if b else "0"
+            sent, b, tiles, tomb, z, differ, patched = r[label]
+            return (f"{b:,} ({tiles} tiles, 1/{r['full'] / b:.1f}; {differ:,} of {patched:,} "
+                    "pixels sent changed)") if b else "0"
 
         zs = [f"{r['zfull']:,}"] + [f"{r[k][4]:,}" for k in ("after 1", "after 10") if k in r]
         print(f"| {name} | {r['pixels']:,}, {r['region_tiles']:.0f} | {r['full']:,} | "
