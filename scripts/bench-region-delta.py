@@ -2,10 +2,10 @@
 """Bytes of a region refresh (issue 27, docs/benchmarks.md "Region deltas"): for each real
 sequence of ../shared/data, a fresh bgkmapd gets the first scans, a planner reads the region
 whole, then asks a delta after 1 new scan and after 10 more (QueryRegion with since_version).
-Bytes are the serialized RegionChunk messages the client received (what gRPC carries before its
-5-byte message prefix and HTTP/2 framing; no compression on either side). The zstd columns say
-what compressing the float32 payloads would give (each layer of each answer or patch compressed
-on its own at level 3, python3-zstandard): an estimate, the server does not compress them.
+Bytes are the serialized RegionChunk messages the client received (gRPC's message bytes, before
+its 5-byte prefix and HTTP/2 framing), and, for the same answers asked again with
+RegionRequest.compress (gzip), the bytes a counting TCP proxy saw from server to client (HTTP/2
+framing included: what a radio carries).
 
     PYTHONPATH=build/python /usr/bin/python3 scripts/bench-region-delta.py \
         --bgkmapd build/server/bgkmapd --data ../shared/data
@@ -16,13 +16,12 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import socket
 import subprocess
 import sys
 import threading
 
 import numpy as np
-
-import zstandard
 
 import bgkmap
 
@@ -65,17 +64,55 @@ def box_around(poses, margin: float, limit_cells: int, resolution: float = 0.1):
     return tuple(float(v) for v in (*(centre - half), *(centre + half)))
 
 
-def zstd_bytes(arrays) -> int:
-    """Bytes of the arrays' float32 payloads, each compressed alone (zstd level 3)."""
-    c = zstandard.ZstdCompressor(level=3)
-    return sum(len(c.compress(np.ascontiguousarray(a).tobytes())) for a in arrays)
+class CountingProxy:
+    """A loopback TCP proxy to `port` counting the bytes sent from the server to the client."""
+
+    def __init__(self, port: int):
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.port = self.listener.getsockname()[1]
+        self.down = 0
+        self.lock = threading.Lock()
+        threading.Thread(target=self._accept, args=(port,), daemon=True).start()
+
+    def _accept(self, port: int):
+        while True:
+            client, _ = self.listener.accept()
+            server = socket.create_connection(("127.0.0.1", port))
+            threading.Thread(target=self._pump, args=(client, server, False), daemon=True).start()
+            threading.Thread(target=self._pump, args=(server, client, True), daemon=True).start()
+
+    def _pump(self, src, dst, count: bool):
+        try:
+            while data := src.recv(1 << 16):
+                if count:
+                    with self.lock:
+                        self.down += len(data)
+                dst.sendall(data)
+        except OSError:
+            pass
+        finally:
+            for s in (src, dst):
+                try:
+                    s.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
+
+    def measure(self, call):
+        """call()'s result and the bytes the server sent meanwhile."""
+        with self.lock:
+            before = self.down
+        result = call()
+        with self.lock:
+            return result, self.down - before
 
 
 def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: float,
         layers) -> dict:
     server = Server(binary)
     try:
-        with bgkmap.Client(f"127.0.0.1:{server.port}", timeout=600) as client:
+        proxy = CountingProxy(server.port)
+        with bgkmap.Client(f"127.0.0.1:{server.port}", timeout=600) as client, \
+                bgkmap.Client(f"127.0.0.1:{proxy.port}", timeout=600) as zclient:
             limit = client.info()["limits"]["max_region_cells"]
             box = box_around([seq[k][1] for k in range(len(seq))], margin, limit)
 
@@ -86,10 +123,13 @@ def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: fl
                 return min(first + count, len(seq)) - first
 
             insert(0, base)
+            zclient.info()  # (the limits, asked once, not counted below)
             mirror = bgkmap.MapMirror(client, box, layers=layers)
             full = mirror.region.wire_bytes
             tiles = mirror.region.rows * mirror.region.cols / 64 / 64
-            zfull = zstd_bytes(mirror.region.layers.values())
+            # The same answers gzipped, counted on the wire.
+            _, zfull = proxy.measure(lambda: zclient.query(box, layers, compress=True))
+            at = (mirror.version, mirror.history_id)
             out = {"sequence": name, "box": box, "base": base, "full": full, "zfull": zfull,
                    "region_tiles": tiles, "pixels": mirror.region.rows * mirror.region.cols}
             for label, count in (("after 1", 1), ("after 10", 10)):
@@ -98,7 +138,10 @@ def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: fl
                 if sent == 0:
                     continue
                 before = {n: a.copy() for n, a in mirror.region.layers.items()}
+                _, zdelta = proxy.measure(lambda: zclient.query(
+                    box, layers, since=at[0], history_id=at[1], compress=True))
                 delta = mirror.refresh()
+                at = (mirror.version, mirror.history_id)
                 assert not delta.full, delta.resync_reason
                 # Pixels whose value changed in any layer: the floor of a cell-level delta.
                 differ = np.zeros(before[next(iter(before))].shape, dtype=bool)
@@ -106,7 +149,7 @@ def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: fl
                     differ |= a.view(np.uint32) != mirror.region[n].view(np.uint32)
                 out[label] = (sent, delta.wire_bytes, len(delta.patches),
                               sum(p.tombstone for p in delta.patches),
-                              zstd_bytes(a for p in delta.patches for a in p.layers.values()),
+                              zdelta,
                               int(differ.sum()), sum(p.rows * p.cols for p in delta.patches))
                 # The copy is exact: the benchmark would be meaningless otherwise.
                 fresh = client.query(box, layers=layers)
@@ -131,7 +174,7 @@ def main() -> int:
         ("BALM hall, path +- 10 m", "balm_hall", 48, 10.0, None),
     ]
     print("| sequence | region (pixels, tiles) | full answer bytes | after 1 scan: bytes (tiles, "
-          "ratio) | after 10 scans: bytes (tiles, ratio) | zstd payload: full, after 1, after 10 |")
+          "ratio) | after 10 scans: bytes (tiles, ratio) | gzip on the wire: full, after 1, after 10 |")
     print("|---|---|---|---|---|---|")
     for name, folder, base, margin, layers in runs:
         seq = bgkmap.KittiSequence(os.path.join(args.data, folder))

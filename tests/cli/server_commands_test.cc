@@ -109,7 +109,8 @@ TEST_F(ServerCommandsTest, QuerySinceListsTheChangedTilesAndTombstones) {
   const uint64_t version =
       nlohmann::json::parse(Cli("info" + S()).output)["map_version"].get<uint64_t>();
   ASSERT_EQ(Cli("clear --bbox 0,0,6.4,6.4 --yes" + S()).exit_code, 0);  // tile (0, 0) whole
-  testing::CliRun run = Cli("query --bbox -10,-10,10,10 --since " + std::to_string(version) + S());
+  testing::CliRun run =
+      Cli("query --bbox -10,-10,10,10 --compress --since " + std::to_string(version) + S());
   ASSERT_EQ(run.exit_code, 0) << run.output;
   nlohmann::json delta = nlohmann::json::parse(run.output);
   EXPECT_EQ(delta["answer"], "delta");

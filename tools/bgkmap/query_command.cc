@@ -33,6 +33,7 @@ struct QueryOptions {
   bool cog = false;
   std::optional<uint64_t> since;
   uint64_t history_id = 0;
+  bool compress = false;
 };
 
 // The answer to --since: which tiles changed (patches and tombstones) or why it came back whole.
@@ -127,13 +128,13 @@ int RunQuery(const QueryOptions& o) {
   }
   if (o.since) {
     RpcResult<RegionDelta> d =
-        client.QueryRegionSince({box, *layers, o.stride}, *o.since, o.history_id);
+        client.QueryRegionSince({box, *layers, o.stride, o.compress}, *o.since, o.history_id);
     if (!d.ok()) return Fail("query", d.status().ToString());
     std::fputs(JsonText(DeltaJson(*d, *o.since)).c_str(), stdout);
     return 0;
   }
   uint64_t version = 0;
-  RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride}, &version);
+  RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride, o.compress}, &version);
   if (!r.ok()) return Fail("query", r.status().ToString());
   io::RosMapOptions ros;
   ros.frame_id = o.frame_id;
@@ -192,6 +193,8 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--since", o->since,
                   "Print as JSON which tiles of the region changed after this map version "
                   "(patches and tombstones), or why the server answers the whole region");
+  cmd->add_flag("--compress", o->compress,
+                "Have the server gzip the answer on the wire (RegionRequest.compress)");
   cmd->add_option("--history-id", o->history_id,
                   "With --since: the history_id the version came from (0: not checked)");
   cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });

@@ -243,7 +243,7 @@ class Client:
     # --- queries -----------------------------------------------------------------------------
 
     def query(self, bbox, layers=None, stride: int = 1, *, since: Optional[int] = None,
-              history_id: int = 0):
+              history_id: int = 0, compress: bool = False):
         """Layers over the cells meeting the half-open box (xmin, ymin, xmax, ymax), metres.
 
         layers: names ("elevation", "elevation_variance", "traversability",
@@ -262,7 +262,10 @@ class Client:
         tiles' patches and tombstones, or the whole region when the server cannot answer the
         delta exactly (delta.full; docs/server.md, "Region deltas"). delta.apply_to(region)
         brings the earlier answer up to date; MapMirror does all of this. A box that needs
-        pieces cannot be asked a delta (INVALID_ARGUMENT)."""
+        pieces cannot be asked a delta (INVALID_ARGUMENT).
+
+        compress: the server gzips the answer's messages on the wire (RegionRequest.compress;
+        decompressed here transparently): far fewer bytes for sparse regions, more server CPU."""
         if int(stride) < 1:
             raise invalid_argument(f"stride: {stride} must be >= 1")
         stride = int(stride)
@@ -275,11 +278,11 @@ class Client:
                 raise invalid_argument(
                     f"since: the box needs {len(pieces)} pieces over the server's "
                     f"max_region_cells = {limit}; ask a delta of each piece's box")
-            return self._query_piece(bbox, layers, stride, since, history_id).delta()
+            return self._query_piece(bbox, layers, stride, since, history_id, compress).delta()
         if len(pieces) == 1:
-            return self._query_piece(bbox, layers, stride).region()
-        return _codec.stitch_regions([self._query_piece(p, layers, stride).region()
-                                      for p in pieces])
+            return self._query_piece(bbox, layers, stride, compress=compress).region()
+        return _codec.stitch_regions([self._query_piece(p, layers, stride, compress=compress)
+                                      .region() for p in pieces])
 
     def _region_limit(self) -> tuple:
         """The map's resolution and the server's max_region_cells, asked once."""
@@ -289,8 +292,8 @@ class Client:
         return self._limits
 
     def _query_piece(self, bbox, layers, stride: int, since: Optional[int] = None,
-                     history_id: int = 0) -> _codec.RegionAssembler:
-        request = query_pb2.RegionRequest(stride=stride)
+                     history_id: int = 0, compress: bool = False) -> _codec.RegionAssembler:
+        request = query_pb2.RegionRequest(stride=stride, compress=bool(compress))
         if since is not None:
             request.since_version = int(since)
             request.since_history_id = int(history_id)

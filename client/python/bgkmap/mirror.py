@@ -25,12 +25,13 @@ class MapMirror:
     serialized answers (the first full one included), refreshes and resyncs the refreshes and
     how many of them came back whole."""
 
-    def __init__(self, client, bbox, layers=None, stride: int = 1):
+    def __init__(self, client, bbox, layers=None, stride: int = 1, compress: bool = False):
         self.client = client
         self.bbox = tuple(bbox)
         self.layers = layers
         self.stride = int(stride)
-        self.region: Region = client.query(self.bbox, layers, self.stride)
+        self.compress = bool(compress)  # gzip on the wire (bytes_received counts before it)
+        self.region: Region = client.query(self.bbox, layers, self.stride, compress=self.compress)
         self.bytes_received = self.region.wire_bytes
         self.refreshes = 0
         self.resyncs = 0
@@ -46,7 +47,7 @@ class MapMirror:
     def refresh(self) -> RegionDelta:
         """Asks what changed since the copy's version and applies it; returns the answer."""
         delta = self.client.query(self.bbox, self.layers, self.stride, since=self.version,
-                                  history_id=self.history_id)
+                                  history_id=self.history_id, compress=self.compress)
         self.region = delta.apply_to(self.region)
         self.bytes_received += delta.wire_bytes
         self.refreshes += 1

@@ -114,6 +114,30 @@ TEST(RegionDelta, AfterOneScanItHoldsTheChangedTilesOfAFullQueryBitForBit) {
   }
 }
 
+TEST(RegionDelta, ACompressedAnswerIsTheSame) {
+  ServerFixture fixture;
+  const std::vector<OwnedScan> scans = SubScans("z", 2);
+  Send(fixture.client(), scans, 0, 3);
+  RegionQuery query{kRegion, {}, 1};
+  uint64_t version = 0, history = 0;
+  RpcResult<Raster> plain = fixture.client().QueryRegion(query, &version, &history);
+  ASSERT_TRUE(plain.ok());
+  query.compress = true;
+  RpcResult<Raster> gzipped = fixture.client().QueryRegion(query);
+  ASSERT_TRUE(gzipped.ok()) << gzipped.status().ToString();
+  EXPECT_TRUE(SameBits(*plain, *gzipped));
+  Send(fixture.client(), scans, 3, 4);
+  RpcResult<RegionDelta> d = fixture.client().QueryRegionSince(query, version, history);
+  ASSERT_TRUE(d.ok()) << d.status().ToString();
+  EXPECT_FALSE(d->full);
+  Raster copy = *plain;
+  ASSERT_TRUE(ApplyDelta(*d, &copy).ok());
+  query.compress = false;
+  RpcResult<Raster> fresh = fixture.client().QueryRegion(query);
+  ASSERT_TRUE(fresh.ok());
+  EXPECT_TRUE(SameBits(copy, *fresh));
+}
+
 TEST(RegionDelta, ClearRegionSendsTombstones) {
   ServerFixture fixture;
   const std::vector<OwnedScan> scans = SubScans("d", 2);

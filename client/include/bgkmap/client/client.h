@@ -114,6 +114,7 @@ struct RegionQuery {
   MetricBox box;
   std::vector<Layer> layers;  // empty: every layer
   int stride = 1;             // map cells per pixel edge
+  bool compress = false;      // gzip the answer on the wire (RegionRequest.compress)
 };
 
 // A tile's part of a region raster in a delta (docs/server.md, "Region deltas").

@@ -3,6 +3,8 @@
 // bands), then streamed without holding any lock, so a slow reader never blocks ingestion.
 // With since_version, only the tiles changed since are read and streamed, as patches
 // (rpc/region_delta.h), or the whole region flagged as a resync when the delta cannot be exact.
+#include <grpc/compression.h>
+
 #include <boost/asio/post.hpp>
 #include <cstdint>
 #include <optional>
@@ -32,6 +34,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
       Finish(s);
       return;
     }
+    if (request.compress()) call->set_compression_algorithm(GRPC_COMPRESS_GZIP);
     // The raster is held in memory until streamed: bound the total over concurrent queries.
     const uint64_t pixels = static_cast<uint64_t>(box_.width() / stride_) *
                             static_cast<uint64_t>(box_.height() / stride_);
