@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "../../core/stride_oracle.h"
+#include "bgkmap/core/path_check.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -218,6 +219,37 @@ TEST_F(ServedMapTest, PathCheckFindsTheWorstCellUnderTheFootprint) {
   EXPECT_EQ(unknown->first_unsafe_index, 0);
   EXPECT_FLOAT_EQ(unknown->poses[0].unknown_fraction, 1.0f);
   EXPECT_GT(unknown->poses[0].cell_count, 30u);
+}
+
+// Issue 29: a planner sends waypoints and means the path between them. Two poses that are
+// safe on their own, joined by a straight segment over the unknown ground under the sensor at
+// (0, 0), are an unsafe path.
+TEST_F(ServedMapTest, PathCheckSeesTheGroundBetweenPoses) {
+  PathQuery q;
+  q.poses = {{-8, -2, 0}, {8, 2, 0}};
+  q.radius = 0.3;
+  // The premise, on the offline map: each pose alone is safe, the midpoint is not.
+  const MapParams& params = offline_->params();
+  const PathThresholds thresholds{params.trav_threshold, params.variance_threshold, 0.0};
+  Footprint disk;
+  disk.radius = q.radius;
+  auto judge = [&](const Pose2& p) {
+    std::vector<CellEstimate> cells;
+    for (CellIndex c : FootprintCells(offline_->geometry(), disk, p)) {
+      cells.push_back(offline_->Estimate(c));
+    }
+    return JudgeFootprint(cells, thresholds);
+  };
+  ASSERT_TRUE(judge(q.poses[0]).safe);
+  ASSERT_TRUE(judge(q.poses[1]).safe);
+  ASSERT_FALSE(judge({0, 0, 0}).safe);
+
+  RpcResult<PathCheck> check = fixture_->client().CheckPath(q);
+  ASSERT_TRUE(check.ok()) << check.status().ToString();
+  EXPECT_TRUE(check->poses[0].safe);
+  EXPECT_TRUE(check->poses[1].safe);
+  EXPECT_FALSE(check->safe);
+  EXPECT_EQ(check->first_unsafe_index, 0);  // the trouble begins after pose 0
 }
 
 }  // namespace
