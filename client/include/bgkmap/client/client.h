@@ -26,6 +26,7 @@
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/path_check.h"
+#include "bgkmap/core/path_sweep.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/scan.h"
 
@@ -132,10 +133,15 @@ struct PathQuery {
   std::optional<double> max_unknown_fraction;         // default: 0
 };
 
+// The server's verdict on a path: its poses and the segments between them (docs/semantics.md,
+// "Path checks").
 struct PathCheck {
   std::vector<PoseCheck> poses;
-  bool safe = false;
+  std::vector<SegmentCheck> segments;  // poses.size() - 1: segment i joins poses i and i + 1
+  bool safe = false;                   // every pose and every placement between them
+  // -1 when safe, else first_unsafe->where.segment: the pose where the unsafe stretch begins.
   int first_unsafe_index = -1;
+  std::optional<PlacementCheck> first_unsafe;  // the first unsafe point, in path order
   uint64_t map_version = 0;
 };
 
