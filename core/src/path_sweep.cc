@@ -27,6 +27,9 @@ void SortUnique(std::vector<CellIndex>* cells) {
   cells->erase(std::unique(cells->begin(), cells->end()), cells->end());
 }
 
+// Every 16th placement: often enough to stop within milliseconds, rarely enough to cost nothing.
+bool Asked(const StopRequested& stop, size_t i) { return stop && i % 16 == 0 && stop(); }
+
 }  // namespace
 
 uint64_t SegmentSteps(const Pose2& a, const Pose2& b, const Footprint& footprint,
@@ -64,13 +67,15 @@ std::vector<PathPlacement> PathPlacements(std::span<const Pose2> poses, const Fo
 }
 
 std::vector<CellIndex> SweptCells(const GridGeometry& grid, const Footprint& footprint,
-                                  std::span<const PathPlacement> placements) {
+                                  std::span<const PathPlacement> placements,
+                                  const StopRequested& stop) {
   // Consecutive placements overlap almost entirely: deduplicate as the list grows, so it stays
   // near the swept area rather than the sum of the footprints.
   std::vector<CellIndex> out;
   size_t unique = 0;
-  for (const PathPlacement& p : placements) {
-    const std::vector<CellIndex> at = FootprintCells(grid, footprint, p.pose);
+  for (size_t i = 0; i < placements.size(); ++i) {
+    if (Asked(stop, i)) return out;
+    const std::vector<CellIndex> at = FootprintCells(grid, footprint, placements[i].pose);
     out.insert(out.end(), at.begin(), at.end());
     if (out.size() > std::max<size_t>(4096, 2 * unique)) {
       SortUnique(&out);
@@ -83,10 +88,13 @@ std::vector<CellIndex> SweptCells(const GridGeometry& grid, const Footprint& foo
 
 PathVerdict JudgePath(const GridGeometry& grid, const Footprint& footprint,
                       std::span<const PathPlacement> placements, std::span<const CellIndex> cells,
-                      std::span<const CellEstimate> estimates, const PathThresholds& thresholds) {
+                      std::span<const CellEstimate> estimates, const PathThresholds& thresholds,
+                      const StopRequested& stop) {
   PathVerdict verdict;
   std::vector<CellEstimate> under;
-  for (const PathPlacement& p : placements) {
+  for (size_t i = 0; i < placements.size(); ++i) {
+    if (Asked(stop, i)) return verdict;
+    const PathPlacement& p = placements[i];
     under.clear();
     for (CellIndex c : FootprintCells(grid, footprint, p.pose)) {
       const auto at = std::lower_bound(cells.begin(), cells.end(), c);

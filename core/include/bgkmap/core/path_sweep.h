@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <vector>
@@ -41,10 +42,15 @@ double CountPlacements(std::span<const Pose2> poses, const Footprint& footprint,
 std::vector<PathPlacement> PathPlacements(std::span<const Pose2> poses, const Footprint& footprint,
                                           double resolution);
 
+// Asked between placements, so a long check can stop (a cancelled call, a deadline): when it
+// answers true, SweptCells and JudgePath return at once with a partial result to discard.
+using StopRequested = std::function<bool()>;
+
 // The swept footprint: every cell some placement's footprint covers (FootprintCells), sorted by
 // (x, y), each once.
 std::vector<CellIndex> SweptCells(const GridGeometry& grid, const Footprint& footprint,
-                                  std::span<const PathPlacement> placements);
+                                  std::span<const PathPlacement> placements,
+                                  const StopRequested& stop = {});
 
 // A placement and the verdict on its footprint.
 struct PlacementCheck {
@@ -72,6 +78,7 @@ struct PathVerdict {
 // SweptCells(grid, footprint, placements) in that order.
 PathVerdict JudgePath(const GridGeometry& grid, const Footprint& footprint,
                       std::span<const PathPlacement> placements, std::span<const CellIndex> cells,
-                      std::span<const CellEstimate> estimates, const PathThresholds& thresholds);
+                      std::span<const CellEstimate> estimates, const PathThresholds& thresholds,
+                      const StopRequested& stop = {});
 
 }  // namespace bgkmap

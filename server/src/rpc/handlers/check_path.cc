@@ -157,19 +157,22 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
   // The rule is core's (path_sweep.h): placements, the swept cells, one atomic read, the verdict.
   const std::vector<PathPlacement> along = PathPlacements(poses, footprint, g.resolution());
   if (grpc::Status s = control.Check(); !s.ok()) return s;
-  const std::vector<CellIndex> cells = SweptCells(g, footprint, along);
+  const StopRequested stop = [&control] { return !control.Check().ok(); };
+  const std::vector<CellIndex> cells = SweptCells(g, footprint, along, stop);
+  if (grpc::Status s = control.Check(); !s.ok()) return s;  // the cells may be partial
   if (cells.size() > limits.max_region_cells) {
     return {grpc::StatusCode::INVALID_ARGUMENT,
             "poses: the footprint swept along the path covers " + std::to_string(cells.size()) +
                 " cells, more than server.max_region_cells = " +
                 std::to_string(limits.max_region_cells)};
   }
-  if (grpc::Status s = control.Check(); !s.ok()) return s;
   const uint64_t version = ctx.map.applied_version();
   const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
   if (grpc::Status s = control.Check(); !s.ok()) return s;
-  SetVerdict(JudgePath(g, footprint, along, cells, *read, thresholds), response);
+  const PathVerdict verdict = JudgePath(g, footprint, along, cells, *read, thresholds, stop);
+  if (grpc::Status s = control.Check(); !s.ok()) return s;  // the verdict may be partial
+  SetVerdict(verdict, response);
   response->set_map_version(version);
   return grpc::Status::OK;
 }
