@@ -298,11 +298,14 @@ class Client:
                    max_traversability: Optional[float] = None,
                    max_traversability_variance: Optional[float] = None,
                    max_unknown_fraction: Optional[float] = None) -> PathCheck:
-        """Footprint safety along a path. poses: Nx3 (x, y, yaw) or Nx2 (yaw 0); footprint: a disk
-        of `radius` or a `polygon` [(x, y), ...] in the robot frame (x forward, y left). Unset
-        thresholds take the map's trav_threshold, variance_threshold and 0. A pose is safe when
-        its worst traversability and variance are below them and its unknown fraction at most
-        max_unknown_fraction, so a footprint on unknown ground is unsafe."""
+        """Footprint safety along a path: at the poses and along the straight segments between
+        consecutive poses (the footprint placed at most a cell apart, heading interpolated).
+        poses: Nx3 (x, y, yaw) or Nx2 (yaw 0); footprint: a disk of `radius` or a `polygon`
+        [(x, y), ...] in the robot frame (x forward, y left). Unset thresholds take the map's
+        trav_threshold, variance_threshold and 0. A placement is safe when its worst
+        traversability and variance are below them and its unknown fraction at most
+        max_unknown_fraction, so a footprint on unknown ground is unsafe. The answer names the
+        first unsafe point (PathCheck.first_unsafe_point)."""
         poses = _codec.xy_array(poses, "poses", columns=(2, 3))
         request = _codec.path_request(poses, radius, polygon, max_traversability,
                                       max_traversability_variance, max_unknown_fraction)
