@@ -23,8 +23,9 @@ struct ServerLimits {
   uint64_t max_query_points = 100'000;       // max_query_points: points per point query
   uint64_t max_path_poses = 10'000;          // max_path_poses: poses per path check
   uint64_t max_footprint_cells = 100'000;    // max_footprint_cells: cells under one footprint
-  // max_path_check_cells: footprint bounding-box cells summed over a path check's poses (the
-  // work a CheckPath costs), checked before any cell is visited.
+  // max_path_check_cells: footprint bounding-box cells summed over a path check's placements
+  // (its poses and the samples between them: the work a CheckPath costs), checked before any
+  // cell is visited.
   uint64_t max_path_check_cells = 20'000'000;
   double max_coordinate = 1e6;                       // max_coordinate: |x|, |y|, |z| bound, metres
   double quaternion_tolerance = 1e-3;                // quaternion_tolerance: allowed | |q| - 1 |
