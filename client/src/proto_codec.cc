@@ -159,7 +159,8 @@ MapInfo FromProto(const v1::InfoResponse& r) {
                  l.max_path_poses(),
                  l.max_coordinate(),
                  l.max_message_bytes(),
-                 l.max_inflight_scans_per_stream()};
+                 l.max_inflight_scans_per_stream(),
+                 l.max_region_read_cells()};
   info.server_version = r.server_version();
   if (r.has_storage()) {
     const v1::StorageInfo& s = r.storage();

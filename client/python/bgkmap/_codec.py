@@ -98,6 +98,14 @@ def _region_cells(box, resolution: float, stride: int):
 MAX_REGION_PIECES = 256  # a larger box is sent whole, for the server to refuse by its limit
 
 
+def region_cell_budget(max_region_cells: int, max_region_read_cells: int, stride: int) -> int:
+    """The map cells one region query may read at `stride`: max_region_cells pixels x stride^2,
+    within max_region_read_cells; an older server (read cells 0) counted map cells."""
+    if not max_region_read_cells:
+        return max_region_cells
+    return min(max_region_cells * stride * stride, max_region_read_cells)
+
+
 def split_region(box, resolution: float, stride: int, max_cells: int) -> list:
     """Metric boxes of whole pixel blocks, north-west first, each within max_cells map cells,
     that together cover the cells the server would read for `box`; [box] when it fits, when the

@@ -135,7 +135,7 @@ class Client:
         intercepted = (grpc.intercept_channel(self._channel, _BearerToken(token)) if token
                        else self._channel)
         self._stub = map_service_pb2_grpc.MapServiceStub(intercepted)
-        self._limits = None  # (resolution, max_region_cells): Info, on the first query
+        self._limits = None  # (resolution, max_region_cells, max_region_read_cells): Info, once
 
     # --- lifetime ----------------------------------------------------------------------------
 
@@ -251,23 +251,28 @@ class Client:
         stride: map cells per pixel edge. Returns a Region: a mapping from layer name to a float32
         (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform.
 
-        A box of more map cells than the server's max_region_cells is read in pieces of whole
-        pixel blocks and stitched; each piece is one consistent read, but pieces may see
-        different map versions (region.map_version is the newest)."""
+        A box of more output pixels than the server's max_region_cells (or more map cells than
+        its max_region_read_cells) is read in pieces of whole pixel blocks and stitched; each
+        piece is one consistent read, but pieces may see different map versions
+        (region.map_version is the newest)."""
         if int(stride) < 1:
             raise invalid_argument(f"stride: {stride} must be >= 1")
         stride = int(stride)
-        resolution, limit = self._region_limit()
-        pieces = _codec.split_region(bbox, resolution, stride, limit)
+        resolution, pixels, read = self._region_limit()
+        pieces = _codec.split_region(bbox, resolution, stride,
+                                     _codec.region_cell_budget(pixels, read, stride))
         if len(pieces) == 1:
             return self._query_piece(bbox, layers, stride)
         return _codec.stitch_regions([self._query_piece(p, layers, stride) for p in pieces])
 
     def _region_limit(self) -> tuple:
-        """The map's resolution and the server's max_region_cells, asked once."""
+        """The map's resolution, the server's max_region_cells and max_region_read_cells (0
+        from an older server), asked once."""
         if self._limits is None:
             info = self.info()
-            self._limits = (info["params"]["resolution"], info["limits"]["max_region_cells"])
+            limits = info["limits"]
+            self._limits = (info["params"]["resolution"], limits["max_region_cells"],
+                            limits.get("max_region_read_cells", 0))
         return self._limits
 
     def _query_piece(self, bbox, layers, stride: int) -> Region:

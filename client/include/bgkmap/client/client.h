@@ -185,6 +185,9 @@ struct ServerLimitsInfo {
   double max_coordinate = 0;
   uint64_t max_message_bytes = 0;
   uint32_t max_inflight_scans_per_stream = 0;
+  // Map cells one region reads; 0 from an older server, whose max_region_cells counted map cells
+  // (it counts output pixels now).
+  uint64_t max_region_read_cells = 0;
 };
 
 // The server's map store (absent when the map lives in memory only).
