@@ -212,8 +212,7 @@ TEST_F(BadInputTest, RegionTooLarge) {
   r = fixture_->client().QueryRegion({{0, 0, 800, 800}, {}, 8});
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument);
-  EXPECT_NE(r.status().message().find("server.max_region_read_cells = 16000000"),
-            std::string::npos)
+  EXPECT_NE(r.status().message().find("server.max_region_read_cells = 16000000"), std::string::npos)
       << r.status().ToString();
   ExpectUnchanged();
 }
