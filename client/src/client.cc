@@ -20,6 +20,7 @@
 
 #include "bgkmap/v1/map_service.grpc.pb.h"
 #include "proto_codec.h"
+#include "region_answer.h"
 #include "scan_encoding.h"
 
 namespace bgkmap {
@@ -46,6 +47,28 @@ void AddToken(grpc::ClientContext* context, const std::string& token) {
 
 RpcStatus Malformed(const std::string& what) {
   return RpcStatus(RpcCode::kDataLoss, "malformed server response: " + what);
+}
+
+// A region answer, full or delta, from its stream of chunks.
+RpcResult<RegionDelta> ReadRegionAnswer(v1::MapService::Stub& stub, grpc::ClientContext& context,
+                                        const v1::RegionRequest& request) {
+  std::unique_ptr<grpc::ClientReader<v1::RegionChunk>> reader = stub.QueryRegion(&context, request);
+  RegionAnswerReader answer;
+  v1::RegionChunk chunk;
+  RpcStatus problem;
+  while (reader->Read(&chunk)) {
+    if (!problem.ok()) continue;  // drain the stream before Finish()
+    if (Status s = answer.Add(chunk); !s.ok()) {
+      problem = Malformed(s.message());
+      context.TryCancel();
+    }
+  }
+  grpc::Status status = reader->Finish();
+  if (!problem.ok()) return problem;
+  if (!status.ok()) return FromGrpc(status);
+  Result<RegionDelta> done = std::move(answer).Finish();
+  if (!done.ok()) return Malformed(done.status().message());
+  return std::move(*done);
 }
 
 class GrpcIngestStream final : public IngestStream {
@@ -257,43 +280,29 @@ RpcResult<std::vector<ScanAck>> Client::IngestAll(
   return acks;
 }
 
-RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_version) {
+RpcResult<Raster> Client::QueryRegion(const RegionQuery& query, uint64_t* map_version,
+                                      uint64_t* history_id) {
   v1::RegionRequest request;
   ToProto(query, &request);
   grpc::ClientContext context;
   impl_->SetDeadline(&context);
-  std::unique_ptr<grpc::ClientReader<v1::RegionChunk>> reader =
-      impl_->stub->QueryRegion(&context, request);
-  Raster raster;
-  bool have_header = false;
-  int64_t next_row = 0;
-  v1::RegionChunk chunk;
-  RpcStatus problem;
-  while (reader->Read(&chunk)) {
-    if (!problem.ok()) continue;  // drain the stream before Finish()
-    if (chunk.has_header()) {
-      raster = FromProto(chunk.header());
-      if (map_version != nullptr) *map_version = chunk.header().map_version();
-      have_header = true;
-    }
-    if (!have_header || chunk.row_start() != next_row ||
-        chunk.layers_size() != static_cast<int>(raster.layers.size()) ||
-        next_row + chunk.row_count() > raster.rows) {
-      problem = Malformed("region chunk out of order");
-      context.TryCancel();
-      continue;
-    }
-    if (!CopyRows(chunk.layers(), next_row, chunk.row_count(), &raster)) {
-      problem = Malformed("region chunk of the wrong size");
-      context.TryCancel();
-    }
-    next_row += chunk.row_count();
-  }
-  grpc::Status status = reader->Finish();
-  if (!problem.ok()) return problem;
-  if (!status.ok()) return FromGrpc(status);
-  if (!have_header || next_row != raster.rows) return Malformed("region stream incomplete");
-  return raster;
+  RpcResult<RegionDelta> answer = ReadRegionAnswer(*impl_->stub, context, request);
+  if (!answer.ok()) return answer.status();
+  if (!answer->full) return Malformed("a delta answered a query for the whole region");
+  if (map_version != nullptr) *map_version = answer->map_version;
+  if (history_id != nullptr) *history_id = answer->history_id;
+  return std::move(answer->raster);
+}
+
+RpcResult<RegionDelta> Client::QueryRegionSince(const RegionQuery& query, uint64_t since_version,
+                                                uint64_t since_history_id) {
+  v1::RegionRequest request;
+  ToProto(query, &request);
+  request.set_since_version(since_version);
+  request.set_since_history_id(since_history_id);
+  grpc::ClientContext context;
+  impl_->SetDeadline(&context);
+  return ReadRegionAnswer(*impl_->stub, context, request);
 }
 
 RpcResult<PointValues> Client::QueryPoints(std::span<const std::array<double, 2>> points,

@@ -68,6 +68,7 @@ void ToProto(const RegionQuery& query, v1::RegionRequest* out) {
   ToProto(query.box, out->mutable_box());
   for (Layer l : query.layers) out->add_layers(ToProto(l));
   out->set_stride(static_cast<uint32_t>(std::max(query.stride, 1)));
+  out->set_compress(query.compress);
 }
 
 void ToProto(std::span<const std::array<double, 2>> points, const std::vector<Layer>& layers,

@@ -59,22 +59,47 @@ const std::vector<float>* Raster::Find(Layer layer) const {
   return nullptr;
 }
 
-Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vector<Layer>& layers,
-                     int stride) {
-  const MapParams& p = map.params();
-  const GridGeometry& geo = map.geometry();
+Raster RasterGeometry(double map_resolution, const CellBox& box, const std::vector<Layer>& layers,
+                      int stride) {
   stride = std::max(stride, 1);
   Raster r;
   r.box = box;
   r.stride = stride;
   r.layers = layers;
-  r.resolution = p.resolution * stride;
+  r.resolution = map_resolution * stride;
   r.cols = (box.width() + stride - 1) / stride;
   r.rows = (box.height() + stride - 1) / stride;
-  r.x0 = box.min.x * p.resolution;
-  r.y1 = (static_cast<double>(box.max.y) + 1.0) * p.resolution;
+  r.x0 = box.min.x * map_resolution;
+  r.y1 = (static_cast<double>(box.max.y) + 1.0) * map_resolution;
+  return r;
+}
+
+float UnknownValue(Layer layer) { return layer == Layer::kState ? 0.0f : kNaN; }
+
+CellBox TilePatchCells(const GridGeometry& geometry, const CellBox& region, int stride,
+                       TileKey tile) {
+  const CellBox part = geometry.TileBox(tile).Intersect(region);
+  if (part.empty()) return {};
+  stride = std::max(stride, 1);
+  // Offsets from the region's corner, which sits on a block corner.
+  auto block_start = [&](int cell, int origin) {
+    return origin + static_cast<int>((static_cast<int64_t>(cell) - origin) / stride * stride);
+  };
+  CellBox out;
+  out.min = {block_start(part.min.x, region.min.x), block_start(part.min.y, region.min.y)};
+  out.max = {block_start(part.max.x, region.min.x) + stride - 1,
+             block_start(part.max.y, region.min.y) + stride - 1};
+  return out.Intersect(region);
+}
+
+Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vector<Layer>& layers,
+                     int stride) {
+  const MapParams& p = map.params();
+  const GridGeometry& geo = map.geometry();
+  stride = std::max(stride, 1);
+  Raster r = RasterGeometry(p.resolution, box, layers, stride);
   const size_t n = static_cast<size_t>(r.rows * r.cols);
-  for (Layer l : layers) r.data.emplace_back(n, l == Layer::kState ? 0.0f : kNaN);
+  for (Layer l : layers) r.data.emplace_back(n, UnknownValue(l));
   if (box.empty()) return r;
 
   auto write = [&](size_t pixel, const CellEstimate& e) {

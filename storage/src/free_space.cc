@@ -46,9 +46,24 @@ Status FreeSpaceGuard::RefreshLocked(bool force) {
   return Status::Ok();
 }
 
+void FreeSpaceGuard::SetPendingBytes(std::function<uint64_t()> pending) {
+  std::lock_guard lock(mu_);
+  pending_ = std::move(pending);
+}
+
+uint64_t FreeSpaceGuard::FreeLocked() const {
+  const uint64_t used = admitted_since_probe_ + (pending_ ? pending_() : 0);
+  return probed_free_ > used ? probed_free_ - used : 0;
+}
+
 Status FreeSpaceGuard::DecideLocked(uint64_t bytes, bool freeing) {
-  const uint64_t free =
-      probed_free_ > admitted_since_probe_ ? probed_free_ - admitted_since_probe_ : 0;
+  const uint64_t free = FreeLocked();
+  // What statvfs shows is more than `free` by what RocksDB will flush: say so, or the operator
+  // reads "12 MB free" beside a df that says 40.
+  const uint64_t pending = pending_ ? pending_() : 0;
+  const std::string free_text =
+      Megabytes(free) + " free" +
+      (pending > 0 ? " once the store's " + Megabytes(pending) + " in memory are flushed" : "");
   const uint64_t floor = freeing ? options_.reserve_bytes / 2 : options_.reserve_bytes;
   const bool admitted = free >= bytes && free - bytes >= floor;
   if (!freeing) below_ = !admitted;
@@ -57,13 +72,12 @@ Status FreeSpaceGuard::DecideLocked(uint64_t bytes, bool freeing) {
     return Status::Ok();
   }
   if (freeing) {
-    return Status::IoError("data dir " + path_ + " has " + Megabytes(free) +
-                           " free, below half the reserve of " + Megabytes(options_.reserve_bytes) +
+    return Status::IoError("data dir " + path_ + " has " + free_text +
+                           ", below half the reserve of " + Megabytes(options_.reserve_bytes) +
                            " (storage.min_free_space_mb), which even a write that frees space "
                            "must leave to the store");
   }
-  return Status::IoError("data dir " + path_ + " has " + Megabytes(free) +
-                         " free, below the reserve of " + Megabytes(options_.reserve_bytes) +
+  return Status::IoError("data dir " + path_ + " has " + free_text + ", below the reserve of " + Megabytes(options_.reserve_bytes) +
                          " (storage.min_free_space_mb); writes resume when space is freed");
 }
 
@@ -95,7 +109,7 @@ Status FreeSpaceGuard::Check() {
 
 uint64_t FreeSpaceGuard::free_bytes() const {
   std::lock_guard lock(mu_);
-  return probed_free_ > admitted_since_probe_ ? probed_free_ - admitted_since_probe_ : 0;
+  return FreeLocked();
 }
 
 bool FreeSpaceGuard::below_reserve() const {

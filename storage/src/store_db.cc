@@ -66,6 +66,24 @@ rocksdb::ColumnFamilyOptions SourceFamilyOptions(const std::shared_ptr<rocksdb::
   return cf;
 }
 
+// The log, raw scans and tile history are keyed by map version and dropped oldest first, so a
+// flush writes a file of consecutive versions and retention drops whole files (ReclaimDropped).
+// RocksDB's own compactions would merge them into ever larger files and, while doing so, hold
+// their inputs and outputs on disk at once: the transient that broke the disk bound (issue 25).
+// Without them, L0's file count does not stall writes (RocksDB ignores it then).
+rocksdb::ColumnFamilyOptions VersionKeyedLayout(rocksdb::ColumnFamilyOptions cf) {
+  cf.disable_auto_compactions = true;
+  return cf;
+}
+
+// Every checkpoint rewrites its dirty tiles, and their older copies stay on disk until a
+// compaction of level 0 merges them away: at RocksDB's default of four files, a map whose
+// tiles are all dirty stood five times on disk. Two keeps it under three.
+rocksdb::ColumnFamilyOptions MapLayout(rocksdb::ColumnFamilyOptions cf) {
+  cf.level0_file_num_compaction_trigger = 2;
+  return cf;
+}
+
 }  // namespace
 
 // POSIX record locks do not exclude the process holding them, so, like RocksDB, the
@@ -136,6 +154,10 @@ rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options
   db_options.wal_recovery_mode = rocksdb::WALRecoveryMode::kPointInTimeRecovery;
   db_options.paranoid_checks = true;
   db_options.max_background_jobs = 2;
+  // RocksDB preallocates each write-ahead log file (1.1 x the memory budget, 35 MB): blocks the
+  // file system counts as used and the file's size does not show, so the reserve found 35 MB
+  // gone on an empty store and the byte bound missed them (docs/storage.md, "Sizing").
+  db_options.allow_fallocate = false;
   if (options.file_system) {
     store.env = rocksdb::NewCompositeEnv(options.file_system);
     db_options.env = store.env.get();
@@ -147,12 +169,13 @@ rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options
   }
   // One budget for the memory tables of all families: the log alone would otherwise hold up to
   // 2 x 64 MiB of records between checkpoints, and the tiles as much again.
-  db_options.write_buffer_manager =
-      std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
+  store.write_buffers = std::make_shared<rocksdb::WriteBufferManager>(options.memtable_bytes);
+  db_options.write_buffer_manager = store.write_buffers;
   // A write-ahead log file goes only once every family has flushed what it holds; the meta
-  // family's few bytes would keep the oldest alive for ever. Past twice the memory budget,
-  // RocksDB flushes the families that hold it (docs/storage.md, "Sizing").
-  db_options.max_total_wal_size = 2 * options.memtable_bytes;
+  // family's few bytes would keep the oldest alive for ever. Past the memory budget, RocksDB
+  // flushes the families that hold it; the sizing rule counts twice that, for what arrives
+  // while those flushes run (docs/storage.md, "Sizing").
+  db_options.max_total_wal_size = options.memtable_bytes;
   return db_options;
 }
 
@@ -167,13 +190,13 @@ std::vector<rocksdb::ColumnFamilyDescriptor> Families(const StoreOptions& option
   return {
       {rocksdb::kDefaultColumnFamilyName, rocksdb::ColumnFamilyOptions()},
       {kMetaFamily, meta},
-      {kTilesFamily, TileFamilyOptions(options, cache)},
+      {kTilesFamily, MapLayout(TileFamilyOptions(options, cache))},
       {kTileIndexFamily, rocksdb::ColumnFamilyOptions()},
-      {kLogFamily, log},
+      {kLogFamily, VersionKeyedLayout(log)},
       // Raw scans and superseded tiles, kept for corrections (scan_history.h): written once,
       // read rarely, large; compressed like the tiles.
-      {kSourcesFamily, SourceFamilyOptions(cache)},
-      {kHistoryFamily, TileFamilyOptions(options, cache)},
+      {kSourcesFamily, VersionKeyedLayout(SourceFamilyOptions(cache))},
+      {kHistoryFamily, VersionKeyedLayout(TileFamilyOptions(options, cache))},
   };
 }
 

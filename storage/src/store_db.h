@@ -3,6 +3,7 @@
 #pragma once
 
 #include <rocksdb/db.h>
+#include <rocksdb/write_buffer_manager.h>
 
 #include <memory>
 #include <string>
@@ -33,6 +34,8 @@ struct StoreDb {
   // server; -1 when RocksDB holds it.
   int read_only_lock_fd = -1;
   std::string dir;
+  // The memory tables' budget, shared by every family; its usage is what a flush will write.
+  std::shared_ptr<rocksdb::WriteBufferManager> write_buffers;
 
   // Opens (creating if allowed) the database in `dir` with every column family. `read_only`:
   // an existing database, for reads only (a full disk: nothing may be written).

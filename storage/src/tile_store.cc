@@ -1,5 +1,6 @@
 #include "bgkmap/storage/tile_store.h"
 
+#include <rocksdb/convenience.h>
 #include <rocksdb/write_batch.h>
 
 #include <algorithm>
@@ -271,6 +272,8 @@ Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
     bases_ = std::move(bases);
     bases_floor_ = floor;
   }
+  // The memory tables go to disk at their next flush, whatever the robots are told.
+  guard_->SetPendingBytes([buffers = db->write_buffers] { return buffers->memory_usage(); });
   db_ = std::move(db);
   checkpoint_version_.store(*checkpoint);
   log_.reset(new ScanLog(db_.get(), options_, std::max(*map_version, *checkpoint),
@@ -512,8 +515,19 @@ Status TileStore::Flush() {
 
 void TileStore::ReclaimDropped(uint64_t through) {
   // A range delete only hides the records: RocksDB 7.8 left their SST files on disk for hours
-  // (issue 25). Compacting the dropped range removes them now. It runs beside the automatic
-  // compactions and writes little: what it reads is mostly covered by the range delete.
+  // (issue 25). The version-keyed families are never compacted on their own (store_db.cc), so
+  // their files hold runs of consecutive versions: those wholly dropped are deleted, writing
+  // nothing, and only the file that straddles the horizon is compacted, writing what it keeps.
+  const std::string begin = VersionKeyBytes(0), end = VersionKeyBytes(through + 1);
+  const rocksdb::Slice from(begin), limit(end);
+  const rocksdb::RangePtr dropped(&from, &limit);
+  for (rocksdb::ColumnFamilyHandle* family : {db_->log, db_->sources, db_->history}) {
+    if (family == nullptr) continue;
+    if (!rocksdb::DeleteFilesInRanges(db_->db.get(), family, &dropped, 1, /*include_end=*/false)
+             .ok()) {
+      reclaim_errors_.fetch_add(1);
+    }
+  }
   CompactVersions(0, through);
 }
 
@@ -598,9 +612,18 @@ DiskUsage TileStore::Usage() const {
   DiskUsage usage;
   db_->db->GetIntProperty(db_->tiles, "rocksdb.total-sst-files-size", &usage.tile_bytes);
   db_->db->GetIntProperty(db_->log, "rocksdb.total-sst-files-size", &usage.log_bytes);
+  if (db_->sources != nullptr) {
+    db_->db->GetIntProperty(db_->sources, "rocksdb.total-sst-files-size", &usage.sources_bytes);
+  }
+  if (db_->history != nullptr) {
+    db_->db->GetIntProperty(db_->history, "rocksdb.total-sst-files-size", &usage.history_bytes);
+  }
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
-    if (entry.is_regular_file(ec)) usage.total_bytes += entry.file_size(ec);
+    if (!entry.is_regular_file(ec)) continue;
+    const uint64_t size = entry.file_size(ec);
+    usage.total_bytes += size;
+    if (entry.path().extension() == ".log") usage.wal_bytes += size;
   }
   return usage;
 }

@@ -104,6 +104,33 @@ TEST_F(ServerCommandsTest, PointsPathWatchAndClearAnswerAsDocumented) {
   EXPECT_EQ(pts["points"][0]["state"], 0.0);
 }
 
+TEST_F(ServerCommandsTest, QuerySinceListsTheChangedTilesAndTombstones) {
+  ASSERT_EQ(Cli("insert " + kStreet + " --robot r3" + S()).exit_code, 0);
+  const uint64_t version =
+      nlohmann::json::parse(Cli("info" + S()).output)["map_version"].get<uint64_t>();
+  ASSERT_EQ(Cli("clear --bbox 0,0,6.4,6.4 --yes" + S()).exit_code, 0);  // tile (0, 0) whole
+  testing::CliRun run =
+      Cli("query --bbox -10,-10,10,10 --compress --since " + std::to_string(version) + S());
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  nlohmann::json delta = nlohmann::json::parse(run.output);
+  EXPECT_EQ(delta["answer"], "delta");
+  EXPECT_EQ(delta["map_version"], version + 1);
+  ASSERT_EQ(delta["tiles"].size(), 1u) << run.output;
+  EXPECT_EQ(delta["tiles"][0]["x"], 0);
+  EXPECT_EQ(delta["tiles"][0]["tombstone"], true);
+  // Another history (the server restarted, or another one): the whole region, flagged.
+  const uint64_t other = delta["history_id"].get<uint64_t>() + 1;
+  run = Cli("query --bbox -10,-10,10,10 --since " + std::to_string(version) + " --history-id " +
+            std::to_string(other) + S());
+  ASSERT_EQ(run.exit_code, 0);
+  delta = nlohmann::json::parse(run.output);
+  EXPECT_EQ(delta["answer"], "full_resync");
+  EXPECT_NE(delta["resync_reason"].get<std::string>().find("history_id"), std::string::npos);
+  // A delta is not a raster: --out with --since, or neither, is a usage error.
+  EXPECT_EQ(Cli("query --since 1 --out " + Path("d.tif") + S()).exit_code, 2);
+  EXPECT_EQ(Cli("query --bbox -1,-1,1,1" + S()).exit_code, 2);
+}
+
 TEST_F(ServerCommandsTest, ErrorsAreOneLineAndNonZero) {
   for (const std::string& args :
        {std::string("info --server unix:/nonexistent/bgkmapd.sock"),

@@ -1,7 +1,11 @@
-// `bgkmap query`: a region of the served map to a GeoTIFF (the band contract of `bgkmap build`).
+// `bgkmap query`: a region of the served map to a GeoTIFF (the band contract of `bgkmap build`),
+// or with --since, what changed in it after a map version, as JSON (docs/server.md, "Region
+// deltas").
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
+#include <optional>
 
 #include "bgkmap/client/region_split.h"
 #include "bgkmap/io/crs_check.h"
@@ -10,6 +14,7 @@
 #include "bgkmap/io/png_preview.h"
 #include "client_options.h"
 #include "commands.h"
+#include "json_output.h"
 #include "map_outputs.h"
 #include "output_file.h"
 
@@ -27,7 +32,37 @@ struct QueryOptions {
   std::string frame_id = "map";
   double robot_radius = 0;
   bool cog = false;
+  std::optional<uint64_t> since;
+  uint64_t history_id = 0;
+  bool compress = false;
 };
+
+// The answer to --since: which tiles changed (patches and tombstones) or why it came back whole.
+nlohmann::ordered_json DeltaJson(const RegionDelta& d, uint64_t since) {
+  nlohmann::ordered_json j;
+  j["answer"] = d.full ? "full_resync" : "delta";
+  if (d.full) j["resync_reason"] = d.resync_reason;
+  j["since_version"] = since;
+  j["map_version"] = d.map_version;
+  j["history_id"] = d.history_id;
+  j["wire_bytes"] = d.wire_bytes;
+  j["cells"] = {d.raster.box.min.x, d.raster.box.min.y, d.raster.box.max.x, d.raster.box.max.y};
+  j["stride"] = d.raster.stride;
+  j["rows"] = d.raster.rows;
+  j["cols"] = d.raster.cols;
+  nlohmann::ordered_json tiles = nlohmann::ordered_json::array();
+  for (const RegionPatch& p : d.patches) {
+    tiles.push_back({{"x", p.key.x},
+                     {"y", p.key.y},
+                     {"row", p.row_start},
+                     {"col", p.col_start},
+                     {"rows", p.rows},
+                     {"cols", p.cols},
+                     {"tombstone", p.tombstone}});
+  }
+  j["tiles"] = std::move(tiles);
+  return j;
+}
 
 // --crs (checked already) with --origin, or the server's georeference.
 Result<io::GeoTiffOptions> TiffOptions(const QueryOptions& o, const MapInfo& info) {
@@ -51,11 +86,13 @@ Result<io::GeoTiffOptions> TiffOptions(const QueryOptions& o, const MapInfo& inf
 // The pieces' rasters, stitched; `version` is the newest map version a piece saw (each piece is
 // one consistent read, pieces may see different versions).
 Result<Raster> ReadPieces(Client& client, const std::vector<MetricBox>& pieces,
-                          const std::vector<Layer>& layers, int stride, uint64_t* version) {
+                          const RegionQuery& query, uint64_t* version) {
   std::vector<Raster> rasters;
   for (const MetricBox& piece : pieces) {
     uint64_t v = 0;
-    RpcResult<Raster> r = client.QueryRegion({piece, layers, stride}, &v);
+    RegionQuery q = query;
+    q.box = piece;
+    RpcResult<Raster> r = client.QueryRegion(q, &v);
     if (!r.ok()) return Status::Unavailable(r.status().ToString());
     *version = std::max(*version, v);
     if (pieces.size() == 1) return std::move(r).value();
@@ -75,8 +112,16 @@ int RunQuery(const QueryOptions& o) {
   if (!o.origin.empty() && o.origin.size() != 2 && o.origin.size() != 3) {
     return Usage("query", "--origin: expected E,N or E,N,H");
   }
-  Result<OutputKind> kind = OutputKindOf(o.out, "--out");
-  if (!kind.ok()) return Usage("query", kind.status().message());
+  if (o.since && (!o.out.empty() || !o.png.empty() || !o.ot.empty())) {
+    return Usage("query",
+                 "--since prints the changed tiles as JSON; --out, --png and --ot need the whole "
+                 "region (the Python MapMirror and the C++ client's ApplyDelta keep a copy)");
+  }
+  if (!o.since && o.out.empty()) return Usage("query", "--out is required");
+  if (!o.since) {
+    Result<OutputKind> kind = OutputKindOf(o.out, "--out");
+    if (!kind.ok()) return Usage("query", kind.status().message());
+  }
   if (!o.crs.empty()) {
     // The map frame is local unless told where it lies: the server's georeference places it in
     // its own CRS, not in --crs.
@@ -100,11 +145,18 @@ int RunQuery(const QueryOptions& o) {
     if (!b.ok()) return Usage("query", b.status().message());
     box = *b;
   }
+  if (o.since) {
+    RpcResult<RegionDelta> d =
+        client.QueryRegionSince({box, *layers, o.stride, o.compress}, *o.since, o.history_id);
+    if (!d.ok()) return Fail("query", d.status().ToString());
+    std::fputs(JsonText(DeltaJson(*d, *o.since)).c_str(), stdout);
+    return 0;
+  }
   // A region over the server's per-query limits is read in pieces and stitched (region_split.h).
   const std::vector<MetricBox> pieces =
       SplitRegion(box, info->params.resolution, o.stride, RegionCellBudget(info->limits, o.stride));
   uint64_t version = 0;
-  Result<Raster> r = ReadPieces(client, pieces, *layers, o.stride, &version);
+  Result<Raster> r = ReadPieces(client, pieces, {box, *layers, o.stride, o.compress}, &version);
   if (!r.ok()) return Fail("query", r.status().message());
   io::RosMapOptions ros;
   ros.frame_id = o.frame_id;
@@ -142,8 +194,7 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_option("--out", o->out,
                   "Output GeoTIFF (.tif); X.png: the PNG preview; X.mcap: ROS 2 GridMap, "
                   "OccupancyGrid and Nav2 Costmap; X.yaml: Nav2 map_server YAML + PGM "
-                  "(docs/ros2.md)")
-      ->required();
+                  "(docs/ros2.md); required unless --since");
   cmd->add_option("--frame-id", o->frame_id, ".mcap: the messages' frame_id")
       ->capture_default_str();
   cmd->add_option("--robot-radius", o->robot_radius,
@@ -163,6 +214,13 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
                   "it)")
       ->delimiter(',');
   cmd->add_flag("--cog", o->cog, "Write a Cloud-Optimized GeoTIFF (with overviews)");
+  cmd->add_option("--since", o->since,
+                  "Print as JSON which tiles of the region changed after this map version "
+                  "(patches and tombstones), or why the server answers the whole region");
+  cmd->add_flag("--compress", o->compress,
+                "Have the server gzip the answer on the wire (RegionRequest.compress)");
+  cmd->add_option("--history-id", o->history_id,
+                  "With --since: the history_id the version came from (0: not checked)");
   cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });
 }
 

@@ -13,10 +13,12 @@ from bgkmap._codec import LAYERS
 from bgkmap.client import DEFAULT_SERVER, Client, Watch
 from bgkmap.errors import BgkmapError
 from bgkmap.kitti import KittiSequence
-from bgkmap.results import (ExportResult, ImportResult, PathCheck, Region, Scan, ScanAck,
-                            TileUpdate)
+from bgkmap.mirror import MapMirror
+from bgkmap.results import (ExportResult, ImportResult, PathCheck, Region, RegionDelta,
+                            RegionPatch, Scan, ScanAck, TileUpdate)
 
 __all__ = [
     "BgkmapError", "Client", "DEFAULT_SERVER", "ExportResult", "ImportResult", "KittiSequence",
-    "LAYERS", "PathCheck", "Region", "Scan", "ScanAck", "TileUpdate", "Watch", "__version__",
+    "LAYERS", "MapMirror", "PathCheck", "Region", "RegionDelta", "RegionPatch", "Scan", "ScanAck",
+    "TileUpdate", "Watch", "__version__",
 ]

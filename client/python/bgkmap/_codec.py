@@ -11,7 +11,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from bgkmap.errors import invalid_argument, malformed, status_code
-from bgkmap.results import PathCheck, Region, ScanAck, TileUpdate
+from bgkmap.results import PathCheck, Region, RegionDelta, RegionPatch, ScanAck, TileUpdate
 from bgkmap.v1 import admin_pb2, ingest_pb2, query_pb2, types_pb2
 
 _LAYER_PREFIX = "LAYER_"
@@ -315,21 +315,40 @@ def ack_from_proto(a: ingest_pb2.ScanAck) -> ScanAck:
 
 
 class RegionAssembler:
-    """Assembles a region raster from its chunks, checking them as the C++ client does."""
+    """Assembles a region answer from its chunks, checking them as the C++ client does: the whole
+    region as rows, or a delta's patches (docs/server.md, "Region deltas")."""
 
     def __init__(self):
         self.header = None
         self.arrays = None
+        self.patches = []
         self.next_row = 0
+        self.wire_bytes = 0
+
+    @property
+    def is_delta(self) -> bool:
+        return self.header is not None and self.header.answer == query_pb2.REGION_ANSWER_DELTA
 
     def add(self, chunk: query_pb2.RegionChunk) -> None:
+        self.wire_bytes += chunk.ByteSize()
         if chunk.HasField("header"):
+            if self.header is not None:
+                raise malformed("region answer with two headers")
             h = chunk.header
             self.header = h
-            self.arrays = [np.empty((h.rows, h.cols), dtype=np.float32) for _ in h.layers]
+            if not self.is_delta:
+                self.arrays = [np.empty((h.rows, h.cols), dtype=np.float32) for _ in h.layers]
         h = self.header
-        if (h is None or chunk.row_start != self.next_row or len(chunk.layers) != len(h.layers)
-                or self.next_row + chunk.row_count > h.rows):
+        if h is None:
+            raise malformed("region chunk before the header")
+        if self.is_delta:
+            if chunk.row_count or len(chunk.layers):
+                raise malformed("region delta with rows")
+            for p in chunk.patches:
+                self.patches.append(self._patch(p))
+            return
+        if (len(chunk.patches) or chunk.row_start != self.next_row
+                or len(chunk.layers) != len(h.layers) or self.next_row + chunk.row_count > h.rows):
             raise malformed("region chunk out of order")
         expect = chunk.row_count * h.cols * 4
         for array, values in zip(self.arrays, chunk.layers):
@@ -339,14 +358,44 @@ class RegionAssembler:
             array[self.next_row:self.next_row + chunk.row_count] = rows
         self.next_row += chunk.row_count
 
+    def _patch(self, p: query_pb2.TilePatch) -> RegionPatch:
+        h = self.header
+        if p.row_start + p.rows > h.rows or p.col_start + p.cols > h.cols:
+            raise malformed("region patch outside the region")
+        layers = {}
+        if p.tombstone:
+            if len(p.layers):
+                raise malformed("region tombstone with values")
+        else:
+            if [lv.layer for lv in p.layers] != list(h.layers):
+                raise malformed("region patch with the wrong layers")
+            for lv in p.layers:
+                if len(lv.values) != p.rows * p.cols * 4:
+                    raise malformed("region patch of the wrong size")
+                layers[layer_name(lv.layer)] = np.frombuffer(
+                    lv.values, dtype=_F32).reshape(p.rows, p.cols)
+        return RegionPatch(key=(p.key.x, p.key.y), row=p.row_start, col=p.col_start, rows=p.rows,
+                           cols=p.cols, tombstone=p.tombstone, layers=layers)
+
     def region(self) -> Region:
         h = self.header
-        if h is None or self.next_row != h.rows:
+        if h is None or self.is_delta or self.next_row != h.rows:
             raise malformed("region stream incomplete")
         layers = {layer_name(l): a for l, a in zip(h.layers, self.arrays)}
         return Region(layers, x0=h.x0, y1=h.y1, resolution=h.resolution, stride=h.stride,
                       cells=(h.cells.min_x, h.cells.min_y, h.cells.max_x, h.cells.max_y),
-                      map_version=h.map_version)
+                      map_version=h.map_version, history_id=h.history_id,
+                      wire_bytes=self.wire_bytes)
+
+    def delta(self) -> RegionDelta:
+        h = self.header
+        if h is None:
+            raise malformed("region stream incomplete")
+        full = not self.is_delta
+        return RegionDelta(full=full, resync_reason=h.resync_reason,
+                           region=self.region() if full else None,
+                           patches=self.patches, map_version=h.map_version,
+                           history_id=h.history_id, wire_bytes=self.wire_bytes)
 
 
 def tile_update_from_proto(m: admin_pb2.TileUpdate) -> TileUpdate:

@@ -242,28 +242,49 @@ class Client:
 
     # --- queries -----------------------------------------------------------------------------
 
-    def query(self, bbox, layers=None, stride: int = 1) -> Region:
+    def query(self, bbox, layers=None, stride: int = 1, *, since: Optional[int] = None,
+              history_id: int = 0, compress: bool = False):
         """Layers over the cells meeting the half-open box (xmin, ymin, xmax, ymax), metres.
 
         layers: names ("elevation", "elevation_variance", "traversability",
         "traversability_variance", "state", "elevation_weight", "disagreement", "block_reason") or
         None for every layer.
         stride: map cells per pixel edge. Returns a Region: a mapping from layer name to a float32
-        (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform.
+        (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform,
+        region.map_version and region.history_id.
 
         A box of more output pixels than the server's max_region_cells (or more map cells than
         its max_region_read_cells) is read in pieces of whole pixel blocks and stitched; each
         piece is one consistent read, but pieces may see different map versions
-        (region.map_version is the newest)."""
+        (region.map_version is the newest).
+
+        since: a map version (an earlier answer's region.map_version, with its region.history_id
+        as history_id) asks only what changed after it, and returns a RegionDelta: the changed
+        tiles' patches and tombstones, or the whole region when the server cannot answer the
+        delta exactly (delta.full; docs/server.md, "Region deltas"). delta.apply_to(region)
+        brings the earlier answer up to date; MapMirror does all of this. A box that needs
+        pieces cannot be asked a delta (INVALID_ARGUMENT).
+
+        compress: the server gzips the answer's messages on the wire (RegionRequest.compress;
+        decompressed here transparently): far fewer bytes for sparse regions, more server CPU."""
         if int(stride) < 1:
             raise invalid_argument(f"stride: {stride} must be >= 1")
         stride = int(stride)
         resolution, pixels, read = self._region_limit()
-        pieces = _codec.split_region(bbox, resolution, stride,
-                                     _codec.region_cell_budget(pixels, read, stride))
+        budget = _codec.region_cell_budget(pixels, read, stride)
+        pieces = _codec.split_region(bbox, resolution, stride, budget)
+        if since is not None:
+            if int(since) < 0:
+                raise invalid_argument(f"since: {since} must be a map version >= 0")
+            if len(pieces) != 1:
+                raise invalid_argument(
+                    f"since: the box needs {len(pieces)} pieces over the server's "
+                    f"max_region_cells = {pixels} pixels; ask a delta of each piece's box")
+            return self._query_piece(bbox, layers, stride, since, history_id, compress).delta()
         if len(pieces) == 1:
-            return self._query_piece(bbox, layers, stride)
-        return _codec.stitch_regions([self._query_piece(p, layers, stride) for p in pieces])
+            return self._query_piece(bbox, layers, stride, compress=compress).region()
+        return _codec.stitch_regions([self._query_piece(p, layers, stride, compress=compress)
+                                      .region() for p in pieces])
 
     def _region_limit(self) -> tuple:
         """The map's resolution, the server's max_region_cells and max_region_read_cells (0
@@ -275,8 +296,12 @@ class Client:
                             limits.get("max_region_read_cells", 0))
         return self._limits
 
-    def _query_piece(self, bbox, layers, stride: int) -> Region:
-        request = query_pb2.RegionRequest(stride=stride)
+    def _query_piece(self, bbox, layers, stride: int, since: Optional[int] = None,
+                     history_id: int = 0, compress: bool = False) -> _codec.RegionAssembler:
+        request = query_pb2.RegionRequest(stride=stride, compress=bool(compress))
+        if since is not None:
+            request.since_version = int(since)
+            request.since_history_id = int(history_id)
         _codec.set_box(bbox, request.box)
         request.layers.extend(_codec.layer_numbers(layers))
         call = self._stub.QueryRegion(request, timeout=self.timeout)
@@ -289,7 +314,7 @@ class Client:
         except BgkmapError:
             call.cancel()
             raise
-        return assembler.region()
+        return assembler
 
     def points(self, xy, layers=None) -> np.ndarray:
         """Layers at map points: xy is Nx2 (or one (x, y)). Returns a structured array with fields

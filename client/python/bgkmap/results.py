@@ -56,7 +56,7 @@ class Region(Mapping):
     traversability and its variance)."""
 
     def __init__(self, layers: dict, *, x0: float, y1: float, resolution: float, stride: int,
-                 cells: tuple, map_version: int):
+                 cells: tuple, map_version: int, history_id: int = 0, wire_bytes: int = 0):
         self.layers = layers
         self.x0 = x0                  # west edge, metres
         self.y1 = y1                  # north edge, metres
@@ -64,6 +64,8 @@ class Region(Mapping):
         self.stride = stride
         self.cells = cells            # covered map cells (min_x, min_y, max_x, max_y), inclusive
         self.map_version = map_version
+        self.history_id = history_id  # the server's; with map_version, what a delta asks from
+        self.wire_bytes = wire_bytes  # serialized size of the answer's messages
         first = next(iter(layers.values()), None)
         self.rows, self.cols = (0, 0) if first is None else first.shape
 
@@ -170,6 +172,55 @@ class TileUpdate:
         x0 = self.cells[0] * self.resolution
         y1 = (self.cells[3] + 1) * self.resolution
         return (x0, self.resolution, 0.0, y1, 0.0, -self.resolution)
+
+
+@dataclasses.dataclass
+class RegionPatch:
+    """One changed tile's part of a region raster (Client.query with since).
+
+    rows, cols from (row, col) of the region raster; layers: name -> float32 (rows, cols). A
+    tombstone has no layers: every pixel is now unknown (NaN; state 0)."""
+
+    key: tuple  # (x, y)
+    row: int
+    col: int
+    rows: int
+    cols: int
+    tombstone: bool
+    layers: dict
+
+
+@dataclasses.dataclass
+class RegionDelta:
+    """What changed in a region since a map version (Client.query with since).
+
+    full: the server could not answer the delta exactly (resync_reason says why) and `region` is
+    the whole region; else `patches` hold every tile changed since, `region` is None. Ask the next
+    delta with since=map_version, history_id=history_id."""
+
+    full: bool
+    resync_reason: str
+    region: Optional[Region]
+    patches: list
+    map_version: int
+    history_id: int
+    wire_bytes: int
+
+    def apply_to(self, region: Region) -> Region:
+        """`region` (an earlier answer of the same query) brought to this answer: patched in
+        place and returned, or the full answer."""
+        if self.full:
+            return self.region
+        for p in self.patches:
+            window = (slice(p.row, p.row + p.rows), slice(p.col, p.col + p.cols))
+            for name, array in region.layers.items():
+                if p.tombstone:
+                    array[window] = 0.0 if name == "state" else np.nan
+                else:
+                    array[window] = p.layers[name]
+        region.map_version = self.map_version
+        region.history_id = self.history_id
+        return region
 
 
 @dataclasses.dataclass

@@ -98,6 +98,11 @@ class ClusterNode final : public MapPort {
   Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) override {
     return reads_->ListKnownTiles(min, max);
   }
+  uint64_t history_id() const override { return reads_->history_id(); }
+  Result<std::vector<TileKey>> TilesChangedSince(TileKey min, TileKey max,
+                                                 uint64_t since) override {
+    return reads_->TilesChangedSince(min, max, since);
+  }
   // Info: the shard's place in the cluster; its counts are its own (empty) local map's.
   uint64_t known_version() const override { return reads_->known_version(); }
   std::vector<RobotStats> Robots() const override { return {}; }

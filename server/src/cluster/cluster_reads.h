@@ -31,6 +31,13 @@ class ClusterReads final : public MapReads {
   Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
   Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) override;
   Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) override;
+  // A cluster keeps no per-tile versions (a tile is read at a log sequence, not at its last
+  // change): every since_version is answered with the whole region.
+  uint64_t history_id() const override { return 0; }
+  Result<std::vector<TileKey>> TilesChangedSince(TileKey, TileKey, uint64_t) override {
+    return Status::FailedPrecondition(
+        "a cluster keeps no per-tile change versions: region deltas are not answered");
+  }
 
   // The tiles with min <= key <= max as of at least log entry `sequence`, in a map of their own.
   Result<std::unique_ptr<TerrainMap>> Gather(TileKey min, TileKey max, uint64_t sequence) const;

@@ -16,8 +16,12 @@ DiskSizing SizingFor(uint64_t retention_mb, uint64_t min_free_space_mb, uint64_t
   // Retention trims only at checkpoints; one is forced once half the bound was written since
   // the last (StoreDurability::checkpoint_due_by_size), so the journal adds half the bound.
   s.journal_bytes = s.retention_bytes / 2;
-  s.wal_bytes = 2 * memtable_bytes;  // StoreOptions' max_total_wal_size
-  s.map_bytes = map_bytes;
+  // The log is flushed past one memory budget (store_db.cc); writes go on while it flushes.
+  s.wal_bytes = 2 * memtable_bytes;
+  // A checkpoint writes its tiles anew and their previous copies to the history before
+  // retention trims; the tiles' older copies wait for a compaction: a map whose every tile
+  // changed stands three times on disk for a moment.
+  s.map_bytes = 3 * map_bytes;
   s.reserve_bytes = min_free_space_mb << 20;
   return s;
 }

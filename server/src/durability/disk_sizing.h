@@ -12,7 +12,7 @@ struct DiskSizing {
   uint64_t retention_bytes = 0;  // storage.retention_mb: scans and history kept for corrections
   uint64_t journal_bytes = 0;    // the log between checkpoints: half the retention at most
   uint64_t wal_bytes = 0;        // RocksDB's write-ahead log: twice the memory-table budget
-  uint64_t map_bytes = 0;        // the stored tiles, as found at start
+  uint64_t map_bytes = 0;        // three times the stored tiles, as found at start
   uint64_t reserve_bytes = 0;    // storage.min_free_space_mb
   uint64_t total() const {
     return retention_bytes + journal_bytes + wal_bytes + map_bytes + reserve_bytes;

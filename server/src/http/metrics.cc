@@ -90,6 +90,14 @@ void WriteStore(const StorageState& s, uint64_t memory_limit_bytes, ExpositionWr
           s.usage.tile_bytes);
   w.Gauge("bgkmap_store_log_sst_bytes", "Size of the scan log column family's SST files.",
           s.usage.log_bytes);
+  w.Gauge("bgkmap_store_sources_sst_bytes",
+          "Size of the retained raw scans' SST files (storage.retention_mb).",
+          s.usage.sources_bytes);
+  w.Gauge("bgkmap_store_history_sst_bytes",
+          "Size of the retained tile history's SST files (storage.retention_mb).",
+          s.usage.history_bytes);
+  w.Gauge("bgkmap_store_wal_bytes", "Size of the store's write-ahead log files.",
+          s.usage.wal_bytes);
   w.Gauge("bgkmap_store_disk_bytes",
           "Size of every file in the store's directory (write-ahead log included).",
           s.usage.total_bytes);

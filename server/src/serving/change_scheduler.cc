@@ -13,8 +13,11 @@ struct Overloaded : Ts... {
 
 }  // namespace
 
-ChangeScheduler::ChangeScheduler(boost::asio::thread_pool& pool, TilesChanged on_tiles_changed)
-    : pool_(pool), on_tiles_changed_(std::move(on_tiles_changed)) {}
+ChangeScheduler::ChangeScheduler(boost::asio::thread_pool& pool, TilesChanged on_tiles_changed,
+                                 TilesApplied on_tiles_applied)
+    : pool_(pool),
+      on_tiles_changed_(std::move(on_tiles_changed)),
+      on_tiles_applied_(std::move(on_tiles_applied)) {}
 
 ChangeScheduler::~ChangeScheduler() { WaitIdle(); }
 
@@ -87,6 +90,9 @@ void ChangeScheduler::Run(Job* job) {
   const uint64_t version =
       std::holds_alternative<Barrier>(job->kind) ? applied_version() : job->version;
   Done done = job->work(version);
+  if (on_tiles_applied_ && !done.changed_tiles.empty()) {
+    on_tiles_applied_(version, done.changed_tiles);
+  }
   Finish(job);  // destroys the job
   if (on_tiles_changed_ && !done.changed_tiles.empty()) on_tiles_changed_(done.changed_tiles);
   if (done.then) done.then();

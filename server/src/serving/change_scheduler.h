@@ -52,8 +52,13 @@ class ChangeScheduler {
   // covers every change admitted before it).
   using Work = std::function<Done(uint64_t version)>;
   using TilesChanged = std::function<void(const std::vector<TileKey>&)>;
+  using TilesApplied = std::function<void(uint64_t version, const std::vector<TileKey>&)>;
 
-  ChangeScheduler(boost::asio::thread_pool& pool, TilesChanged on_tiles_changed);
+  // `on_tiles_applied` is told a change's version and tiles before the applied version covers
+  // it (a reader that sees the applied version finds the change recorded); `on_tiles_changed`
+  // after (watchers).
+  ChangeScheduler(boost::asio::thread_pool& pool, TilesChanged on_tiles_changed,
+                  TilesApplied on_tiles_applied = {});
   ~ChangeScheduler();  // WaitIdle()
 
   // Before anything is submitted: continue from a recovered map.
@@ -90,6 +95,7 @@ class ChangeScheduler {
 
   boost::asio::thread_pool& pool_;
   TilesChanged on_tiles_changed_;
+  TilesApplied on_tiles_applied_;
 
   mutable std::mutex mu_;
   std::condition_variable idle_cv_;

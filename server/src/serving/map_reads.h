@@ -33,6 +33,16 @@ class MapReads {
   // Keys of the tiles that exist with min <= key <= max, sorted.
   virtual Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) = 0;
 
+  // Region deltas (docs/server.md, "Region deltas"). Names this map's record of tile changes;
+  // a since_version is only answered for the id it was read with (new at every start).
+  virtual uint64_t history_id() const = 0;
+  // Sorted keys of the tiles with min <= key <= max (per axis) whose last change is after
+  // `since` (read applied_version() first: every change up to it is then listed), including
+  // tiles emptied or removed since. FailedPrecondition saying why if this map cannot answer
+  // `since` exactly (then the caller answers the whole region).
+  virtual Result<std::vector<TileKey>> TilesChangedSince(TileKey min, TileKey max,
+                                                         uint64_t since) = 0;
+
  protected:
   ~MapReads() = default;
 };

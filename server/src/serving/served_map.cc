@@ -28,7 +28,11 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
                  std::move(options.on_over_memory)),
       checkpointer_(durability, durability.persists(), copies_),
       robots_(options.max_robots, options.max_sequence_jump),
-      scheduler_(workers, std::move(options.on_tiles_changed)) {
+      change_log_(durability.recovered_version(), NewHistoryId()),
+      scheduler_(workers, std::move(options.on_tiles_changed),
+                 [this](uint64_t version, const std::vector<TileKey>& tiles) {
+                   change_log_.Record(version, tiles);
+                 }) {
   scheduler_.Restore(durability.recovered_version());
   robots_.Restore(durability.LoggedRobotSequences());
   // The summary starts from the tiles in memory (recovered) and the store's index of the rest.
@@ -309,6 +313,18 @@ MapSummary ServedMap::Summary() {
 
 std::vector<TileKey> ServedMap::ListTiles(TileKey min, TileKey max) const {
   return residency_.KeysIn(min, max);
+}
+
+Result<std::vector<TileKey>> ServedMap::TilesChangedSince(TileKey min, TileKey max,
+                                                          uint64_t since) {
+  std::optional<std::vector<TileKey>> keys = change_log_.ChangedSince(min, max, since);
+  if (!keys) {
+    return Status::FailedPrecondition(
+        "since_version " + std::to_string(since) + " is older than map version " +
+        std::to_string(change_log_.floor()) +
+        ", where this server started: changes before it are not recorded per tile");
+  }
+  return std::move(*keys);
 }
 
 std::unique_ptr<TerrainMap> ServedMap::Snapshot() const {

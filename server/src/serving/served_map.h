@@ -35,6 +35,7 @@
 #include "serving/map_writes.h"
 #include "serving/robot_registry.h"
 #include "serving/table_copies.h"
+#include "serving/tile_change_log.h"
 #include "serving/tile_residency.h"
 #include "serving/tile_table.h"
 
@@ -119,6 +120,10 @@ class ServedMap final : public MapPort {
   Result<std::vector<TileKey>> ListKnownTiles(TileKey min, TileKey max) override {
     return ListTiles(min, max);
   }
+  uint64_t history_id() const override { return change_log_.history_id(); }
+  // From the change log kept since the start: a `since` below the version the server started
+  // at (the log is not stored) is FailedPrecondition.
+  Result<std::vector<TileKey>> TilesChangedSince(TileKey min, TileKey max, uint64_t since) override;
 
   // ---- What Info and /metrics report.
   uint64_t known_version() const override { return applied_version(); }
@@ -175,6 +180,7 @@ class ServedMap final : public MapPort {
   std::atomic<uint64_t> scans_applied_{0};
   mutable std::mutex corrections_mu_;
   CorrectionStats corrections_;
+  TileChangeLog change_log_;
   ChangeScheduler scheduler_;  // last: its workers use everything above
 };
 

@@ -22,7 +22,8 @@ StorageState ToStorageState(const StoreStatus& s) {
       c.tiles_loaded,  c.tiles_written,           c.tiles_deleted,        c.checkpoints,
       c.corrupt_tiles, c.corrupt_log_records,     c.log_records_appended, c.log_bytes_appended,
       c.write_errors,  c.writes_refused_for_space};
-  out.usage = {s.usage.tile_bytes, s.usage.log_bytes, s.usage.total_bytes};
+  out.usage = {s.usage.tile_bytes,    s.usage.log_bytes, s.usage.sources_bytes,
+               s.usage.history_bytes, s.usage.wal_bytes, s.usage.total_bytes};
   return out;
 }
 

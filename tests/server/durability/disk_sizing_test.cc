@@ -14,9 +14,10 @@ TEST(DiskSizingTest, EachTermFollowsItsSetting) {
   EXPECT_EQ(s.retention_bytes, 1024 * kMiB);
   EXPECT_EQ(s.journal_bytes, 512 * kMiB);  // a checkpoint is forced at half the bound
   EXPECT_EQ(s.wal_bytes, 64 * kMiB);
-  EXPECT_EQ(s.map_bytes, 61 * kMiB);
+  // The tiles, a checkpoint's new copies and their history before retention trims them.
+  EXPECT_EQ(s.map_bytes, 3 * 61 * kMiB);
   EXPECT_EQ(s.reserve_bytes, 64 * kMiB);
-  EXPECT_EQ(s.total(), (1024 + 512 + 64 + 61 + 64) * kMiB);
+  EXPECT_EQ(s.total(), (1024 + 512 + 64 + 183 + 64) * kMiB);
 }
 
 TEST(DiskSizingTest, WithoutRetentionOnlyTheLogMapAndReserveCount) {
@@ -29,8 +30,8 @@ TEST(DiskSizingTest, TheWarningNamesEveryNumberAndFitsOnOneLine) {
   EXPECT_EQ(CheckSizing(s, s.total()), "");  // exactly enough is enough
   const std::string why = CheckSizing(s, s.total() - 1);
   EXPECT_EQ(why,
-            "the data dir's file system has 1724 MB for the store, the sizing rule asks 1725 MB: "
-            "retention 1024 + journal 512 + write-ahead log 64 + map 61 + reserve 64 "
+            "the data dir's file system has 1846 MB for the store, the sizing rule asks 1847 MB: "
+            "retention 1024 + journal 512 + write-ahead log 64 + map 183 + reserve 64 "
             "(storage.retention_mb, storage.min_free_space_mb)");
   EXPECT_EQ(CheckSizing(s, 300 * kMiB).find("has 300 MB for the store"), 27u);
   EXPECT_EQ(why.find('\n'), std::string::npos);

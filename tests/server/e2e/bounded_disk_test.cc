@@ -102,13 +102,11 @@ uint64_t StreamUntilRefused(Client& client, const std::string& robot, uint64_t f
 // RetireRobot and RemoveScans were refused like the robots ("cannot persist it"): the operator
 // could not free the disk. They write little and free much, so they may use the upper half of
 // the reserve; the removal's records leave the disk at once, and the robots are taken again.
-// Mutation caught: ScanLog::AdmitFreeingWrite answering AdmitWrite (all three refused).
-// DISABLED on main (2026-11-28): it passed on its branch, and on the merged main the clear itself
-// failed with ENOSPC while RocksDB flushed an SST ("appending log record 144: No space left on
-// device"), after which the store refuses writes: the reserve the freeing calls may use does not
-// cover a flush. Issue 25, finding 2, is open until this passes. Run it by hand with
-// --gtest_also_run_disabled_tests.
-TEST(BoundedDiskTest, DISABLED_AnOperatorFreesAFullDiskWithClearRemoveAndRetire) {
+// Mutation caught: ScanLog::AdmitFreeingWrite answering AdmitWrite (all three refused). On the
+// merged main it failed until the reserve counted RocksDB's memory tables as written: the
+// robots stopped at the reserve, a flush of up to 32 MB then filled it, and the clear met
+// ENOSPC (FreeSpaceGuard::SetPendingBytes).
+TEST(BoundedDiskTest, AnOperatorFreesAFullDiskWithClearRemoveAndRetire) {
   SmallFileSystem disk(160);
   if (!disk.mounted()) {
     GTEST_SKIP() << "cannot mount a tmpfs here (" << disk.error()

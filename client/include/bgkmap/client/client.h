@@ -115,7 +115,35 @@ struct RegionQuery {
   MetricBox box;
   std::vector<Layer> layers;  // empty: every layer
   int stride = 1;             // map cells per pixel edge
+  bool compress = false;      // gzip the answer on the wire (RegionRequest.compress)
 };
+
+// A tile's part of a region raster in a delta (docs/server.md, "Region deltas").
+struct RegionPatch {
+  TileKey key;
+  int64_t row_start = 0, col_start = 0, rows = 0, cols = 0;  // in the region raster
+  // Every pixel is now unknown (the tile was cleared, emptied or removed): no values.
+  bool tombstone = false;
+  std::vector<std::vector<float>> values;  // per layer, rows * cols, rows north to south
+};
+
+// The answer to QueryRegionSince.
+struct RegionDelta {
+  // True: `raster` is the whole region (the delta could not be exact: `resync_reason`); replace
+  // the copy. False: `patches` hold every tile changed since; `raster` has the geometry only.
+  bool full = false;
+  std::string resync_reason;
+  Raster raster;
+  std::vector<RegionPatch> patches;
+  uint64_t map_version = 0;  // ask the next delta since this version,
+  uint64_t history_id = 0;   // with this history id
+  uint64_t wire_bytes = 0;   // serialized size of the answer's messages
+};
+
+// Brings `copy` (an earlier answer of the same query, kept current) to `delta`: replaced by a
+// full answer, patched by a delta. InvalidArgument, leaving `copy` unchanged, if a delta's
+// geometry or layers are not the copy's.
+Status ApplyDelta(const RegionDelta& delta, Raster* copy);
 
 struct PointValues {
   std::vector<Layer> layers;
@@ -301,8 +329,15 @@ class Client {
   RpcResult<std::vector<ScanAck>> IngestAll(std::span<const ScanData> scans,
                                             const std::function<void(const ScanAck&)>& on_ack = {});
 
-  // A region raster, assembled from the streamed chunks.
-  RpcResult<Raster> QueryRegion(const RegionQuery& query, uint64_t* map_version = nullptr);
+  // A region raster, assembled from the streamed chunks; its map version and the server's
+  // history id (what QueryRegionSince asks from).
+  RpcResult<Raster> QueryRegion(const RegionQuery& query, uint64_t* map_version = nullptr,
+                                uint64_t* history_id = nullptr);
+  // What changed in the region after `since_version` of the answer with `since_history_id`
+  // (0: not checked): the changed tiles' patches, or the whole region when the server cannot
+  // answer the delta exactly (docs/server.md, "Region deltas"). ApplyDelta() keeps a copy.
+  RpcResult<RegionDelta> QueryRegionSince(const RegionQuery& query, uint64_t since_version,
+                                          uint64_t since_history_id = 0);
   RpcResult<PointValues> QueryPoints(std::span<const std::array<double, 2>> points,
                                      const std::vector<Layer>& layers = {});
   RpcResult<PathCheck> CheckPath(const PathQuery& query);

@@ -27,6 +27,21 @@ struct Raster {
   const std::vector<float>* Find(Layer layer) const;
 };
 
+// The geometry of the raster of `box` at `stride` on a map of `map_resolution` (no data).
+Raster RasterGeometry(double map_resolution, const CellBox& box, const std::vector<Layer>& layers,
+                      int stride = 1);
+
+// What a raster holds for an unknown pixel: NaN (quiet, 0x7fc00000), 0 in the state layer.
+float UnknownValue(Layer layer);
+
+// The cells of tile `tile` inside `region` (a region box aligned to `stride` blocks, as a region
+// query widens it), widened to whole stride blocks: the part of the region raster that tile
+// `tile`'s cells reach (a block that straddles tiles is in the part of each). Empty if the tile
+// does not meet the region. A raster of it at `stride` has exactly the region raster's pixels
+// there, bit for bit (a pixel depends on its block's cells only).
+CellBox TilePatchCells(const GridGeometry& geometry, const CellBox& region, int stride,
+                       TileKey tile);
+
 // Extracts `layers` over `box` (clipped to nothing: unknown cells come out as NaN).
 // Aggregation over a stride block: statistics are summed (the posterior of the union of the
 // block's training data) for elevation, and the block's worst (largest) traversability,

@@ -1,11 +1,19 @@
 // QueryRegion: a region raster streamed as bands of rows, so any size fits under the gRPC
 // message limit. The region is read atomically first (tiles held shared, in short table-lock
 // bands), then streamed without holding any lock, so a slow reader never blocks ingestion.
+// With since_version, only the tiles changed since are read and streamed, as patches
+// (rpc/region_delta.h), or the whole region flagged as a resync when the delta cannot be exact.
+#include <grpc/compression.h>
+
 #include <boost/asio/post.hpp>
 #include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
+#include "rpc/region_delta.h"
 #include "rpc/request_checks.h"
 
 namespace bgkmap {
@@ -26,6 +34,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
       Finish(s);
       return;
     }
+    if (request.compress()) call->set_compression_algorithm(GRPC_COMPRESS_GZIP);
     // The raster is held in memory until streamed: bound the total over concurrent queries.
     const uint64_t pixels = static_cast<uint64_t>(box_.width() / stride_) *
                             static_cast<uint64_t>(box_.height() / stride_);
@@ -44,6 +53,24 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
                   SessionRegistry::Admit::kOk;
     boost::asio::post(ctx_.query_pool, [this] {
       version_ = ctx_.map.applied_version();
+      if (delta_) {
+        delta_->region = box_;
+        delta_->layers = layers_;
+        delta_->stride = stride_;
+        Result<DeltaAnswer> delta = ReadRegionDelta(ctx_.map, *delta_, version_);
+        if (!delta.ok()) {
+          Finish(ToGrpcStatus(delta.status()));
+          return;
+        }
+        if (delta->resync_reason.empty()) {
+          patches_ = std::move(delta->patches);
+          answer_ = v1::REGION_ANSWER_DELTA;
+          WriteNext();
+          return;
+        }
+        answer_ = v1::REGION_ANSWER_FULL_RESYNC;
+        resync_reason_ = std::move(delta->resync_reason);
+      }
       Result<Raster> read = ctx_.map.ReadRegion(box_, layers_, stride_);
       if (!read.ok()) {
         Finish(ToGrpcStatus(read.status()));
@@ -97,21 +124,58 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
                   " bytes, over server.max_message_bytes = " +
                   std::to_string(ctx_.limits.max_message_bytes)};
     }
+    if (request.has_since_version()) {
+      delta_ = DeltaQuery{};
+      delta_->since = request.since_version();
+      delta_->since_history_id = request.since_history_id();
+    }
     return grpc::Status::OK;
   }
 
+  void WriteHeader() {
+    sent_header_ = true;
+    v1::RasterHeader* h = chunk_.mutable_header();
+    if (answer_ == v1::REGION_ANSWER_DELTA) {
+      // The geometry without the pixels.
+      ToProto(RasterGeometry(ctx_.map.geometry().resolution(), box_, layers_, stride_), h);
+    } else {
+      ToProto(raster_, h);
+    }
+    h->set_map_version(version_);
+    h->set_answer(answer_);
+    h->set_resync_reason(resync_reason_);
+    h->set_history_id(ctx_.map.history_id());
+  }
+
+  // A delta: whole patches per chunk, about region_chunk_bytes each (at least one patch).
+  void WriteNextPatches() {
+    if (sent_header_ && next_patch_ >= patches_.size()) {
+      Finish(grpc::Status::OK);
+      return;
+    }
+    chunk_.Clear();
+    if (!sent_header_) WriteHeader();
+    size_t bytes = 0;
+    while (next_patch_ < patches_.size() &&
+           (bytes == 0 || bytes < ctx_.limits.region_chunk_bytes)) {
+      bytes += patches_[next_patch_].ByteSizeLong();
+      *chunk_.add_patches() = std::move(patches_[next_patch_++]);
+    }
+    stalled_.WriteStarted();
+    StartWrite(&chunk_);
+  }
+
   void WriteNext() {
+    if (answer_ == v1::REGION_ANSWER_DELTA) {
+      WriteNextPatches();
+      return;
+    }
     if (sent_header_ && next_row_ >= raster_.rows) {
       Finish(grpc::Status::OK);
       return;
     }
     chunk_.Clear();
-    if (!sent_header_) {
-      sent_header_ = true;
-      v1::RasterHeader* h = chunk_.mutable_header();
-      ToProto(raster_, h);
-      h->set_map_version(version_);
-    }
+    if (!sent_header_) WriteHeader();
     const int64_t end = std::min(raster_.rows, next_row_ + rows_per_chunk_);
     chunk_.set_row_start(static_cast<uint32_t>(next_row_));
     chunk_.set_row_count(static_cast<uint32_t>(end - next_row_));
@@ -133,6 +197,11 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
   int64_t rows_per_chunk_ = 1;
   int64_t next_row_ = 0;
   bool sent_header_ = false;
+  std::optional<DeltaQuery> delta_;
+  v1::RegionAnswer answer_ = v1::REGION_ANSWER_FULL;
+  std::string resync_reason_;
+  std::vector<v1::TilePatch> patches_;
+  size_t next_patch_ = 0;
   uint64_t reserved_bytes_ = 0;
   v1::RegionChunk chunk_;
 };

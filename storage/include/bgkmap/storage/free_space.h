@@ -48,9 +48,16 @@ class FreeSpaceGuard {
   // Probes now and answers as Admit(0) would (a paused writer asking whether to resume).
   Status Check();
 
+  // Bytes the store will write on its own, whatever is admitted: RocksDB's memory tables, which
+  // a flush writes out (up to the memory budget, 32 MB). They count as written already, or a
+  // flush after the robots stopped at the reserve met a full disk (issue 25: the operator's
+  // clear failed with ENOSPC in that flush). `pending` is called under the guard's lock.
+  void SetPendingBytes(std::function<uint64_t()> pending);
+
   bool enabled() const { return options_.reserve_bytes > 0; }
   uint64_t reserve_bytes() const { return options_.reserve_bytes; }
-  // The estimate: the last probe minus what was admitted since (0 before the first probe).
+  // The estimate: the last probe minus what was admitted since and what is pending (0 before
+  // the first probe).
   uint64_t free_bytes() const;
   // As of the last Admit() or Check(): the reserve was not free.
   bool below_reserve() const;
@@ -62,6 +69,9 @@ class FreeSpaceGuard {
   Status DecideLocked(uint64_t bytes, bool freeing);
   Status AdmitAs(uint64_t bytes, bool freeing);  // takes mu_
   std::chrono::steady_clock::time_point Now() const;
+  uint64_t FreeLocked() const;
+
+  std::function<uint64_t()> pending_;  // guarded by mu_; null: nothing pending
 
   const std::string path_;
   const FreeSpaceOptions options_;
