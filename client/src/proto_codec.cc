@@ -160,7 +160,8 @@ MapInfo FromProto(const v1::InfoResponse& r) {
                  l.max_path_poses(),
                  l.max_coordinate(),
                  l.max_message_bytes(),
-                 l.max_inflight_scans_per_stream()};
+                 l.max_inflight_scans_per_stream(),
+                 l.max_region_read_cells()};
   info.server_version = r.server_version();
   if (r.has_storage()) {
     const v1::StorageInfo& s = r.storage();
@@ -208,14 +209,32 @@ PointValues FromProto(const v1::PointsResponse& response) {
   return out;
 }
 
+namespace {
+
+PoseCheck FromProto(const v1::PoseCheck& pc) {
+  return {pc.worst_traversability(), pc.worst_traversability_variance(), pc.unknown_fraction(),
+          pc.cell_count(), pc.safe()};
+}
+
+PlacementCheck FromProto(const v1::PathPoint& p) {
+  return {{{p.x(), p.y(), p.yaw()}, p.segment(), p.t()}, FromProto(p.check())};
+}
+
+}  // namespace
+
 PathCheck FromProto(const v1::PathCheckResponse& response) {
   PathCheck out;
-  for (const v1::PoseCheck& pc : response.poses()) {
-    out.poses.push_back({pc.worst_traversability(), pc.worst_traversability_variance(),
-                         pc.unknown_fraction(), pc.cell_count(), pc.safe()});
+  for (const v1::PoseCheck& pc : response.poses()) out.poses.push_back(FromProto(pc));
+  for (const v1::SegmentCheck& sc : response.segments()) {
+    SegmentCheck& segment = out.segments.emplace_back();
+    segment.safe = sc.safe();
+    segment.placement_count = sc.placement_count();
+    if (sc.has_first_unsafe()) segment.first_unsafe = FromProto(sc.first_unsafe());
   }
   out.safe = response.safe();
   out.first_unsafe_index = response.first_unsafe_index();
+  if (response.has_first_unsafe_point())
+    out.first_unsafe = FromProto(response.first_unsafe_point());
   out.map_version = response.map_version();
   return out;
 }

@@ -126,6 +126,9 @@ std::vector<ServerKey> LimitKeys() {
       Key<uint64_t>(
           "max_region_cells", [](ServerConfig & c) -> auto& { return c.limits.max_region_cells; }),
       Key<uint64_t>(
+          "max_region_read_cells",
+          [](ServerConfig & c) -> auto& { return c.limits.max_region_read_cells; }),
+      Key<uint64_t>(
           "max_query_points", [](ServerConfig & c) -> auto& { return c.limits.max_query_points; }),
       Key<uint64_t>(
           "max_path_poses", [](ServerConfig & c) -> auto& { return c.limits.max_path_poses; }),
@@ -482,6 +485,11 @@ Status ValidateServerKeys(const ServerConfig& c) {
 Status ValidateLimits(const ServerLimits& l, double resolution) {
   if (l.max_points_per_scan == 0) return Bad("max_points_per_scan", "must be > 0");
   if (l.max_region_cells == 0) return Bad("max_region_cells", "must be > 0");
+  if (l.max_region_read_cells < l.max_region_cells) {
+    return Bad("max_region_read_cells",
+               "must be >= max_region_cells (a stride-1 region reads as "
+               "many map cells as it has pixels)");
+  }
   if (l.max_region_bytes_in_flight == 0) return Bad("max_region_bytes_in_flight", "must be > 0");
   if (!(l.max_coordinate > 0)) return Bad("max_coordinate", "must be > 0");
   if (l.max_coordinate > kMaxCellIndex * resolution / 2) {

@@ -107,10 +107,29 @@ TEST_F(CliHabitsTest, CheckPathExitsZeroSafeOneUnsafeTwoOnError) {
       "2>/dev/null");
   EXPECT_EQ(run.exit_code, 0) << run.output;
   EXPECT_EQ(nlohmann::json::parse(run.output)["safe"], true);
-  // Into unknown space: unsafe, 1, still with the JSON answer.
+  // Into unknown space: unsafe, 1, still with the JSON answer. The trouble begins on the
+  // segment after pose 0, before the far pose.
   run = testing::RunCli("check-path --poses 10,0,0,0,500,0 --radius 0.3" + S(), "2>/dev/null");
   EXPECT_EQ(run.exit_code, 1) << run.output;
-  EXPECT_EQ(nlohmann::json::parse(run.output)["first_unsafe_index"], 1);
+  nlohmann::json answer = nlohmann::json::parse(run.output);
+  EXPECT_EQ(answer["first_unsafe_index"], 0);
+  EXPECT_EQ(answer["first_unsafe_point"]["segment"], 0);
+  EXPECT_GT(answer["first_unsafe_point"]["t"].get<double>(), 0.0);
+  EXPECT_EQ(answer["first_unsafe_point"]["safe"], false);
+  EXPECT_EQ(answer["poses"][1]["safe"], false);
+  // Issue 29: two poses each safe on the street, joined over the unknown ground under the
+  // sensor: unsafe between them, with the point where it starts.
+  run = testing::RunCli("check-path --poses -8,-2,0,8,2,0 --radius 0.3" + S(), "2>/dev/null");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  answer = nlohmann::json::parse(run.output);
+  EXPECT_EQ(answer["poses"][0]["safe"], true) << run.output;
+  EXPECT_EQ(answer["poses"][1]["safe"], true) << run.output;
+  EXPECT_EQ(answer["segments"][0]["safe"], false);
+  EXPECT_EQ(answer["segments"][0]["placements"], 164);
+  const double x = answer["first_unsafe_point"]["x"].get<double>();
+  EXPECT_GT(x, -8.0);
+  EXPECT_LT(x, 8.0);
+  EXPECT_NEAR(answer["first_unsafe_point"]["y"].get<double>(), x / 4, 1e-9);
   // Every error is 2: usage, parse, server.
   for (const std::string& args :
        {"check-path --poses 0,0,0" + S(),           // no footprint

@@ -289,11 +289,18 @@ def test_check_path_safe_on_the_road_unsafe_into_the_unknown(client):
     assert np.all(result.poses["cell_count"] > 0)
     assert result.map_version == info["map_version"]
 
-    # Into unknown space: unsafe, and the first unsafe pose is named.
+    assert result.segments.dtype.names == ("safe", "placement_count")
+    assert len(result.segments) == 1 and result.segments["safe"][0]
+    assert result.first_unsafe_point is None
+
+    # Into unknown space: unsafe, and where it starts is named: on the segment after pose 0.
     result = client.check_path(np.array([[x, y], [0.0, 500.0]]), radius=0.3)
-    assert not result.safe and result.first_unsafe_index == 1
+    assert not result.safe and result.first_unsafe_index == 0
     assert result.poses["unknown_fraction"][1] == 1.0
     assert np.isnan(result.poses["worst_traversability"][1])
+    point = result.first_unsafe_point
+    assert point["segment"] == 0 and 0 < point["t"] < 1 and not point["safe"]
+    assert not result.segments["safe"][0] and result.segments["placement_count"][0] > 1000
     # A footprint with no known cell is never safe, even with unknown ground allowed.
     assert not client.check_path([(0.0, 500.0, 0.0)], radius=0.3, max_unknown_fraction=1.0).safe
     # Thresholds reach the server: nothing is below a zero traversability.
@@ -302,6 +309,22 @@ def test_check_path_safe_on_the_road_unsafe_into_the_unknown(client):
     # A polygon footprint (robot frame).
     square = [(-0.2, -0.2), (0.2, -0.2), (0.2, 0.2), (-0.2, 0.2)]
     assert client.check_path([(x, y, 0.3)], polygon=square).safe
+
+
+def test_check_path_sees_the_ground_between_poses(client):
+    """Issue 29: two poses safe on their own, joined over the low-confidence and unknown ground
+    around the sensor: the path is unsafe between them, and the point where it starts is named."""
+    poses = [(-8.0, -2.0, 0.0), (8.0, 2.0, 0.0)]
+    result = client.check_path(poses, radius=0.3)
+    assert np.all(result.poses["safe"])
+    assert not result.safe and result.first_unsafe_index == 0
+    assert not result.segments["safe"][0] and result.segments["placement_count"][0] == 164
+    point = result.first_unsafe_point
+    assert point["segment"] == 0 and 0 < point["t"] < 1
+    assert point["x"] == pytest.approx(-8 + 16 * point["t"])
+    assert point["y"] == pytest.approx(-2 + 4 * point["t"])
+    # The point itself, checked as a pose, is unsafe.
+    assert not client.check_path([(point["x"], point["y"], 0.0)], radius=0.3).safe
 
 
 def test_watch_snapshot_equals_the_region_and_changes_arrive(fresh_server, street):

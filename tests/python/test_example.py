@@ -30,11 +30,17 @@ def test_planner_finds_a_path_the_server_judges_safe(street_server):
     assert np.hypot(*(path[-1, :2] - (8, 2))) < plan["resolution"]
     # Around the unknown ground near the sensor, not through it.
     assert plan["length"] > np.hypot(16, 4) + 1
-    # Every waypoint is on traversable ground, as the server says.
+    # Waypoints where the path turns, not one per cell: the server checks the segments between.
+    assert 2 <= len(path) < plan["length"] / plan["resolution"] / 4
+    # Every waypoint and every point on the segments between them is on traversable ground, as
+    # the server says.
+    along = np.concatenate([np.linspace(a[:2], b[:2], 50) for a, b in zip(path[:-1], path[1:])])
     with street_server.client() as client:
-        state = client.points(path[:, :2], layers=["state"])["state"]
+        state = client.points(along, layers=["state"])["state"]
         assert np.all(state == 1)
-        assert client.check_path(path, radius=0.3).safe
+        check = client.check_path(path, radius=0.3)
+        assert check.safe and np.all(check.segments["safe"])
+        assert np.sum(check.segments["placement_count"]) > len(path)
 
 
 def test_planner_reports_no_path_into_the_unknown(street_server):

@@ -1,4 +1,5 @@
-// `bgkmap check-path`: is a path safe for a robot of this footprint? JSON per pose; exit code 0
+// `bgkmap check-path`: is a path safe for a robot of this footprint, at its poses and along the
+// segments between them? JSON per pose and segment, with the first unsafe point; exit code 0
 // when safe, 1 when not, 2 on any error (like grep and diff, so scripts can branch on it).
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -22,6 +23,24 @@ struct CheckPathOptions {
 int Error(const std::string& message) {
   Fail("check-path", message);
   return kExitCheckError;
+}
+
+nlohmann::json CheckJson(const PoseCheck& c) {
+  return {{"worst_traversability", JsonNumber(c.worst_traversability)},
+          {"worst_traversability_variance", JsonNumber(c.worst_traversability_variance)},
+          {"unknown_fraction", c.unknown_fraction},
+          {"cells", c.cell_count},
+          {"safe", c.safe}};
+}
+
+nlohmann::json PlacementJson(const PlacementCheck& p) {
+  nlohmann::json out = {{"x", p.where.pose.x},
+                        {"y", p.where.pose.y},
+                        {"yaw", p.where.pose.yaw},
+                        {"segment", p.where.segment},
+                        {"t", p.where.t}};
+  out.update(CheckJson(p.check));
+  return out;
 }
 
 int RunCheckPath(const CheckPathOptions& o) {
@@ -55,15 +74,16 @@ int RunCheckPath(const CheckPathOptions& o) {
                         {"poses", nlohmann::json::array()}};
   for (size_t i = 0; i < r->poses.size(); ++i) {
     const PoseCheck& c = r->poses[i];
-    out["poses"].push_back(
-        {{"x", q.poses[i].x},
-         {"y", q.poses[i].y},
-         {"yaw", q.poses[i].yaw},
-         {"worst_traversability", JsonNumber(c.worst_traversability)},
-         {"worst_traversability_variance", JsonNumber(c.worst_traversability_variance)},
-         {"unknown_fraction", c.unknown_fraction},
-         {"cells", c.cell_count},
-         {"safe", c.safe}});
+    nlohmann::json pose = {{"x", q.poses[i].x}, {"y", q.poses[i].y}, {"yaw", q.poses[i].yaw}};
+    pose.update(CheckJson(c));
+    out["poses"].push_back(std::move(pose));
+  }
+  // Where the path first fails: at a pose (t = 0) or between poses[segment] and the next.
+  out["first_unsafe_point"] = nullptr;
+  if (r->first_unsafe) out["first_unsafe_point"] = PlacementJson(*r->first_unsafe);
+  out["segments"] = nlohmann::json::array();
+  for (const SegmentCheck& s : r->segments) {
+    out["segments"].push_back({{"safe", s.safe}, {"placements", s.placement_count}});
   }
   std::printf("%s\n", out.dump(2).c_str());
   return r->safe ? kExitOk : kExitUnsafe;
@@ -74,7 +94,9 @@ int RunCheckPath(const CheckPathOptions& o) {
 void RegisterCheckPathCommand(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<CheckPathOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "check-path", "Check a path against the map (JSON; exit 0 safe, 1 unsafe, 2 error)");
+      "check-path",
+      "Check a path, its poses and the straight segments between them, against the map (JSON; "
+      "exit 0 safe, 1 unsafe, 2 error)");
   AddServerOption(cmd, o->server);
   cmd->add_option("--poses", o->poses, "x,y,yaw,x,y,yaw,... (metres, radians)")
       ->delimiter(',')

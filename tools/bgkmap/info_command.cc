@@ -54,6 +54,7 @@ int RunInfo(const ServerTarget& server) {
       {"limits",
        {{"max_points_per_scan", r->limits.max_points_per_scan},
         {"max_region_cells", r->limits.max_region_cells},
+        {"max_region_read_cells", r->limits.max_region_read_cells},
         {"max_query_points", r->limits.max_query_points},
         {"max_path_poses", r->limits.max_path_poses},
         {"max_coordinate", r->limits.max_coordinate},

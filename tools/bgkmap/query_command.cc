@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
+#include "bgkmap/client/region_split.h"
 #include "bgkmap/io/crs_check.h"
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/octomap_export.h"
@@ -82,6 +83,24 @@ Result<io::GeoTiffOptions> TiffOptions(const QueryOptions& o, const MapInfo& inf
   return tiff;
 }
 
+// The pieces' rasters, stitched; `version` is the newest map version a piece saw (each piece is
+// one consistent read, pieces may see different versions).
+Result<Raster> ReadPieces(Client& client, const std::vector<MetricBox>& pieces,
+                          const RegionQuery& query, uint64_t* version) {
+  std::vector<Raster> rasters;
+  for (const MetricBox& piece : pieces) {
+    uint64_t v = 0;
+    RegionQuery q = query;
+    q.box = piece;
+    RpcResult<Raster> r = client.QueryRegion(q, &v);
+    if (!r.ok()) return Status::Unavailable(r.status().ToString());
+    *version = std::max(*version, v);
+    if (pieces.size() == 1) return std::move(r).value();
+    rasters.push_back(std::move(r).value());
+  }
+  return StitchRasters(rasters);
+}
+
 int RunQuery(const QueryOptions& o) {
   // The command line first: a usage error is one whatever the server says.
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
@@ -133,9 +152,12 @@ int RunQuery(const QueryOptions& o) {
     std::fputs(JsonText(DeltaJson(*d, *o.since)).c_str(), stdout);
     return 0;
   }
+  // A region over the server's per-query limits is read in pieces and stitched (region_split.h).
+  const std::vector<MetricBox> pieces =
+      SplitRegion(box, info->params.resolution, o.stride, RegionCellBudget(info->limits, o.stride));
   uint64_t version = 0;
-  RpcResult<Raster> r = client.QueryRegion({box, *layers, o.stride, o.compress}, &version);
-  if (!r.ok()) return Fail("query", r.status().ToString());
+  Result<Raster> r = ReadPieces(client, pieces, {box, *layers, o.stride, o.compress}, &version);
+  if (!r.ok()) return Fail("query", r.status().message());
   io::RosMapOptions ros;
   ros.frame_id = o.frame_id;
   ros.robot_radius = o.robot_radius;
@@ -152,9 +174,11 @@ int RunQuery(const QueryOptions& o) {
     std::printf("bgkmap query: %zu columns -> %s (octree origin %.3f, %.3f in the map frame)\n",
                 ot->columns, o.ot.c_str(), ot->origin.x(), ot->origin.y());
   }
-  std::printf("bgkmap query: %lld x %lld pixels at %.3f m, map version %llu -> %s\n",
+  std::printf("bgkmap query: %lld x %lld pixels at %.3f m, map version %llu%s -> %s\n",
               static_cast<long long>(r->cols), static_cast<long long>(r->rows), r->resolution,
-              static_cast<unsigned long long>(version), o.out.c_str());
+              static_cast<unsigned long long>(version),
+              pieces.size() > 1 ? (" (" + std::to_string(pieces.size()) + " pieces)").c_str() : "",
+              o.out.c_str());
   return 0;
 }
 

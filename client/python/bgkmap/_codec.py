@@ -98,6 +98,14 @@ def _region_cells(box, resolution: float, stride: int):
 MAX_REGION_PIECES = 256  # a larger box is sent whole, for the server to refuse by its limit
 
 
+def region_cell_budget(max_region_cells: int, max_region_read_cells: int, stride: int) -> int:
+    """The map cells one region query may read at `stride`: max_region_cells pixels x stride^2,
+    within max_region_read_cells; an older server (read cells 0) counted map cells."""
+    if not max_region_read_cells:
+        return max_region_cells
+    return min(max_region_cells * stride * stride, max_region_read_cells)
+
+
 def split_region(box, resolution: float, stride: int, max_cells: int) -> list:
     """Metric boxes of whole pixel blocks, north-west first, each within max_cells map cells,
     that together cover the cells the server would read for `box`; [box] when it fits, when the
@@ -479,8 +487,28 @@ def path_from_proto(poses: np.ndarray, r: query_pb2.PathCheckResponse) -> PathCh
     for name in ("worst_traversability", "worst_traversability_variance", "unknown_fraction",
                  "cell_count", "safe"):
         out[name] = [getattr(c, name) for c in r.poses]
+    if len(r.segments) != max(len(poses) - 1, 0):
+        raise malformed("path check does not match the request")
+    segments = np.zeros(len(r.segments), dtype=_SEGMENT_CHECK_DTYPE)
+    segments["safe"] = [s.safe for s in r.segments]
+    segments["placement_count"] = [s.placement_count for s in r.segments]
     first = None if r.safe else int(r.first_unsafe_index)
-    return PathCheck(safe=r.safe, first_unsafe_index=first, poses=out, map_version=r.map_version)
+    point = _path_point(r.first_unsafe_point) if r.HasField("first_unsafe_point") else None
+    return PathCheck(safe=r.safe, first_unsafe_index=first, poses=out, map_version=r.map_version,
+                     segments=segments, first_unsafe_point=point)
+
+
+_SEGMENT_CHECK_DTYPE = np.dtype([("safe", "?"), ("placement_count", "u4")])
+
+
+def _path_point(p: query_pb2.PathPoint) -> dict:
+    """A PathPoint as a dict: x, y, yaw, segment, t and its footprint's verdict."""
+    c = p.check
+    return {"x": p.x, "y": p.y, "yaw": p.yaw, "segment": int(p.segment), "t": p.t,
+            "worst_traversability": c.worst_traversability,
+            "worst_traversability_variance": c.worst_traversability_variance,
+            "unknown_fraction": c.unknown_fraction, "cell_count": int(c.cell_count),
+            "safe": c.safe}
 
 
 # --- info ------------------------------------------------------------------------------------

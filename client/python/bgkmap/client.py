@@ -135,7 +135,7 @@ class Client:
         intercepted = (grpc.intercept_channel(self._channel, _BearerToken(token)) if token
                        else self._channel)
         self._stub = map_service_pb2_grpc.MapServiceStub(intercepted)
-        self._limits = None  # (resolution, max_region_cells): Info, on the first query
+        self._limits = None  # (resolution, max_region_cells, max_region_read_cells): Info, once
 
     # --- lifetime ----------------------------------------------------------------------------
 
@@ -253,9 +253,10 @@ class Client:
         (rows, cols) array, rows north to south, NaN = unknown, plus region.geotransform,
         region.map_version and region.history_id.
 
-        A box of more map cells than the server's max_region_cells is read in pieces of whole
-        pixel blocks and stitched; each piece is one consistent read, but pieces may see
-        different map versions (region.map_version is the newest).
+        A box of more output pixels than the server's max_region_cells (or more map cells than
+        its max_region_read_cells) is read in pieces of whole pixel blocks and stitched; each
+        piece is one consistent read, but pieces may see different map versions
+        (region.map_version is the newest).
 
         since: a map version (an earlier answer's region.map_version, with its region.history_id
         as history_id) asks only what changed after it, and returns a RegionDelta: the changed
@@ -269,15 +270,16 @@ class Client:
         if int(stride) < 1:
             raise invalid_argument(f"stride: {stride} must be >= 1")
         stride = int(stride)
-        resolution, limit = self._region_limit()
-        pieces = _codec.split_region(bbox, resolution, stride, limit)
+        resolution, pixels, read = self._region_limit()
+        budget = _codec.region_cell_budget(pixels, read, stride)
+        pieces = _codec.split_region(bbox, resolution, stride, budget)
         if since is not None:
             if int(since) < 0:
                 raise invalid_argument(f"since: {since} must be a map version >= 0")
             if len(pieces) != 1:
                 raise invalid_argument(
                     f"since: the box needs {len(pieces)} pieces over the server's "
-                    f"max_region_cells = {limit}; ask a delta of each piece's box")
+                    f"max_region_cells = {pixels} pixels; ask a delta of each piece's box")
             return self._query_piece(bbox, layers, stride, since, history_id, compress).delta()
         if len(pieces) == 1:
             return self._query_piece(bbox, layers, stride, compress=compress).region()
@@ -285,10 +287,13 @@ class Client:
                                       .region() for p in pieces])
 
     def _region_limit(self) -> tuple:
-        """The map's resolution and the server's max_region_cells, asked once."""
+        """The map's resolution, the server's max_region_cells and max_region_read_cells (0
+        from an older server), asked once."""
         if self._limits is None:
             info = self.info()
-            self._limits = (info["params"]["resolution"], info["limits"]["max_region_cells"])
+            limits = info["limits"]
+            self._limits = (info["params"]["resolution"], limits["max_region_cells"],
+                            limits.get("max_region_read_cells", 0))
         return self._limits
 
     def _query_piece(self, bbox, layers, stride: int, since: Optional[int] = None,
@@ -323,11 +328,14 @@ class Client:
                    max_traversability: Optional[float] = None,
                    max_traversability_variance: Optional[float] = None,
                    max_unknown_fraction: Optional[float] = None) -> PathCheck:
-        """Footprint safety along a path. poses: Nx3 (x, y, yaw) or Nx2 (yaw 0); footprint: a disk
-        of `radius` or a `polygon` [(x, y), ...] in the robot frame (x forward, y left). Unset
-        thresholds take the map's trav_threshold, variance_threshold and 0. A pose is safe when
-        its worst traversability and variance are below them and its unknown fraction at most
-        max_unknown_fraction, so a footprint on unknown ground is unsafe."""
+        """Footprint safety along a path: at the poses and along the straight segments between
+        consecutive poses (the footprint placed at most a cell apart, heading interpolated).
+        poses: Nx3 (x, y, yaw) or Nx2 (yaw 0); footprint: a disk of `radius` or a `polygon`
+        [(x, y), ...] in the robot frame (x forward, y left). Unset thresholds take the map's
+        trav_threshold, variance_threshold and 0. A placement is safe when its worst
+        traversability and variance are below them and its unknown fraction at most
+        max_unknown_fraction, so a footprint on unknown ground is unsafe. The answer names the
+        first unsafe point (PathCheck.first_unsafe_point)."""
         poses = _codec.xy_array(poses, "poses", columns=(2, 3))
         request = _codec.path_request(poses, radius, polygon, max_traversability,
                                       max_traversability_variance, max_unknown_fraction)

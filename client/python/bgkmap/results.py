@@ -129,16 +129,26 @@ class Region(Mapping):
 
 @dataclasses.dataclass
 class PathCheck:
-    """Footprint safety along a path.
+    """Footprint safety along a path: at its poses and along the straight segments between them
+    (placements at most a cell apart, docs/semantics.md "Path checks").
 
+    safe: every pose and every placement between consecutive poses is safe.
     poses: a structured array, one record per pose: x, y, yaw, worst_traversability (NaN if no
     cell is known), worst_traversability_variance, unknown_fraction, cell_count, safe.
-    first_unsafe_index: None when the whole path is safe."""
+    segments: a structured array, one record per segment (len(poses) - 1; segment i joins poses
+    i and i + 1): safe, placement_count (placements strictly between the two poses).
+    first_unsafe_point: None when safe, else a dict of the first unsafe placement in path order:
+    x, y, yaw, segment, t (0 at poses[segment] itself, 0 < t < 1 between it and the next pose)
+    and its footprint's verdict (the pose fields above).
+    first_unsafe_index: None when safe, else first_unsafe_point["segment"]: the pose where the
+    unsafe stretch begins (that pose may itself be safe when the trouble lies after it)."""
 
     safe: bool
     first_unsafe_index: Optional[int]
     poses: np.ndarray
     map_version: int
+    segments: np.ndarray = None
+    first_unsafe_point: Optional[dict] = None
 
     def __bool__(self) -> bool:
         return self.safe

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """A small path planner on a bgkmap server: query traversability around start and goal, run A* on
-it, then ask the server whether the robot's footprint is safe along the path.
+it, shorten the path to the waypoints where it turns, then ask the server whether the robot's
+footprint is safe along it (at the waypoints and on the straight segments between them).
 
     PYTHONPATH=build/python /usr/bin/python3 client/python/examples/astar_planner.py \\
         --server 127.0.0.1:50051 --start -8 -2 --goal 8 2 --radius 0.3
@@ -80,10 +81,35 @@ def astar(free: np.ndarray, cost: np.ndarray, start: tuple, goal: tuple):
     return None
 
 
+def line_is_free(free: np.ndarray, a, b) -> bool:
+    """True when the straight line between pixel centres a and b (row, col) crosses free pixels
+    only, sampled every quarter pixel."""
+    n = int(math.ceil(4 * math.hypot(b[0] - a[0], b[1] - a[1]))) + 1
+    t = np.linspace(0.0, 1.0, n + 1)
+    rows = np.rint(a[0] + t * (b[0] - a[0])).astype(int)
+    cols = np.rint(a[1] + t * (b[1] - a[1])).astype(int)
+    return bool(np.all(free[rows, cols]))
+
+
+def shorten(free: np.ndarray, cells: list) -> list:
+    """The waypoints of an A* path: from each kept cell, jump to the farthest later cell in a
+    straight line over free pixels. The server checks the segments between waypoints, so a
+    planner need not send every cell."""
+    kept = [0]
+    while kept[-1] < len(cells) - 1:
+        i = kept[-1]
+        j = len(cells) - 1
+        while j > i + 1 and not line_is_free(free, cells[i], cells[j]):
+            j -= 1
+        kept.append(j)
+    return [cells[k] for k in kept]
+
+
 def plan(client: bgkmap.Client, start, goal, radius: float = 0.3, stride: int = 1,
          margin: float = 10.0, cost_weight: float = 4.0) -> dict:
     """Plans from start (x, y) to goal (x, y) on the served map. The dict says whether a path was
-    found, the waypoints (x, y, yaw), its length and the server's footprint check."""
+    found, the waypoints (x, y, yaw; the path is the straight segments between them), its length
+    and the server's footprint check (with the first unsafe point when it is not safe)."""
     box = (min(start[0], goal[0]) - margin, min(start[1], goal[1]) - margin,
            max(start[0], goal[0]) + margin, max(start[1], goal[1]) + margin)
     region = client.query(box, layers=["traversability", "state"], stride=stride)
@@ -100,7 +126,7 @@ def plan(client: bgkmap.Client, start, goal, radius: float = 0.3, stride: int = 
     if cells is None:
         result["reason"] = "no path on known traversable ground"
         return result
-    rows, cols = np.array(cells).T
+    rows, cols = np.array(shorten(free, cells)).T
     x, y = region.xy(rows, cols)
     yaw = np.arctan2(np.diff(y, append=y[-1]), np.diff(x, append=x[-1]))
     if len(yaw) > 1:
@@ -109,7 +135,8 @@ def plan(client: bgkmap.Client, start, goal, radius: float = 0.3, stride: int = 
     check = client.check_path(poses, radius=radius)
     result.update(found=True, safe=check.safe, path=poses.round(3).tolist(),
                   length=float(np.sum(np.hypot(np.diff(x), np.diff(y)))),
-                  first_unsafe_index=check.first_unsafe_index)
+                  first_unsafe_index=check.first_unsafe_index,
+                  first_unsafe_point=check.first_unsafe_point)
     return result
 
 

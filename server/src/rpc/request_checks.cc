@@ -186,12 +186,22 @@ grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
   x1 = floor_to(x1) + stride - 1;
   y1 = floor_to(y1) + stride - 1;
   const int64_t w = x1 - x0 + 1, h = y1 - y0 + 1;
-  if (limit_cells &&
-      static_cast<uint64_t>(w) * static_cast<uint64_t>(h) > limits.max_region_cells) {
+  // The limit counts what the server holds and sends: output pixels. The map cells behind them
+  // are bounded apart (the time and the tiles a read costs).
+  const uint64_t pw = static_cast<uint64_t>(w / stride), ph = static_cast<uint64_t>(h / stride);
+  if (limit_cells && pw * ph > limits.max_region_cells) {
+    return {grpc::StatusCode::INVALID_ARGUMENT,
+            field + ": " + std::to_string(pw) + " x " + std::to_string(ph) + " = " +
+                std::to_string(pw * ph) + " pixels at stride " + std::to_string(stride) +
+                " exceed server.max_region_cells = " + std::to_string(limits.max_region_cells)};
+  }
+  const uint64_t cells = static_cast<uint64_t>(w) * static_cast<uint64_t>(h);
+  if (limit_cells && cells > limits.max_region_read_cells) {
     return {grpc::StatusCode::INVALID_ARGUMENT,
             field + ": " + std::to_string(w) + " x " + std::to_string(h) + " = " +
-                std::to_string(w * h) + " cells exceed server.max_region_cells = " +
-                std::to_string(limits.max_region_cells)};
+                std::to_string(cells) +
+                " map cells to read exceed server.max_region_read_cells = " +
+                std::to_string(limits.max_region_read_cells)};
   }
   out->min = {static_cast<int>(x0), static_cast<int>(y0)};
   out->max = {static_cast<int>(x1), static_cast<int>(y1)};

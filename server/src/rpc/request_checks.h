@@ -34,8 +34,9 @@ grpc::Status CheckPose(const v1::Pose3& pose, const MapParams& params, const Ser
 grpc::Status CheckRobotId(const std::string& robot_id);
 
 // The cells covered by a metric box (half-open), widened to multiples of `stride` aligned with
-// the global grid. With `limit_cells`, more than limits.max_region_cells cells (at map
-// resolution) is RESOURCE_EXHAUSTED.
+// the global grid. With `limit_cells`, more than limits.max_region_cells output pixels (cells /
+// stride^2) or more than limits.max_region_read_cells map cells is INVALID_ARGUMENT (a fixed
+// limit: no retry fits).
 grpc::Status RegionCells(const v1::BoundingBox& box, const std::string& field,
                          const GridGeometry& geometry, int stride, const ServerLimits& limits,
                          bool limit_cells, CellBox* out);

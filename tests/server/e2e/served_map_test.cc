@@ -8,6 +8,8 @@
 #include <sstream>
 
 #include "../../core/stride_oracle.h"
+#include "bgkmap/core/path_check.h"
+#include "bgkmap/core/path_sweep.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
@@ -218,6 +220,71 @@ TEST_F(ServedMapTest, PathCheckFindsTheWorstCellUnderTheFootprint) {
   EXPECT_EQ(unknown->first_unsafe_index, 0);
   EXPECT_FLOAT_EQ(unknown->poses[0].unknown_fraction, 1.0f);
   EXPECT_GT(unknown->poses[0].cell_count, 30u);
+}
+
+// Issue 29: a planner sends waypoints and means the path between them. Two poses that are
+// safe on their own, joined by a straight segment over the unknown ground under the sensor at
+// (0, 0), are an unsafe path.
+TEST_F(ServedMapTest, PathCheckSeesTheGroundBetweenPoses) {
+  PathQuery q;
+  q.poses = {{-8, -2, 0}, {8, 2, 0}};
+  q.radius = 0.3;
+  // The premise, on the offline map: each pose alone is safe, the midpoint is not.
+  const MapParams& params = offline_->params();
+  const PathThresholds thresholds{params.trav_threshold, params.variance_threshold, 0.0};
+  Footprint disk;
+  disk.radius = q.radius;
+  auto judge = [&](const Pose2& p) {
+    std::vector<CellEstimate> cells;
+    for (CellIndex c : FootprintCells(offline_->geometry(), disk, p)) {
+      cells.push_back(offline_->Estimate(c));
+    }
+    return JudgeFootprint(cells, thresholds);
+  };
+  ASSERT_TRUE(judge(q.poses[0]).safe);
+  ASSERT_TRUE(judge(q.poses[1]).safe);
+  ASSERT_FALSE(judge({0, 0, 0}).safe);
+
+  RpcResult<PathCheck> check = fixture_->client().CheckPath(q);
+  ASSERT_TRUE(check.ok()) << check.status().ToString();
+  EXPECT_TRUE(check->poses[0].safe);
+  EXPECT_TRUE(check->poses[1].safe);
+  EXPECT_FALSE(check->safe);
+  EXPECT_EQ(check->first_unsafe_index, 0);  // the trouble begins after pose 0
+  ASSERT_EQ(check->segments.size(), 1u);
+  EXPECT_FALSE(check->segments[0].safe);
+  EXPECT_EQ(check->segments[0].placement_count, 164u);  // 16.49 m at 0.1 m: 165 steps
+  // The first unsafe point: on segment 0, on the line, and the first placement of the rule
+  // (docs/semantics.md, "Path checks") that the offline map judges unsafe.
+  ASSERT_TRUE(check->first_unsafe.has_value());
+  const PlacementCheck& first = *check->first_unsafe;
+  EXPECT_EQ(first.where.segment, 0u);
+  EXPECT_GT(first.where.t, 0.0);
+  EXPECT_LT(first.where.t, 1.0);
+  EXPECT_NEAR(first.where.pose.y, first.where.pose.x / 4, 1e-9);  // on y = x / 4
+  EXPECT_FALSE(first.check.safe);
+  const int n = 165;
+  int want = -1;
+  for (int k = 1; k < n && want < 0; ++k) {
+    const double t = static_cast<double>(k) / n;
+    if (!judge({-8 + t * 16, -2 + t * 4, 0}).safe) want = k;
+  }
+  ASSERT_GT(want, 0);
+  EXPECT_DOUBLE_EQ(first.where.t, static_cast<double>(want) / n);
+  const PoseCheck offline = judge(first.where.pose);
+  EXPECT_EQ(first.check.cell_count, offline.cell_count);
+  EXPECT_FLOAT_EQ(first.check.unknown_fraction, offline.unknown_fraction);
+  // The midpoint as a pose of its own is unsafe, and the path is unsafe before it already.
+  PathQuery with_mid = q;
+  with_mid.poses.insert(with_mid.poses.begin() + 1, {0, 0, 0});
+  RpcResult<PathCheck> mid = fixture_->client().CheckPath(with_mid);
+  ASSERT_TRUE(mid.ok()) << mid.status().ToString();
+  EXPECT_FALSE(mid->safe);
+  EXPECT_FALSE(mid->poses[1].safe);
+  EXPECT_EQ(mid->first_unsafe_index, 0);
+  // Sampled afresh (83 steps to the midpoint), the first unsafe point is within a step.
+  EXPECT_EQ(mid->first_unsafe->where.segment, 0u);
+  EXPECT_NEAR(mid->first_unsafe->where.pose.x, first.where.pose.x, 0.1);
 }
 
 }  // namespace

@@ -19,6 +19,7 @@ ServerConfig SmallLimits() {
   ServerConfig c = TestConfig();
   c.limits.max_points_per_scan = 50'000;
   c.limits.max_region_cells = 1'000'000;
+  c.limits.max_region_read_cells = 16'000'000;
   c.limits.max_query_points = 1'000;
   return c;
 }
@@ -192,9 +193,27 @@ TEST_F(BadInputTest, RegionTooLarge) {
   EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument);  // fixed limit: a retry never fits
   EXPECT_NE(r.status().message().find("2000 x 600"), std::string::npos) << r.status().ToString();
   EXPECT_NE(r.status().message().find("server.max_region_cells = 1000000"), std::string::npos);
-  // The same area at stride 4 is still 1.2M map cells: the limit counts map cells.
-  EXPECT_FALSE(fixture_->client().QueryRegion({{0, 0, 200, 60}, {}, 4}).ok());
   EXPECT_TRUE(fixture_->client().QueryRegion({{0, 0, 100, 100}, {}, 1}).ok());
+  // Issue 29: the limit counts output pixels. The same 1.2M map cells at stride 2 are 300,000
+  // pixels: answered, at half the resolution.
+  RpcResult<Raster> coarse = fixture_->client().QueryRegion({{0, 0, 200, 60}, {}, 2});
+  ASSERT_TRUE(coarse.ok()) << coarse.status().ToString();
+  EXPECT_EQ(coarse->cols, 1000);
+  EXPECT_EQ(coarse->rows, 300);
+  // Pixels over the limit at any stride are refused, naming pixels and the stride.
+  r = fixture_->client().QueryRegion({{0, 0, 600, 200}, {}, 2});  // 3000 x 1000 pixels
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("3000 x 1000 = 3000000 pixels at stride 2"),
+            std::string::npos)
+      << r.status().ToString();
+  // The map cells a query reads are bounded too (time, tiles loaded): server.max_region_read_cells
+  // = 16M here, so 1000 x 1000 pixels at stride 8 (64M cells) are refused.
+  r = fixture_->client().QueryRegion({{0, 0, 800, 800}, {}, 8});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("server.max_region_read_cells = 16000000"), std::string::npos)
+      << r.status().ToString();
   ExpectUnchanged();
 }
 

@@ -95,6 +95,23 @@ TEST(HostileCheckPath, HugeRadiusIsRefusedUpFrontNamingTheLimit) {
   check(5e4, 1, grpc::StatusCode::INVALID_ARGUMENT, {"radius", "server.max_footprint_cells"});
   // Each footprint fits, all of them do not: 10,000 poses x ~3,844 cells.
   check(3.0, 10'000, grpc::StatusCode::INVALID_ARGUMENT, {"poses", "server.max_path_check_cells"});
+  // Two poses across the whole coordinate range: 2e7 placements between them, counted before
+  // a single one is made.
+  {
+    v1::PathCheckRequest req;
+    req.add_poses()->set_x(-9e5);
+    req.add_poses()->set_x(9e5);
+    req.set_radius(0.3);
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx, 5);
+    v1::PathCheckResponse resp;
+    const auto t0 = Clock::now();
+    const grpc::Status s = stub->CheckPath(&ctx, req, &resp);
+    EXPECT_EQ(s.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << s.error_message();
+    EXPECT_TRUE(Mentions(s.error_message(), "placements")) << s.error_message();
+    EXPECT_TRUE(Mentions(s.error_message(), "server.max_path_check_cells")) << s.error_message();
+    EXPECT_LT(SecondsSince(t0), 2.0);
+  }
   // The server is up and answers a sane check.
   PathQuery ok;
   ok.poses = {{0, 0, 0}};

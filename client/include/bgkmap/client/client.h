@@ -26,6 +26,7 @@
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/map_params.h"
 #include "bgkmap/core/path_check.h"
+#include "bgkmap/core/path_sweep.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/scan.h"
 
@@ -160,10 +161,15 @@ struct PathQuery {
   std::optional<double> max_unknown_fraction;         // default: 0
 };
 
+// The server's verdict on a path: its poses and the segments between them (docs/semantics.md,
+// "Path checks").
 struct PathCheck {
   std::vector<PoseCheck> poses;
-  bool safe = false;
+  std::vector<SegmentCheck> segments;  // poses.size() - 1: segment i joins poses i and i + 1
+  bool safe = false;                   // every pose and every placement between them
+  // -1 when safe, else first_unsafe->where.segment: the pose where the unsafe stretch begins.
   int first_unsafe_index = -1;
+  std::optional<PlacementCheck> first_unsafe;  // the first unsafe point, in path order
   uint64_t map_version = 0;
 };
 
@@ -207,6 +213,9 @@ struct ServerLimitsInfo {
   double max_coordinate = 0;
   uint64_t max_message_bytes = 0;
   uint32_t max_inflight_scans_per_stream = 0;
+  // Map cells one region reads; 0 from an older server, whose max_region_cells counted map cells
+  // (it counts output pixels now).
+  uint64_t max_region_read_cells = 0;
 };
 
 // The server's map store (absent when the map lives in memory only).

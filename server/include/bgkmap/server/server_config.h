@@ -19,12 +19,18 @@ namespace bgkmap {
 // Limits that protect the server; every violation is reported with the key name and its value.
 struct ServerLimits {
   uint64_t max_points_per_scan = 2'000'000;  // max_points_per_scan
-  uint64_t max_region_cells = 4'000'000;     // max_region_cells: map cells per region query
-  uint64_t max_query_points = 100'000;       // max_query_points: points per point query
-  uint64_t max_path_poses = 10'000;          // max_path_poses: poses per path check
-  uint64_t max_footprint_cells = 100'000;    // max_footprint_cells: cells under one footprint
-  // max_path_check_cells: footprint bounding-box cells summed over a path check's poses (the
-  // work a CheckPath costs), checked before any cell is visited.
+  // max_region_cells: output pixels per region query (map cells / stride^2), so a coarse
+  // query covers a larger area; the raster the server holds is this size.
+  uint64_t max_region_cells = 4'000'000;
+  // max_region_read_cells: map cells a region query reads (pixels x stride^2): bounds its time
+  // and the tiles it loads from the store.
+  uint64_t max_region_read_cells = 64'000'000;
+  uint64_t max_query_points = 100'000;     // max_query_points: points per point query
+  uint64_t max_path_poses = 10'000;        // max_path_poses: poses per path check
+  uint64_t max_footprint_cells = 100'000;  // max_footprint_cells: cells under one footprint
+  // max_path_check_cells: footprint bounding-box cells summed over a path check's placements
+  // (its poses and the samples between them: the work a CheckPath costs), checked before any
+  // cell is visited.
   uint64_t max_path_check_cells = 20'000'000;
   double max_coordinate = 1e6;                       // max_coordinate: |x|, |y|, |z| bound, metres
   double quaternion_tolerance = 1e-3;                // quaternion_tolerance: allowed | |q| - 1 |

@@ -1,11 +1,12 @@
-// CheckPath: footprint safety along a path (after traversability_estimation's
-// check_footprint_path and elevation_mapping_cupy's check_safety). The geometry and the verdict
-// are core's (path_check.h); here the request is checked and bounded, all poses' cells are read
-// in one atomic read, and the answer encoded.
+// CheckPath: footprint safety along a path, at its poses and between them (after
+// traversability_estimation's check_footprint_path and elevation_mapping_cupy's check_safety).
+// The placements, the swept cells and the verdict are core's (path_sweep.h); here the request is
+// checked and bounded, the swept cells are read in one atomic read, and the answer encoded.
 #include <cmath>
 #include <sstream>
 
 #include "bgkmap/core/path_check.h"
+#include "bgkmap/core/path_sweep.h"
 #include "rpc/handlers/handlers.h"
 #include "rpc/proto_convert.h"
 #include "rpc/request_checks.h"
@@ -32,8 +33,8 @@ Footprint FootprintOf(const v1::PathCheckRequest& req) {
 
 // The cost of a path check, bounded before a single cell is visited. In doubles: a radius of
 // 2e8 m is 2e9 cells, which int32 cell indices would wrap (the box then looked small and the
-// server spent minutes, then memory, on it).
-grpc::Status CheckFootprintCost(const v1::PathCheckRequest& req, size_t poses, double reach,
+// server spent minutes, then memory, on it), and a path's placements grow with its length.
+grpc::Status CheckFootprintCost(const v1::PathCheckRequest& req, double placements, double reach,
                                 double resolution, const ServerLimits& limits) {
   const std::string field = req.has_polygon() ? "polygon" : "radius";
   // Cells of the footprint's bounding box around any pose (the pose need not be on a cell
@@ -47,13 +48,15 @@ grpc::Status CheckFootprintCost(const v1::PathCheckRequest& req, size_t poses, d
             " cells at resolution " + Num(resolution) +
             " m, over server.max_footprint_cells = " + std::to_string(limits.max_footprint_cells)};
   }
-  const double total = box * static_cast<double>(poses);
+  const double total = box * placements;
   if (!(total <= static_cast<double>(limits.max_path_check_cells))) {
-    return {grpc::StatusCode::INVALID_ARGUMENT, "poses: " + std::to_string(poses) +
-                                                    " poses x about " + Num(box) +
-                                                    " footprint box cells = " + Num(total) +
-                                                    " cells exceed server.max_path_check_cells = " +
-                                                    std::to_string(limits.max_path_check_cells)};
+    return {grpc::StatusCode::INVALID_ARGUMENT,
+            "poses: " + Num(placements) +
+                " footprint placements (the poses and the samples between them, a cell apart) x "
+                "about " +
+                Num(box) + " footprint box cells = " + Num(total) +
+                " cells exceed server.max_path_check_cells = " +
+                std::to_string(limits.max_path_check_cells)};
   }
   return grpc::Status::OK;
 }
@@ -66,18 +69,29 @@ void SetPoseCheck(const PoseCheck& check, v1::PoseCheck* out) {
   out->set_safe(check.safe);
 }
 
-// Each pose's verdict on its footprint's cells (first[i] .. first[i + 1] of `estimates`).
-void JudgePoses(const std::vector<CellEstimate>& estimates, const std::vector<size_t>& first,
-                const PathThresholds& thresholds, v1::PathCheckResponse* response) {
-  int first_unsafe = -1;
-  for (size_t i = 0; i + 1 < first.size(); ++i) {
-    const std::span<const CellEstimate> cells(estimates.data() + first[i], first[i + 1] - first[i]);
-    const PoseCheck check = JudgeFootprint(cells, thresholds);
-    SetPoseCheck(check, response->add_poses());
-    if (!check.safe && first_unsafe < 0) first_unsafe = static_cast<int>(i);
+void SetPathPoint(const PlacementCheck& p, v1::PathPoint* out) {
+  out->set_x(p.where.pose.x);
+  out->set_y(p.where.pose.y);
+  out->set_yaw(p.where.pose.yaw);
+  out->set_segment(p.where.segment);
+  out->set_t(p.where.t);
+  SetPoseCheck(p.check, out->mutable_check());
+}
+
+void SetVerdict(const PathVerdict& verdict, v1::PathCheckResponse* response) {
+  for (const PoseCheck& check : verdict.poses) SetPoseCheck(check, response->add_poses());
+  for (const SegmentCheck& segment : verdict.segments) {
+    v1::SegmentCheck* out = response->add_segments();
+    out->set_safe(segment.safe);
+    out->set_placement_count(segment.placement_count);
+    if (segment.first_unsafe) SetPathPoint(*segment.first_unsafe, out->mutable_first_unsafe());
   }
-  response->set_safe(first_unsafe < 0);
-  response->set_first_unsafe_index(first_unsafe);
+  response->set_safe(verdict.safe);
+  response->set_first_unsafe_index(
+      verdict.first_unsafe ? static_cast<int32_t>(verdict.first_unsafe->where.segment) : -1);
+  if (verdict.first_unsafe) {
+    SetPathPoint(*verdict.first_unsafe, response->mutable_first_unsafe_point());
+  }
 }
 
 grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
@@ -131,31 +145,34 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
 
   const GridGeometry& g = ctx.map.geometry();
   const Footprint footprint = FootprintOf(req);
-  if (grpc::Status s = CheckFootprintCost(req, n, footprint.Reach(), g.resolution(), limits);
+  std::vector<Pose2> poses;
+  poses.reserve(n);
+  for (const v1::Pose2& p : req.poses()) poses.push_back({p.x(), p.y(), p.yaw()});
+  const double placements = CountPlacements(poses, footprint, g.resolution());
+  if (grpc::Status s =
+          CheckFootprintCost(req, placements, footprint.Reach(), g.resolution(), limits);
       !s.ok()) {
     return s;
   }
-  std::vector<CellIndex> cells;
-  std::vector<size_t> first(n + 1, 0);
-  for (size_t i = 0; i < n; ++i) {
-    if (grpc::Status s = control.Check(); !s.ok()) return s;
-    first[i] = cells.size();
-    const v1::Pose2& p = req.poses(static_cast<int>(i));
-    const std::vector<CellIndex> at = FootprintCells(g, footprint, {p.x(), p.y(), p.yaw()});
-    cells.insert(cells.end(), at.begin(), at.end());
-    if (cells.size() > limits.max_region_cells) {
-      return {grpc::StatusCode::INVALID_ARGUMENT,
-              "poses: the footprints cover more than server.max_region_cells = " +
-                  std::to_string(limits.max_region_cells) + " cells"};
-    }
-  }
-  first[n] = cells.size();
-
+  // The rule is core's (path_sweep.h): placements, the swept cells, one atomic read, the verdict.
+  const std::vector<PathPlacement> along = PathPlacements(poses, footprint, g.resolution());
   if (grpc::Status s = control.Check(); !s.ok()) return s;
+  const StopRequested stop = [&control] { return !control.Check().ok(); };
+  const std::vector<CellIndex> cells = SweptCells(g, footprint, along, stop);
+  if (grpc::Status s = control.Check(); !s.ok()) return s;  // the cells may be partial
+  if (cells.size() > limits.max_region_cells) {
+    return {grpc::StatusCode::INVALID_ARGUMENT,
+            "poses: the footprint swept along the path covers " + std::to_string(cells.size()) +
+                " cells, more than server.max_region_cells = " +
+                std::to_string(limits.max_region_cells)};
+  }
   const uint64_t version = ctx.map.applied_version();
   const Result<std::vector<CellEstimate>> read = ctx.map.ReadCells(cells);
   if (!read.ok()) return ToGrpcStatus(read.status());
-  JudgePoses(*read, first, thresholds, response);  // one atomic read
+  if (grpc::Status s = control.Check(); !s.ok()) return s;
+  const PathVerdict verdict = JudgePath(g, footprint, along, cells, *read, thresholds, stop);
+  if (grpc::Status s = control.Check(); !s.ok()) return s;  // the verdict may be partial
+  SetVerdict(verdict, response);
   response->set_map_version(version);
   return grpc::Status::OK;
 }

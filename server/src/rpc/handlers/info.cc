@@ -63,6 +63,7 @@ void LimitsToProto(const ServerLimits& l, v1::ServerLimits* lim) {
   lim->set_max_coordinate(l.max_coordinate);
   lim->set_max_message_bytes(l.max_message_bytes);
   lim->set_max_inflight_scans_per_stream(l.max_inflight_scans_per_stream);
+  lim->set_max_region_read_cells(l.max_region_read_cells);
 }
 
 void CorrectionsToProto(const CorrectionStats& c, v1::Corrections* corrections) {
