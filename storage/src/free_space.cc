@@ -77,7 +77,8 @@ Status FreeSpaceGuard::DecideLocked(uint64_t bytes, bool freeing) {
                            " (storage.min_free_space_mb), which even a write that frees space "
                            "must leave to the store");
   }
-  return Status::IoError("data dir " + path_ + " has " + free_text + ", below the reserve of " + Megabytes(options_.reserve_bytes) +
+  return Status::IoError("data dir " + path_ + " has " + free_text + ", below the reserve of " +
+                         Megabytes(options_.reserve_bytes) +
                          " (storage.min_free_space_mb); writes resume when space is freed");
 }
 

@@ -19,11 +19,12 @@ class InfoLog final : public rocksdb::Logger {
  public:
   // Past this size the log starts over, the full one kept as LOG.old: the two hold at most
   // twice this on disk.
-  static constexpr size_t kMaxBytes = size_t{4} << 20;
+  static constexpr size_t kMaxBytes = size_t{2} << 20;
 
   // Keeps the previous LOG as LOG.old (one generation) and starts a new one; a log that cannot
   // be opened (read-only or full directory) logs nothing.
-  static std::shared_ptr<rocksdb::Logger> Open(const std::string& dir, size_t max_bytes = kMaxBytes);
+  static std::shared_ptr<rocksdb::Logger> Open(const std::string& dir,
+                                               size_t max_bytes = kMaxBytes);
   ~InfoLog() override;
 
   using rocksdb::Logger::Logv;

@@ -158,6 +158,9 @@ rocksdb::DBOptions DbOptions(const std::string& dir, const StoreOptions& options
   // file system counts as used and the file's size does not show, so the reserve found 35 MB
   // gone on an empty store and the byte bound missed them (docs/storage.md, "Sizing").
   db_options.allow_fallocate = false;
+  // RocksDB's manifest records every file added and deleted; it starts over (from a snapshot
+  // of the live files) only past max_manifest_file_size, 1 GB by default: months of flushes.
+  db_options.max_manifest_file_size = 4 << 20;
   if (options.file_system) {
     store.env = rocksdb::NewCompositeEnv(options.file_system);
     db_options.env = store.env.get();

@@ -90,7 +90,7 @@ TEST(FreeSpaceGuardTest, MemoryTablesAwaitingAFlushCountAsWritten) {
   FreeSpaceGuard guard("/data", disk.Options(10 * kMB, 1'000'000, 1000 * kMB));
   uint64_t in_memory = 25 * kMB;
   guard.SetPendingBytes([&] { return in_memory; });
-  EXPECT_EQ(guard.free_bytes(), 0u);  // (before the first probe)
+  EXPECT_EQ(guard.free_bytes(), 0u);       // (before the first probe)
   ASSERT_TRUE(guard.Admit(5 * kMB).ok());  // 40 - 25 - 5 = 10: exactly the reserve
   EXPECT_EQ(guard.free_bytes(), 10 * kMB);
   const Status refused = guard.Admit(1);

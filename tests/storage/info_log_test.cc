@@ -36,7 +36,8 @@ TEST_F(InfoLogTest, StartsOverPastItsBoundKeepingOneFullGeneration) {
   {
     std::shared_ptr<rocksdb::Logger> log = InfoLog::Open(dir_.string(), kMax);
     const std::string line(100, 'x');
-    for (int i = 0; i < 1000; ++i) rocksdb::Log(rocksdb::InfoLogLevel::INFO_LEVEL, log, "%d %s", i, line.c_str());
+    for (int i = 0; i < 1000; ++i)
+      rocksdb::Log(rocksdb::InfoLogLevel::INFO_LEVEL, log, "%d %s", i, line.c_str());
     log->Flush();
   }
   // 1000 lines of ~130 bytes: 130 KB written, at most two generations kept.

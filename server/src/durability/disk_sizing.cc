@@ -22,6 +22,11 @@ DiskSizing SizingFor(uint64_t retention_mb, uint64_t min_free_space_mb, uint64_t
   // retention trims; the tiles' older copies wait for a compaction: a map whose every tile
   // changed stands three times on disk for a moment.
   s.map_bytes = 3 * map_bytes;
+  // A flush writes its table file while the log still holds the same records, and a file that
+  // straddles retention's horizon keeps its dropped part until compacted: up to one memory
+  // budget between them. Plus RocksDB's own files: LOG and LOG.old (storage/src/info_log.h:
+  // 2 MB each) and its manifest (max_manifest_file_size, 4 MB; store_db.cc).
+  s.transient_bytes = memtable_bytes + (uint64_t{8} << 20);
   s.reserve_bytes = min_free_space_mb << 20;
   return s;
 }
@@ -31,7 +36,8 @@ std::string CheckSizing(const DiskSizing& s, uint64_t available) {
   return "the data dir's file system has " + MbDown(available) +
          " MB for the store, the sizing rule asks " + Mb(s.total()) + " MB: retention " +
          Mb(s.retention_bytes) + " + journal " + Mb(s.journal_bytes) + " + write-ahead log " +
-         Mb(s.wal_bytes) + " + map " + Mb(s.map_bytes) + " + reserve " + Mb(s.reserve_bytes) +
+         Mb(s.wal_bytes) + " + map " + Mb(s.map_bytes) + " + flushes and logs " +
+         Mb(s.transient_bytes) + " + reserve " + Mb(s.reserve_bytes) +
          " (storage.retention_mb, storage.min_free_space_mb)";
 }
 

@@ -13,9 +13,13 @@ struct DiskSizing {
   uint64_t journal_bytes = 0;    // the log between checkpoints: half the retention at most
   uint64_t wal_bytes = 0;        // RocksDB's write-ahead log: twice the memory-table budget
   uint64_t map_bytes = 0;        // three times the stored tiles, as found at start
-  uint64_t reserve_bytes = 0;    // storage.min_free_space_mb
+  // Files being written by a flush or a compaction, and the files that straddle retention's
+  // horizon until their compaction: the memory-table budget; and RocksDB's information log.
+  uint64_t transient_bytes = 0;
+  uint64_t reserve_bytes = 0;  // storage.min_free_space_mb
   uint64_t total() const {
-    return retention_bytes + journal_bytes + wal_bytes + map_bytes + reserve_bytes;
+    return retention_bytes + journal_bytes + wal_bytes + map_bytes + transient_bytes +
+           reserve_bytes;
   }
 };
 

@@ -238,7 +238,8 @@ TEST(RequestChecksTest, ABadBoxIsRefusedNamingTheFieldAndTheLimit) {
   limits.max_region_cells = 99;
   const grpc::Status big = RegionCells(Box(0, 0, 1, 1), "box", g, 1, limits, true, &cells);
   EXPECT_EQ(big.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_EQ(big.error_message(), "box: 10 x 10 = 100 cells exceed server.max_region_cells = 99");
+  EXPECT_EQ(big.error_message(),
+            "box: 10 x 10 = 100 pixels at stride 1 exceed server.max_region_cells = 99");
   EXPECT_TRUE(RegionCells(Box(0, 0, 1, 1), "box", g, 1, limits, false, &cells).ok());
 }
 

@@ -94,10 +94,8 @@ void SetVerdict(const PathVerdict& verdict, v1::PathCheckResponse* response) {
   }
 }
 
-grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
-                       const v1::PathCheckRequest& req, v1::PathCheckResponse* response) {
-  const ServerLimits& limits = ctx.limits;
-  const MapParams& params = ctx.map.params();
+// The poses and the footprint: INVALID_ARGUMENT naming the field, before any work.
+grpc::Status CheckPathRequest(const v1::PathCheckRequest& req, const ServerLimits& limits) {
   auto invalid = [](const std::string& m) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, m);
   };
@@ -134,6 +132,15 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
     if (grpc::Status s = CheckCoordinate(p.y(), f + ".y", limits); !s.ok()) return s;
     if (!std::isfinite(p.yaw())) return invalid(f + ".yaw: must be finite");
   }
+  return grpc::Status::OK;
+}
+
+grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
+                       const v1::PathCheckRequest& req, v1::PathCheckResponse* response) {
+  const ServerLimits& limits = ctx.limits;
+  const MapParams& params = ctx.map.params();
+  if (grpc::Status s = CheckPathRequest(req, limits); !s.ok()) return s;
+  const size_t n = static_cast<size_t>(req.poses_size());
   PathThresholds thresholds;
   thresholds.max_traversability =
       req.has_max_traversability() ? req.max_traversability() : params.trav_threshold;
