@@ -33,7 +33,8 @@ EventStreams::EventStreams(MapPort& map, WatchHub& hub, boost::asio::thread_pool
 
 EventStreams::~EventStreams() { Stop(); }
 
-void EventStreams::Open(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
+void EventStreams::Open(const HttpRequest& request, PrincipalRef /*who*/,
+                        std::shared_ptr<HttpExchange> exchange) {
   std::unique_lock lock(mu_);
   if (stopped_ || sessions_.size() >= max_clients_) {
     lock.unlock();

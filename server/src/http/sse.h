@@ -17,6 +17,7 @@
 #include <mutex>
 #include <thread>
 
+#include "auth/principal.h"
 #include "http/http_exchange.h"
 #include "serving/map_port.h"
 #include "serving/watch_hub.h"
@@ -29,8 +30,8 @@ class EventStreams {
                std::chrono::milliseconds ping_period = std::chrono::seconds(15));
   ~EventStreams();  // Stop()
 
-  // Answers the request with an event stream (or 503 when full or stopping).
-  void Open(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange);
+  // Answers `who`'s request with an event stream (or 503 when full or stopping).
+  void Open(const HttpRequest& request, PrincipalRef who, std::shared_ptr<HttpExchange> exchange);
   // Ends every stream; later Open() calls are answered 503. Idempotent.
   void Stop();
   size_t count() const;
