@@ -155,6 +155,13 @@ void WebRoutes::Handle(const HttpRequest& request, PrincipalRef who,
   } else if (path == "/robots.json") {
     exchange->Reply(Body(request, "application/json", RobotsJson(map_.Robots()).dump(2) + "\n"));
   } else if (path == "/events") {
+    if (!who->Has(Right::kWatch)) {
+      // The HTTP twin of Watch, which the role may not call over gRPC either.
+      exchange->Reply(Text(request, http::status::forbidden,
+                           "forbidden: token '" + who->name + "' has role " + RoleName(who->role) +
+                               ", which may not watch (GET /events needs the watch right)"));
+      return;
+    }
     events_.Open(request, std::move(who), std::move(exchange));
   } else {
     exchange->Reply(Text(request, http::status::not_found,
