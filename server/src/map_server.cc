@@ -238,7 +238,8 @@ Status LoadSecurity(const ServerConfig& config, std::optional<TlsMaterial>* tls,
   }
   if (config.auth.enabled()) {
     Result<std::unique_ptr<TokenTable>> loaded = TokenTable::Load(
-        config.auth.tokens_file, {QueriesPerToken(config), IngestStreamsPerToken(config)});
+        config.auth.tokens_file, {QueriesPerToken(config), IngestStreamsPerToken(config),
+                                  WatchersPerToken(config), EventStreamsPerToken(config)});
     if (!loaded.ok()) {
       return Status::InvalidArgument("server.auth.tokens_file: " + loaded.status().message());
     }
@@ -276,9 +277,9 @@ Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
   web = std::make_unique<WebRoutes>(*map, hub, query_pool, ctx->queries, config.limits,
                                     WebRoutesOptions{});
   HttpServer::Options http_options;
-  http_options.routes = [routes = web.get()](const HttpRequest& request,
+  http_options.routes = [routes = web.get()](const HttpRequest& request, PrincipalRef who,
                                              std::shared_ptr<HttpExchange> exchange) {
-    routes->Handle(request, std::move(exchange));
+    routes->Handle(request, std::move(who), std::move(exchange));
   };
   if (tls.has_value()) {
     Result<std::shared_ptr<boost::asio::ssl::context>> https = MakeHttpsContext(*tls);
@@ -287,10 +288,10 @@ Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
   }
   if (const TokenTable* t = tokens.get()) {
     // Any role's token, for /metrics and the web map alike: what they show (counts, the map's
-    // cells) is no secret from a client of the map.
+    // cells) is no secret from a client of the map. /events needs the watch right (WebRoutes).
     http_options.authorize = [t](std::string_view authorization) {
       std::string why;
-      return t->Authenticate(authorization, &why) != nullptr;
+      return t->Authenticate(authorization, &why);
     };
   }
   auto render = [this] {

@@ -112,6 +112,12 @@ std::vector<ServerKey> ListenerKeys() {
       Key<uint32_t>(
           "auth.max_ingest_streams_per_token",
           [](ServerConfig & c) -> auto& { return c.auth.max_ingest_streams_per_token; }),
+      Key<uint32_t>(
+          "auth.max_watchers_per_token",
+          [](ServerConfig & c) -> auto& { return c.auth.max_watchers_per_token; }),
+      Key<uint32_t>(
+          "auth.max_event_streams_per_token",
+          [](ServerConfig & c) -> auto& { return c.auth.max_event_streams_per_token; }),
       Key<bool>(
           "insecure", [](ServerConfig & c) -> auto& { return c.insecure; }),
   };
@@ -660,6 +666,16 @@ uint32_t QueriesPerToken(const ServerConfig& c) {
 uint32_t IngestStreamsPerToken(const ServerConfig& c) {
   if (c.auth.max_ingest_streams_per_token > 0) return c.auth.max_ingest_streams_per_token;
   return std::max<uint32_t>(1, c.limits.max_ingest_streams / 4);
+}
+
+uint32_t WatchersPerToken(const ServerConfig& c) {
+  if (c.auth.max_watchers_per_token > 0) return c.auth.max_watchers_per_token;
+  return std::max<uint32_t>(1, c.limits.max_watchers / 4);
+}
+
+uint32_t EventStreamsPerToken(const ServerConfig& c) {
+  if (c.auth.max_event_streams_per_token > 0) return c.auth.max_event_streams_per_token;
+  return std::max<uint32_t>(1, kMaxEventStreams / 4);
 }
 
 }  // namespace bgkmap

@@ -25,7 +25,9 @@ bool RoleHas(Role role, Right right);
 struct TokenUsage {
   std::atomic<uint32_t> queries{0};
   std::atomic<uint32_t> ingest_streams{0};
-  std::atomic<uint32_t> corrections{0};  // CorrectPoses and RemoveScans running (at most one)
+  std::atomic<uint32_t> corrections{0};    // CorrectPoses and RemoveScans running (at most one)
+  std::atomic<uint32_t> watchers{0};       // open Watch streams
+  std::atomic<uint32_t> event_streams{0};  // open GET /events streams of the web map
 };
 
 struct Principal {
@@ -35,6 +37,8 @@ struct Principal {
   // Per-token limits; usage is null when authentication is off (no per-token quota).
   uint32_t max_queries = 0;
   uint32_t max_ingest_streams = 0;
+  uint32_t max_watchers = 0;
+  uint32_t max_event_streams = 0;
   std::shared_ptr<TokenUsage> usage;
   // Set when a reload of the tokens file dropped this token: its open streams end within the
   // streams' watchdog period, at most a second (issue 25).

@@ -56,8 +56,9 @@ Result<YAML::Node> ReadTokenList(const std::string& path) {
 Status CheckFields(const YAML::Node& t, const std::string& at) {
   if (!t.IsMap()) return Status::InvalidArgument(at + ": expected a mapping");
   for (const auto& field : t) {
-    static const std::set<std::string> kFields = {"name",   "sha256",      "role",
-                                                  "robots", "max_queries", "max_ingest_streams"};
+    static const std::set<std::string> kFields = {
+        "name",         "sha256",           "role", "robots", "max_queries", "max_ingest_streams",
+        "max_watchers", "max_event_streams"};
     const std::string key = field.first.as<std::string>();
     if (kFields.count(key) == 0) return Status::InvalidArgument(at + "." + key + ": unknown key");
   }
@@ -92,17 +93,20 @@ Status ReadRole(const YAML::Node& t, const std::string& at, Principal* p) {
 // The entry's per-token limits, `defaults` where it names none.
 Status ReadLimits(const YAML::Node& t, const std::string& at, const TokenTable::Defaults& defaults,
                   Principal* p) {
+  const std::pair<const char*, uint32_t Principal::*> kLimits[] = {
+      {"max_queries", &Principal::max_queries},
+      {"max_ingest_streams", &Principal::max_ingest_streams},
+      {"max_watchers", &Principal::max_watchers},
+      {"max_event_streams", &Principal::max_event_streams}};
   p->max_queries = defaults.max_queries;
   p->max_ingest_streams = defaults.max_ingest_streams;
-  if (t["max_queries"]) {
-    Result<uint32_t> v = ReadLimit(t["max_queries"], at + ".max_queries");
+  p->max_watchers = defaults.max_watchers;
+  p->max_event_streams = defaults.max_event_streams;
+  for (const auto& [key, field] : kLimits) {
+    if (!t[key]) continue;
+    Result<uint32_t> v = ReadLimit(t[key], at + "." + key);
     if (!v.ok()) return v.status();
-    p->max_queries = *v;
-  }
-  if (t["max_ingest_streams"]) {
-    Result<uint32_t> v = ReadLimit(t["max_ingest_streams"], at + ".max_ingest_streams");
-    if (!v.ok()) return v.status();
-    p->max_ingest_streams = *v;
+    p->*field = *v;
   }
   return Status::Ok();
 }

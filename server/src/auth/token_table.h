@@ -2,7 +2,7 @@
 //
 //   tokens:
 //     - {name: lidar-7, sha256: <64 hex digits>, role: robot, robots: [lidar-7]}
-//     - {name: planner, sha256: <...>, role: planner, max_queries: 32}
+//     - {name: planner, sha256: <...>, role: planner, max_queries: 32, max_watchers: 4}
 //
 // holding the SHA-256 digests of the tokens, never the tokens. A presented token is hashed and
 // looked up by digest. The table is replaced whole on Reload(); a file that does not load keeps
@@ -29,6 +29,8 @@ class TokenTable {
   struct Defaults {
     uint32_t max_queries = 1;
     uint32_t max_ingest_streams = 1;
+    uint32_t max_watchers = 1;
+    uint32_t max_event_streams = 1;
   };
 
   // Reads `path`; the message names the file and the entry at fault.

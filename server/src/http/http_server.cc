@@ -66,8 +66,8 @@ struct HttpServer::State {
 
   void Accept();
   // The token check, before any route: a 401 for a request without a valid token, or the
-  // answer to /login; nothing if the request may go on.
-  std::optional<HttpResponse> CheckAccess(const HttpRequest& request) const;
+  // answer to /login; nothing if the request may go on, with `*who` its caller.
+  std::optional<HttpResponse> CheckAccess(const HttpRequest& request, PrincipalRef* who) const;
   // Answers a parsed request for /metrics (or, without routes, any path): the status and body.
   HttpResponse Answer(const HttpRequest& request);
 
@@ -220,7 +220,8 @@ class Connection final : public ConnectionBase,
       return;
     }
     const http::request<http::string_body>& request = parser_->get();
-    if (std::optional<HttpResponse> refused = state_.CheckAccess(request)) {
+    PrincipalRef who;
+    if (std::optional<HttpResponse> refused = state_.CheckAccess(request, &who)) {
       keep_alive_ = request.keep_alive();  // a 401 closes (Write: every error does)
       Write(std::move(*refused));
       return;
@@ -234,7 +235,8 @@ class Connection final : public ConnectionBase,
     // A web route answers later (or on another thread): the connection holds itself meanwhile.
     keep_alive_ = request.keep_alive();
     hold_ = this->shared_from_this();
-    state_.options.routes(request, std::make_shared<Exchange>(this->shared_from_this()));
+    state_.options.routes(request, std::move(who),
+                          std::make_shared<Exchange>(this->shared_from_this()));
   }
 
   void Write(http::response<http::string_body> response) {
@@ -409,7 +411,8 @@ void HttpServer::State::CloseAll() {
   io.stop();
 }
 
-std::optional<HttpResponse> HttpServer::State::CheckAccess(const HttpRequest& request) const {
+std::optional<HttpResponse> HttpServer::State::CheckAccess(const HttpRequest& request,
+                                                           PrincipalRef* who) const {
   const std::string_view target(request.target().data(), request.target().size());
   const std::string_view path = target.substr(0, target.find('?'));
   const unsigned version = request.version() == 10 ? 10 : 11;
@@ -424,7 +427,7 @@ std::optional<HttpResponse> HttpServer::State::CheckAccess(const HttpRequest& re
     // The browser's way in: the token from the address, once, into an HttpOnly cookie; the
     // redirect drops it from the address bar.
     const std::string token = LoginTokenFromQuery(target);
-    if (options.authorize != nullptr && !options.authorize("Bearer " + token)) {
+    if (options.authorize != nullptr && options.authorize("Bearer " + token) == nullptr) {
       return unauthorized("unauthorized: open /login?token=<a valid token>\n");
     }
     HttpResponse response{http::status::see_other, version};
@@ -436,15 +439,19 @@ std::optional<HttpResponse> HttpServer::State::CheckAccess(const HttpRequest& re
     }
     return response;
   }
-  if (options.authorize == nullptr) return std::nullopt;
+  if (options.authorize == nullptr) {
+    *who = AnonymousPrincipal();
+    return std::nullopt;
+  }
   const auto header = request[http::field::authorization];
   if (!header.empty()) {
-    if (options.authorize(std::string_view(header.data(), header.size()))) return std::nullopt;
+    *who = options.authorize(std::string_view(header.data(), header.size()));
   } else if (const auto cookie = request[http::field::cookie]; !cookie.empty()) {
     const std::optional<std::string> token =
         TokenFromCookies(std::string_view(cookie.data(), cookie.size()));
-    if (token.has_value() && options.authorize("Bearer " + *token)) return std::nullopt;
+    if (token.has_value()) *who = options.authorize("Bearer " + *token);
   }
+  if (*who != nullptr) return std::nullopt;
   return unauthorized(
       "unauthorized: send 'Authorization: Bearer <token>' (a browser: open "
       "/login?token=<token>)\n");

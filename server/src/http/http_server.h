@@ -15,7 +15,8 @@
 // With Options::tls all of it is served over TLS (HTTPS). With Options::authorize every request,
 // /metrics and the web routes alike, needs a token: an "Authorization: Bearer <token>" header, or
 // for a browser the cookie that GET /login?token=<token> sets (HttpOnly, SameSite=Strict, Secure
-// over TLS) before it redirects to the page. Without one the answer is 401.
+// over TLS) before it redirects to the page. Without one the answer is 401; with one, the routes
+// are told whose it is (a route may refuse a role: /events needs the watch right).
 #pragma once
 
 #include <chrono>
@@ -25,6 +26,7 @@
 #include <string>
 #include <string_view>
 
+#include "auth/principal.h"
 #include "bgkmap/core/status.h"
 #include "http/http_exchange.h"
 
@@ -44,14 +46,16 @@ class HttpServer {
     size_t max_request_bytes = 8192;               // request line, headers and body
     size_t max_connections = 64;                   // open at the same time
     // Answers every path but /metrics and /login, on the endpoint's thread (or later, through
-    // the exchange, from any thread). Unset: 404.
-    std::function<void(const HttpRequest&, std::shared_ptr<HttpExchange>)> routes;
+    // the exchange, from any thread), given who asks (AnonymousPrincipal() without `authorize`).
+    // Unset: 404.
+    std::function<void(const HttpRequest&, PrincipalRef, std::shared_ptr<HttpExchange>)> routes;
     // HTTPS with this context (http/https_context.h); null = plain HTTP. The TLS handshake
     // counts against read_timeout.
     std::shared_ptr<boost::asio::ssl::context> tls;
     // Given each request's credentials as an Authorization header value ("Bearer <token>", from
-    // the header or the login cookie); false answers 401 (null: no check, /login just redirects).
-    std::function<bool(std::string_view authorization)> authorize;
+    // the header or the login cookie): who asks, or null to answer 401 (unset: no check, /login
+    // just redirects).
+    std::function<PrincipalRef(std::string_view authorization)> authorize;
   };
 
   // Resolves and binds `address` ("host:port", port 0 = any free port) and listens. Requests

@@ -2,15 +2,19 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/asio/post.hpp>
 #include <climits>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 namespace bgkmap {
 namespace {
 
 constexpr size_t kMaxTilesPerEvent = 4096;
+// How often the streams are checked for a revoked token (as the gRPC streams' watchdog).
+constexpr std::chrono::seconds kRevocationCheck{1};
 
 std::string EventText(std::string_view name, const nlohmann::json& data) {
   return "event: " + std::string(name) + "\ndata: " + data.dump() + "\n\n";
@@ -19,8 +23,20 @@ std::string EventText(std::string_view name, const nlohmann::json& data) {
 }  // namespace
 
 struct EventStreams::Session {
-  explicit Session(std::shared_ptr<HttpExchange> e) : out(std::move(e)) {}
+  // Takes one of `who`'s event stream slots (none without tokens: null usage); `admitted` says
+  // whether there was one.
+  Session(std::shared_ptr<HttpExchange> e, PrincipalRef w) : out(std::move(e)), who(std::move(w)) {
+    if (who->usage != nullptr && who->usage->event_streams.fetch_add(1) >= who->max_event_streams) {
+      who->usage->event_streams.fetch_sub(1);
+      admitted = false;
+    }
+  }
+  ~Session() {
+    if (admitted && who->usage != nullptr) who->usage->event_streams.fetch_sub(1);
+  }
   const std::shared_ptr<HttpExchange> out;
+  const PrincipalRef who;
+  bool admitted = true;
   std::atomic<uint64_t> hub_id{0};
   std::atomic<bool> flush_posted{false};
 };
@@ -33,7 +49,21 @@ EventStreams::EventStreams(MapPort& map, WatchHub& hub, boost::asio::thread_pool
 
 EventStreams::~EventStreams() { Stop(); }
 
-void EventStreams::Open(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
+void EventStreams::Open(const HttpRequest& request, PrincipalRef who,
+                        std::shared_ptr<HttpExchange> exchange) {
+  auto session = std::make_shared<Session>(std::move(exchange), std::move(who));
+  if (!session->admitted) {
+    const Principal& p = *session->who;
+    HttpResponse many{boost::beast::http::status::too_many_requests, request.version()};
+    many.set(boost::beast::http::field::content_type, "text/plain; charset=utf-8");
+    many.set(boost::beast::http::field::retry_after, "5");
+    many.body() = "token '" + p.name + "' already holds its limit of " +
+                  std::to_string(p.max_event_streams) +
+                  " open event streams (server.auth.max_event_streams_per_token or the token's "
+                  "own limit); retry later\n";
+    session->out->Reply(std::move(many));
+    return;
+  }
   std::unique_lock lock(mu_);
   if (stopped_ || sessions_.size() >= max_clients_) {
     lock.unlock();
@@ -43,11 +73,10 @@ void EventStreams::Open(const HttpRequest& request, std::shared_ptr<HttpExchange
     busy.body() = stopped_ ? "shutting down\n"
                            : "too many event streams (" + std::to_string(max_clients_) +
                                  " open); retry later\n";
-    exchange->Reply(std::move(busy));
+    session->out->Reply(std::move(busy));
     return;
   }
   const uint64_t key = next_key_++;
-  auto session = std::make_shared<Session>(std::move(exchange));
   sessions_[key] = session;
   lock.unlock();
 
@@ -110,12 +139,34 @@ void EventStreams::Remove(uint64_t key) {
 }
 
 void EventStreams::Ping() {
+  using Clock = std::chrono::steady_clock;
   std::unique_lock lock(mu_);
+  Clock::time_point next_ping = Clock::now() + ping_period_;
   while (!stopped_) {
-    cv_.wait_for(lock, ping_period_);
+    cv_.wait_until(lock, std::min(next_ping, Clock::now() + kRevocationCheck));
     if (stopped_) return;
-    // A comment line: browsers ignore it; a peer that went away fails the write.
-    for (auto& [key, s] : sessions_) s->out->Send(": ping\n\n");
+    std::vector<std::shared_ptr<Session>> revoked;
+    for (auto it = sessions_.begin(); it != sessions_.end();) {
+      if (it->second->who->Revoked()) {
+        revoked.push_back(std::move(it->second));
+        it = sessions_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    if (Clock::now() >= next_ping) {
+      // A comment line: browsers ignore it; a peer that went away fails the write.
+      for (auto& [key, s] : sessions_) s->out->Send(": ping\n\n");
+      next_ping = Clock::now() + ping_period_;
+    }
+    if (revoked.empty()) continue;
+    lock.unlock();  // the hub is not called under mu_ (its callbacks do not take it, Remove does)
+    for (const std::shared_ptr<Session>& s : revoked) {
+      if (const uint64_t id = s->hub_id.load(); id != 0) hub_.Unsubscribe(id);
+      spdlog::info("event=web_events_revoked token=\"{}\"", s->who->name);
+      s->out->Close();
+    }
+    lock.lock();
   }
 }
 

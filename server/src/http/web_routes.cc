@@ -126,7 +126,8 @@ WebRoutes::WebRoutes(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool
       min_zoom_(WebMinZoom(limits.max_region_cells)),
       events_(map, hub, pool, options.max_event_clients) {}
 
-void WebRoutes::Handle(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
+void WebRoutes::Handle(const HttpRequest& request, PrincipalRef who,
+                       std::shared_ptr<HttpExchange> exchange) {
   const std::string_view target(request.target().data(), request.target().size());
   const size_t question = target.find('?');
   const std::string_view path = target.substr(0, question);
@@ -154,7 +155,14 @@ void WebRoutes::Handle(const HttpRequest& request, std::shared_ptr<HttpExchange>
   } else if (path == "/robots.json") {
     exchange->Reply(Body(request, "application/json", RobotsJson(map_.Robots()).dump(2) + "\n"));
   } else if (path == "/events") {
-    events_.Open(request, std::move(exchange));
+    if (!who->Has(Right::kWatch)) {
+      // The HTTP twin of Watch, which the role may not call over gRPC either.
+      exchange->Reply(Text(request, http::status::forbidden,
+                           "forbidden: token '" + who->name + "' has role " + RoleName(who->role) +
+                               ", which may not watch (GET /events needs the watch right)"));
+      return;
+    }
+    events_.Open(request, std::move(who), std::move(exchange));
   } else {
     exchange->Reply(Text(request, http::status::not_found,
                          "not found: bgkmapd serves /, /tiles/, /points, /events, /map.json, "

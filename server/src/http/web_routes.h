@@ -14,6 +14,7 @@
 #include <boost/asio/thread_pool.hpp>
 #include <memory>
 
+#include "auth/principal.h"
 #include "bgkmap/server/server_config.h"
 #include "http/http_exchange.h"
 #include "http/sse.h"
@@ -23,8 +24,8 @@
 namespace bgkmap {
 
 struct WebRoutesOptions {
-  size_t max_renders = 8;         // tile, point and map.json reads at once
-  size_t max_event_clients = 16;  // open /events streams
+  size_t max_renders = 8;                       // tile, point and map.json reads at once
+  size_t max_event_clients = kMaxEventStreams;  // open /events streams
 };
 
 class WebRoutes {
@@ -33,9 +34,9 @@ class WebRoutes {
   WebRoutes(MapPort& map, WatchHub& hub, boost::asio::thread_pool& pool,
             std::atomic<uint32_t>& queries, const ServerLimits& limits, WebRoutesOptions options);
 
-  // Answers `request` (any path but /metrics). Called on the HTTP thread: it only parses and
-  // hands the work to the pool.
-  void Handle(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange);
+  // Answers `request` (any path but /metrics) from `who`. Called on the HTTP thread: it only
+  // parses and hands the work to the pool.
+  void Handle(const HttpRequest& request, PrincipalRef who, std::shared_ptr<HttpExchange> exchange);
   // Ends the event streams; called before the HTTP server stops.
   void Stop() { events_.Stop(); }
 

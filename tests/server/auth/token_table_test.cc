@@ -29,7 +29,7 @@ class TokenTableTest : public ::testing::Test {
     return "  - {name: " + name + ", sha256: " + Sha256Hex(token) + ", role: " + role +
            (rest.empty() ? "" : ", " + rest) + "}\n";
   }
-  Result<std::unique_ptr<TokenTable>> Load() { return TokenTable::Load(path_, {2, 3}); }
+  Result<std::unique_ptr<TokenTable>> Load() { return TokenTable::Load(path_, {2, 3, 4, 5}); }
   // The message of a file that does not load.
   std::string Refusal(const std::string& text) {
     Write(text);
@@ -48,7 +48,8 @@ TEST_F(TokenTableTest, Sha256HexIsTheStandardDigest) {
 
 TEST_F(TokenTableTest, TokensAreFoundByTheirDigestWithRoleRobotsAndLimits) {
   Write("tokens:\n" + Entry("r1", "robot-secret", "robot", "robots: [a, b], max_queries: 7") +
-        Entry("plan", "planner-secret", "planner") + Entry("ops", "admin-secret", "admin"));
+        Entry("plan", "planner-secret", "planner", "max_watchers: 8, max_event_streams: 9") +
+        Entry("ops", "admin-secret", "admin"));
   Result<std::unique_ptr<TokenTable>> table = Load();
   ASSERT_TRUE(table.ok()) << table.status().ToString();
   EXPECT_EQ((*table)->size(), 3u);
@@ -67,6 +68,10 @@ TEST_F(TokenTableTest, TokensAreFoundByTheirDigestWithRoleRobotsAndLimits) {
   ASSERT_NE(planner, nullptr) << why;
   EXPECT_EQ(planner->role, Role::kPlanner);
   EXPECT_EQ(planner->max_queries, 2u);
+  EXPECT_EQ(planner->max_watchers, 8u);       // its own
+  EXPECT_EQ(planner->max_event_streams, 9u);  // its own
+  EXPECT_EQ(robot->max_watchers, 4u);         // the defaults
+  EXPECT_EQ(robot->max_event_streams, 5u);
   EXPECT_FALSE(planner->MayIngestAs("a"));
   EXPECT_EQ((*table)->Authenticate("Bearer ADMIN-SECRET", &why), nullptr);
   PrincipalRef admin = (*table)->Authenticate("Bearer admin-secret", &why);
@@ -109,6 +114,8 @@ TEST_F(TokenTableTest, EachMalformedEntryIsRefusedNamingTheFileAndTheEntry) {
       {Entry("x", "t", "admin", "max_queries: 0"), at + ".max_queries: must be in 1..1000000"},
       {Entry("x", "t", "admin", "max_ingest_streams: many"),
        at + ".max_ingest_streams: not a number"},
+      {Entry("x", "t", "admin", "max_watchers: 0"), at + ".max_watchers: must be in 1..1000000"},
+      {Entry("x", "t", "admin", "max_event_streams: [1]"), at + ".max_event_streams: not a number"},
       {Entry("x", "admin-secret", "admin"), at + ".sha256: the same digest as another token"},
       {"  - just a string\n", at + ": expected a mapping"},
   };

@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "loopback_http.h"
 #include "stored_tile_damage.h"
 #include "test_support.h"
 
@@ -29,84 +30,6 @@ namespace bgkmap::testing {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// A connected loopback socket with a receive timeout, closed on destruction.
-class Socket {
- public:
-  explicit Socket(int port, double timeout_s = 15) {
-    fd_ = socket(AF_INET, SOCK_STREAM, 0);
-    timeval timeout{static_cast<time_t>(timeout_s),
-                    static_cast<suseconds_t>(std::fmod(timeout_s, 1.0) * 1e6)};
-    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-    sockaddr_in addr{};
-    addr.sin_family = AF_INET;
-    addr.sin_port = htons(static_cast<uint16_t>(port));
-    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    connected_ = connect(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
-  }
-  ~Socket() { close(fd_); }
-  Socket(const Socket&) = delete;
-  Socket& operator=(const Socket&) = delete;
-  bool connected() const { return connected_; }
-  bool Send(const std::string& bytes) {
-    size_t sent = 0;
-    while (sent < bytes.size()) {
-      const ssize_t n = send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-      if (n <= 0) return false;
-      sent += static_cast<size_t>(n);
-    }
-    return true;
-  }
-  // Appends what arrives to `out`; false on close, error or timeout.
-  bool ReadSome(std::string* out) {
-    char buf[65536];
-    const ssize_t n = recv(fd_, buf, sizeof buf, 0);
-    if (n <= 0) return false;
-    out->append(buf, static_cast<size_t>(n));
-    return true;
-  }
-
- private:
-  int fd_ = -1;
-  bool connected_ = false;
-};
-
-struct Reply {
-  int status = 0;  // 0: no answer
-  std::string headers;
-  std::string body;
-};
-
-// Reads one response (Content-Length framed) from `s`, `buffer` holding bytes already read.
-Reply ReadReply(Socket& s, std::string* buffer) {
-  Reply r;
-  size_t end;
-  while ((end = buffer->find("\r\n\r\n")) == std::string::npos) {
-    if (!s.ReadSome(buffer)) return r;
-  }
-  r.headers = buffer->substr(0, end);
-  if (r.headers.rfind("HTTP/1.", 0) != 0) return r;
-  r.status = std::stoi(r.headers.substr(9, 3));
-  size_t length = 0;
-  const size_t cl = r.headers.find("Content-Length: ");
-  if (cl != std::string::npos) length = std::stoul(r.headers.substr(cl + 16));
-  while (buffer->size() < end + 4 + length) {
-    if (!s.ReadSome(buffer)) return Reply{};
-  }
-  r.body = buffer->substr(end + 4, length);
-  buffer->erase(0, end + 4 + length);
-  return r;
-}
-
-Reply Get(int port, const std::string& target, const std::string& method = "GET") {
-  Socket s(port);
-  if (!s.connected() || !s.Send(method + " " + target +
-                                " HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n")) {
-    return {};
-  }
-  std::string buffer;
-  return ReadReply(s, &buffer);
-}
 
 struct Image {
   int width = 0, height = 0;
@@ -347,25 +270,6 @@ TEST_F(WebMapTest, KeepAlive) {
   const Reply metrics = ReadReply(s, &buffer);
   EXPECT_EQ(metrics.status, 200);
   EXPECT_NE(metrics.headers.find("Connection: close"), std::string::npos);
-}
-
-// Reads an event stream until `event: name` arrives or `seconds` pass; the event's data line.
-std::optional<std::string> ReadEvent(Socket& s, std::string* buffer, const std::string& name,
-                                     double seconds) {
-  const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
-  for (;;) {
-    const size_t at = buffer->find("event: " + name + "\ndata: ");
-    if (at != std::string::npos) {
-      const size_t start = at + name.size() + 14;
-      const size_t end = buffer->find("\n\n", start);
-      if (end != std::string::npos) {
-        std::string data = buffer->substr(start, end - start);
-        buffer->erase(0, end + 2);
-        return data;
-      }
-    }
-    if (Clock::now() > deadline || !s.ReadSome(buffer)) return std::nullopt;
-  }
 }
 
 TEST_F(WebMapTest, EventsTellWhichTilesAScanChanged) {

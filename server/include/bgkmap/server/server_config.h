@@ -128,6 +128,9 @@ struct TlsConfig {
   bool enabled() const { return !cert_file.empty(); }
 };
 
+// Open GET /events streams of the web map at once (docs/webmap.md), all tokens together.
+inline constexpr uint32_t kMaxEventStreams = 16;
+
 // `server.auth`: bearer tokens and their roles, and what one token may hold at a time.
 struct AuthConfig {
   // auth.tokens_file: YAML `tokens: [{name, sha256, role, robots}]`; "" = no authentication.
@@ -138,6 +141,11 @@ struct AuthConfig {
   // tokens file win). 0 = a quarter of server.max_concurrent_queries / max_ingest_streams.
   uint32_t max_queries_per_token = 0;
   uint32_t max_ingest_streams_per_token = 0;
+  // auth.max_watchers_per_token / auth.max_event_streams_per_token: open Watch streams and open
+  // GET /events streams of one token (a token's own `max_watchers` / `max_event_streams` win).
+  // 0 = a quarter of server.max_watchers / of the web map's kMaxEventStreams.
+  uint32_t max_watchers_per_token = 0;
+  uint32_t max_event_streams_per_token = 0;
   bool enabled() const { return !tokens_file.empty(); }
 };
 
@@ -214,5 +222,7 @@ bool IsLoopbackAddress(const std::string& address);
 // The per-token limits in effect (0 in the config: a quarter of the global limit, at least 1).
 uint32_t QueriesPerToken(const ServerConfig& config);
 uint32_t IngestStreamsPerToken(const ServerConfig& config);
+uint32_t WatchersPerToken(const ServerConfig& config);
+uint32_t EventStreamsPerToken(const ServerConfig& config);
 
 }  // namespace bgkmap

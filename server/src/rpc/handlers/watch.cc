@@ -5,6 +5,7 @@
 #include <boost/asio/post.hpp>
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -23,6 +24,15 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
     if (grpc::Status s = Parse(request); !s.ok()) {
       Finish(s);
       return;
+    }
+    // One token holds at most its share of the server.max_watchers slots (issue 25).
+    if (who_->usage != nullptr) {
+      token_slot_.emplace(who_->usage->watchers, who_->max_watchers);
+      if (!*token_slot_) {
+        Finish(TokenQuotaReached(*who_, who_->max_watchers, "open watches",
+                                 "server.auth.max_watchers_per_token"));
+        return;
+      }
     }
     const SessionRegistry::Admit admit =
         ctx_.sessions.Add(this, SessionRegistry::Kind::kWatch, ctx_.limits.max_watchers);
@@ -205,6 +215,7 @@ class WatchStream final : public grpc::ServerWriteReactor<v1::TileUpdate>, publi
 
   ServiceContext& ctx_;
   const PrincipalRef who_;
+  std::optional<Permit> token_slot_;  // one of the token's max_watchers, held until OnDone
   StalledWriteWatch stalled_;
   bool registered_ = false;
   bool stalled_registered_ = false;
