@@ -518,6 +518,8 @@ void TileStore::ReclaimDropped(uint64_t through) {
   // (issue 25). The version-keyed families are never compacted on their own (store_db.cc), so
   // their files hold runs of consecutive versions: those wholly dropped are deleted, writing
   // nothing, and only the file that straddles the horizon is compacted, writing what it keeps.
+  // Deleting files ignores snapshots: safe because nothing reads below the horizon (replay and
+  // corrections start at a retained checkpoint, which the checkpoint just written keeps).
   const std::string begin = VersionKeyBytes(0), end = VersionKeyBytes(through + 1);
   const rocksdb::Slice from(begin), limit(end);
   const rocksdb::RangePtr dropped(&from, &limit);
