@@ -50,7 +50,13 @@ void CheckRegion(const uint8_t* data, size_t size, const bgkmap::GridGeometry& g
       continue;
     }
     if (box.empty() || box.width() % stride != 0 || box.height() % stride != 0) std::abort();
-    if (limit && static_cast<uint64_t>(box.cell_count()) > limits.max_region_cells) std::abort();
+    // The limits count output pixels (max_region_cells) and map cells read
+    // (max_region_read_cells).
+    const uint64_t cells = static_cast<uint64_t>(box.cell_count());
+    const uint64_t pixels = cells / (static_cast<uint64_t>(stride) * stride);
+    if (limit && (pixels > limits.max_region_cells || cells > limits.max_region_read_cells)) {
+      std::abort();
+    }
   }
 }
 
