@@ -6,7 +6,11 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <nats/nats.h>
+
+#include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -92,5 +96,51 @@ void NatsCluster::Kill(int i) {
 }
 
 bool NatsCluster::Restart(int i) { return Launch(i); }
+
+namespace {
+
+// Server `name` is the leader or a current replica of every replicated stream in `streams`.
+bool HoldsEveryStream(const jsStreamInfoList& streams, const std::string& name) {
+  for (int s = 0; s < streams.Count; ++s) {
+    const jsClusterInfo* cluster = streams.List[s]->Cluster;
+    if (cluster == nullptr || cluster->ReplicasLen == 0) continue;
+    if (cluster->Leader != nullptr && name == cluster->Leader) continue;
+    for (int r = 0; r < cluster->ReplicasLen; ++r) {
+      const jsPeerInfo* peer = cluster->Replicas[r];
+      if (name == peer->Name && (!peer->Current || peer->Offline || peer->Lag != 0)) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool NatsCluster::WaitCaughtUp(int i, double seconds) {
+  std::string others;
+  for (size_t j = 0; j < client_ports_.size(); ++j) {
+    if (static_cast<int>(j) == i) continue;
+    if (!others.empty()) others.push_back(',');
+    others.append(url(static_cast<int>(j)));
+  }
+  std::string name = "n";  // (built in two steps: GCC 12's -Wrestrict misfires on "n" + string)
+  name += std::to_string(i);
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  bool caught_up = false;
+  while (!caught_up && std::chrono::steady_clock::now() < until) {
+    natsConnection* conn = nullptr;
+    jsCtx* js = nullptr;
+    jsStreamInfoList* streams = nullptr;
+    if (natsConnection_ConnectTo(&conn, others.c_str()) == NATS_OK &&
+        natsConnection_JetStream(&js, conn, nullptr) == NATS_OK &&
+        js_Streams(&streams, js, nullptr, nullptr) == NATS_OK) {
+      caught_up = HoldsEveryStream(*streams, name);
+    }
+    if (streams != nullptr) jsStreamInfoList_Destroy(streams);
+    jsCtx_Destroy(js);
+    natsConnection_Destroy(conn);
+    if (!caught_up) usleep(200 * 1000);
+  }
+  return caught_up;
+}
 
 }  // namespace bgkmap::testing

@@ -22,6 +22,10 @@ class NatsCluster {
   std::string url(int i) const;
   void Kill(int i);
   bool Restart(int i);  // true once the server is up again
+  // Waits until server i holds every stream it replicates up to date (the stream's leader, or a
+  // replica JetStream reports current with no lag), asking the cluster through the other
+  // servers; false after `seconds`. A restarted server is needed for a quorum only once this holds.
+  bool WaitCaughtUp(int i, double seconds);
 
  private:
   bool Launch(int i);

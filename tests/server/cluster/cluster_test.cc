@@ -129,12 +129,18 @@ struct Reference {
   return ::testing::AssertionSuccess();
 }
 
-// SameAnswers, retried for 30 s from `since`: while JetStream elects new leaders after a NATS
-// server's death, a query may find a partition unserved (UNAVAILABLE).
+// How long a cluster may take to answer as one server again after a death (a JetStream election
+// and the readers re-opened after it): a liveness bound, not a wait. Generous, because on CI's
+// two loaded cores an election alone took 16 s and the whole recovery 27 s (a 30 s bound failed
+// there); the tests print the time each recovery took.
+constexpr std::chrono::seconds kRecoveryBound{120};
+
+// SameAnswers, retried for kRecoveryBound from `since`: while JetStream elects new leaders after a
+// NATS server's death, a query may find a partition unserved (UNAVAILABLE).
 ::testing::AssertionResult EventuallySameAnswers(Client& node, Reference& ref,
                                                  std::chrono::steady_clock::time_point since) {
   ::testing::AssertionResult same = SameAnswers(node, ref);
-  while (!same && std::chrono::steady_clock::now() - since < std::chrono::seconds(30)) {
+  while (!same && std::chrono::steady_clock::now() - since < kRecoveryBound) {
     same = SameAnswers(node, ref);
   }
   return same;
@@ -400,16 +406,19 @@ TEST(ClusterTest, SurvivesANatsServerAndItCatchesUp) {
   const auto killed = std::chrono::steady_clock::now();
   // Two of three remain: the log and the buckets keep their quorum. Appends wait out the
   // election; a query may find a partition unserved while its reader is re-created (UNAVAILABLE,
-  // retried here for at most 30 s).
+  // retried here up to kRecoveryBound).
   InsertAll(b.client(), scans, half, scans.size());
   EXPECT_TRUE(EventuallySameAnswers(a.client(), ref, killed));
   std::printf("NATS server killed: answers equal again after %.1f s\n",
               std::chrono::duration<double>(std::chrono::steady_clock::now() - killed).count());
   // n0 comes back and catches up; with n1 down, the quorum needs it.
   ASSERT_TRUE(nats.Restart(0));
-  std::this_thread::sleep_for(std::chrono::seconds(3));
+  ASSERT_TRUE(nats.WaitCaughtUp(0, kRecoveryBound.count())) << "n0 never caught up";
   nats.Kill(1);
-  EXPECT_TRUE(EventuallySameAnswers(b.client(), ref, std::chrono::steady_clock::now()));
+  const auto killed_again = std::chrono::steady_clock::now();
+  EXPECT_TRUE(EventuallySameAnswers(b.client(), ref, killed_again));
+  std::printf("a second NATS server killed: answers equal again after %.1f s\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - killed_again).count());
 }
 
 // The newest update of each tile a Watch sent.
@@ -528,7 +537,7 @@ TEST(ClusterTest, WatchOnAnyShardSeesEveryChange) {
   // (Counted by known cells: found by CI, where shard a's change feed was still reading the
   // first half's entries when the watch subscribed, and their boxes' empty tiles came too.)
   while (latest.KnownCount() < tiles_at_half &&
-         std::chrono::steady_clock::now() - started < std::chrono::seconds(20)) {
+         std::chrono::steady_clock::now() - started < kRecoveryBound) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   ASSERT_EQ(latest.KnownCount(), tiles_at_half) << "the first snapshot";
@@ -537,7 +546,7 @@ TEST(ClusterTest, WatchOnAnyShardSeesEveryChange) {
   InsertAll(b.client(), scans, half, scans.size());
   const auto since = std::chrono::steady_clock::now();
   ::testing::AssertionResult same = WatchedEquals(latest.Get(), want, g);
-  while (!same && std::chrono::steady_clock::now() - since < std::chrono::seconds(20)) {
+  while (!same && std::chrono::steady_clock::now() - since < kRecoveryBound) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     same = WatchedEquals(latest.Get(), want, g);
   }
