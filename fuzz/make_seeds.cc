@@ -70,14 +70,16 @@ MapParams SmallTileParams() {
 // The compact point target's layout: step, count, order, the zstd frame.
 void CompactPointSeeds(const io::Scan& scan) {
   const std::vector<Point3f> points = Every(scan.points, 200);
-  for (PointOrder order : {PointOrder::kScanOrder, PointOrder::kSpatialSort}) {
+  const std::pair<PointOrder, const char*> orders[] = {{PointOrder::kScanOrder, "street_scan_order"},
+                                                       {PointOrder::kSpatialSort, "street_sorted"},
+                                                       {PointOrder::kScanRay, "street_scan_ray"}};
+  for (const auto& [order, name] : orders) {
     const CompactPoints c = Must(EncodeCompactPoints(points, kDefaultCompactStep, nullptr, order));
     std::string bytes(13, '\0');
     std::memcpy(bytes.data(), &c.step, 8);
     std::memcpy(bytes.data() + 8, &c.count, 4);
     bytes[12] = static_cast<char>(c.order);
-    Put("compact_points", order == PointOrder::kScanOrder ? "street_scan_order" : "street_sorted",
-        bytes + c.data);
+    Put("compact_points", name, bytes + c.data);
   }
 }
 

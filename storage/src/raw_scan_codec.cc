@@ -19,11 +19,11 @@ bool SamePoints(const std::vector<Point3f>& a, const std::vector<Point3f>& b) {
 }
 
 // The compact form of `source`'s points if it gives back exactly these points in this order:
-// the smaller order first (a spatially sorted scan's points are already sorted), else the scan
-// order. None for points that are not all on the quantum's grid.
+// the smaller order first (a spatially sorted scan's points are already sorted), else along the
+// rays (or, where those residuals overflow, the plain scan order). None for points that are not all on the quantum's grid.
 std::optional<CompactPoints> CompactForm(const RawScan& source) {
   if (!(source.quantum > 0.0)) return std::nullopt;
-  for (std::optional<PointOrder> order : {std::optional<PointOrder>(), {PointOrder::kScanOrder}}) {
+  for (std::optional<PointOrder> order : {std::optional<PointOrder>(), {PointOrder::kScanRay}}) {
     uint64_t skipped = 0;
     Result<CompactPoints> compact =
         EncodeCompactPoints(source.points, source.quantum, &skipped, order);

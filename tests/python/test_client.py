@@ -604,6 +604,35 @@ def test_compact_scans_give_the_map_of_the_dequantized_points(street):
         assert float_server.stop() == 0
 
 
+def test_the_ray_order_encoder_follows_the_integer_rule():
+    """The Python client's POINT_ORDER_SCAN_RAY residuals (compact_points.h): the rounding half
+    away from zero against exact fractions for every sign; a point predicted off its ray by
+    what moved along it gives a zero residual on the other axes; extremes that overflow int32 give
+    None, and the encoder then sends plain differences."""
+    from fractions import Fraction
+
+    from bgkmap import _codec
+    from bgkmap.v1 import ingest_pb2
+
+    a = np.array([5, -5, 4, -4, 7, 0, 1 << 61, -(1 << 61)], dtype=np.int64)
+    b = np.array([-2, -2, -3, 3, 2, 5, 3, 7], dtype=np.int64)
+    for x, y, got in zip(a, b, _codec._divide_rounded(a, b)):
+        exact = Fraction(int(x), int(y))
+        want = int(abs(exact) + Fraction(1, 2)) * (1 if exact >= 0 else -1)
+        assert got == want, (x, y)
+    # Along a ray through the origin: (1000, 500, -250) scaled; the linear prediction from the two
+    # before misses by what the range changed, all of it along the ray.
+    q = np.array([[1000, 500, -250], [2000, 1000, -500], [3000, 1500, -750], [4400, 2200, -1100]])
+    r = _codec._ray_residuals(q.astype(np.int64))
+    assert r.tolist()[3] == [400, 0, 0]
+    # 1,200 km back and forth: the ray's residual 4 x 6e8 > 2^31, a difference 1.2e9 < 2^31.
+    extreme = np.array([[6e8, 0, 0], [-6e8, 0, 0], [6e8, 0, 0]])
+    assert _codec._ray_residuals(extreme.astype(np.int64)) is None
+    out = ingest_pb2.CompactPoints()
+    assert _codec.compact_points(extreme * 0.002, 0.002, out) == 0
+    assert out.order == ingest_pb2.POINT_ORDER_SCAN
+
+
 def test_a_region_over_the_server_limit_is_read_in_pieces_and_stitched(street, client):
     """A server whose max_region_cells is far below the street map (20,000 cells, ~1% of it):
     query splits the box into pieces of whole pixel blocks and stitches them into exactly the

@@ -168,8 +168,8 @@ def pack_points(points) -> bytes:
     return np.ascontiguousarray(array[:, :3], dtype=_F32).tobytes()
 
 
-# The compact point encoding (docs/server.md "Compact scans"), the C++ codec's scan order
-# (proto/codec/include/bgkmap/proto/compact_points.h). Needs Debian's python3-zstandard; without
+# The compact point encoding (docs/server.md "Compact scans"), the C++ codec's orders in the order
+# sent (proto/codec/include/bgkmap/proto/compact_points.h). Needs Debian's python3-zstandard; without
 # it scans go as float32, which the server accepts as well.
 try:
     import zstandard as _zstd
@@ -180,12 +180,45 @@ COMPACT_STEP = 0.002  # metres, as the C++ client
 _SCAN_ORDER_LIMIT = 1 << 30
 
 
+def _divide_rounded(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a / b rounded half away from zero in integers (b != 0), as the C++ codec: C's truncating
+    division of a +- floor(|b| / 2) by b."""
+    num = a + np.where(a >= 0, 1, -1) * (np.abs(b) // 2)
+    return np.where((num >= 0) == (b > 0), 1, -1) * (np.abs(num) // np.abs(b))
+
+
+def _ray_residuals(q: np.ndarray) -> Optional[np.ndarray]:
+    """POINT_ORDER_SCAN_RAY's residuals (compact_points.h has the rule): each point predicted
+    from the two before it, the error off the previous point's ray predicted from the error on
+    that point's largest axis. None if a residual does not fit int32."""
+    n = len(q)
+    prev = np.zeros_like(q)
+    prev[1:] = q[:-1]
+    base = 2 * prev
+    base[2:] -= q[:-2]
+    if n > 1:
+        base[1] = q[0]
+    e = q - base
+    axis = np.argmax(np.abs(prev), axis=1)  # the first of equals, 0 for point 0
+    rows = np.arange(n)
+    on_axis = e[rows, axis][:, None]
+    prev_axis = prev[rows, axis][:, None]
+    safe = np.where(prev_axis == 0, 1, prev_axis)
+    along = np.where(prev_axis == 0, 0, _divide_rounded(on_axis * prev, safe))
+    along[rows, axis] = 0
+    r = e - along
+    if r.size and (r.min() < -(1 << 31) or r.max() >= (1 << 31)):
+        return None
+    return r
+
+
 def compact_points(points, step: float, out: ingest_pb2.CompactPoints) -> Optional[int]:
-    """Quantizes Nx3|Nx4 points to `step` and fills `out` in the scan order: per point the
-    zigzagged int32 difference to the previous one, as 12 byte planes (byte b of axis c for every
-    point, b outer, c inner), then zstd. Returns how many non-finite points were left out (the
-    server drops them anyway), or None if a point has no quantized value (|q| >= 2^30) or zstd is
-    missing: then the points must go as float32."""
+    """Quantizes Nx3|Nx4 points to `step` and fills `out` in the order sent: along the rays
+    (POINT_ORDER_SCAN_RAY) or, where those residuals overflow, as plain differences
+    (POINT_ORDER_SCAN); zigzagged int32 as 12 byte planes (byte b of axis c for every point, b
+    outer, c inner), then zstd. Returns how many non-finite points were left out (the server drops
+    them anyway), or None if a point has no quantized value (|q| >= 2^30) or zstd is missing:
+    then the points must go as float32."""
     if _zstd is None:
         return None
     xyz = np.asarray(points)[:, :3].astype(_F32).astype(np.float64)
@@ -195,12 +228,15 @@ def compact_points(points, step: float, out: ingest_pb2.CompactPoints) -> Option
     if q.size and np.max(np.abs(q)) >= _SCAN_ORDER_LIMIT:
         return None
     q = q.astype(np.int64)
-    d = np.diff(q, axis=0, prepend=np.zeros((1, 3), dtype=np.int64))
+    d = _ray_residuals(q)
+    out.order = ingest_pb2.POINT_ORDER_SCAN_RAY
+    if d is None:
+        d = np.diff(q, axis=0, prepend=np.zeros((1, 3), dtype=np.int64))
+        out.order = ingest_pb2.POINT_ORDER_SCAN
     z = ((d << 1) ^ (d >> 63)).astype("<u4")
     planes = z.view(np.uint8).reshape(len(z), 3, 4).transpose(2, 1, 0)
     out.step = step
     out.count = len(z)
-    out.order = ingest_pb2.POINT_ORDER_SCAN
     out.data = _zstd.ZstdCompressor(level=3).compress(np.ascontiguousarray(planes).tobytes())
     return int(np.count_nonzero(~finite))
 

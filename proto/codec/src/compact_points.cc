@@ -50,15 +50,76 @@ uint64_t Compact(uint64_t v) {
   return v;
 }
 
+void PutPlanes(uint32_t z, size_t n, size_t i, int c, std::string* out) {
+  for (int b = 0; b < 4; ++b) (*out)[(b * 3 + c) * n + i] = static_cast<char>(z >> (8 * b));
+}
+
+uint32_t GetPlanes(const std::string& bytes, size_t n, size_t i, int c) {
+  uint32_t z = 0;
+  for (int b = 0; b < 4; ++b) {
+    z |= static_cast<uint32_t>(static_cast<uint8_t>(bytes[(b * 3 + c) * n + i])) << (8 * b);
+  }
+  return z;
+}
+
 std::string ScanOrderBytes(const std::span<const QuantizedPoint> points) {
   const size_t n = points.size();
   std::string out(n * kBytesPerScanOrderPoint, '\0');
   int64_t prev[3] = {0, 0, 0};
   for (size_t i = 0; i < n; ++i) {
     for (int c = 0; c < 3; ++c) {
-      const uint32_t z = ZigZag(points[i].q[c] - prev[c]);
+      PutPlanes(ZigZag(points[i].q[c] - prev[c]), n, i, c, &out);
       prev[c] = points[i].q[c];
-      for (int b = 0; b < 4; ++b) out[(b * 3 + c) * n + i] = static_cast<char>(z >> (8 * b));
+    }
+  }
+  return out;
+}
+
+// kScanRay's prediction of point i from the two before it (compact_points.h has the rule).
+struct RayPrediction {
+  int64_t base[3];  // the linear prediction
+  int64_t prev[3];  // q_{i-1}, whose largest axis carries the ray
+  int axis = 0;     // that axis
+};
+
+RayPrediction PredictRay(const int64_t* prev, const int64_t* before, size_t i) {
+  RayPrediction p{};
+  for (int c = 0; c < 3; ++c) {
+    p.prev[c] = i >= 1 ? prev[c] : 0;
+    p.base[c] = i >= 2 ? 2 * prev[c] - before[c] : p.prev[c];
+  }
+  for (int c = 1; c < 3; ++c) {
+    if (std::abs(p.prev[c]) > std::abs(p.prev[p.axis])) p.axis = c;
+  }
+  return p;
+}
+
+// a / b rounded half away from zero, b != 0 (integers only: both ends agree on every machine).
+int64_t DivideRounded(int64_t a, int64_t b) {
+  const int64_t half = std::abs(b) / 2;
+  return (a >= 0 ? a + half : a - half) / b;
+}
+
+// The part of the other axes' error the ray's axis predicts: the point moved along its ray.
+int64_t AlongRay(const RayPrediction& p, int64_t error_on_axis, int c) {
+  if (c == p.axis || p.prev[p.axis] == 0) return 0;
+  return DivideRounded(error_on_axis * p.prev[c], p.prev[p.axis]);
+}
+
+// None if a residual does not fit int32 (points far apart: the scan order takes them).
+std::optional<std::string> ScanRayBytes(const std::span<const QuantizedPoint> points) {
+  const size_t n = points.size();
+  std::string out(n * kBytesPerScanOrderPoint, '\0');
+  for (size_t i = 0; i < n; ++i) {
+    const RayPrediction p = PredictRay(i >= 1 ? points[i - 1].q : nullptr,
+                                       i >= 2 ? points[i - 2].q : nullptr, i);
+    const int64_t on_axis = points[i].q[p.axis] - p.base[p.axis];
+    for (int c = 0; c < 3; ++c) {
+      const int64_t r = points[i].q[c] - p.base[c] - AlongRay(p, on_axis, c);
+      if (r < std::numeric_limits<int32_t>::min() || r > std::numeric_limits<int32_t>::max()) {
+        return std::nullopt;
+      }
+      PutPlanes(ZigZag(r), n, i, c, &out);
     }
   }
   return out;
@@ -130,11 +191,7 @@ Result<std::vector<Point3f>> DecodeScanOrder(const std::string& bytes, uint32_t 
   for (size_t i = 0; i < n; ++i) {
     float xyz[3];
     for (int c = 0; c < 3; ++c) {
-      uint32_t z = 0;
-      for (int b = 0; b < 4; ++b) {
-        z |= static_cast<uint32_t>(static_cast<uint8_t>(bytes[(b * 3 + c) * n + i])) << (8 * b);
-      }
-      q[c] += UnZigZag(z);
+      q[c] += UnZigZag(GetPlanes(bytes, n, i, c));
       if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) {
         return Status::InvalidArgument("compact_points.data: point " + std::to_string(i) +
                                        " leaves the quantized range |q| < 2^30");
@@ -142,6 +199,36 @@ Result<std::vector<Point3f>> DecodeScanOrder(const std::string& bytes, uint32_t 
       xyz[c] = Dequantize(q[c], step);
     }
     points[i] = {xyz[0], xyz[1], xyz[2]};
+  }
+  return points;
+}
+
+Result<std::vector<Point3f>> DecodeScanRay(const std::string& bytes, uint32_t count,
+                                           double step) {
+  const size_t n = count;
+  if (bytes.size() != n * kBytesPerScanOrderPoint) {
+    return Status::InvalidArgument(
+        "compact_points.data: inflates to " + std::to_string(bytes.size()) +
+        " bytes, not 12 x count = " + std::to_string(n * kBytesPerScanOrderPoint));
+  }
+  std::vector<Point3f> points(n);
+  int64_t prev[3] = {0, 0, 0}, before[3] = {0, 0, 0};
+  for (size_t i = 0; i < n; ++i) {
+    const RayPrediction p = PredictRay(prev, before, i);
+    // |residual| <= 2^31 and |q| < 2^30: every product below fits int64.
+    const int64_t on_axis = UnZigZag(GetPlanes(bytes, n, i, p.axis));
+    int64_t q[3];
+    for (int c = 0; c < 3; ++c) {
+      const int64_t r = c == p.axis ? on_axis : UnZigZag(GetPlanes(bytes, n, i, c));
+      q[c] = p.base[c] + r + AlongRay(p, on_axis, c);
+      if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) {
+        return Status::InvalidArgument("compact_points.data: point " + std::to_string(i) +
+                                       " leaves the quantized range |q| < 2^30");
+      }
+    }
+    std::copy(prev, prev + 3, before);
+    std::copy(q, q + 3, prev);
+    points[i] = {Dequantize(q[0], step), Dequantize(q[1], step), Dequantize(q[2], step)};
   }
   return points;
 }
@@ -205,12 +292,16 @@ Result<CompactPoints> EncodeQuantizedPoints(std::span<const QuantizedPoint> poin
   CompactPoints out;
   out.step = step;
   out.count = static_cast<uint32_t>(points.size());
+  // In the order sent: along the rays where every residual fits int32, else plain differences.
   if (order != PointOrder::kSpatialSort || !fits_morton) {
-    out.data = Compress(ScanOrderBytes(points));
+    std::optional<std::string> ray;
+    if (order != PointOrder::kScanOrder) ray = ScanRayBytes(points);
+    out.order = ray ? PointOrder::kScanRay : PointOrder::kScanOrder;
+    out.data = Compress(ray ? *ray : ScanOrderBytes(points));
   }
-  if (fits_morton && order != PointOrder::kScanOrder) {
+  if (fits_morton && (!order || order == PointOrder::kSpatialSort)) {
     std::string sorted = Compress(SpatialSortBytes(points));
-    if (out.data.empty() || sorted.size() < out.data.size()) {
+    if (order || sorted.size() < out.data.size()) {
       out.order = PointOrder::kSpatialSort;
       out.data = std::move(sorted);
     }
@@ -244,6 +335,11 @@ Result<std::vector<Point3f>> DecodeCompactPoints(const CompactPoints& compact,
       Result<std::string> bytes = Inflate(compact.data, compact.count * kBytesPerScanOrderPoint);
       if (!bytes.ok()) return bytes.status();
       return DecodeScanOrder(*bytes, compact.count, compact.step);
+    }
+    case PointOrder::kScanRay: {
+      Result<std::string> bytes = Inflate(compact.data, compact.count * kBytesPerScanOrderPoint);
+      if (!bytes.ok()) return bytes.status();
+      return DecodeScanRay(*bytes, compact.count, compact.step);
     }
     case PointOrder::kSpatialSort: {
       Result<std::string> bytes = Inflate(compact.data, compact.count * kMaxVarintBytes);

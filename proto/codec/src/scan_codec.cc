@@ -25,8 +25,16 @@ ScanPointCounts FromProto(const v1::PointCounts& c) {
 void ToProto(const CompactPoints& compact, v1::CompactPoints* out) {
   out->set_step(compact.step);
   out->set_count(compact.count);
-  out->set_order(compact.order == PointOrder::kSpatialSort ? v1::POINT_ORDER_SPATIAL_SORT
-                                                           : v1::POINT_ORDER_SCAN);
+  switch (compact.order) {
+    case PointOrder::kSpatialSort:
+      out->set_order(v1::POINT_ORDER_SPATIAL_SORT);
+      break;
+    case PointOrder::kScanRay:
+      out->set_order(v1::POINT_ORDER_SCAN_RAY);
+      break;
+    default:
+      out->set_order(v1::POINT_ORDER_SCAN);
+  }
   out->set_data(compact.data);
 }
 
@@ -40,6 +48,9 @@ CompactPoints FromProto(const v1::CompactPoints& compact) {
       break;
     case v1::POINT_ORDER_SPATIAL_SORT:
       out.order = PointOrder::kSpatialSort;
+      break;
+    case v1::POINT_ORDER_SCAN_RAY:
+      out.order = PointOrder::kScanRay;
       break;
     default:
       out.order = static_cast<PointOrder>(0xff);

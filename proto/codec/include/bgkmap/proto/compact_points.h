@@ -5,11 +5,19 @@
 // 2^30, and a point's dequantized coordinate is, by definition,
 //   static_cast<float>(static_cast<double>(q) * step).
 // The server integrates exactly these points: the map of a compact scan is the map of its
-// dequantized points, bit for bit. The integers travel in one of two orders, whichever the
+// dequantized points, bit for bit. The integers travel in one of three orders, whichever the
 // encoder finds smaller, then zstd:
 //   kScanOrder:   the points in the order sent; per point the zigzagged int32 difference to the
 //                 previous point (the first to 0), laid out as 12 byte planes (byte b of axis c
 //                 for every point, b outer, c inner), 12 bytes per point before zstd.
+//   kScanRay:     the points in the order sent, each predicted from the two before it, for a
+//                 spinning lidar's points along a ring, where what the prediction misses is mostly
+//                 the range: P = 2 q[i-1] - q[i-2] (P = q[0] for point 1, 0 for point 0); the
+//                 error e = q[i] - P; m the axis of q[i-1]'s largest |coordinate| (the first of
+//                 equals; 0 for point 0); on m the residual is e_m, on each other axis c it is
+//                 e_c - round(e_m * q[i-1]_c / q[i-1]_m) (0 subtracted when q[i-1]_m = 0),
+//                 rounded half away from zero in integers. Residuals zigzagged int32 in 12 byte
+//                 planes as kScanOrder. Integers only, so every machine decodes the same points.
 //   kSpatialSort: the points sorted by the Morton key of (q + 2^20) per axis (21 bits each, so
 //                 |q| < 2^20); the differences of the sorted keys as LEB128 varints.
 // Pure: no I/O, no protobuf. Malformed input is a Status naming what is wrong.
@@ -27,7 +35,7 @@
 
 namespace bgkmap {
 
-enum class PointOrder : uint8_t { kScanOrder = 0, kSpatialSort = 1 };
+enum class PointOrder : uint8_t { kScanOrder = 0, kSpatialSort = 1, kScanRay = 2 };
 
 // The default step: 2 mm, so a coordinate moves at most 1 mm, far below any cell.
 inline constexpr double kDefaultCompactStep = 0.002;
@@ -58,8 +66,9 @@ inline Point3f DequantizePoint(const QuantizedPoint& p, double step) {
 }
 
 // Encodes quantized points (each from QuantizePoint with `step`, which must be finite and in
-// (0, kMaxCompactStep]). Picks the smaller of the two orders, or `order` if given (the spatial
-// sort only if every |q| < 2^20, else the scan order).
+// (0, kMaxCompactStep]). Picks the smaller of kScanRay and kSpatialSort, or `order` if given.
+// Where the asked order cannot hold the points the scan order takes them: the spatial sort
+// needs every |q| < 2^20, kScanRay every residual within int32.
 Result<CompactPoints> EncodeQuantizedPoints(std::span<const QuantizedPoint> points, double step,
                                             std::optional<PointOrder> order = std::nullopt);
 
