@@ -272,6 +272,14 @@ TEST(KittiSequenceTest, PcdFolderReadsLikeBinFolder) {
   ASSERT_FALSE(none.ok());
   EXPECT_NE(none.status().message().find("neither NNNNNN.bin nor NNNNNN.pcd"), std::string::npos)
       << none.status().message();
+  // A folder without velodyne/ at all says what a sequence folder holds.
+  TempDir bare;
+  Result<KittiSequence> nothing = KittiSequence::Open(bare.path().string());
+  ASSERT_FALSE(nothing.ok());
+  EXPECT_EQ(nothing.status().message(),
+            bare.path().string() +
+                ": no scans (a sequence folder holds velodyne/NNNNNN.bin or velodyne/NNNNNN.pcd "
+                "and poses.txt; recordings are .mcap, .db3 or .bag)");
 }
 
 }  // namespace

@@ -108,8 +108,11 @@ Result<KittiSequence> KittiSequence::Open(const std::string& directory) {
     return Status::IoError(directory + ": not a directory");
   }
   const fs::path scan_dir = fs::path(directory) / "velodyne";
-  if (!fs::is_directory(scan_dir, ec))
-    return Status::IoError(scan_dir.string() + ": not a directory");
+  if (!fs::is_directory(scan_dir, ec)) {
+    return Status::IoError(directory +
+                           ": no scans (a sequence folder holds velodyne/NNNNNN.bin or "
+                           "velodyne/NNNNNN.pcd and poses.txt; recordings are .mcap, .db3 or .bag)");
+  }
 
   Result<std::vector<std::string>> scans = ListScans(scan_dir);
   if (!scans.ok()) return scans.status();
