@@ -251,6 +251,7 @@ int RunQuery(const QueryOptions& o) {
       *OutputKindOf(o.out, "--out") == OutputKind::kGeoTiff && o.png.empty() && o.ot.empty();
   RegionRead read;
   if (streamed) {
+    tiff->cog_cache_bytes = max_bytes / 4;  // the COG driver's copy: GDAL's cache, a window's worth
     Result<RegionRead> r = StreamGeoTiff(client, query, res, budget,
                                          WindowPixels(max_bytes, layers->size()), o.out, *tiff);
     if (!r.ok()) return Fail("query", r.status().message());

@@ -178,11 +178,16 @@ Status GeoTiffWriter::Finish() {
   cog_options.SetNameValue("OVERVIEWS", "AUTO");
   cog_options.SetNameValue("RESAMPLING", "NEAREST");
   cog_options.SetNameValue("BIGTIFF", "IF_SAFER");
+  const GIntBig cache_before = GDALGetCacheMax64();
+  if (w.options.cog_cache_bytes > 0) {
+    GDALSetCacheMax64(static_cast<GIntBig>(w.options.cog_cache_bytes));
+  }
   CPLErrorReset();
   DatasetPtr ds(
       cog->CreateCopy(w.path.c_str(), staged.get(), FALSE, cog_options.List(), nullptr, nullptr));
-  if (!ds) return GdalError(w.path, "cannot write Cloud-Optimized GeoTIFF");
-  Status closed = CloseDataset(ds, w.path);
+  Status closed =
+      ds ? CloseDataset(ds, w.path) : GdalError(w.path, "cannot write Cloud-Optimized GeoTIFF");
+  GDALSetCacheMax64(cache_before);
   staged.reset();
   std::error_code ignored;  // the staging file is no result; a leftover is only disk
   std::filesystem::remove(w.tiff_path, ignored);
