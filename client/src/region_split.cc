@@ -34,6 +34,9 @@ std::vector<MetricBox> RegionWindows(const MetricBox& box, double resolution, in
   const CellBox cells = RegionCells(box, resolution, stride);
   if (cells.empty() || window < 1) return {box};
   const int64_t s = stride, step = window * s;  // a window's edge in cells
+  const int64_t across = (cells.width() + step - 1) / step,
+                down = (cells.height() + step - 1) / step;
+  if (across * down > static_cast<int64_t>(kMaxRegionWindows)) return {box};
   std::vector<MetricBox> windows;
   for (int64_t top = cells.max.y; top >= cells.min.y; top -= step) {  // north first
     const int64_t bottom = std::max<int64_t>(cells.min.y, top - step + 1);
