@@ -14,6 +14,42 @@ int64_t CeilDiv(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
 }  // namespace
 
+CellBox RegionCells(const MetricBox& box, double resolution, int stride) {
+  if (!(box.min_x < box.max_x) || !(box.min_y < box.max_y) || !(resolution > 0) || stride < 1) {
+    return {};
+  }
+  const GridGeometry g(resolution, 64);  // the tile size plays no part in which cells
+  const GridGeometry::CellRange xs = g.CellsOfInterval(box.min_x, box.max_x);
+  const GridGeometry::CellRange ys = g.CellsOfInterval(box.min_y, box.max_y);
+  const int64_t s = stride;
+  CellBox cells;
+  cells.min = {static_cast<int>(FloorTo(xs.first, s)), static_cast<int>(FloorTo(ys.first, s))};
+  cells.max = {static_cast<int>(FloorTo(xs.last, s) + s - 1),
+               static_cast<int>(FloorTo(ys.last, s) + s - 1)};
+  return cells;
+}
+
+std::vector<MetricBox> RegionWindows(const MetricBox& box, double resolution, int stride,
+                                     int64_t window) {
+  const CellBox cells = RegionCells(box, resolution, stride);
+  if (cells.empty() || window < 1) return {box};
+  const int64_t s = stride, step = window * s;  // a window's edge in cells
+  const int64_t across = (cells.width() + step - 1) / step,
+                down = (cells.height() + step - 1) / step;
+  if (across * down > static_cast<int64_t>(kMaxRegionWindows)) return {box};
+  std::vector<MetricBox> windows;
+  for (int64_t top = cells.max.y; top >= cells.min.y; top -= step) {  // north first
+    const int64_t bottom = std::max<int64_t>(cells.min.y, top - step + 1);
+    for (int64_t left = cells.min.x; left <= cells.max.x; left += step) {
+      const int64_t right = std::min<int64_t>(cells.max.x, left + step - 1);
+      windows.push_back(
+          {static_cast<double>(left) * resolution, static_cast<double>(bottom) * resolution,
+           static_cast<double>(right + 1) * resolution, static_cast<double>(top + 1) * resolution});
+    }
+  }
+  return windows;
+}
+
 uint64_t RegionCellBudget(const ServerLimitsInfo& limits, int stride) {
   if (limits.max_region_read_cells == 0) return limits.max_region_cells;
   const uint64_t s = static_cast<uint64_t>(stride);
@@ -23,15 +59,10 @@ uint64_t RegionCellBudget(const ServerLimitsInfo& limits, int stride) {
 
 std::vector<MetricBox> SplitRegion(const MetricBox& box, double resolution, int stride,
                                    uint64_t max_cells) {
-  if (!(box.min_x < box.max_x) || !(box.min_y < box.max_y) || !(resolution > 0) || stride < 1) {
-    return {box};  // the server names the problem
-  }
-  const GridGeometry g(resolution, 64);  // the tile size plays no part in which cells
-  const GridGeometry::CellRange xs = g.CellsOfInterval(box.min_x, box.max_x);
-  const GridGeometry::CellRange ys = g.CellsOfInterval(box.min_y, box.max_y);
+  const CellBox cells = RegionCells(box, resolution, stride);
+  if (cells.empty()) return {box};  // the server names the problem
   const int64_t s = stride;
-  const int64_t x0 = FloorTo(xs.first, s), y0 = FloorTo(ys.first, s);
-  const int64_t x1 = FloorTo(xs.last, s) + s - 1, y1 = FloorTo(ys.last, s) + s - 1;
+  const int64_t x0 = cells.min.x, y0 = cells.min.y, x1 = cells.max.x, y1 = cells.max.y;
   const int64_t width = x1 - x0 + 1, height = y1 - y0 + 1;
   const auto budget = static_cast<int64_t>(std::min<uint64_t>(max_cells, INT64_MAX / 4));
   if (width * height <= budget || budget < s * s) return {box};

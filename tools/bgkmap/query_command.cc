@@ -10,8 +10,10 @@
 #include "bgkmap/client/region_split.h"
 #include "bgkmap/io/crs_check.h"
 #include "bgkmap/io/geotiff.h"
+#include "bgkmap/io/geotiff_writer.h"
 #include "bgkmap/io/octomap_export.h"
 #include "bgkmap/io/png_preview.h"
+#include "bgkmap/io/qgis_style.h"
 #include "client_options.h"
 #include "commands.h"
 #include "json_output.h"
@@ -35,6 +37,7 @@ struct QueryOptions {
   std::optional<uint64_t> since;
   uint64_t history_id = 0;
   bool compress = false;
+  uint64_t max_memory_mb = 256;
 };
 
 // The answer to --since: which tiles changed (patches and tombstones) or why it came back whole.
@@ -101,6 +104,91 @@ Result<Raster> ReadPieces(Client& client, const std::vector<MetricBox>& pieces,
   return StitchRasters(rasters);
 }
 
+// How a region was read: its geometry, the newest map version, how many queries and windows.
+struct RegionRead {
+  Raster geometry;  // (no data)
+  uint64_t version = 0;
+  size_t pieces = 0, windows = 0;
+};
+
+// The bytes a raster of the region takes in memory: pixels x layers x 4.
+uint64_t RasterBytes(const CellBox& cells, int stride, size_t layers) {
+  const Raster g = RasterGeometry(1.0, cells, {}, stride);
+  return static_cast<uint64_t>(g.rows) * static_cast<uint64_t>(g.cols) * layers * sizeof(float);
+}
+
+// The edge of a GeoTIFF window in pixels: whole blocks, the window's raster within a quarter of
+// `max_bytes` (the pieces, the stitched window and GDAL's blocks of it are held at once), at
+// least one block.
+int64_t WindowPixels(uint64_t max_bytes, size_t layers) {
+  const uint64_t pixels = max_bytes / 4 / (layers * sizeof(float));
+  const auto edge = static_cast<int64_t>(std::sqrt(static_cast<double>(pixels)));
+  return std::max<int64_t>(1, edge / io::kGeoTiffBlockPixels) * io::kGeoTiffBlockPixels;
+}
+
+// The region to a GeoTIFF window by window, each window read in pieces within the server's
+// limits and written before the next is read, so memory holds one window whatever the size.
+Result<RegionRead> StreamGeoTiff(Client& client, const RegionQuery& query, double resolution,
+                                 uint64_t budget, int64_t window, const std::string& path,
+                                 const io::GeoTiffOptions& tiff) {
+  RegionRead read;
+  std::unique_ptr<io::GeoTiffWriter> writer;
+  const std::vector<MetricBox> windows = RegionWindows(query.box, resolution, query.stride, window);
+  for (const MetricBox& w : windows) {
+    const std::vector<MetricBox> pieces = SplitRegion(w, resolution, query.stride, budget);
+    Result<Raster> r = ReadPieces(client, pieces, query, &read.version);
+    if (!r.ok()) return r.status();
+    read.pieces += pieces.size();
+    if (!writer) {  // the layers and resolution as the server answers them
+      read.geometry = RasterGeometry(resolution, RegionCells(query.box, resolution, query.stride),
+                                     r->layers, query.stride);
+      Result<std::unique_ptr<io::GeoTiffWriter>> created =
+          io::GeoTiffWriter::Create(read.geometry, path, tiff);
+      if (!created.ok()) return created.status();
+      writer = std::move(created).value();
+    }
+    if (Status s = writer->Write(*r); !s.ok()) return s;
+  }
+  if (!writer) return Status::InvalidArgument("the region is empty");
+  if (Status s = writer->Finish(); !s.ok()) return s;
+  if (Status s = io::WriteQgisStyle(read.geometry.layers, path); !s.ok()) return s;
+  read.windows = windows.size();
+  return read;
+}
+
+// The region whole in memory, for the outputs that need it (.png, .mcap, .yaml, --png, --ot).
+Result<Raster> ReadWhole(Client& client, const RegionQuery& query, double resolution,
+                         uint64_t budget, RegionRead* read) {
+  const std::vector<MetricBox> pieces = SplitRegion(query.box, resolution, query.stride, budget);
+  Result<Raster> r = ReadPieces(client, pieces, query, &read->version);
+  if (!r.ok()) return r.status();
+  read->pieces = pieces.size();
+  read->windows = 1;
+  read->geometry = RasterGeometry(resolution, r->box, r->layers, r->stride);
+  return r;
+}
+
+// The outputs beside a whole raster: --out of any kind, --png, --ot.
+int WriteWholeOutputs(const QueryOptions& o, const Raster& r, const io::GeoTiffOptions& tiff) {
+  io::RosMapOptions ros;
+  ros.frame_id = o.frame_id;
+  ros.robot_radius = o.robot_radius;
+  ros.stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                     std::chrono::system_clock::now().time_since_epoch())
+                     .count();
+  if (Status s = WriteMapOutput(r, o.out, tiff, ros); !s.ok()) return Fail("query", s.message());
+  if (!o.png.empty()) {
+    if (Status s = io::WritePreviewPng(r, o.png); !s.ok()) return Fail("query", s.message());
+  }
+  if (!o.ot.empty()) {
+    Result<io::OctreeExportResult> ot = io::WriteColorOcTree(r, o.ot);
+    if (!ot.ok()) return Fail("query", ot.status().message());
+    std::printf("bgkmap query: %zu columns -> %s (octree origin %.3f, %.3f in the map frame)\n",
+                ot->columns, o.ot.c_str(), ot->origin.x(), ot->origin.y());
+  }
+  return 0;
+}
+
 int RunQuery(const QueryOptions& o) {
   // The command line first: a usage error is one whatever the server says.
   Result<std::vector<Layer>> layers = ParseLayers(o.layers, GeoTiffBands());
@@ -152,33 +240,44 @@ int RunQuery(const QueryOptions& o) {
     std::fputs(JsonText(DeltaJson(*d, *o.since)).c_str(), stdout);
     return 0;
   }
-  // A region over the server's per-query limits is read in pieces and stitched (region_split.h).
-  const std::vector<MetricBox> pieces =
-      SplitRegion(box, info->params.resolution, o.stride, RegionCellBudget(info->limits, o.stride));
-  uint64_t version = 0;
-  Result<Raster> r = ReadPieces(client, pieces, {box, *layers, o.stride, o.compress}, &version);
-  if (!r.ok()) return Fail("query", r.status().message());
-  io::RosMapOptions ros;
-  ros.frame_id = o.frame_id;
-  ros.robot_radius = o.robot_radius;
-  ros.stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                     std::chrono::system_clock::now().time_since_epoch())
-                     .count();
-  if (Status s = WriteMapOutput(*r, o.out, *tiff, ros); !s.ok()) return Fail("query", s.message());
-  if (!o.png.empty()) {
-    if (Status s = io::WritePreviewPng(*r, o.png); !s.ok()) return Fail("query", s.message());
+  // A region over the server's per-query limits is read in pieces (region_split.h). A GeoTIFF
+  // alone is streamed window by window with bounded memory; the other outputs need the whole
+  // raster, within --max-memory-mb.
+  const double res = info->params.resolution;
+  const uint64_t budget = RegionCellBudget(info->limits, o.stride);
+  const uint64_t max_bytes = o.max_memory_mb << 20;
+  const RegionQuery query{box, *layers, o.stride, o.compress};
+  const bool streamed =
+      *OutputKindOf(o.out, "--out") == OutputKind::kGeoTiff && o.png.empty() && o.ot.empty();
+  RegionRead read;
+  if (streamed) {
+    tiff->cog_cache_bytes = max_bytes / 4;  // the COG driver's copy: GDAL's cache, a window's worth
+    Result<RegionRead> r = StreamGeoTiff(client, query, res, budget,
+                                         WindowPixels(max_bytes, layers->size()), o.out, *tiff);
+    if (!r.ok()) return Fail("query", r.status().message());
+    read = std::move(r).value();
+  } else {
+    const uint64_t bytes = RasterBytes(RegionCells(box, res, o.stride), o.stride, layers->size());
+    if (bytes > max_bytes) {
+      return Usage("query", "the region is " + std::to_string((bytes + (1 << 20) - 1) >> 20) +
+                                " MB in memory at --stride " + std::to_string(o.stride) +
+                                ", over --max-memory-mb " + std::to_string(o.max_memory_mb) +
+                                ": a .png, .mcap or .yaml output, --png and --ot need the whole "
+                                "raster; a GeoTIFF alone (.tif) is written in windows of any "
+                                "size, or use a coarser --stride or a larger --max-memory-mb");
+    }
+    Result<Raster> r = ReadWhole(client, query, res, budget, &read);
+    if (!r.ok()) return Fail("query", r.status().message());
+    if (int code = WriteWholeOutputs(o, *r, *tiff); code != 0) return code;
   }
-  if (!o.ot.empty()) {
-    Result<io::OctreeExportResult> ot = io::WriteColorOcTree(*r, o.ot);
-    if (!ot.ok()) return Fail("query", ot.status().message());
-    std::printf("bgkmap query: %zu columns -> %s (octree origin %.3f, %.3f in the map frame)\n",
-                ot->columns, o.ot.c_str(), ot->origin.x(), ot->origin.y());
-  }
+  std::string parts;
+  if (read.pieces > 1) parts = " (" + std::to_string(read.pieces) + " pieces";
+  if (read.windows > 1) parts += " in " + std::to_string(read.windows) + " windows";
+  if (!parts.empty()) parts += ")";
   std::printf("bgkmap query: %lld x %lld pixels at %.3f m, map version %llu%s -> %s\n",
-              static_cast<long long>(r->cols), static_cast<long long>(r->rows), r->resolution,
-              static_cast<unsigned long long>(version),
-              pieces.size() > 1 ? (" (" + std::to_string(pieces.size()) + " pieces)").c_str() : "",
-              o.out.c_str());
+              static_cast<long long>(read.geometry.cols),
+              static_cast<long long>(read.geometry.rows), read.geometry.resolution,
+              static_cast<unsigned long long>(read.version), parts.c_str(), o.out.c_str());
   return 0;
 }
 
@@ -219,6 +318,13 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
                   "(patches and tombstones), or why the server answers the whole region");
   cmd->add_flag("--compress", o->compress,
                 "Have the server gzip the answer on the wire (RegionRequest.compress)");
+  cmd->add_option("--max-memory-mb", o->max_memory_mb,
+                  "Bound on the rasters held in memory: a GeoTIFF is written in windows of "
+                  "whole 256-pixel blocks within a quarter of it (at least one block), any "
+                  "region size; .png, .mcap, .yaml, --png and --ot need the whole raster within "
+                  "it")
+      ->capture_default_str()
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 30));
   cmd->add_option("--history-id", o->history_id,
                   "With --since: the history_id the version came from (0: not checked)");
   cmd->callback([o, &exit_code] { exit_code = RunQuery(*o); });

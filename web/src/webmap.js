@@ -283,19 +283,80 @@
     legend.addTo(m);
   }
 
-  // The map-frame coordinates under the cursor.
+  // The coordinates under the cursor: the map frame's, and with a georeference (map.json) the
+  // CRS's easting and northing (origin + offset, axes aligned, docs/webmap.md), with latitude and
+  // longitude for a WGS 84 / UTM CRS (EPSG:326zz north, 327zz south).
   function addCursor(m) {
+    const geo = info.georeference;
+    const utm = geo ? utmZone(geo.crs) : null;
     const cursor = L.control({ position: 'topright' });
     cursor.onAdd = () => {
       const div = L.DomUtil.create('div', 'panel cursor');
       div.id = 'cursor';
-      div.textContent = 'x, y (map frame, m)';
+      const local = L.DomUtil.create('div', '', div);
+      local.id = 'cursor-map';
+      local.textContent = 'x, y (map frame, m)';
+      const projected = geo ? L.DomUtil.create('div', '', div) : null;
+      const geographic = utm ? L.DomUtil.create('div', '', div) : null;
+      if (projected) {
+        projected.id = 'cursor-crs';
+        projected.textContent = 'E, N (' + crsLabel(geo.crs) + ', m)';
+      }
+      if (geographic) {
+        geographic.id = 'cursor-latlon';
+        geographic.textContent = 'latitude, longitude (WGS 84)';
+      }
       m.on('mousemove', (e) => {
-        div.textContent = 'x ' + e.latlng.lng.toFixed(2) + ' m, y ' + e.latlng.lat.toFixed(2) + ' m';
+        const x = e.latlng.lng, y = e.latlng.lat;
+        local.textContent = 'x ' + x.toFixed(2) + ' m, y ' + y.toFixed(2) + ' m';
+        if (!projected) return;
+        const east = geo.origin[0] + x, north = geo.origin[1] + y;
+        projected.textContent = 'E ' + east.toFixed(2) + ' m, N ' + north.toFixed(2) + ' m (' + crsLabel(geo.crs) + ')';
+        if (!geographic) return;
+        const [lat, lon] = utmToLatLon(east, north, utm);
+        geographic.textContent = Math.abs(lat).toFixed(7) + '\u00b0 ' + (lat < 0 ? 'S' : 'N') + ', ' +
+          Math.abs(lon).toFixed(7) + '\u00b0 ' + (lon < 0 ? 'W' : 'E');
       });
       return div;
     };
     cursor.addTo(m);
+  }
+
+  // "EPSG:32610" as it is; a WKT by its name; anything else shortened.
+  function crsLabel(text) {
+    const named = /^\s*[A-Z_]+\["([^"]+)"/.exec(text);
+    if (named) return named[1];
+    return text.length <= 24 ? text : text.slice(0, 21) + '...';
+  }
+
+  // The UTM zone of an "EPSG:326zz" (north) or "EPSG:327zz" (south) CRS, else null.
+  function utmZone(text) {
+    const m = /^\s*EPSG:32([67])(\d\d)\s*$/i.exec(text);
+    if (!m || Number(m[2]) < 1 || Number(m[2]) > 60) return null;
+    return { zone: Number(m[2]), south: m[1] === '7' };
+  }
+
+  // UTM to WGS 84 latitude and longitude in degrees: the inverse transverse Mercator of Kruger's
+  // series to n^3 (Karney, "Transverse Mercator with an accuracy of a few nanometers", 2011,
+  // eqs. 11-15): about a millimetre within a zone.
+  function utmToLatLon(east, north, { zone, south }) {
+    const a = 6378137, f = 1 / 298.257223563, k0 = 0.9996;
+    const n = f / (2 - f), n2 = n * n, n3 = n2 * n;
+    const A = a / (1 + n) * (1 + n2 / 4 + n2 * n2 / 64);
+    const beta = [n / 2 - 2 * n2 / 3 + 37 * n3 / 96, n2 / 48 + n3 / 15, 17 * n3 / 480];
+    const delta = [2 * n - 2 * n2 / 3 - 2 * n3, 7 * n2 / 3 - 8 * n3 / 5, 56 * n3 / 15];
+    const xi = (north - (south ? 10000000 : 0)) / (k0 * A), eta = (east - 500000) / (k0 * A);
+    let xi1 = xi, eta1 = eta;
+    for (let j = 1; j <= 3; j++) {
+      xi1 -= beta[j - 1] * Math.sin(2 * j * xi) * Math.cosh(2 * j * eta);
+      eta1 -= beta[j - 1] * Math.cos(2 * j * xi) * Math.sinh(2 * j * eta);
+    }
+    const chi = Math.asin(Math.sin(xi1) / Math.cosh(eta1));
+    let phi = chi;
+    for (let j = 1; j <= 3; j++) phi += delta[j - 1] * Math.sin(2 * j * chi);
+    const lambda0 = (zone * 6 - 183) * Math.PI / 180;
+    const lambda = lambda0 + Math.atan2(Math.sinh(eta1), Math.cos(xi1));
+    return [phi * 180 / Math.PI, lambda * 180 / Math.PI];
   }
 
   // A value as a person reads it: a few digits and its unit.

@@ -5,7 +5,9 @@
 //   3. a click shows the values `bgkmap points` prints for the clicked point (rounded, with units;
 //      exact in the cell's data-value);
 //   4. the still view (?still&x=&y=&z=): no live stream, a ready flag once drawn, and in its
-//      picture the KITTI car's marker and trajectory drawn where the car was.
+//      picture the KITTI car's marker and trajectory drawn where the car was; the cursor box
+//      shows the map frame's x, y, the CRS's easting and northing (the server is georeferenced)
+//      and the latitude and longitude gdaltransform gives for them.
 // With BGKMAP_WEB_AUTH=1 the same over HTTPS with tokens (a certificate made by the openssl CLI):
 // the page is 401 before /login?token=, and everything above works with the cookie it sets.
 // Exit 0 pass, 1 fail, 77 skip (chromium missing). Environment: BGKMAPD, BGKMAP_CLI,
@@ -61,7 +63,11 @@ function scanDir(name, indices, dx, source = street) {
 // any role's token opens the page).
 const auth = process.env.BGKMAP_WEB_AUTH === '1';
 const token = crypto.randomBytes(16).toString('hex');
-const serverArgs = ['--listen', '127.0.0.1:0', '--http', '127.0.0.1:0'];
+// The map frame georeferenced in WGS 84 / UTM zone 10N: the cursor box shows the CRS's easting
+// and northing and the latitude and longitude beside the map frame's x, y.
+const origin = [551000.5, 4180000.25, 12.5];
+const serverArgs = ['--listen', '127.0.0.1:0', '--http', '127.0.0.1:0',
+  '--set', 'georeference.crs=EPSG:32610', '--set', `georeference.origin=[${origin.join(', ')}]`];
 // Without auth, two queries at once: the page's first tiles meet the limit (503, Retry-After)
 // and must still all load, retried by the page. (Mutation: without LiveTiles.createTile's retry,
 // tiles stay broken and the first wait times out, as it did in CI under load.)
@@ -164,10 +170,28 @@ async function stillView(context, base, livePage) {
   const legend = await page.evaluate(() => document.getElementById('legend').textContent);
   check(legend.includes('traversability') && legend.includes('robots'), `a legend (${legend.slice(0, 60)}...)`);
   await page.mouse.move(shot.width / 2, shot.height / 2);
-  const cursor = await page.evaluate(() => document.getElementById('cursor').textContent);
-  const xy = /^x (-?[\d.]+) m, y (-?[\d.]+) m$/.exec(cursor);
+  const cursor = await page.evaluate(() => ['cursor-map', 'cursor-crs', 'cursor-latlon']
+    .map((id) => (document.getElementById(id) || { textContent: '' }).textContent));
+  const xy = /^x (-?[\d.]+) m, y (-?[\d.]+) m$/.exec(cursor[0]);
   check(xy && Math.abs(Number(xy[1]) - cx) < 1 && Math.abs(Number(xy[2]) - cy) < 1,
-    `the cursor's map coordinates at the view's centre (${cursor})`);
+    `the cursor's map coordinates at the view's centre (${cursor[0]})`);
+  // The CRS's coordinates are the origin plus the map frame's (mutation: x and y swapped, or the
+  // origin left out, is off by metres), the latitude and longitude GDAL's for them.
+  const en = /^E (-?[\d.]+) m, N (-?[\d.]+) m \(EPSG:32610\)$/.exec(cursor[1]);
+  check(en && xy && Math.abs(Number(en[1]) - origin[0] - Number(xy[1])) < 0.011 &&
+    Math.abs(Number(en[2]) - origin[1] - Number(xy[2])) < 0.011,
+  `the cursor's CRS coordinates: origin + map frame (${cursor[1]})`);
+  const ll = /^([\d.]+)\u00b0 N, ([\d.]+)\u00b0 W$/.exec(cursor[2]);
+  if (en) {
+    const [lon, lat] = execFileSync('gdaltransform', ['-s_srs', 'EPSG:32610', '-t_srs', 'EPSG:4326',
+      '-output_xy'], { input: `${en[1]} ${en[2]}\n`, encoding: 'utf8' }).trim().split(/\s+/).map(Number);
+    // 1e-6 degrees: 0.1 m; the page shows 7 decimals.
+    check(ll && Math.abs(Number(ll[1]) - lat) < 1e-6 && Math.abs(-Number(ll[2]) - lon) < 1e-6,
+      `the cursor's latitude and longitude (${cursor[2]}; gdaltransform ${lat}, ${lon})`);
+  }
+  const mapJson = await page.evaluate(() => fetch('/map.json').then((r) => r.json()));
+  check(mapJson.georeference && mapJson.georeference.crs === 'EPSG:32610' &&
+    mapJson.georeference.origin.join() === origin.join(), `/map.json has the georeference (${JSON.stringify(mapJson.georeference)})`);
   await page.close();
 }
 

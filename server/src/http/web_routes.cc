@@ -9,6 +9,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "bgkmap/core/georeference.h"
 #include "http/tile_png.h"
 #include "http/web_assets.h"
 
@@ -105,6 +106,12 @@ nlohmann::json RobotsJson(const std::vector<RobotStats>& robots) {
     list.push_back(robot);
   }
   return {{"robots", list}};
+}
+
+// Where the map frame sits (null: a local frame): the page adds the origin to the cursor's x, y.
+nlohmann::json GeoreferenceJson(const Georeference& g) {
+  if (g.empty()) return nullptr;
+  return {{"crs", g.crs}, {"origin", g.origin}};
 }
 
 nlohmann::json WebLayerNames() {
@@ -294,7 +301,8 @@ void WebRoutes::Points(const HttpRequest& request, std::string_view query,
 void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange> exchange) {
   OffThread(request, std::move(exchange), [this, version = request.version()]() -> HttpResponse {
     HttpRequest head{http::verb::get, "", version};
-    const MapSummary summary = map_.State().summary;
+    const MapState state = map_.State();
+    const MapSummary& summary = state.summary;
     const GridGeometry& g = map_.geometry();
     const double res = g.resolution();
     nlohmann::json bounds = nullptr;
@@ -310,7 +318,8 @@ void WebRoutes::MapJson(const HttpRequest& request, std::shared_ptr<HttpExchange
                                 {"map_version", map_.applied_version()},
                                 {"known_cells", summary.known_cells},
                                 {"bounds", bounds},
-                                {"layers", WebLayerNames()}};
+                                {"layers", WebLayerNames()},
+                                {"georeference", GeoreferenceJson(state.georeference)}};
     return Body(head, "application/json", out.dump(2) + "\n");
   });
 }

@@ -232,6 +232,8 @@ TEST_F(WebMapTest, PageAndMapJson) {
   ASSERT_TRUE(j["bounds"].is_array());
   EXPECT_LT(j["bounds"][0].get<double>(), 0);
   EXPECT_GT(j["bounds"][2].get<double>(), 0);
+  EXPECT_TRUE(j["georeference"].is_null())
+      << "a local frame (the browser test: a georeferenced one)";
 }
 
 // The fleet the page draws: each robot's latest pose (the sensor's x, y and the heading of its x

@@ -20,6 +20,23 @@ inline constexpr size_t kMaxRegionPieces = 256;
 // within max_region_read_cells; an older server (no max_region_read_cells) counted map cells.
 uint64_t RegionCellBudget(const ServerLimitsInfo& limits, int stride);
 
+// More windows than this (RegionWindows) and the box is sent whole, for the server to name its
+// limit: 100,000 windows of 1536 x 1536 pixels are 2,400 km² at 0.1 m, days of reading.
+inline constexpr size_t kMaxRegionWindows = 100'000;
+
+// The cells the server reads for `box` at `stride`: its half-open cells (GridGeometry's
+// CellsOfInterval) widened to whole stride blocks; the box of the answer's raster. Empty for an
+// empty or invalid box.
+CellBox RegionCells(const MetricBox& box, double resolution, int stride);
+
+// The region of `box` at `stride` cut into windows of at most `window` x `window` pixels, counted
+// from the region's north-west pixel (so a raster tiled in blocks whose edge divides `window` gets
+// whole blocks from each window), rows of windows north first, each west to east. Each window
+// is a box of exactly its cells (RegionCells of it is the window's cells). {box} when it is
+// empty or invalid, `window` < 1, or it would take more than kMaxRegionWindows windows.
+std::vector<MetricBox> RegionWindows(const MetricBox& box, double resolution, int stride,
+                                     int64_t window);
+
 // Boxes of whole stride blocks, north-west first, each within `max_cells` map cells, that
 // together cover the cells the server reads for `box` (its half-open cells, widened to the
 // stride grid); {box} when it fits, or when it would take more than kMaxRegionPieces pieces.

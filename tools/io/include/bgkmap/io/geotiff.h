@@ -26,6 +26,10 @@ struct GeoTiffOptions {
   // Added to the geotransform's origin and to the elevation band (its variance is unchanged).
   // The BGKMAP_BOX metadata keeps the map-frame cells.
   std::array<double, 3> origin{0, 0, 0};
+  // GDAL's block cache while a COG is made from its staging file (GeoTiffWriter::Finish); 0:
+  // GDAL's default, 5% of the RAM, which the COG driver fills while it copies a large raster.
+  // The cache is process-wide: set for the copy and restored after it.
+  uint64_t cog_cache_bytes = 0;
 };
 
 // Fails (InvalidArgument) if the raster is empty or its data does not match rows x cols x layers.
