@@ -228,9 +228,10 @@ TEST(PoseCorrection, AScanNoLongerRetainedIsRefusedNamingTheOldestRetainedOne) {
   EXPECT_EQ(all.status().code(), RpcCode::kInvalidArgument) << all.status().ToString();
   EXPECT_NE(all.status().message().find("retained scans"), std::string::npos)
       << all.status().ToString();
-  // Two scans, the first no longer retained: planning names the oldest retained one.
-  RpcResult<CorrectionResult> r = fixture.client().CorrectPoses(
-      "robot-a", {{1, drive.truth[0].pose}, {kScans, drive.truth[kScans - 1].pose}});
+  // One scan no longer retained (within any count: as few as one scan may be retained when
+  // the checkpoints come late): planning names the oldest retained one.
+  RpcResult<CorrectionResult> r =
+      fixture.client().CorrectPoses("robot-a", {{1, drive.truth[0].pose}});
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), RpcCode::kFailedPrecondition) << r.status().ToString();
   EXPECT_NE(r.status().message().find("oldest retained scan is sequence"), std::string::npos)
