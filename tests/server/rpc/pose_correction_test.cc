@@ -244,7 +244,8 @@ TEST(PoseCorrection, AScanNoLongerRetainedIsRefusedNamingTheOldestRetainedOne) {
 // poses are not converted, nothing is planned or queued). Mutations caught: without the count
 // check in StartCorrectPoses the 13-entry request is refused later, by planning, as "never
 // ingested" (no counts named); without the per-call byte cap the 1,000-entry request is parsed
-// and refused the same way; without the configured bound the 6-entry request reaches planning.
+// and refused by its count (no bytes named); without the configured bound the 6-entry request
+// is applied.
 TEST(PoseCorrection, MoreEntriesThanRetainedScansAreRefusedAtOnceNamingTheNumbers) {
   const DriveScans drive("robot-a", kParts, 12);
   TempDir dir;
