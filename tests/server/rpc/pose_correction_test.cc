@@ -351,7 +351,8 @@ int64_t CorrectionsInProgress(v1::MapService::Stub& stub) {
 
 // Issue 25: a correction its client cancels while it waits behind another is never applied.
 // The first correction re-integrates 24 full street scans (seconds); the second, one scan moved
-// 2 m, queues behind it (same tiles) and is cancelled (TryCancel) once Info counts both.
+// 2 m, queues behind it (same tiles) and is cancelled (TryCancel) once Info counts both; a third
+// queues with a 300 ms deadline.
 // Mutation caught: without the cancellation check in ServedMap::RunCorrection the second runs
 // once the first is done and the map holds the moved scan.
 TEST(PoseCorrection, ACorrectionCancelledWhileQueuedIsNeverApplied) {
@@ -397,12 +398,24 @@ TEST(PoseCorrection, ACorrectionCancelledWhileQueuedIsNeverApplied) {
   }
   const double queued_at =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // A third, scan 2 moved, whose 300 ms deadline passes while it waits behind the first (or,
+  // on a slow machine, while it is planned: not applied either way).
+  v1::CorrectPosesRequest third = second;
+  ScanPose aside = first_poses[1].pose;
+  aside.ty += 2.0;
+  third.mutable_corrections(0)->set_sequence(2);
+  *third.mutable_corrections(0)->mutable_pose() = WireProto(aside);
+  grpc::ClientContext third_context;
+  third_context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(300));
+  v1::CorrectPosesResponse third_response;
+  grpc::Status third_status = stub->CorrectPoses(&third_context, third, &third_response);
   second_context.TryCancel();
   second_call.join();
   first_call.join();
   ASSERT_TRUE(first_result->ok()) << first_result->status().ToString();
   EXPECT_EQ(second_status.error_code(), grpc::StatusCode::CANCELLED);
-  // The server has finished with both (the cancelled one answered or dropped).
+  EXPECT_EQ(third_status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  // The server has finished with all three (the cancelled ones answered or dropped).
   while (CorrectionsInProgress(*stub) != 0) {
     ASSERT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(120));
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
