@@ -424,3 +424,33 @@ test('a revoked token\'s Foxglove viewer is closed within a second; the others s
   assert.equal(kept.ws.readyState, WebSocket.OPEN);
   kept.client.close();
 });
+
+// The same over TLS: the close frame and the TLS shutdown after it stay within the second
+// (against main's bgkmapd: not closed within 3 s).
+test('over TLS, a revoked token\'s viewer is closed within a second too', async () => {
+  const cert = path.join(tmp, 'revoked.pem'), key = path.join(tmp, 'revoked.key');
+  execFileSync('openssl', ['req', '-x509', '-newkey', 'rsa:2048', '-nodes', '-keyout', key,
+    '-out', cert, '-days', '1', '-subj', '/CN=127.0.0.1', '-addext',
+    'subjectAltName=IP:127.0.0.1'], { stdio: 'pipe' });
+  const viewer = crypto.randomBytes(16).toString('hex');
+  const digest = (t) => crypto.createHash('sha256').update(t).digest('hex');
+  const tokens = path.join(tmp, 'revoked_tls_tokens.yaml');
+  const other = `  - {name: other, sha256: ${digest('x' + viewer)}, role: planner}\n`;
+  fs.writeFileSync(tokens, `tokens:\n  - {name: viewer, sha256: ${digest(viewer)}, role: planner}\n${other}`);
+  const { server, foxglove } = await startServer(['--set', `server.foxglove.region=[${region}]`,
+    '--set', `server.tls.cert_file=${cert}`, '--set', `server.tls.key_file=${key}`,
+    '--set', `server.auth.tokens_file=${tokens}`]);
+  const fox = connect(`wss://127.0.0.1:${foxglove}/?token=${viewer}`, { ca: fs.readFileSync(cert) });
+  await waitFor(fox.client, 'advertise', () => fox.channels.size === 3, 'three channels over TLS');
+  const closed = new Promise((resolve) => fox.ws.on('close', (code, reason) =>
+    resolve({ code, reason: reason.toString(), at: Date.now() })));
+  fs.writeFileSync(tokens, `tokens:\n${other}`);
+  const signalled = Date.now();
+  server.kill('SIGHUP');
+  const end = await Promise.race([closed,
+    new Promise((resolve) => setTimeout(() => resolve(null), 3000 * scale))]);
+  assert.ok(end, 'the revoked token\'s TLS viewer was not closed within 3 s of SIGHUP');
+  console.log(`the revoked token's TLS viewer closed ${end.at - signalled} ms after SIGHUP`);
+  assert.equal(end.code, 1008);
+  assert.ok(end.at - signalled < 2000 * scale, `closed ${end.at - signalled} ms after SIGHUP`);
+});
