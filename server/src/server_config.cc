@@ -139,6 +139,9 @@ std::vector<ServerKey> LimitKeys() {
       Key<uint64_t>(
           "max_path_poses", [](ServerConfig & c) -> auto& { return c.limits.max_path_poses; }),
       Key<uint64_t>(
+          "max_correction_scans",
+          [](ServerConfig & c) -> auto& { return c.limits.max_correction_scans; }),
+      Key<uint64_t>(
           "max_footprint_cells",
           [](ServerConfig & c) -> auto& { return c.limits.max_footprint_cells; }),
       Key<uint64_t>(
@@ -490,6 +493,7 @@ Status ValidateServerKeys(const ServerConfig& c) {
 // server.max_*, the limits on what a client may ask.
 Status ValidateLimits(const ServerLimits& l, double resolution) {
   if (l.max_points_per_scan == 0) return Bad("max_points_per_scan", "must be > 0");
+  if (l.max_correction_scans == 0) return Bad("max_correction_scans", "must be > 0");
   if (l.max_region_cells == 0) return Bad("max_region_cells", "must be > 0");
   if (l.max_region_read_cells < l.max_region_cells) {
     return Bad("max_region_read_cells",

@@ -68,6 +68,7 @@ class ClusterNode final : public MapPort {
   const GridGeometry& geometry() const override { return layout_.geometry(); }
   Status Offers(Operation operation) const override;
   bool retains_scans() const override { return false; }
+  uint64_t retained_records_bound() const override { return 0; }
   bool TakeDuplicate(const std::string&, uint64_t, uint64_t*) override { return false; }
   void CountRejected(const std::string&) override {}
   RobotAdmission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,

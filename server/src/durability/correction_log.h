@@ -18,6 +18,10 @@ class CorrectionLog {
  public:
   // Whether Record() keeps raw scans (ChangeRecord::raw_scan) for corrections.
   virtual bool retains_scans() const { return false; }
+  // At most how many records (so scans of any one robot) the retained log holds: the map
+  // versions after its oldest retained checkpoint, one record each. Reads nothing, so a
+  // correction can be bounded by it before any work (issue 25). 0 when nothing is retained.
+  virtual uint64_t retained_records_bound() const { return 0; }
   // Resolves a correction of `robot_id`'s scans against the log: its scans by sequence number,
   // each prepared again with its corrected pose in `poses` (or, with `remove`, the scans with
   // first <= sequence <= last dropped), and the retained checkpoint to rebuild from.

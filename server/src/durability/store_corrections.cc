@@ -109,6 +109,15 @@ Status Revise(const storage::TileStore& store, storage::LogRecord record, uint64
 
 bool StoreDurability::retains_scans() const { return store_->options().retention.enabled(); }
 
+uint64_t StoreDurability::retained_records_bound() const {
+  std::shared_lock lock(reopen_mu_);
+  if (!retains_scans()) return 0;
+  const std::vector<uint64_t> bases = store_->Bases();
+  if (bases.empty()) return 0;
+  const uint64_t last = store_->log().last_version();
+  return last > bases.front() ? last - bases.front() : 0;
+}
+
 Result<CorrectionPlan> StoreDurability::PlanCorrection(const std::string& robot_id,
                                                        const std::map<uint64_t, Pose>& poses,
                                                        const CorrectionRange& remove) const {

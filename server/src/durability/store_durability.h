@@ -41,6 +41,7 @@ class StoreDurability final : public Durability {
   }
   Status Record(const ChangeRecord& change) override;
   bool retains_scans() const override;
+  uint64_t retained_records_bound() const override;
   Result<CorrectionPlan> PlanCorrection(const std::string& robot_id,
                                         const std::map<uint64_t, Pose>& poses,
                                         const CorrectionRange& remove) const override;

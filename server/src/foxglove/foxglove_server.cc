@@ -60,10 +60,21 @@ void FoxgloveServer::State::Accept() {
   });
 }
 
+void FoxgloveServer::State::CheckRevocations() {
+  revocations.expires_after(kRevocationCheck);
+  revocations.async_wait([this](beast::error_code ec) {
+    if (ec || !acceptor.is_open()) return;
+    // (CloseIfRevoked may close, and so erase, the session.)
+    for (SessionBase* s : std::set<SessionBase*>(connections)) s->CloseIfRevoked();
+    CheckRevocations();
+  });
+}
+
 void FoxgloveServer::State::CloseAll() {
   beast::error_code ignored;
   acceptor.close(ignored);
   retry.cancel();
+  revocations.cancel();
   for (SessionBase* s : std::set<SessionBase*>(connections)) s->Close();
   io.stop();
 }
@@ -113,6 +124,7 @@ void FoxgloveServer::Start() {
   state_->started = true;
   state_->feed->Start();
   state_->Accept();
+  if (state_->options.tokens != nullptr) state_->CheckRevocations();
   state_->thread = std::thread([s = state_.get()] {
     for (;;) {
       try {

@@ -15,6 +15,7 @@
 #include <boost/beast/ssl/ssl_stream.hpp>
 #include <boost/beast/websocket.hpp>
 #include <boost/beast/websocket/ssl.hpp>
+#include <chrono>
 #include <deque>
 #include <map>
 #include <memory>
@@ -40,9 +41,14 @@ inline constexpr size_t kMaxPendingUpgrades = 16;
 // Subscriptions one client may hold (three channels; a viewer subscribes once to each).
 inline constexpr size_t kMaxSubscriptions = 64;
 
+// How often the sessions are checked for a revoked token (as gRPC's streams and /events).
+inline constexpr std::chrono::milliseconds kRevocationCheck{250};
+
 class SessionBase {
  public:
   virtual void Close() = 0;  // on the io thread
+  // Closes the session if a tokens-file reload revoked its token (on the io thread).
+  virtual void CloseIfRevoked() = 0;
 
  protected:
   ~SessionBase() = default;
@@ -52,6 +58,8 @@ struct FoxgloveServer::State {
   State(Options o, std::shared_ptr<LiveFeed> f);
   void Accept();
   void CloseAll();  // on the io thread
+  // Every kRevocationCheck: closes the sessions of revoked tokens (issue 25).
+  void CheckRevocations();
 
   const Options options;
   const std::shared_ptr<LiveFeed> feed;
@@ -62,6 +70,7 @@ struct FoxgloveServer::State {
   boost::asio::io_context io;
   boost::asio::ip::tcp::acceptor acceptor{io};
   boost::asio::steady_timer retry{io};
+  boost::asio::steady_timer revocations{io};
   int port = 0;
   std::thread thread;
   std::mutex stop_mu;
@@ -118,6 +127,25 @@ class Session final : public SessionBase,
     Tcp().socket().close(ignored);
   }
 
+  // A revoked token's viewer is told why in the WebSocket's close frame (policy violation), then
+  // its connection closes; the close handshake is bounded by the stream's timeout.
+  void CloseIfRevoked() override {
+    if (closed_ || revoked_ || who_ == nullptr || !who_->Revoked()) return;
+    revoked_ = true;
+    spdlog::info("event=foxglove_client_revoked session={} token=\"{}\"", id_, who_->name);
+    state_.feed->Remove(this);
+    if (!ws_.is_open()) {
+      Close();
+      return;
+    }
+    namespace websocket = boost::beast::websocket;
+    // A close frame's reason holds at most 123 bytes.
+    std::string reason = "token '" + who_->name + "' revoked";
+    if (reason.size() > 123) reason = "token revoked";
+    ws_.async_close(websocket::close_reason(websocket::close_code::policy_error, reason),
+                    [self = this->shared_from_this()](Beast) { self->Close(); });
+  }
+
   void Deliver(uint32_t channel, uint64_t time_ns,
                std::shared_ptr<const std::string> message) override {
     boost::asio::post(executor_, [weak = this->weak_from_this(), channel, time_ns, message] {
@@ -159,8 +187,9 @@ class Session final : public SessionBase,
     const UpgradeRequest checked{websocket::is_upgrade(request),
                                  view(request[http::field::sec_websocket_protocol]),
                                  view(request[http::field::authorization]), view(request.target())};
-    if (std::optional<Refusal> refusal = CheckUpgrade(
-            checked, state_.options.tokens, state_.clients.load(), state_.options.max_clients)) {
+    if (std::optional<Refusal> refusal =
+            CheckUpgrade(checked, state_.options.tokens, state_.clients.load(),
+                         state_.options.max_clients, &who_)) {
       spdlog::info("event=foxglove_refused status={} reason=\"{}\"", refusal->status,
                    refusal->reason);
       Refuse(*refusal, request.version());
@@ -301,7 +330,7 @@ class Session final : public SessionBase,
   // bound is dropped, not buffered for.
   void Queue(std::shared_ptr<const std::string> bytes, bool binary,
              uint32_t grid_subscription = 0) {
-    if (closed_) return;
+    if (closed_ || revoked_) return;
     const size_t waiting = queued_bytes_ - (writing_ ? queue_.front().bytes->size() : 0);
     if (waiting > 0 && waiting + bytes->size() > state_.options.max_queued_bytes) {
       spdlog::warn("event=foxglove_slow_client_dropped session={} queued_bytes={}", id_,
@@ -315,7 +344,7 @@ class Session final : public SessionBase,
   }
 
   void WriteNext() {
-    if (closed_ || queue_.empty()) {
+    if (closed_ || revoked_ || queue_.empty()) {
       writing_ = false;
       return;
     }
@@ -341,8 +370,10 @@ class Session final : public SessionBase,
   boost::beast::flat_buffer read_buffer_;
   std::optional<boost::beast::http::request_parser<boost::beast::http::string_body>> parser_;
   std::optional<boost::beast::http::response<boost::beast::http::string_body>> response_;
+  PrincipalRef who_;  // the token it was admitted with (null without tokens)
   bool upgraded_ = false;
   bool closed_ = false;
+  bool revoked_ = false;  // closing: its token was revoked
   bool writing_ = false;
   std::map<uint32_t, uint32_t> subscriptions_;  // subscription id -> channel
   std::deque<Outgoing> queue_;

@@ -62,7 +62,7 @@ std::string TokenFromTarget(std::string_view target) {
 }
 
 std::optional<Refusal> CheckUpgrade(const UpgradeRequest& request, const TokenTable* tokens,
-                                    size_t clients, size_t max_clients) {
+                                    size_t clients, size_t max_clients, PrincipalRef* admitted) {
   if (!request.websocket_upgrade) {
     return Refusal{400, "bgkmapd's Foxglove port speaks WebSocket only (subprotocol " +
                             std::string(kSubprotocol) + "): connect Foxglove to ws://host:port"};
@@ -71,6 +71,7 @@ std::optional<Refusal> CheckUpgrade(const UpgradeRequest& request, const TokenTa
     return Refusal{400, "the upgrade must offer the WebSocket subprotocol " +
                             std::string(kSubprotocol) + " (Sec-WebSocket-Protocol)"};
   }
+  PrincipalRef who;
   if (tokens != nullptr) {
     std::string authorization(request.authorization);
     if (authorization.empty()) {
@@ -78,7 +79,7 @@ std::optional<Refusal> CheckUpgrade(const UpgradeRequest& request, const TokenTa
       if (!token.empty()) authorization = "Bearer " + token;
     }
     std::string why;
-    const PrincipalRef who = tokens->Authenticate(authorization, &why);
+    who = tokens->Authenticate(authorization, &why);
     if (who == nullptr) {
       // (Authenticate's reasons speak of gRPC metadata.)
       return Refusal{401, std::string("unauthorized: ") +
@@ -95,6 +96,7 @@ std::optional<Refusal> CheckUpgrade(const UpgradeRequest& request, const TokenTa
     return Refusal{503, "too many Foxglove clients (server.foxglove.max_clients = " +
                             std::to_string(max_clients) + "); retry later"};
   }
+  if (admitted != nullptr) *admitted = std::move(who);
   return std::nullopt;
 }
 

@@ -25,8 +25,11 @@ struct Refusal {
   std::string reason;  // one line, the response's body
 };
 
+// Refused, or admitted with the caller in `who` (when `who` is not null; null without tokens):
+// the session keeps it to close itself when a reload revokes the token.
 std::optional<Refusal> CheckUpgrade(const UpgradeRequest& request, const TokenTable* tokens,
-                                    size_t clients, size_t max_clients);
+                                    size_t clients, size_t max_clients,
+                                    PrincipalRef* who = nullptr);
 
 // Whether a Sec-WebSocket-Protocol value lists foxglove.websocket.v1.
 bool OffersSubprotocol(std::string_view protocols);

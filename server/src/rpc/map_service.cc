@@ -139,8 +139,8 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* MapService::ImportMap(grpc::CallbackS
 }
 
 grpc::ServerUnaryReactor* MapService::CorrectPoses(grpc::CallbackServerContext* call,
-                                                   const v1::CorrectPosesRequest* request,
-                                                   v1::CorrectPosesResponse* response) {
+                                                   const grpc::ByteBuffer* request,
+                                                   grpc::ByteBuffer* response) {
   PrincipalRef who;
   if (grpc::Status s = access_.Admit(*call, "CorrectPoses", &who); !s.ok()) {
     return RefusedUnary(call, s);

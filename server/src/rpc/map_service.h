@@ -8,7 +8,9 @@
 
 namespace bgkmap {
 
-class MapService final : public v1::MapService::CallbackService {
+// CorrectPoses is a raw method (its request's size is judged before it is parsed: issue 25).
+class MapService final
+    : public v1::MapService::WithRawCallbackMethod_CorrectPoses<v1::MapService::CallbackService> {
  public:
   // `tokens` null: no authentication (every caller may do everything).
   MapService(ServiceContext& ctx, const TokenTable* tokens) : ctx_(ctx), access_(tokens) {}
@@ -37,8 +39,8 @@ class MapService final : public v1::MapService::CallbackService {
   grpc::ServerReadReactor<v1::ArchiveChunk>* ImportMap(grpc::CallbackServerContext* call,
                                                        v1::ImportResponse* response) override;
   grpc::ServerUnaryReactor* CorrectPoses(grpc::CallbackServerContext* call,
-                                         const v1::CorrectPosesRequest* request,
-                                         v1::CorrectPosesResponse* response) override;
+                                         const grpc::ByteBuffer* request,
+                                         grpc::ByteBuffer* response) override;
   grpc::ServerUnaryReactor* RemoveScans(grpc::CallbackServerContext* call,
                                         const v1::RemoveScansRequest* request,
                                         v1::RemoveScansResponse* response) override;

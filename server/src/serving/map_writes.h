@@ -4,6 +4,7 @@
 // applied (a single server). Nothing here knows of gRPC or of the store.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -110,6 +111,10 @@ struct CorrectionSpec {
   std::map<uint64_t, Pose> poses;  // sequence number -> corrected T_map_sensor
   // Instead: remove the robot's scans with first <= sequence <= last.
   std::optional<std::pair<uint64_t, uint64_t>> remove;
+  // Set (by the caller, any thread) when whoever asked no longer waits for it: a correction
+  // not yet switched in is then dropped, nothing changed (issue 25). Null: never cancelled.
+  std::shared_ptr<const std::atomic<bool>> cancelled;
+  bool is_cancelled() const { return cancelled != nullptr && cancelled->load(); }
 };
 
 struct CorrectionOutcome {
@@ -133,6 +138,9 @@ class MapWrites {
   // ---- Scans. A robot's scans must be submitted in the order they were sent.
   // Whether the map keeps raw scans (ScanOrigin::raw) for corrections.
   virtual bool retains_scans() const = 0;
+  // At most how many scans of one robot a correction can name: the retained log's records
+  // (CorrectionLog::retained_records_bound; cheap, reads nothing). 0 when none is retained.
+  virtual uint64_t retained_records_bound() const = 0;
   // A retry after a lost ack, answered before the scan is prepared: true, counted as a
   // duplicate, if `sequence` is at or below the robot's last one (given in `last`).
   virtual bool TakeDuplicate(const std::string& robot_id, uint64_t sequence, uint64_t* last) = 0;

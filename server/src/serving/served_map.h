@@ -73,6 +73,7 @@ class ServedMap final : public MapPort {
   using Admission = RobotAdmission;
   Status Offers(Operation) const override { return Status::Ok(); }
   bool retains_scans() const override { return durability_.retains_scans(); }
+  uint64_t retained_records_bound() const override { return durability_.retained_records_bound(); }
   bool TakeDuplicate(const std::string& robot_id, uint64_t sequence, uint64_t* last) override;
   void CountRejected(const std::string& robot_id) override { robots_.CountRejected(robot_id); }
   Admission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,

@@ -10,6 +10,7 @@ namespace bgkmap {
 
 struct ServedMap::CorrectionJob {
   CorrectionPlan plan;
+  std::shared_ptr<const std::atomic<bool>> cancelled;  // CorrectionSpec::cancelled
   std::function<void(CorrectionOutcome)> done;
   std::chrono::steady_clock::time_point start = std::chrono::steady_clock::now();
   int attempts = 0;
@@ -19,6 +20,10 @@ namespace {
 // A correction whose region keeps growing (a robot streaming on at its edge) runs, after this
 // many attempts, as an exclusive change: after everything before it, before everything after.
 constexpr int kRegionAttempts = 3;
+
+Status CancelledByClient() {
+  return Status::FailedPrecondition("cancelled by its client before it was applied");
+}
 }  // namespace
 
 CorrectionStats ServedMap::corrections() const {
@@ -36,8 +41,10 @@ void ServedMap::SubmitCorrection(CorrectionSpec spec, std::function<void(Correct
     outcome.status = s;
     done(std::move(outcome));
   };
+  if (spec.is_cancelled()) return refuse(CancelledByClient());
   Result<CorrectionPlan> plan = durability_.PlanCorrection(spec.robot_id, spec.poses, spec.remove);
   if (!plan.ok()) return refuse(plan.status());
+  if (spec.is_cancelled()) return refuse(CancelledByClient());
   // The region as the log holds it now; computed again, complete, when the correction runs.
   Result<storage::Reintegration> region =
       durability_.Reintegrate(*plan, UINT64_MAX, /*plan_only=*/true);
@@ -45,6 +52,7 @@ void ServedMap::SubmitCorrection(CorrectionSpec spec, std::function<void(Correct
   auto job = std::make_shared<CorrectionJob>();
   job->plan = std::move(*plan);
   job->done = std::move(done);
+  job->cancelled = std::move(spec.cancelled);
   {
     std::lock_guard lock(corrections_mu_);
     ++corrections_.in_progress;
@@ -85,6 +93,12 @@ ChangeScheduler::Done ServedMap::RunCorrection(std::shared_ptr<CorrectionJob> jo
     }
     return {std::move(changed), [job, outcome = std::move(outcome)] { job->done(outcome); }};
   };
+  // Cancelled while it waited for its turn (or for its region to be pinned): dropped, so a
+  // client that gave up never sees its correction applied later.
+  if (job->cancelled != nullptr && job->cancelled->load()) {
+    outcome.status = CancelledByClient();
+    return finish({});
+  }
   // Every record below `version` that touches the region is in the log now.
   Result<storage::Reintegration> rebuilt =
       durability_.Reintegrate(job->plan, version, /*plan_only=*/false);
@@ -107,6 +121,11 @@ ChangeScheduler::Done ServedMap::RunCorrection(std::shared_ptr<CorrectionJob> jo
   Result<TileResidency::Pins> pins = residency_.Pin(rebuilt->affected, /*strict=*/true);
   if (!pins.ok()) {
     outcome.status = pins.status();
+    return finish({});
+  }
+  // The last moment it can be dropped: once recorded it is the map's.
+  if (job->cancelled != nullptr && job->cancelled->load()) {
+    outcome.status = CancelledByClient();
     return finish({});
   }
   if (Status s = durability_.RecordCorrection(job->plan, version); !s.ok()) {

@@ -2,6 +2,7 @@
 // drifting odometry, corrected to the true poses, equals the map built from the true poses,
 // exactly: also with a second robot in the region, while the robot streams on, and across a
 // restart. Removing a robot's scans gives the map without them. Bad requests change nothing.
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <thread>
 
+#include "bgkmap/v1/map_service.grpc.pb.h"
 #include "bgkmapd_process.h"
 #include "test_support.h"
 
@@ -219,13 +221,208 @@ TEST(PoseCorrection, AScanNoLongerRetainedIsRefusedNamingTheOldestRetainedOne) {
     Send(fixture.client(), {&s});
     std::this_thread::sleep_for(std::chrono::milliseconds(60));  // a checkpoint after each
   }
-  RpcResult<CorrectionResult> r = fixture.client().CorrectPoses("robot-a", drive.TruePosesFrom(1));
+  // The whole drive names more scans than are retained: refused before any work (issue 25).
+  RpcResult<CorrectionResult> all =
+      fixture.client().CorrectPoses("robot-a", drive.TruePosesFrom(1));
+  ASSERT_FALSE(all.ok());
+  EXPECT_EQ(all.status().code(), RpcCode::kInvalidArgument) << all.status().ToString();
+  EXPECT_NE(all.status().message().find("retained scans"), std::string::npos)
+      << all.status().ToString();
+  // One scan no longer retained (within any count: as few as one scan may be retained when
+  // the checkpoints come late): planning names the oldest retained one.
+  RpcResult<CorrectionResult> r =
+      fixture.client().CorrectPoses("robot-a", {{1, drive.truth[0].pose}});
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), RpcCode::kFailedPrecondition) << r.status().ToString();
   EXPECT_NE(r.status().message().find("oldest retained scan is sequence"), std::string::npos)
       << r.status().ToString();
   // The newest scans are still retained, and can be corrected.
   EXPECT_TRUE(fixture.client().CorrectPoses("robot-a", drive.TruePosesFrom(kScans)).ok());
+}
+
+// Issue 25: a correction is bounded by what the robot has retained before any of its work (the
+// poses are not converted, nothing is planned or queued). Mutations caught: without the count
+// check in StartCorrectPoses the 13-entry request is refused later, by planning, as "never
+// ingested" (no counts named); without the per-call byte cap the 1,000-entry request is parsed
+// and refused by its count (no bytes named); without the configured bound the 6-entry request
+// is applied.
+TEST(PoseCorrection, MoreEntriesThanRetainedScansAreRefusedAtOnceNamingTheNumbers) {
+  const DriveScans drive("robot-a", kParts, 12);
+  TempDir dir;
+  ServerFixture fixture(StoreConfig(dir));
+  Send(fixture.client(), Pointers(drive.drifted));
+  const auto before = fixture.server().SnapshotMap();
+  RpcResult<MapInfo> info_before = fixture.client().Info();
+  ASSERT_TRUE(info_before.ok());
+  auto entries = [&](uint64_t n) {
+    std::vector<std::pair<uint64_t, ScanPose>> out;
+    for (uint64_t s = 1; s <= n; ++s) out.emplace_back(s, drive.truth[0].pose);
+    return out;
+  };
+  auto expect = [&](RpcResult<CorrectionResult> r, const std::vector<std::string>& words) {
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), RpcCode::kInvalidArgument) << r.status().ToString();
+    for (const std::string& w : words) {
+      EXPECT_NE(r.status().message().find(w), std::string::npos)
+          << "'" << w << "' not in: " << r.status().ToString();
+    }
+  };
+  // 13 entries, 12 scans retained (the request is small: its count is judged).
+  expect(fixture.client().CorrectPoses("robot-a", entries(13)),
+         {"13 entries", "at most 12 retained scans", "robot 'robot-a'"});
+  // 1,000 entries: refused by the request's size, before it is parsed.
+  expect(fixture.client().CorrectPoses("robot-a", entries(1000)),
+         {"bytes", "12 retained scans", "server.max_correction_scans"});
+  EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *before));
+  RpcResult<MapInfo> info_after = fixture.client().Info();
+  ASSERT_TRUE(info_after.ok());
+  EXPECT_EQ(info_after->map_version, info_before->map_version);
+  // The request within the bound still works.
+  EXPECT_TRUE(fixture.client().CorrectPoses("robot-a", drive.TruePosesFrom(3)).ok());
+
+  // A configured bound below the robot's retention.
+  TempDir dir2;
+  ServerConfig config = StoreConfig(dir2);
+  config.limits.max_correction_scans = 5;
+  ServerFixture bounded(config);
+  Send(bounded.client(), Pointers(drive.drifted));
+  expect(bounded.client().CorrectPoses("robot-a", drive.TruePosesFrom(7)),
+         {"6 entries", "server.max_correction_scans = 5"});
+  EXPECT_TRUE(bounded.client().CorrectPoses("robot-a", drive.TruePosesFrom(8)).ok());
+}
+
+// VmHWM of a process, KiB (0 if unreadable).
+uint64_t PeakRssKiB(pid_t pid) {
+  FILE* f = std::fopen(("/proc/" + std::to_string(pid) + "/status").c_str(), "r");
+  if (f == nullptr) return 0;
+  char line[256];
+  uint64_t kib = 0;
+  while (std::fgets(line, sizeof line, f) != nullptr) {
+    if (std::sscanf(line, "VmHWM: %lu kB", &kib) == 1) break;
+  }
+  std::fclose(f);
+  return kib;
+}
+
+// Measures what a 2M-entry correction (identity poses: ~19 bytes each, 38 MB, under the 64 MiB
+// message limit) costs bgkmapd's peak resident set before it is refused (issue 25: ~650 MB).
+// Run by hand: --gtest_also_run_disabled_tests --gtest_filter=*MeasureAHugeCorrection*
+TEST(PoseCorrection, DISABLED_MeasureAHugeCorrectionsResidentSet) {
+  const DriveScans drive("robot-a", kParts, 12);
+  TempDir dir("bgkmap_correct_rss");
+  BgkmapdProcess server({"--data-dir", dir.str()});
+  ASSERT_TRUE(server.started());
+  Client client(server.target());
+  Send(client, Pointers(drive.drifted));
+  const uint64_t before = PeakRssKiB(server.pid());
+  std::vector<std::pair<uint64_t, ScanPose>> huge;
+  for (uint64_t s = 1; s <= 2'000'000; ++s) huge.emplace_back(s, ScanPose{});
+  const auto start = std::chrono::steady_clock::now();
+  RpcResult<CorrectionResult> r = client.CorrectPoses("robot-a", huge);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_FALSE(r.ok());
+  const uint64_t after = PeakRssKiB(server.pid());
+  std::printf("2M-entry correction: %s in %.2f s; peak RSS %lu -> %lu MiB (+%lu MiB)\n",
+              r.status().ToString().c_str(), seconds, before / 1024, after / 1024,
+              (after - before) / 1024);
+}
+
+v1::Pose3 WireProto(const ScanPose& p) {
+  v1::Pose3 out;
+  out.mutable_translation()->set_x(p.tx);
+  out.mutable_translation()->set_y(p.ty);
+  out.mutable_translation()->set_z(p.tz);
+  out.mutable_rotation()->set_w(p.qw);
+  out.mutable_rotation()->set_x(p.qx);
+  out.mutable_rotation()->set_y(p.qy);
+  out.mutable_rotation()->set_z(p.qz);
+  return out;
+}
+
+// The corrections the map is running now (Info), or -1 if Info fails.
+int64_t CorrectionsInProgress(v1::MapService::Stub& stub) {
+  grpc::ClientContext context;
+  v1::InfoRequest request;
+  v1::InfoResponse response;
+  if (!stub.Info(&context, request, &response).ok()) return -1;
+  return static_cast<int64_t>(response.corrections().in_progress());
+}
+
+// Issue 25: a correction its client cancels while it waits behind another is never applied.
+// The first correction re-integrates 24 full street scans (seconds); the second, one scan moved
+// 2 m, queues behind it (same tiles) and is cancelled (TryCancel) once Info counts both; a third
+// queues with a 300 ms deadline.
+// Mutation caught: without the cancellation check in ServedMap::RunCorrection the second runs
+// once the first is done and the map holds the moved scan.
+TEST(PoseCorrection, ACorrectionCancelledWhileQueuedIsNeverApplied) {
+  std::vector<OwnedScan> scans;
+  for (uint64_t k = 0; k < 24; ++k) {
+    OwnedScan s = StreetScans()[k % StreetScans().size()];
+    s.robot_id = "robot-a";
+    s.sequence = k + 1;
+    scans.push_back(std::move(s));
+  }
+  std::vector<OwnedScan> first_poses = scans;  // every scan 30 cm further along x
+  for (OwnedScan& s : first_poses) s.pose.tx += 0.3;
+  TempDir dir;
+  ServerFixture fixture(StoreConfig(dir));
+  Send(fixture.client(), Pointers(scans));
+  auto stub = v1::MapService::NewStub(
+      grpc::CreateChannel(fixture.target(), grpc::InsecureChannelCredentials()));
+
+  std::vector<std::pair<uint64_t, ScanPose>> first;
+  for (const OwnedScan& s : first_poses) first.emplace_back(s.sequence, s.pose);
+  std::optional<RpcResult<CorrectionResult>> first_result;
+  const auto start = std::chrono::steady_clock::now();
+  std::thread first_call(
+      [&] { first_result.emplace(fixture.NewClient()->CorrectPoses("robot-a", first)); });
+  while (CorrectionsInProgress(*stub) < 1)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+
+  v1::CorrectPosesRequest second;
+  second.set_robot_id("robot-a");
+  v1::PoseCorrection* moved = second.add_corrections();
+  moved->set_sequence(1);
+  ScanPose far = first_poses[0].pose;
+  far.tx += 2.0;
+  *moved->mutable_pose() = WireProto(far);
+  grpc::ClientContext second_context;
+  v1::CorrectPosesResponse second_response;
+  grpc::Status second_status;
+  std::thread second_call(
+      [&] { second_status = stub->CorrectPoses(&second_context, second, &second_response); });
+  while (CorrectionsInProgress(*stub) < 2) {
+    ASSERT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  const double queued_at =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // A third, scan 2 moved, whose 300 ms deadline passes while it waits behind the first (or,
+  // on a slow machine, while it is planned: not applied either way).
+  v1::CorrectPosesRequest third = second;
+  ScanPose aside = first_poses[1].pose;
+  aside.ty += 2.0;
+  third.mutable_corrections(0)->set_sequence(2);
+  *third.mutable_corrections(0)->mutable_pose() = WireProto(aside);
+  grpc::ClientContext third_context;
+  third_context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(300));
+  v1::CorrectPosesResponse third_response;
+  grpc::Status third_status = stub->CorrectPoses(&third_context, third, &third_response);
+  second_context.TryCancel();
+  second_call.join();
+  first_call.join();
+  ASSERT_TRUE(first_result->ok()) << first_result->status().ToString();
+  EXPECT_EQ(second_status.error_code(), grpc::StatusCode::CANCELLED);
+  EXPECT_EQ(third_status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  // The server has finished with all three (the cancelled ones answered or dropped).
+  while (CorrectionsInProgress(*stub) != 0) {
+    ASSERT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(120));
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  std::printf("second correction queued at %.2f s, first answered after %.2f s\n", queued_at,
+              (*first_result)->seconds);
+  EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *ReferenceMap(Pointers(first_poses))));
 }
 
 // kill -9 while a correction runs: the restarted map is the map before it or after it, never a

@@ -25,8 +25,11 @@ struct ServerLimits {
   // max_region_read_cells: map cells a region query reads (pixels x stride^2): bounds its time
   // and the tiles it loads from the store.
   uint64_t max_region_read_cells = 64'000'000;
-  uint64_t max_query_points = 100'000;     // max_query_points: points per point query
-  uint64_t max_path_poses = 10'000;        // max_path_poses: poses per path check
+  uint64_t max_query_points = 100'000;  // max_query_points: points per point query
+  uint64_t max_path_poses = 10'000;     // max_path_poses: poses per path check
+  // max_correction_scans: entries per CorrectPoses request (at most the robot's retained scans
+  // as well); bounds the request's bytes before it is parsed.
+  uint64_t max_correction_scans = 100'000;
   uint64_t max_footprint_cells = 100'000;  // max_footprint_cells: cells under one footprint
   // max_path_check_cells: footprint bounding-box cells summed over a path check's placements
   // (its poses and the samples between them: the work a CheckPath costs), checked before any

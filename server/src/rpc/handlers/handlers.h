@@ -48,10 +48,11 @@ grpc::ServerReadReactor<v1::ArchiveChunk>* StartImportMap(ServiceContext& ctx,
                                                           PrincipalRef who,
                                                           v1::ImportResponse* response);
 
+// CorrectPoses is served raw: `request` is a bgkmap.v1.CorrectPosesRequest's bytes, judged by
+// their size before they are parsed; `response` receives a CorrectPosesResponse's.
 grpc::ServerUnaryReactor* StartCorrectPoses(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                            PrincipalRef who,
-                                            const v1::CorrectPosesRequest* request,
-                                            v1::CorrectPosesResponse* response);
+                                            PrincipalRef who, const grpc::ByteBuffer* request,
+                                            grpc::ByteBuffer* response);
 grpc::ServerUnaryReactor* StartRemoveScans(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            PrincipalRef who, const v1::RemoveScansRequest* request,
                                            v1::RemoveScansResponse* response);
