@@ -70,9 +70,10 @@ MapParams SmallTileParams() {
 // The compact point target's layout: step, count, order, the zstd frame.
 void CompactPointSeeds(const io::Scan& scan) {
   const std::vector<Point3f> points = Every(scan.points, 200);
-  const std::pair<PointOrder, const char*> orders[] = {{PointOrder::kScanOrder, "street_scan_order"},
-                                                       {PointOrder::kSpatialSort, "street_sorted"},
-                                                       {PointOrder::kScanRay, "street_scan_ray"}};
+  const std::pair<PointOrder, const char*> orders[] = {
+      {PointOrder::kScanOrder, "street_scan_order"},
+      {PointOrder::kSpatialSort, "street_sorted"},
+      {PointOrder::kScanRay, "street_scan_ray"}};
   for (const auto& [order, name] : orders) {
     const CompactPoints c = Must(EncodeCompactPoints(points, kDefaultCompactStep, nullptr, order));
     std::string bytes(13, '\0');

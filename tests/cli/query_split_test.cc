@@ -33,20 +33,31 @@ std::string Bytes(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// Two servers fed the street: one answering at most 20,000 pixels a query, one without limit.
+struct StreetServers {
+  testing::BgkmapdProcess small{std::vector<std::string>{"--set", "server.max_region_cells=20000"}};
+  testing::BgkmapdProcess whole{std::vector<std::string>{}};
+  bool FeedTheStreet() {
+    for (const testing::BgkmapdProcess* s : {&small, &whole}) {
+      if (!s->started() ||
+          testing::RunCli("insert " + kStreet + " --robot r1 --server " + s->target(),
+                          "2>/dev/null")
+                  .exit_code != 0) {
+        return false;
+      }
+    }
+    return true;
+  }
+};
+
 TEST(QuerySplitTest, ASplitRegionEqualsTheWholeRegionBitForBit) {
   const fs::path dir =
       fs::temp_directory_path() / ("bgkmap_query_split_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   // 20,000 pixels per query: the 45 x 30 m box below is 135,000 cells at stride 1.
-  testing::BgkmapdProcess small(std::vector<std::string>{"--set", "server.max_region_cells=20000"});
-  testing::BgkmapdProcess whole(std::vector<std::string>{});
-  ASSERT_TRUE(small.started() && whole.started());
-  for (const testing::BgkmapdProcess* s : {&small, &whole}) {
-    ASSERT_EQ(
-        testing::RunCli("insert " + kStreet + " --robot r1 --server " + s->target(), "2>/dev/null")
-            .exit_code,
-        0);
-  }
+  StreetServers servers;
+  ASSERT_TRUE(servers.FeedTheStreet());
+  testing::BgkmapdProcess &small = servers.small, &whole = servers.whole;
   for (int stride : {1, 3}) {
     const std::string args = "query --bbox -20.03,-15,25,15.07 --stride " + std::to_string(stride);
     const std::string split = (dir / ("split" + std::to_string(stride) + ".tif")).string();
@@ -134,15 +145,9 @@ TEST(QuerySplitTest, AGeoTiffOverTheMemoryBoundIsWrittenInWindowsPixelForPixel) 
   const fs::path dir =
       fs::temp_directory_path() / ("bgkmap_query_windows_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  testing::BgkmapdProcess small(std::vector<std::string>{"--set", "server.max_region_cells=20000"});
-  testing::BgkmapdProcess whole(std::vector<std::string>{});
-  ASSERT_TRUE(small.started() && whole.started());
-  for (const testing::BgkmapdProcess* s : {&small, &whole}) {
-    ASSERT_EQ(
-        testing::RunCli("insert " + kStreet + " --robot r1 --server " + s->target(), "2>/dev/null")
-            .exit_code,
-        0);
-  }
+  StreetServers servers;
+  ASSERT_TRUE(servers.FeedTheStreet());
+  testing::BgkmapdProcess &small = servers.small, &whole = servers.whole;
   const std::string args = "query --bbox -40,-30,40,30";
   for (const std::string cog : {"", " --cog"}) {
     const std::string kind = cog.empty() ? "plain" : "cog";

@@ -1,7 +1,8 @@
 // The compact point encoding (proto/codec's compact_points.h): every order decodes to exactly the
 // dequantized points (the scan orders in order, the spatial sort as the same multiset), on a real
-// Ouster scan, on edge values and on random walks with jumps that overflow the ray's residuals; every malformed payload is refused with a message naming the
-// fault, before anything is inflated where the count already tells.
+// Ouster scan, on edge values and on random walks with jumps that overflow the ray's residuals;
+// every malformed payload is refused with a message naming the fault, before anything is inflated
+// where the count already tells.
 #include "bgkmap/proto/compact_points.h"
 
 #include <gtest/gtest.h>

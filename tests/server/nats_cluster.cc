@@ -1,12 +1,11 @@
 #include "nats_cluster.h"
 
 #include <arpa/inet.h>
+#include <nats/nats.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/socket.h>
 #include <unistd.h>
-
-#include <nats/nats.h>
 
 #include <chrono>
 #include <cstdio>

@@ -15,21 +15,11 @@ namespace bgkmap::io {
 namespace {
 
 using testing::MakeTestRaster;
+using testing::SameData;
 using testing::TempDir;
 
 // Bitwise equality, so NaN == NaN and -0 != 0.
 bool SameBits(float a, float b) { return std::memcmp(&a, &b, sizeof(float)) == 0; }
-
-bool SameData(const Raster& a, const Raster& b) {
-  if (a.data.size() != b.data.size()) return false;
-  for (size_t l = 0; l < a.data.size(); ++l) {
-    if (a.data[l].size() != b.data[l].size() ||
-        std::memcmp(a.data[l].data(), b.data[l].data(), a.data[l].size() * sizeof(float)) != 0) {
-      return false;
-    }
-  }
-  return true;
-}
 
 TEST(GeoTiffTest, RoundTripKeepsValuesGeometryAndNaNs) {
   TempDir dir;

@@ -18,18 +18,8 @@ namespace bgkmap::io {
 namespace {
 
 using testing::MakeTestRaster;
+using testing::SameData;
 using testing::TempDir;
-
-bool SameData(const Raster& a, const Raster& b) {
-  if (a.data.size() != b.data.size()) return false;
-  for (size_t l = 0; l < a.data.size(); ++l) {
-    if (a.data[l].size() != b.data[l].size() ||
-        std::memcmp(a.data[l].data(), b.data[l].data(), a.data[l].size() * sizeof(float)) != 0) {
-      return false;
-    }
-  }
-  return true;
-}
 
 // The pixels [col0, col0 + cols) x [row0, row0 + rows) of `r` as a raster of their own.
 Raster Part(const Raster& r, int64_t col0, int64_t row0, int64_t cols, int64_t rows) {

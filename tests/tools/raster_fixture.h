@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "bgkmap/core/raster.h"
@@ -37,6 +38,18 @@ inline Raster MakeTestRaster(int64_t cols, int64_t rows, double resolution = 0.2
     }
   }
   return r;
+}
+
+// Every layer's values the same bits (NaN equals NaN, -0 differs from 0).
+inline bool SameData(const Raster& a, const Raster& b) {
+  if (a.data.size() != b.data.size()) return false;
+  for (size_t l = 0; l < a.data.size(); ++l) {
+    if (a.data[l].size() != b.data[l].size() ||
+        std::memcmp(a.data[l].data(), b.data[l].data(), a.data[l].size() * sizeof(float)) != 0) {
+      return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace bgkmap::io::testing

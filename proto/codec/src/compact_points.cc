@@ -111,8 +111,8 @@ std::optional<std::string> ScanRayBytes(const std::span<const QuantizedPoint> po
   const size_t n = points.size();
   std::string out(n * kBytesPerScanOrderPoint, '\0');
   for (size_t i = 0; i < n; ++i) {
-    const RayPrediction p = PredictRay(i >= 1 ? points[i - 1].q : nullptr,
-                                       i >= 2 ? points[i - 2].q : nullptr, i);
+    const RayPrediction p =
+        PredictRay(i >= 1 ? points[i - 1].q : nullptr, i >= 2 ? points[i - 2].q : nullptr, i);
     const int64_t on_axis = points[i].q[p.axis] - p.base[p.axis];
     for (int c = 0; c < 3; ++c) {
       const int64_t r = points[i].q[c] - p.base[c] - AlongRay(p, on_axis, c);
@@ -178,24 +178,30 @@ Result<std::string> Inflate(const std::string& data, size_t capacity) {
   return out;
 }
 
+// The byte planes of `n` points: 12 bytes each.
+Status CheckPlaneBytes(const std::string& bytes, size_t n) {
+  if (bytes.size() == n * kBytesPerScanOrderPoint) return Status::Ok();
+  return Status::InvalidArgument(
+      "compact_points.data: inflates to " + std::to_string(bytes.size()) +
+      " bytes, not 12 x count = " + std::to_string(n * kBytesPerScanOrderPoint));
+}
+
+Status OutOfRange(size_t i) {
+  return Status::InvalidArgument("compact_points.data: point " + std::to_string(i) +
+                                 " leaves the quantized range |q| < 2^30");
+}
+
 Result<std::vector<Point3f>> DecodeScanOrder(const std::string& bytes, uint32_t count,
                                              double step) {
   const size_t n = count;
-  if (bytes.size() != n * kBytesPerScanOrderPoint) {
-    return Status::InvalidArgument(
-        "compact_points.data: inflates to " + std::to_string(bytes.size()) +
-        " bytes, not 12 x count = " + std::to_string(n * kBytesPerScanOrderPoint));
-  }
+  if (Status s = CheckPlaneBytes(bytes, n); !s.ok()) return s;
   std::vector<Point3f> points(n);
   int64_t q[3] = {0, 0, 0};
   for (size_t i = 0; i < n; ++i) {
     float xyz[3];
     for (int c = 0; c < 3; ++c) {
       q[c] += UnZigZag(GetPlanes(bytes, n, i, c));
-      if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) {
-        return Status::InvalidArgument("compact_points.data: point " + std::to_string(i) +
-                                       " leaves the quantized range |q| < 2^30");
-      }
+      if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) return OutOfRange(i);
       xyz[c] = Dequantize(q[c], step);
     }
     points[i] = {xyz[0], xyz[1], xyz[2]};
@@ -203,14 +209,9 @@ Result<std::vector<Point3f>> DecodeScanOrder(const std::string& bytes, uint32_t 
   return points;
 }
 
-Result<std::vector<Point3f>> DecodeScanRay(const std::string& bytes, uint32_t count,
-                                           double step) {
+Result<std::vector<Point3f>> DecodeScanRay(const std::string& bytes, uint32_t count, double step) {
   const size_t n = count;
-  if (bytes.size() != n * kBytesPerScanOrderPoint) {
-    return Status::InvalidArgument(
-        "compact_points.data: inflates to " + std::to_string(bytes.size()) +
-        " bytes, not 12 x count = " + std::to_string(n * kBytesPerScanOrderPoint));
-  }
+  if (Status s = CheckPlaneBytes(bytes, n); !s.ok()) return s;
   std::vector<Point3f> points(n);
   int64_t prev[3] = {0, 0, 0}, before[3] = {0, 0, 0};
   for (size_t i = 0; i < n; ++i) {
@@ -221,10 +222,7 @@ Result<std::vector<Point3f>> DecodeScanRay(const std::string& bytes, uint32_t co
     for (int c = 0; c < 3; ++c) {
       const int64_t r = c == p.axis ? on_axis : UnZigZag(GetPlanes(bytes, n, i, c));
       q[c] = p.base[c] + r + AlongRay(p, on_axis, c);
-      if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) {
-        return Status::InvalidArgument("compact_points.data: point " + std::to_string(i) +
-                                       " leaves the quantized range |q| < 2^30");
-      }
+      if (q[c] <= -kScanOrderLimit || q[c] >= kScanOrderLimit) return OutOfRange(i);
     }
     std::copy(prev, prev + 3, before);
     std::copy(q, q + 3, prev);

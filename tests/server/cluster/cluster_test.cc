@@ -417,8 +417,9 @@ TEST(ClusterTest, SurvivesANatsServerAndItCatchesUp) {
   nats.Kill(1);
   const auto killed_again = std::chrono::steady_clock::now();
   EXPECT_TRUE(EventuallySameAnswers(b.client(), ref, killed_again));
-  std::printf("a second NATS server killed: answers equal again after %.1f s\n",
-              std::chrono::duration<double>(std::chrono::steady_clock::now() - killed_again).count());
+  std::printf(
+      "a second NATS server killed: answers equal again after %.1f s\n",
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - killed_again).count());
 }
 
 // The newest update of each tile a Watch sent.

@@ -109,9 +109,10 @@ Result<KittiSequence> KittiSequence::Open(const std::string& directory) {
   }
   const fs::path scan_dir = fs::path(directory) / "velodyne";
   if (!fs::is_directory(scan_dir, ec)) {
-    return Status::IoError(directory +
-                           ": no scans (a sequence folder holds velodyne/NNNNNN.bin or "
-                           "velodyne/NNNNNN.pcd and poses.txt; recordings are .mcap, .db3 or .bag)");
+    return Status::IoError(
+        directory +
+        ": no scans (a sequence folder holds velodyne/NNNNNN.bin or "
+        "velodyne/NNNNNN.pcd and poses.txt; recordings are .mcap, .db3 or .bag)");
   }
 
   Result<std::vector<std::string>> scans = ListScans(scan_dir);
