@@ -7,6 +7,7 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -138,6 +139,7 @@ Status WriteGeoTiff(const Raster& raster, const std::string& path, const GeoTiff
   CPLErrorReset();
   const int cols = static_cast<int>(raster.cols), rows = static_cast<int>(raster.rows);
   const int bands = static_cast<int>(raster.layers.size());
+  const int threads = std::max(1, options.threads);
   if (options.cloud_optimized) {
     // GDAL's COG driver only copies: fill an in-memory dataset, then write it with overviews.
     GDALDriver* mem = GetGDALDriverManager()->GetDriverByName("MEM");
@@ -154,6 +156,7 @@ Status WriteGeoTiff(const Raster& raster, const std::string& path, const GeoTiff
     cog_options.SetNameValue("OVERVIEWS", "AUTO");
     cog_options.SetNameValue("RESAMPLING", "NEAREST");
     cog_options.SetNameValue("BIGTIFF", "IF_SAFER");
+    cog_options.SetNameValue("NUM_THREADS", std::to_string(threads).c_str());
     DatasetPtr ds(
         cog->CreateCopy(path.c_str(), staged.get(), FALSE, cog_options.List(), nullptr, nullptr));
     if (!ds) return GdalError(path, "cannot write Cloud-Optimized GeoTIFF");
@@ -166,6 +169,7 @@ Status WriteGeoTiff(const Raster& raster, const std::string& path, const GeoTiff
   create_options.SetNameValue("PREDICTOR", "3");  // floating-point predictor
   create_options.SetNameValue("TILED", "YES");
   create_options.SetNameValue("BIGTIFF", "IF_SAFER");
+  create_options.SetNameValue("NUM_THREADS", std::to_string(threads).c_str());
   if (bands > 1) create_options.SetNameValue("INTERLEAVE", "BAND");
   DatasetPtr ds(
       driver->Create(path.c_str(), cols, rows, bands, GDT_Float32, create_options.List()));

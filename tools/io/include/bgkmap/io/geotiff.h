@@ -26,6 +26,9 @@ struct GeoTiffOptions {
   // Added to the geotransform's origin and to the elevation band (its variance is unchanged).
   // The BGKMAP_BOX metadata keeps the map-frame cells.
   std::array<double, 3> origin{0, 0, 0};
+  // Threads compressing the tiles (GDAL's NUM_THREADS). Each tile is compressed alone and the
+  // tiles are written in order, so the file is the same bytes for any number.
+  int threads = 1;
 };
 
 // Fails (InvalidArgument) if the raster is empty or its data does not match rows x cols x layers.
