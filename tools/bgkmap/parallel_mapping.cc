@@ -37,16 +37,12 @@ struct PreparedScans {
 };
 
 // Reads and prepares every scan on `threads` threads; scans are taken in order from a counter.
+// Each scan is read once: the stamps, which count from the first scan's time, are set after.
 PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int threads) {
   PreparedScans out;
   out.scans.resize(source.size());
   std::vector<Status> errors(source.size());
-  double first_time = std::nan("");
-  if (source.size() > 0) {
-    Result<SourceScan> first = source.Read(0);
-    if (!first.ok()) return {{}, first.status()};
-    first_time = first->time_s;
-  }
+  std::vector<double> times(source.size(), std::nan(""));
   std::atomic<size_t> next{0};
   std::atomic<bool> failed{false};
   RunOnThreads(threads, [&](int) {
@@ -66,19 +62,23 @@ PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int 
         failed = true;
         break;
       }
-      // Map time (forgetting): the first scan at 1 s (0 would be unstamped); without times,
-      // unstamped.
-      prepared->stamp_ns = std::isfinite(scan->time_s) && std::isfinite(first_time)
-                               ? 1'000'000'000 + std::llround((scan->time_s - first_time) * 1e9)
-                               : 0;
+      times[k] = scan->time_s;
       out.scans[k] = std::move(prepared).value();
     }
   });
   for (Status& s : errors) {
     if (!s.ok()) {
       out.error = s;
-      break;
+      return out;
     }
+  }
+  // Map time (forgetting): the first scan at 1 s (0 would be unstamped); without times,
+  // unstamped.
+  const double first_time = times.empty() ? std::nan("") : times[0];
+  for (size_t k = 0; k < out.scans.size(); ++k) {
+    out.scans[k].stamp_ns = std::isfinite(times[k]) && std::isfinite(first_time)
+                                ? 1'000'000'000 + std::llround((times[k] - first_time) * 1e9)
+                                : 0;
   }
   return out;
 }
@@ -89,6 +89,7 @@ struct Band {
   int64_t lo = std::numeric_limits<int>::min();
   int64_t hi = int64_t{std::numeric_limits<int>::max()} + 1;
 
+  bool IsWholeMap() const { return lo == Band{}.lo && hi == Band{}.hi; }
   bool Owns(TileKey key, int tile_size) const {
     const int64_t first = int64_t{along_x ? key.x : key.y} * tile_size;
     return first >= lo && first < hi;
@@ -139,12 +140,15 @@ StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan
                          const Band& band, TerrainMap& map, io::ProgressBar* progress) {
   const CellBox keep = band.Reach(HaloCells(params));
   StageTimes times;
+  PreparedScan restricted;
   for (size_t k = 0; k < scans.size(); ++k) {
     if (progress != nullptr) progress->Add();
-    const PreparedScan restricted = RestrictScan(params, scans[k], keep);
-    if (restricted.cells.empty() && restricted.footprint_cells.empty()) continue;
-    const TileWindow window = map.MakeWindow(restricted);
-    const ScanReport r = map.Integrate(restricted, window, k + 1);
+    // The whole map (one thread) takes every scan as it is.
+    if (!band.IsWholeMap()) restricted = RestrictScan(params, scans[k], keep);
+    const PreparedScan& scan = band.IsWholeMap() ? scans[k] : restricted;
+    if (scan.cells.empty() && scan.footprint_cells.empty()) continue;
+    const TileWindow window = map.MakeWindow(scan);
+    const ScanReport r = map.Integrate(scan, window, k + 1);
     times.elevation += r.times.elevation;
     times.features += r.times.features;
     times.traversability += r.times.traversability;
