@@ -7,6 +7,7 @@
 #include <optional>
 #include <thread>
 
+#include "band_cut.h"
 #include "bgkmap/io/progress_bar.h"
 
 namespace bgkmap::cli {
@@ -103,34 +104,33 @@ struct Band {
   }
 };
 
-// Cuts the map into up to `count` bands along its longer axis, at tile borders, so that each
-// holds about as many observed cells (the integration's work).
-std::vector<Band> CutIntoBands(const std::vector<PreparedScan>& scans, int tile_size, int count) {
+// Cuts the map into up to `count` bands along its longer axis, at tile borders, so that the
+// slowest band's work, the observed cells within its halo, is the least (band_cut.h).
+std::vector<Band> CutIntoBands(const MapParams& params, const std::vector<PreparedScan>& scans,
+                               int count) {
   CellBox box;
   for (const PreparedScan& s : scans) {
     for (const ObservedCell& c : s.cells) box.Extend(c.cell);
   }
   if (count <= 1 || box.empty()) return {Band{}};
   const bool along_x = box.width() >= box.height();
-  std::vector<int> coords;
+  const int first = along_x ? box.min.x : box.min.y;
+  std::vector<int64_t> cells(static_cast<size_t>(along_x ? box.width() : box.height()), 0);
   for (const PreparedScan& s : scans) {
-    for (const ObservedCell& c : s.cells) coords.push_back(along_x ? c.cell.x : c.cell.y);
+    for (const ObservedCell& c : s.cells) {
+      ++cells[static_cast<size_t>((along_x ? c.cell.x : c.cell.y) - first)];
+    }
   }
   std::vector<Band> bands;
   Band band;
   band.along_x = along_x;
-  for (int b = 1; b < count; ++b) {
-    const auto nth = coords.begin() + static_cast<ptrdiff_t>(coords.size() * b / count);
-    std::nth_element(coords.begin(), nth, coords.end());
-    // The tile border at or below the quantile.
-    const int64_t border = int64_t{tile_size} *
-                           static_cast<int64_t>(std::floor(static_cast<double>(*nth) / tile_size));
-    if (border <= band.lo) continue;
+  for (const int64_t border :
+       CutBorders(cells, first, params.tile_size, HaloCells(params), count)) {
     band.hi = border;
     bands.push_back(band);
     band.lo = border;
-    band.hi = Band{}.hi;
   }
+  band.hi = Band{}.hi;
   bands.push_back(band);
   return bands;
 }
@@ -173,7 +173,7 @@ Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const Scan
     totals->counts.dropped_height += s.counts.dropped_height;
     totals->counts.dropped_out_of_bounds += s.counts.dropped_out_of_bounds;
   }
-  const std::vector<Band> bands = CutIntoBands(prepared.scans, params.tile_size, threads);
+  const std::vector<Band> bands = CutIntoBands(params, prepared.scans, threads);
   std::vector<std::unique_ptr<TerrainMap>> maps(bands.size());
   std::vector<StageTimes> times(bands.size());
   // One bar, as the first band's thread integrates (the bands keep about the same pace).
