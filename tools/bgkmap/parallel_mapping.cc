@@ -160,8 +160,9 @@ StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan
 
 Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const ScanSource& source,
                                              int threads, MappingTotals* totals) {
-  Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params);
-  if (!created.ok()) return created.status();
+  if (Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params); !created.ok()) {
+    return created.status();
+  }
   threads = std::max(1, threads);
   PreparedScans prepared = PrepareAll(params, source, threads);
   if (!prepared.error.ok()) return prepared.error;
@@ -183,18 +184,27 @@ Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const Scan
     times[b] =
         IntegrateBand(params, prepared.scans, bands[b], *maps[b], b == 0 ? &progress : nullptr);
   });
-  TerrainMap& map = **created;
-  for (size_t b = 0; b < bands.size(); ++b) {
+  // The first band's map becomes the map: its halo's tiles go, the other bands' own tiles are
+  // copied in (bitwise, version and stamp included: SetTile).
+  std::unique_ptr<TerrainMap> map = std::move(maps[0]);
+  std::vector<TileKey> halo;
+  map->ForEachTile([&](TileKey key, const Tile&) {
+    if (!bands[0].Owns(key, params.tile_size)) halo.push_back(key);
+  });
+  for (const TileKey& key : halo) map->EraseTile(key);
+  for (size_t b = 1; b < bands.size(); ++b) {
     maps[b]->ForEachTile([&](TileKey key, const Tile& tile) {
-      if (bands[b].Owns(key, params.tile_size)) map.SetTile(key, tile);
+      if (bands[b].Owns(key, params.tile_size)) map->SetTile(key, tile);
     });
     maps[b].reset();
-    totals->times.elevation += times[b].elevation;
-    totals->times.features += times[b].features;
-    totals->times.traversability += times[b].traversability;
   }
-  map.set_version(source.size());
-  return created;
+  for (const StageTimes& t : times) {
+    totals->times.elevation += t.elevation;
+    totals->times.features += t.features;
+    totals->times.traversability += t.traversability;
+  }
+  map->set_version(source.size());
+  return map;
 }
 
 }  // namespace bgkmap::cli

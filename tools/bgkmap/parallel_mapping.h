@@ -7,7 +7,8 @@
 // the halo (RestrictScan: the cells within reach of the band), into a map of its own, in scan
 // order. A cell's statistics depend only on the observed cells within that reach, so each band's
 // own tiles come out exactly as the single map's would (the cluster's partitions rest on the same
-// rule, docs/scale-out.md); the bands' own tiles are then copied into one map.
+// rule, docs/scale-out.md); the other bands' own tiles are then copied into the first band's
+// map, whose halo tiles are dropped.
 //
 // Memory: every prepared scan is held until the bands are integrated (a prepared scan is its
 // binned cells, 16 bytes each: tens of thousands per lidar scan, far less than its points).
