@@ -112,10 +112,13 @@ std::vector<Band> CutIntoBands(const MapParams& params, const std::vector<Prepar
   for (const PreparedScan& s : scans) {
     for (const ObservedCell& c : s.cells) box.Extend(c.cell);
   }
-  if (count <= 1 || box.empty()) return {Band{}};
   const bool along_x = box.width() >= box.height();
+  const int64_t extent = along_x ? box.width() : box.height();
+  // The cut counts the cells of each coordinate along the axis: a map longer than 2^21 cells
+  // (210 km at 0.1 m: a stray point far from the rest) is integrated as one band.
+  if (count <= 1 || box.empty() || extent > (int64_t{1} << 21)) return {Band{}};
   const int first = along_x ? box.min.x : box.min.y;
-  std::vector<int64_t> cells(static_cast<size_t>(along_x ? box.width() : box.height()), 0);
+  std::vector<int64_t> cells(static_cast<size_t>(extent), 0);
   for (const PreparedScan& s : scans) {
     for (const ObservedCell& c : s.cells) {
       ++cells[static_cast<size_t>((along_x ? c.cell.x : c.cell.y) - first)];
