@@ -8,7 +8,8 @@
 // order. A cell's statistics depend only on the observed cells within that reach, so each band's
 // own tiles come out exactly as the single map's would (the cluster's partitions rest on the same
 // rule, docs/scale-out.md); the other bands' own tiles are then copied into the first band's
-// map, whose halo tiles are dropped.
+// map, whose halo tiles are dropped. A map longer than 2^21 cells along its longer axis (a stray
+// point far from the rest) is integrated as one band, on one thread.
 //
 // Memory: every prepared scan is held until the bands are integrated (a prepared scan is its
 // binned cells, 16 bytes each: tens of thousands per lidar scan, far less than its points).
