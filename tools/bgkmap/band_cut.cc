@@ -61,7 +61,8 @@ std::vector<int64_t> CutBorders(const std::vector<int64_t>& cells, int64_t first
   const CellCounter count(cells, first);
   std::vector<int64_t> candidates;
   const int64_t end = first + static_cast<int64_t>(cells.size());
-  // The first multiple of tile_size above `first` (floor division for negative coordinates).
+  // The tile border at or below `first` (floor division, for negative coordinates too); the
+  // candidates are the borders above it, inside the cells' extent.
   int64_t t =
       (first >= 0 ? first / tile_size : -((-first + tile_size - 1) / tile_size)) * tile_size;
   for (t += tile_size; t < end; t += tile_size) candidates.push_back(t);
