@@ -284,5 +284,37 @@ TEST_F(BuildCommandTest, ThreadsGiveTheSameMapBitForBit) {
   }
 }
 
+// A stray point 1000 km from a small cloud (a bad GPS fix in a survey): the cut, which counts
+// cells per coordinate along the map, would need 10^7 of them; such a map is integrated as one
+// band, the same map on 2 threads as on 1.
+TEST_F(BuildCommandTest, StrayFarPointIsMappedAsOneBand) {
+  std::ofstream pcd(Path("stray.pcd"));
+  std::string points;
+  int n = 0;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 40; ++j, ++n) {
+      points += std::to_string(0.05 * i) + " " + std::to_string(0.05 * j) + " 0.1\n";
+    }
+  }
+  points += "1000000 3 0.2\n";
+  ++n;
+  pcd << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " << n
+      << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << n << "\nDATA ascii\n"
+      << points;
+  pcd.close();
+  std::string bytes[2];
+  for (int threads : {1, 2}) {
+    std::string name = std::to_string(threads);
+    name.append(".tif");
+    const CliRun run = RunCli("-q build " + Path("stray.pcd") + " --threads " +
+                              std::to_string(threads) + " --bbox -1,-1,3,3 --out " + Path(name));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    std::ifstream in(Path(name), std::ios::binary);
+    bytes[threads - 1].assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_FALSE(bytes[0].empty());
+  EXPECT_TRUE(bytes[0] == bytes[1]);
+}
+
 }  // namespace
 }  // namespace bgkmap

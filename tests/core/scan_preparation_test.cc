@@ -170,5 +170,47 @@ TEST(ScanPreparationTest, FootprintCoversKernelSupportAcrossTileBorders) {
   EXPECT_EQ(s->write_tiles, (std::vector<TileKey>{{0, 0}}));
 }
 
+std::vector<TileKey> Union(std::vector<TileKey> a, const std::vector<TileKey>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  std::sort(a.begin(), a.end());
+  a.erase(std::unique(a.begin(), a.end()), a.end());
+  return a;
+}
+
+// A scan's tile lists are the union of its points' own: what it writes, what it may change
+// (writes and rays' clears) and everything it touches (and reads), sorted and without repeats,
+// for points near the sensor, across tile borders, at negative coordinates, and for a cloud
+// spread over 200 km (too wide a box of tiles to flag: the lists take another path).
+TEST(ScanPreparationTest, TileListsAreTheUnionOfThePointsOwn) {
+  MapParams p;
+  p.dynamics = Dynamics::kOn;
+  p.min_range = 0;
+  p.max_range = 1e6;
+  p.max_height_above_sensor = 1e6;
+  Pose pose;
+  pose.translation = {0.3, -0.2, 1.5};
+  const std::vector<std::vector<Point3f>> clouds = {
+      {{6.35f, 0.05f, -1.0f}, {-6.41f, -12.8f, -1.2f}, {0.5f, 0.5f, -1.4f}, {25.6f, -6.4f, 0}},
+      {{6.35f, 0.05f, -1.0f}, {-99999.0f, -99999.0f, 0}, {99999.0f, 99999.0f, 0}}};
+  for (const std::vector<Point3f>& pts : clouds) {
+    Result<PreparedScan> whole = PrepareScan(p, pts, pose);
+    ASSERT_TRUE(whole.ok());
+    ASSERT_EQ(whole->counts.kept, pts.size());
+    std::vector<TileKey> writes, changeable, touched;
+    for (const Point3f& pt : pts) {
+      Result<PreparedScan> one = PrepareScan(p, std::vector<Point3f>{pt}, pose);
+      ASSERT_TRUE(one.ok());
+      writes = Union(writes, one->write_tiles);
+      changeable = Union(changeable, one->ChangeableTiles());
+      touched = Union(Union(touched, one->ChangeableTiles()), one->read_tiles);
+    }
+    EXPECT_EQ(whole->write_tiles, writes);
+    EXPECT_EQ(whole->ChangeableTiles(), changeable);
+    EXPECT_EQ(Union(whole->ChangeableTiles(), whole->read_tiles), touched);
+    EXPECT_TRUE(std::is_sorted(whole->read_tiles.begin(), whole->read_tiles.end()));
+    EXPECT_TRUE(std::is_sorted(whole->clear_tiles.begin(), whole->clear_tiles.end()));
+  }
+}
+
 }  // namespace
 }  // namespace bgkmap

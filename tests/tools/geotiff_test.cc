@@ -120,6 +120,26 @@ TEST(GeoTiffTest, CloudOptimizedWithOverviewsAndCrs) {
   EXPECT_EQ(WriteGeoTiff(in, dir.Path("bad.tif"), options).code(), Status::Code::kInvalidArgument);
 }
 
+// Compressing on several threads changes nothing in the file (`bgkmap build --threads`): plain
+// and COG, with enough tiles per band (256 x 256; a COG's 512 x 512) for both threads to take some.
+TEST(GeoTiffTest, ThreadsWriteTheSameBytes) {
+  TempDir dir;
+  const Raster in = MakeTestRaster(800, 600);
+  for (const bool cog : {false, true}) {
+    std::string files[2];
+    for (const int threads : {1, 2}) {
+      GeoTiffOptions options;
+      options.cloud_optimized = cog;
+      options.threads = threads;
+      const std::string path = dir.Path(fmt::format("t{}_{}.tif", threads, cog));
+      ASSERT_TRUE(WriteGeoTiff(in, path, options).ok());
+      files[threads - 1] = testing::ReadBytes(path);
+    }
+    ASSERT_FALSE(files[0].empty());
+    EXPECT_TRUE(files[0] == files[1]) << (cog ? "COG" : "plain GeoTIFF");
+  }
+}
+
 TEST(GeoTiffTest, ConcurrentWritesAndReads) {
   TempDir dir;
   const Raster in = MakeTestRaster(64, 48);

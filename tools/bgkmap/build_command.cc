@@ -144,6 +144,7 @@ int RunBuild(const BuildOptions& o) {
   io::GeoTiffOptions tiff;
   tiff.spatial_reference = !o.crs.empty() ? o.crs : (*source)->spatial_reference();
   tiff.cloud_optimized = o.cog;
+  tiff.threads = o.threads;
   for (size_t i = 0; i < o.origin.size(); ++i) tiff.origin[i] = o.origin[i];
   if (!o.crs.empty()) {  // before any scan is mapped
     const io::CrsUse use{o.crs, "--crs", (*source)->map_frame_is_local(), !o.origin.empty()};

@@ -7,6 +7,7 @@
 #include <optional>
 #include <thread>
 
+#include "band_cut.h"
 #include "bgkmap/io/progress_bar.h"
 
 namespace bgkmap::cli {
@@ -37,16 +38,12 @@ struct PreparedScans {
 };
 
 // Reads and prepares every scan on `threads` threads; scans are taken in order from a counter.
+// Each scan is read once: the stamps, which count from the first scan's time, are set after.
 PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int threads) {
   PreparedScans out;
   out.scans.resize(source.size());
   std::vector<Status> errors(source.size());
-  double first_time = std::nan("");
-  if (source.size() > 0) {
-    Result<SourceScan> first = source.Read(0);
-    if (!first.ok()) return {{}, first.status()};
-    first_time = first->time_s;
-  }
+  std::vector<double> times(source.size(), std::nan(""));
   std::atomic<size_t> next{0};
   std::atomic<bool> failed{false};
   RunOnThreads(threads, [&](int) {
@@ -66,19 +63,23 @@ PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int 
         failed = true;
         break;
       }
-      // Map time (forgetting): the first scan at 1 s (0 would be unstamped); without times,
-      // unstamped.
-      prepared->stamp_ns = std::isfinite(scan->time_s) && std::isfinite(first_time)
-                               ? 1'000'000'000 + std::llround((scan->time_s - first_time) * 1e9)
-                               : 0;
+      times[k] = scan->time_s;
       out.scans[k] = std::move(prepared).value();
     }
   });
   for (Status& s : errors) {
     if (!s.ok()) {
       out.error = s;
-      break;
+      return out;
     }
+  }
+  // Map time (forgetting): the first scan at 1 s (0 would be unstamped); without times,
+  // unstamped.
+  const double first_time = times.empty() ? std::nan("") : times[0];
+  for (size_t k = 0; k < out.scans.size(); ++k) {
+    out.scans[k].stamp_ns = std::isfinite(times[k]) && std::isfinite(first_time)
+                                ? 1'000'000'000 + std::llround((times[k] - first_time) * 1e9)
+                                : 0;
   }
   return out;
 }
@@ -89,6 +90,7 @@ struct Band {
   int64_t lo = std::numeric_limits<int>::min();
   int64_t hi = int64_t{std::numeric_limits<int>::max()} + 1;
 
+  bool IsWholeMap() const { return lo == Band{}.lo && hi == Band{}.hi; }
   bool Owns(TileKey key, int tile_size) const {
     const int64_t first = int64_t{along_x ? key.x : key.y} * tile_size;
     return first >= lo && first < hi;
@@ -102,34 +104,36 @@ struct Band {
   }
 };
 
-// Cuts the map into up to `count` bands along its longer axis, at tile borders, so that each
-// holds about as many observed cells (the integration's work).
-std::vector<Band> CutIntoBands(const std::vector<PreparedScan>& scans, int tile_size, int count) {
+// Cuts the map into up to `count` bands along its longer axis, at tile borders, so that the
+// slowest band's work, the observed cells within its halo, is the least (band_cut.h).
+std::vector<Band> CutIntoBands(const MapParams& params, const std::vector<PreparedScan>& scans,
+                               int count) {
   CellBox box;
   for (const PreparedScan& s : scans) {
     for (const ObservedCell& c : s.cells) box.Extend(c.cell);
   }
-  if (count <= 1 || box.empty()) return {Band{}};
   const bool along_x = box.width() >= box.height();
-  std::vector<int> coords;
+  const int64_t extent = along_x ? box.width() : box.height();
+  // The cut counts the cells of each coordinate along the axis: a map longer than 2^21 cells
+  // (210 km at 0.1 m: a stray point far from the rest) is integrated as one band.
+  if (count <= 1 || box.empty() || extent > (int64_t{1} << 21)) return {Band{}};
+  const int first = along_x ? box.min.x : box.min.y;
+  std::vector<int64_t> cells(static_cast<size_t>(extent), 0);
   for (const PreparedScan& s : scans) {
-    for (const ObservedCell& c : s.cells) coords.push_back(along_x ? c.cell.x : c.cell.y);
+    for (const ObservedCell& c : s.cells) {
+      ++cells[static_cast<size_t>((along_x ? c.cell.x : c.cell.y) - first)];
+    }
   }
   std::vector<Band> bands;
   Band band;
   band.along_x = along_x;
-  for (int b = 1; b < count; ++b) {
-    const auto nth = coords.begin() + static_cast<ptrdiff_t>(coords.size() * b / count);
-    std::nth_element(coords.begin(), nth, coords.end());
-    // The tile border at or below the quantile.
-    const int64_t border = int64_t{tile_size} *
-                           static_cast<int64_t>(std::floor(static_cast<double>(*nth) / tile_size));
-    if (border <= band.lo) continue;
+  for (const int64_t border :
+       CutBorders(cells, first, params.tile_size, HaloCells(params), count)) {
     band.hi = border;
     bands.push_back(band);
     band.lo = border;
-    band.hi = Band{}.hi;
   }
+  band.hi = Band{}.hi;
   bands.push_back(band);
   return bands;
 }
@@ -139,12 +143,15 @@ StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan
                          const Band& band, TerrainMap& map, io::ProgressBar* progress) {
   const CellBox keep = band.Reach(HaloCells(params));
   StageTimes times;
+  PreparedScan restricted;
   for (size_t k = 0; k < scans.size(); ++k) {
     if (progress != nullptr) progress->Add();
-    const PreparedScan restricted = RestrictScan(params, scans[k], keep);
-    if (restricted.cells.empty() && restricted.footprint_cells.empty()) continue;
-    const TileWindow window = map.MakeWindow(restricted);
-    const ScanReport r = map.Integrate(restricted, window, k + 1);
+    // The whole map (one thread) takes every scan as it is.
+    if (!band.IsWholeMap()) restricted = RestrictScan(params, scans[k], keep);
+    const PreparedScan& scan = band.IsWholeMap() ? scans[k] : restricted;
+    if (scan.cells.empty() && scan.footprint_cells.empty()) continue;
+    const TileWindow window = map.MakeWindow(scan);
+    const ScanReport r = map.Integrate(scan, window, k + 1);
     times.elevation += r.times.elevation;
     times.features += r.times.features;
     times.traversability += r.times.traversability;
@@ -156,8 +163,9 @@ StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan
 
 Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const ScanSource& source,
                                              int threads, MappingTotals* totals) {
-  Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params);
-  if (!created.ok()) return created.status();
+  if (Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params); !created.ok()) {
+    return created.status();
+  }
   threads = std::max(1, threads);
   PreparedScans prepared = PrepareAll(params, source, threads);
   if (!prepared.error.ok()) return prepared.error;
@@ -169,7 +177,7 @@ Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const Scan
     totals->counts.dropped_height += s.counts.dropped_height;
     totals->counts.dropped_out_of_bounds += s.counts.dropped_out_of_bounds;
   }
-  const std::vector<Band> bands = CutIntoBands(prepared.scans, params.tile_size, threads);
+  const std::vector<Band> bands = CutIntoBands(params, prepared.scans, threads);
   std::vector<std::unique_ptr<TerrainMap>> maps(bands.size());
   std::vector<StageTimes> times(bands.size());
   // One bar, as the first band's thread integrates (the bands keep about the same pace).
@@ -179,18 +187,27 @@ Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const Scan
     times[b] =
         IntegrateBand(params, prepared.scans, bands[b], *maps[b], b == 0 ? &progress : nullptr);
   });
-  TerrainMap& map = **created;
-  for (size_t b = 0; b < bands.size(); ++b) {
+  // The first band's map becomes the map: its halo's tiles go, the other bands' own tiles are
+  // copied in (bitwise, version and stamp included: SetTile).
+  std::unique_ptr<TerrainMap> map = std::move(maps[0]);
+  std::vector<TileKey> halo;
+  map->ForEachTile([&](TileKey key, const Tile&) {
+    if (!bands[0].Owns(key, params.tile_size)) halo.push_back(key);
+  });
+  for (const TileKey& key : halo) map->EraseTile(key);
+  for (size_t b = 1; b < bands.size(); ++b) {
     maps[b]->ForEachTile([&](TileKey key, const Tile& tile) {
-      if (bands[b].Owns(key, params.tile_size)) map.SetTile(key, tile);
+      if (bands[b].Owns(key, params.tile_size)) map->SetTile(key, tile);
     });
     maps[b].reset();
-    totals->times.elevation += times[b].elevation;
-    totals->times.features += times[b].features;
-    totals->times.traversability += times[b].traversability;
   }
-  map.set_version(source.size());
-  return created;
+  for (const StageTimes& t : times) {
+    totals->times.elevation += t.elevation;
+    totals->times.features += t.features;
+    totals->times.traversability += t.traversability;
+  }
+  map->set_version(source.size());
+  return map;
 }
 
 }  // namespace bgkmap::cli

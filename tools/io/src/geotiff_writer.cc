@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <ogr_spatialref.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -97,6 +98,7 @@ Result<std::unique_ptr<GeoTiffWriter>> GeoTiffWriter::Create(const Raster& geome
   create_options.SetNameValue("BLOCKXSIZE", std::to_string(kGeoTiffBlockPixels).c_str());
   create_options.SetNameValue("BLOCKYSIZE", std::to_string(kGeoTiffBlockPixels).c_str());
   create_options.SetNameValue("BIGTIFF", "IF_SAFER");
+  create_options.SetNameValue("NUM_THREADS", std::to_string(std::max(1, options.threads)).c_str());
   const int bands = static_cast<int>(geometry.layers.size());
   if (bands > 1) create_options.SetNameValue("INTERLEAVE", "BAND");
   impl->ds.reset(driver->Create(impl->tiff_path.c_str(), static_cast<int>(geometry.cols),
@@ -178,6 +180,7 @@ Status GeoTiffWriter::Finish() {
   cog_options.SetNameValue("OVERVIEWS", "AUTO");
   cog_options.SetNameValue("RESAMPLING", "NEAREST");
   cog_options.SetNameValue("BIGTIFF", "IF_SAFER");
+  cog_options.SetNameValue("NUM_THREADS", std::to_string(std::max(1, w.options.threads)).c_str());
   const GIntBig cache_before = GDALGetCacheMax64();
   if (w.options.cog_cache_bytes > 0) {
     GDALSetCacheMax64(static_cast<GIntBig>(w.options.cog_cache_bytes));

@@ -30,6 +30,9 @@ struct GeoTiffOptions {
   // GDAL's default, 5% of the RAM, which the COG driver fills while it copies a large raster.
   // The cache is process-wide: set for the copy and restored after it.
   uint64_t cog_cache_bytes = 0;
+  // Threads compressing the tiles (GDAL's NUM_THREADS). Each tile is compressed alone and the
+  // tiles are written in order, so the file is the same bytes for any number.
+  int threads = 1;
 };
 
 // Fails (InvalidArgument) if the raster is empty or its data does not match rows x cols x layers.
