@@ -294,6 +294,10 @@ const std::vector<ServerKey>& ClusterKeys() {
       Key<uint32_t>(
           "trim_lag_entries", [](ServerConfig & c) -> auto& { return c.cluster.trim_lag_entries; },
           "cluster"),
+      Key<std::string>(
+          "key_file", [](ServerConfig & c) -> auto& { return c.cluster.key_file; }, "cluster"),
+      Key<bool>(
+          "insecure", [](ServerConfig & c) -> auto& { return c.cluster.insecure; }, "cluster"),
   };
   return keys;
 }

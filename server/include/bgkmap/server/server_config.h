@@ -120,6 +120,14 @@ struct ClusterConfig {
   // log by this many entries is checkpointed even if idle, and the log is trimmed below the
   // oldest of the partitions' newest checkpoints (docs/scale-out.md, "Trimming the log").
   uint32_t trim_lag_entries = 0;
+  // key_file: a file holding the cluster's secret (at least 32 bytes, readable by its owner
+  // only). Every log entry, tile-fetch reply and membership record carries an HMAC-SHA256 with
+  // it, and a shard believes nothing that fails it (docs/scale-out.md, "Trust"). Only the path
+  // is configuration; the secret is never logged or printed.
+  std::string key_file;
+  // insecure: true lets a shard run without key_file (then anyone who can publish to NATS can
+  // change the map).
+  bool insecure = false;
   bool enabled() const { return !nats.empty(); }
 };
 
