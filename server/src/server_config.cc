@@ -619,6 +619,20 @@ Status ValidateCluster(const ServerConfig& c) {
   if (!(c.cluster.startup_wait_s >= 0 && c.cluster.startup_wait_s <= 86400)) {
     return bad_cluster("startup_wait_s", "must be in [0, 86400] seconds");
   }
+  if (c.cluster.key_file.empty() && !c.cluster.insecure) {
+    return bad_cluster("key_file",
+                       "a shard needs cluster.key_file (a secret shared by the shards, at least "
+                       "32 bytes) or cluster.insecure: true (then anyone who can publish to "
+                       "NATS can change the map)");
+  }
+  // A signed log entry is refused when stored more than 60 s (+ 30 s of clock skew) after its
+  // signature (cluster_log.h, kMaxEntryDelay); within that, JetStream's de-duplication of its
+  // signed message id must stop a copy of it.
+  if (!c.cluster.key_file.empty() && c.cluster.dedupe_window_s < 90) {
+    return bad_cluster("dedupe_window_s",
+                       "must be at least 90 seconds with cluster.key_file (a copy of an entry "
+                       "published again within 90 s is stopped by it)");
+  }
   if (c.cluster.trim_lag_entries > 0 && c.cluster.checkpoint_scans == 0) {
     return bad_cluster("trim_lag_entries",
                        "trimming the log needs checkpoints: set cluster.checkpoint_scans > 0");
