@@ -212,5 +212,27 @@ TEST(ServerConfigTest, SecurityKeysReadNestedOrDottedAndAreCheckedTogether) {
   }
 }
 
+// A shard needs the cluster key or says it runs open: one line naming both settings.
+TEST(ServerConfigTest, AShardNeedsAClusterKeyOrInsecure) {
+  Result<ServerConfig> c =
+      ServerConfigFromYaml(YAML::Load("cluster: {nats: \"nats://127.0.0.1:4222\", node: a}"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(ValidateCluster(*c).message(),
+            "cluster.key_file: a shard needs cluster.key_file (a secret shared by the shards, at "
+            "least 32 bytes) or cluster.insecure: true (then anyone who can publish to NATS can "
+            "change the map)");
+  ServerConfig open = *c;
+  ASSERT_TRUE(ApplyConfigOverride(open, "cluster.insecure=true").ok());
+  EXPECT_TRUE(ValidateCluster(open).ok());
+  ServerConfig keyed = *c;
+  ASSERT_TRUE(ApplyConfigOverride(keyed, "cluster.key_file=/etc/bgkmap/cluster.key").ok());
+  EXPECT_TRUE(ValidateCluster(keyed).ok());
+  // The path is configuration and printed; the secret is in the file, never read here.
+  EXPECT_NE(ServerConfigToYaml(keyed).find("key_file: /etc/bgkmap/cluster.key"), std::string::npos);
+  ASSERT_TRUE(ApplyConfigOverride(keyed, "cluster.dedupe_window_s=30").ok());
+  EXPECT_NE(ValidateCluster(keyed).message().find("cluster.dedupe_window_s: must be at least 90"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace bgkmap
