@@ -87,7 +87,9 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
         "entries, tile replies and membership records are not signed\"");
   }
   Result<std::unique_ptr<NatsClient>> nats =
-      NatsClient::Connect(SplitServers(config.nats), "bgkmapd-" + config.node);
+      NatsClient::Connect(SplitServers(config.nats), "bgkmapd-" + config.node,
+                          {config.nats_credentials, config.nats_tls.ca_file,
+                           config.nats_tls.cert_file, config.nats_tls.key_file});
   if (!nats.ok()) return nats.status();
   LogStreamOptions log;
   log.replicas = static_cast<int>(config.replicas);

@@ -19,6 +19,7 @@
 #include "bgkmap/v1/types.pb.h"
 #include "cluster_support.h"
 #include "nats_cluster.h"
+#include "test_pki.h"
 
 namespace bgkmap::testing {
 namespace {
@@ -198,6 +199,47 @@ TEST(ClusterTrustTest, FakeHeartbeatsDoNotTakePartitions) {
   EXPECT_TRUE(SameAnswers(c.b->client(), c.ref));
   stop = true;
   fake.join();
+}
+
+// cluster.nats_tls: NATS servers that demand TLS and a client certificate signed by their CA.
+// Shards with the CA and a client certificate ingest and answer as one server; a client without
+// a certificate is not let in, nor is a shard without cluster.nats_tls (named in its error).
+TEST(ClusterTrustTest, ShardsReachNatsOverTlsWithAClientCertificate) {
+  TempDir dir("bgkmap_cluster_tls");
+  ASSERT_TRUE(MakeTestPki(dir.str()));
+  NatsCluster nats(1, dir.str(), {dir.str(), /*verify_clients=*/true});
+  ASSERT_TRUE(nats.started());
+  natsConnection* plain = nullptr;
+  EXPECT_NE(natsConnection_ConnectTo(&plain, nats.url(0).c_str()), NATS_OK);
+  natsConnection_Destroy(plain);
+
+  ServerConfig bare = NodeConfig(nats.urls(), "bare");
+  Result<std::unique_ptr<MapServer>> refused = MapServer::Start(bare);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("cluster.nats: cannot connect to"), std::string::npos)
+      << refused.status().message();
+
+  auto tls_node = [&](const std::string& name) {
+    ServerConfig c = NodeConfig(nats.urls(), name);
+    c.cluster.nats_tls.ca_file = dir.Sub("ca.pem");
+    c.cluster.nats_tls.cert_file = dir.Sub("client.pem");
+    c.cluster.nats_tls.key_file = dir.Sub("client.key");
+    return c;
+  };
+  // cluster.nats_credentials is read when the shard connects: a missing file is named.
+  ServerConfig creds = tls_node("creds");
+  creds.cluster.nats_credentials = dir.Sub("missing.creds");
+  Result<std::unique_ptr<MapServer>> no_creds = MapServer::Start(creds);
+  ASSERT_FALSE(no_creds.ok());
+  EXPECT_NE(no_creds.status().message().find("missing.creds"), std::string::npos)
+      << no_creds.status().message();
+
+  const std::vector<OwnedScan> scans = TwoRobots();
+  Reference ref(scans);
+  ServerFixture a(tls_node("a")), b(tls_node("b"));
+  InsertAll(a.client(), scans, 0, scans.size());
+  EXPECT_TRUE(SameAnswers(a.client(), ref));
+  EXPECT_TRUE(SameAnswers(b.client(), ref));
 }
 
 }  // namespace
