@@ -485,6 +485,7 @@ void ClusterNode::WriteCheckpoints() {
 
 void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
                            const std::vector<std::shared_ptr<PartitionReplica>>& to) {
+  if (to.empty()) return;  // an entry read again for other partitions: nothing to do here
   // Not appended by a shard: passed, applied nowhere, no robot's sequence recorded.
   if (Status trusted = VerifyEntry(*trust_, msg, /*headers_only=*/false); !trusted.ok()) {
     trust_->Refuse(Untrusted::kLogEntry,

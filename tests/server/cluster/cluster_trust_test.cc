@@ -18,6 +18,7 @@
 
 #include "bgkmap/v1/types.pb.h"
 #include "cluster_support.h"
+#include "loopback_http.h"
 #include "nats_cluster.h"
 #include "test_pki.h"
 
@@ -117,8 +118,18 @@ struct TwoShards {
   std::unique_ptr<ServerFixture> a, b;
   TwoShards() {
     EXPECT_TRUE(nats.started());
-    a = std::make_unique<ServerFixture>(NodeConfig(nats.urls(), "a"));
+    ServerConfig ca = NodeConfig(nats.urls(), "a");
+    ca.metrics_address = "127.0.0.1:0";
+    a = std::make_unique<ServerFixture>(ca);
     b = std::make_unique<ServerFixture>(NodeConfig(nats.urls(), "b"));
+  }
+  // Shard a's bgkmap_cluster_rejected_total{kind=...} (-1: not in /metrics).
+  int64_t Refused(const std::string& kind) {
+    const Reply r = Get(a->server().http_port(), "/metrics");
+    const std::string sample = "bgkmap_cluster_rejected_total{kind=\"" + kind + "\"} ";
+    const size_t at = r.body.find(sample);
+    if (at == std::string::npos) return -1;
+    return std::stoll(r.body.substr(at + sample.size()));
   }
 };
 
@@ -137,6 +148,7 @@ TEST(ClusterTrustTest, AForgedScanIsNotApplied) {
   // A query reads the log up to its end: the forged entry was read before it answers.
   EXPECT_TRUE(SameAnswers(c.a->client(), c.ref));
   EXPECT_TRUE(SameAnswers(c.b->client(), c.ref));
+  EXPECT_GE(c.Refused("log_entry"), 1);
 }
 
 TEST(ClusterTrustTest, AForgedClearIsNotApplied) {
@@ -157,6 +169,7 @@ TEST(ClusterTrustTest, AForgedClearIsNotApplied) {
                     {"Bgkmap-Cells", "-1000000 -1000000 1000000 1000000"}});
   EXPECT_TRUE(SameAnswers(c.a->client(), c.ref));
   EXPECT_TRUE(SameAnswers(c.b->client(), c.ref));
+  EXPECT_GE(c.Refused("log_entry"), 1);
 }
 
 TEST(ClusterTrustTest, AForgedLastSequenceDoesNotLockARobotOut) {
@@ -175,6 +188,7 @@ TEST(ClusterTrustTest, AForgedLastSequenceDoesNotLockARobotOut) {
   InsertAll(c.b->client(), c.scans, half, c.scans.size());
   EXPECT_TRUE(SameAnswers(c.a->client(), c.ref));
   EXPECT_TRUE(SameAnswers(c.b->client(), c.ref));
+  EXPECT_GE(c.Refused("log_entry"), 1);
 }
 
 TEST(ClusterTrustTest, AForgedTileFetchReplyIsIgnored) {
@@ -184,6 +198,8 @@ TEST(ClusterTrustTest, AForgedTileFetchReplyIsIgnored) {
   attacker.AnswerFetchesWithNothing();
   EXPECT_TRUE(SameAnswers(c.a->client(), c.ref));
   EXPECT_TRUE(SameAnswers(c.b->client(), c.ref));
+  EXPECT_GE(c.Refused("tile_reply"), 1);
+  EXPECT_EQ(c.Refused("log_entry"), 0);
 }
 
 TEST(ClusterTrustTest, FakeHeartbeatsDoNotTakePartitions) {
@@ -199,6 +215,7 @@ TEST(ClusterTrustTest, FakeHeartbeatsDoNotTakePartitions) {
   EXPECT_TRUE(SameAnswers(c.b->client(), c.ref));
   stop = true;
   fake.join();
+  EXPECT_GE(c.Refused("membership"), 30);
 }
 
 // cluster.nats_tls: NATS servers that demand TLS and a client certificate signed by their CA.
