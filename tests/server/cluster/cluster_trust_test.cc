@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "bgkmap/v1/cluster.pb.h"
 #include "bgkmap/v1/types.pb.h"
 #include "cluster_support.h"
 #include "loopback_http.h"
@@ -86,6 +87,20 @@ class Attacker {
                   nullptr),
               NATS_OK);
     ASSERT_EQ(natsConnection_Flush(nc_), NATS_OK);
+  }
+
+  // The partitions recorded in the membership bucket (their names).
+  std::vector<std::string> Partitions() {
+    kvStore* kv = nullptr;
+    EXPECT_EQ(js_KeyValue(&kv, js_, "bgkmap_partitions"), NATS_OK);
+    kvKeysList keys;
+    std::vector<std::string> out;
+    if (kvStore_Keys(&keys, kv, nullptr) == NATS_OK) {
+      for (int i = 0; i < keys.Count; ++i) out.push_back(keys.Keys[i]);
+      kvKeysList_Destroy(&keys);
+    }
+    kvStore_Destroy(kv);
+    return out;
   }
 
   // Puts `count` node names in the membership bucket, again every 200 ms, until `stop`.
@@ -216,6 +231,27 @@ TEST(ClusterTrustTest, FakeHeartbeatsDoNotTakePartitions) {
   stop = true;
   fake.join();
   EXPECT_GE(c.Refused("membership"), 30);
+}
+
+// A forged checkpoint for every partition: empty, as of a log sequence far past the log's end.
+// Believed, a takeover would restore it and serve empty partitions (and a trim would drop the
+// whole log); refused, the partitions are rebuilt from the log. Mutation checked by hand:
+// ReadManifest without the HMAC check makes the answers after the takeover differ.
+TEST(ClusterTrustTest, AForgedCheckpointIsNotRestored) {
+  TwoShards c;
+  InsertAll(c.a->client(), c.scans, 0, c.scans.size());
+  Attacker attacker(c.nats.url(0));
+  v1::CheckpointManifest forged;
+  forged.set_log_sequence(1000000000);
+  forged.set_tiles(0);
+  const std::vector<std::string> partitions = attacker.Partitions();
+  ASSERT_FALSE(partitions.empty());
+  for (const std::string& p : partitions) {
+    attacker.Publish("bgkmap.ckpt." + p + ".manifest", forged.SerializeAsString(), {});
+  }
+  // Shard a leaves: b takes its partitions over, from their newest checkpoints.
+  c.a.reset();
+  EXPECT_TRUE(EventuallySameAnswers(c.b->client(), c.ref, std::chrono::steady_clock::now()));
 }
 
 // cluster.nats_tls: NATS servers that demand TLS and a client certificate signed by their CA.
