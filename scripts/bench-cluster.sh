@@ -37,9 +37,12 @@ wait_up() {
   for _ in $(seq 600); do "$BIN" info --server "$1" >/dev/null 2>&1 && return 0; sleep 0.05; done
   return 1
 }
+KEY="$OUT/cluster.key"  # the shards' cluster key (docs/scale-out.md, "Trust")
+(umask 077 && openssl rand -hex 32 >"$KEY")
 shard() {  # shard <name> <port> <core>: a shard pinned to one core, in the background
   taskset -c "$3" build/server/bgkmapd --listen "127.0.0.1:$2" --set "cluster.node=$1" \
     --set "cluster.nats=$NATS" --set "cluster.lease_s=$LEASE" --set server.worker_threads=1 \
+    --set "cluster.key_file=$KEY" \
     --set "cluster.checkpoint_scans=${CHECKPOINT_SCANS:-100}" \
     --set server.query_threads=1 >"$OUT/shard-$1.log" 2>&1 &
   PIDS+=($!)

@@ -60,12 +60,16 @@ wait_up() {
   echo "cluster-demo: $1 did not start; see $OUT/*.log" >&2
   return 1
 }
+# The cluster key every shard signs and checks the log, tile replies and membership with
+# (docs/scale-out.md, "Trust"): a secret only the shards hold, readable by its owner only.
+KEY="$OUT/cluster.key"
+(umask 077 && openssl rand -hex 32 >"$KEY")
 k=0
 for n in a b c; do
   SHARD_ADDR[$n]="127.0.0.1:$((BASE_PORT + 20 + k))"
   k=$((k + 1))
   build/server/bgkmapd --listen "${SHARD_ADDR[$n]}" --set "cluster.node=$n" \
-    --set "cluster.nats=$NATS_URLS" --set cluster.replicas=3 \
+    --set "cluster.nats=$NATS_URLS" --set cluster.replicas=3 --set "cluster.key_file=$KEY" \
     --set "cluster.partition_tiles=$PARTITION_TILES" >"$OUT/shard-$n.log" 2>&1 &
   SHARD_PID[$n]=$!
   PIDS+=($!)

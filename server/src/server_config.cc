@@ -294,6 +294,22 @@ const std::vector<ServerKey>& ClusterKeys() {
       Key<uint32_t>(
           "trim_lag_entries", [](ServerConfig & c) -> auto& { return c.cluster.trim_lag_entries; },
           "cluster"),
+      Key<std::string>(
+          "key_file", [](ServerConfig & c) -> auto& { return c.cluster.key_file; }, "cluster"),
+      Key<bool>(
+          "insecure", [](ServerConfig & c) -> auto& { return c.cluster.insecure; }, "cluster"),
+      Key<std::string>(
+          "nats_credentials", [](ServerConfig & c) -> auto& { return c.cluster.nats_credentials; },
+          "cluster"),
+      Key<std::string>(
+          "nats_tls.ca_file", [](ServerConfig & c) -> auto& { return c.cluster.nats_tls.ca_file; },
+          "cluster"),
+      Key<std::string>(
+          "nats_tls.cert_file",
+          [](ServerConfig & c) -> auto& { return c.cluster.nats_tls.cert_file; }, "cluster"),
+      Key<std::string>(
+          "nats_tls.key_file",
+          [](ServerConfig & c) -> auto& { return c.cluster.nats_tls.key_file; }, "cluster"),
   };
   return keys;
 }
@@ -404,7 +420,9 @@ std::string ServerConfigToYaml(const ServerConfig& config) {
   for (const ServerKey& k : GeoreferenceKeys()) georeference[k.name] = k.write(config);
   root["georeference"] = georeference;
   YAML::Node cluster(YAML::NodeType::Map);
-  for (const ServerKey& k : ClusterKeys()) cluster[k.name] = k.write(config);
+  for (const ServerKey& k : ClusterKeys()) WriteKey(cluster, k.name, k.write(config));
+  // A password or token in a NATS URL is never printed.
+  cluster["nats"] = RedactUrlSecrets(config.cluster.nats);
   root["cluster"] = cluster;
   YAML::Emitter out;
   out << root;
@@ -615,6 +633,25 @@ Status ValidateCluster(const ServerConfig& c) {
   if (!(c.cluster.startup_wait_s >= 0 && c.cluster.startup_wait_s <= 86400)) {
     return bad_cluster("startup_wait_s", "must be in [0, 86400] seconds");
   }
+  if (c.cluster.key_file.empty() && !c.cluster.insecure) {
+    return bad_cluster("key_file",
+                       "a shard needs cluster.key_file (a secret shared by the shards, at least "
+                       "32 bytes) or cluster.insecure: true (then anyone who can publish to "
+                       "NATS can change the map)");
+  }
+  // A signed log entry is refused when stored more than 60 s (+ 30 s of clock skew) after its
+  // signature (cluster_log.h, kMaxEntryDelay); within that, JetStream's de-duplication of its
+  // signed message id must stop a copy of it.
+  if (!c.cluster.key_file.empty() && c.cluster.dedupe_window_s < 90) {
+    return bad_cluster("dedupe_window_s",
+                       "must be at least 90 seconds with cluster.key_file (a copy of an entry "
+                       "published again within 90 s is stopped by it)");
+  }
+  if (c.cluster.nats_tls.cert_file.empty() != c.cluster.nats_tls.key_file.empty()) {
+    return bad_cluster(
+        c.cluster.nats_tls.cert_file.empty() ? "nats_tls.cert_file" : "nats_tls.key_file",
+        "nats_tls.cert_file and nats_tls.key_file are set together");
+  }
   if (c.cluster.trim_lag_entries > 0 && c.cluster.checkpoint_scans == 0) {
     return bad_cluster("trim_lag_entries",
                        "trimming the log needs checkpoints: set cluster.checkpoint_scans > 0");
@@ -652,6 +689,29 @@ Status ValidateSecurity(const ServerConfig& c) {
     }
   }
   return Status::Ok();
+}
+
+std::string RedactUrlSecrets(const std::string& urls) {
+  std::string out;
+  size_t from = 0;
+  while (from <= urls.size()) {
+    size_t end = urls.find(',', from);
+    if (end == std::string::npos) end = urls.size();
+    std::string url = urls.substr(from, end - from);
+    const size_t scheme = url.find("://");
+    const size_t host = scheme == std::string::npos ? std::string::npos : scheme + 3;
+    const size_t at = host == std::string::npos ? std::string::npos : url.find('@', host);
+    if (at != std::string::npos) {
+      const size_t colon = url.find(':', host);
+      const size_t secret = colon != std::string::npos && colon < at ? colon + 1 : host;
+      url.replace(secret, at - secret, "***");
+    }
+    out += url;
+    if (end == urls.size()) break;
+    out += ',';
+    from = end + 1;
+  }
+  return out;
 }
 
 bool IsLoopbackAddress(const std::string& address) {

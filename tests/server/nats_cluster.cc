@@ -31,7 +31,8 @@ int FreeLoopbackPort() {
   return port;
 }
 
-NatsCluster::NatsCluster(int servers, const std::string& dir) : dir_(dir) {
+NatsCluster::NatsCluster(int servers, const std::string& dir, const NatsServerSecurity& security)
+    : dir_(dir), security_(security) {
   for (int i = 0; i < servers; ++i) {
     client_ports_.push_back(FreeLoopbackPort());
     route_ports_.push_back(FreeLoopbackPort());
@@ -66,6 +67,12 @@ bool NatsCluster::Launch(int i) {
         << "listen: 127.0.0.1:" << client_ports_[i] << "\n"
         << "max_payload: 8MB\n"
         << "jetstream { store_dir: \"" << store << "\", max_memory_store: 64MB }\n";
+    if (!security_.tls_dir.empty()) {
+      const std::string& t = security_.tls_dir;
+      out << "tls { cert_file: \"" << t << "/server.pem\", key_file: \"" << t
+          << "/server.key\", ca_file: \"" << t
+          << "/ca.pem\", verify: " << (security_.verify_clients ? "true" : "false") << " }\n";
+    }
     if (client_ports_.size() > 1) {
       out << "cluster { name: bgkmap_test, listen: 127.0.0.1:" << route_ports_[i] << ", routes: [";
       const char* sep = "";

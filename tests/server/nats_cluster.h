@@ -11,10 +11,18 @@
 
 namespace bgkmap::testing {
 
+// What each server of a NatsCluster demands of its clients.
+struct NatsServerSecurity {
+  // A directory of MakeTestPki's files: clients must use TLS (server.pem, server.key) and, with
+  // `verify_clients`, present a certificate signed by ca.pem.
+  std::string tls_dir;
+  bool verify_clients = false;
+};
+
 class NatsCluster {
  public:
   // `dir`: where configs and JetStream stores go (one subdirectory per server).
-  NatsCluster(int servers, const std::string& dir);
+  NatsCluster(int servers, const std::string& dir, const NatsServerSecurity& security = {});
   // Every server is up and, for a cluster, JetStream has a meta leader.
   bool started() const { return started_; }
   // Every client URL, comma-separated (what cluster.nats takes).
@@ -30,6 +38,7 @@ class NatsCluster {
  private:
   bool Launch(int i);
   std::string dir_;
+  NatsServerSecurity security_;
   std::vector<int> client_ports_, route_ports_;
   std::vector<std::unique_ptr<BgkmapdProcess>> servers_;
   bool started_ = false;

@@ -212,5 +212,47 @@ TEST(ServerConfigTest, SecurityKeysReadNestedOrDottedAndAreCheckedTogether) {
   }
 }
 
+// A shard needs the cluster key or says it runs open: one line naming both settings.
+TEST(ServerConfigTest, AShardNeedsAClusterKeyOrInsecure) {
+  Result<ServerConfig> c =
+      ServerConfigFromYaml(YAML::Load("cluster: {nats: \"nats://127.0.0.1:4222\", node: a}"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(ValidateCluster(*c).message(),
+            "cluster.key_file: a shard needs cluster.key_file (a secret shared by the shards, at "
+            "least 32 bytes) or cluster.insecure: true (then anyone who can publish to NATS can "
+            "change the map)");
+  ServerConfig open = *c;
+  ASSERT_TRUE(ApplyConfigOverride(open, "cluster.insecure=true").ok());
+  EXPECT_TRUE(ValidateCluster(open).ok());
+  ServerConfig keyed = *c;
+  ASSERT_TRUE(ApplyConfigOverride(keyed, "cluster.key_file=/etc/bgkmap/cluster.key").ok());
+  EXPECT_TRUE(ValidateCluster(keyed).ok());
+  // The path is configuration and printed; the secret is in the file, never read here.
+  EXPECT_NE(ServerConfigToYaml(keyed).find("key_file: /etc/bgkmap/cluster.key"), std::string::npos);
+  // A password or token in a NATS URL is not printed; the TLS and credentials files are.
+  ASSERT_TRUE(ApplyConfigOverride(keyed,
+                                  "cluster.nats=nats://bob:s3cret@10.0.0.1:4222,"
+                                  "nats://t0ken@10.0.0.2:4222,nats://10.0.0.3:4222")
+                  .ok());
+  ASSERT_TRUE(ApplyConfigOverride(keyed, "cluster.nats_tls.ca_file=/etc/bgkmap/nats-ca.pem").ok());
+  ASSERT_TRUE(ApplyConfigOverride(keyed, "cluster.nats_credentials=/etc/bgkmap/shard.creds").ok());
+  const std::string printed = ServerConfigToYaml(keyed);
+  EXPECT_EQ(printed.find("s3cret"), std::string::npos) << printed;
+  EXPECT_EQ(printed.find("t0ken"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("nats://bob:***@10.0.0.1:4222,nats://***@10.0.0.2:4222,"
+                         "nats://10.0.0.3:4222"),
+            std::string::npos)
+      << printed;
+  EXPECT_NE(printed.find("ca_file: /etc/bgkmap/nats-ca.pem"), std::string::npos) << printed;
+  EXPECT_NE(printed.find("nats_credentials: /etc/bgkmap/shard.creds"), std::string::npos);
+  ServerConfig half = keyed;
+  ASSERT_TRUE(ApplyConfigOverride(half, "cluster.nats_tls.cert_file=c.pem").ok());
+  EXPECT_EQ(ValidateCluster(half).message(),
+            "cluster.nats_tls.key_file: nats_tls.cert_file and nats_tls.key_file are set together");
+  ASSERT_TRUE(ApplyConfigOverride(keyed, "cluster.dedupe_window_s=30").ok());
+  EXPECT_NE(ValidateCluster(keyed).message().find("cluster.dedupe_window_s: must be at least 90"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace bgkmap

@@ -1,5 +1,7 @@
 #include "cluster/cluster_log.h"
 
+#include <openssl/rand.h>
+
 #include <algorithm>
 #include <charconv>
 #include <sstream>
@@ -13,6 +15,12 @@ constexpr const char* kRobotHeader = "Bgkmap-Robot";
 constexpr const char* kSequenceHeader = "Bgkmap-Sequence";
 constexpr const char* kTouchedHeader = "Bgkmap-Partitions";
 constexpr const char* kChangesHeader = "Bgkmap-Cells";  // "min_x min_y max_x max_y"
+// With a cluster key (cluster_trust.h): when it was signed (ns since the epoch), the payload's
+// SHA-256 and the HMAC over the entry (EntryMac).
+constexpr const char* kTimeHeader = "Bgkmap-Time";
+constexpr const char* kDigestHeader = "Bgkmap-Digest";
+constexpr const char* kMacHeader = "Bgkmap-Mac";
+constexpr const char* kMsgIdHeader = "Nats-Msg-Id";  // set by nats.c from jsPubOptions.MsgId
 // How long an append or a read of the log's end waits out a stream leader's election.
 constexpr int64_t kElectionMs = 10000;
 
@@ -60,9 +68,19 @@ struct RobotHeaders {
 // Appends `payload` on `subject` with the partitions it touches, the robot's headers when
 // `robot` is set and message id `msg_id` when not empty; retried through a leader's election
 // (a scan's message id stores it once). Unavailable when the log cannot be reached in time.
-Result<Appended> Append(const NatsClient& nats, const char* subject, const std::string& payload,
-                        const std::vector<PartitionKey>& touched, const CellBox& changes,
-                        const RobotHeaders* robot, const std::string& msg_id) {
+// The one definition of what an entry's HMAC covers: every bgkmap header (absent = ""), the
+// subject and the message id, so no header can be changed or moved to another entry.
+std::string EntryMac(const ClusterTrust& trust, std::string_view subject, std::string_view msg_id,
+                     std::string_view time, std::string_view robot, std::string_view sequence,
+                     std::string_view partitions, std::string_view cells, std::string_view digest) {
+  return trust.Sign(
+      {"bgkmap-log-1", subject, msg_id, time, robot, sequence, partitions, cells, digest});
+}
+
+Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const char* subject,
+                        const std::string& payload, const std::vector<PartitionKey>& touched,
+                        const CellBox& changes, const RobotHeaders* robot,
+                        const std::string& msg_id) {
   natsMsg* raw = nullptr;
   natsStatus st =
       natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
@@ -74,18 +92,29 @@ Result<Appended> Append(const NatsClient& nats, const char* subject, const std::
     parts += PartitionName(p);
   }
   st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
+  std::string cells;
   if (st == NATS_OK && !changes.empty()) {
-    std::string cells = std::to_string(changes.min.x);
+    cells = std::to_string(changes.min.x);
     for (int v : {changes.min.y, changes.max.x, changes.max.y}) {
       cells += ' ';
       cells += std::to_string(v);
     }
     st = natsMsgHeader_Set(msg.get(), kChangesHeader, cells.c_str());
   }
+  const std::string sequence = robot != nullptr ? std::to_string(robot->sequence) : "";
   if (robot != nullptr) {
-    const std::string sequence = std::to_string(robot->sequence);
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kRobotHeader, robot->robot_id.c_str());
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
+  }
+  if (trust.keyed()) {
+    const std::string time = std::to_string(ClusterTrust::NowNs());
+    const std::string digest = ClusterTrust::Digest(payload);
+    const std::string mac =
+        EntryMac(trust, subject, msg_id, time, robot != nullptr ? robot->robot_id : "", sequence,
+                 parts, cells, digest);
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kTimeHeader, time.c_str());
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kDigestHeader, digest.c_str());
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kMacHeader, mac.c_str());
   }
   if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
   jsPubOptions po;
@@ -111,9 +140,10 @@ Result<Appended> Append(const NatsClient& nats, const char* subject, const std::
 
 }  // namespace
 
-Result<Appended> AppendScan(const NatsClient& nats, const std::string& encoded,
-                            const std::string& robot_id, uint64_t sequence,
-                            const std::vector<PartitionKey>& touched, const CellBox& changes) {
+Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
+                            const std::string& encoded, const std::string& robot_id,
+                            uint64_t sequence, const std::vector<PartitionKey>& touched,
+                            const CellBox& changes) {
   if (static_cast<int64_t>(encoded.size()) + 1024 > nats.max_payload()) {
     return Status::OutOfRange("scan: " + std::to_string(encoded.size()) +
                               " bytes exceed the NATS servers' max_payload of " +
@@ -121,30 +151,38 @@ Result<Appended> AppendScan(const NatsClient& nats, const std::string& encoded,
   }
   // The robot's own id and sequence: a retry, through this node or another, is stored once.
   const RobotHeaders robot{robot_id, sequence};
-  return Append(nats, kScanSubject, encoded, touched, changes, &robot,
+  return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot,
                 robot_id + "/" + std::to_string(sequence));
 }
 
-Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
+Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
                              const std::vector<PartitionKey>& touched) {
   v1::CellBox cells;
   cells.set_min_x(box.min.x);
   cells.set_min_y(box.min.y);
   cells.set_max_x(box.max.x);
   cells.set_max_y(box.max.y);
-  // A clear applied twice clears the same cells: a repeated append is harmless.
+  // A random message id: a retry through an election is stored once, and the same entry
+  // published again by anyone within the dedupe window too (the id is signed).
+  unsigned char nonce[16];
+  if (RAND_bytes(nonce, sizeof nonce) != 1) return Status::IoError("cluster: no random bytes");
+  std::string id = "clear/";
+  for (unsigned char b : nonce) {
+    id += "0123456789abcdef"[b >> 4];
+    id += "0123456789abcdef"[b & 15];
+  }
   Result<Appended> a =
-      Append(nats, kClearSubject, cells.SerializeAsString(), touched, box, nullptr, "");
+      Append(nats, trust, kClearSubject, cells.SerializeAsString(), touched, box, nullptr, id);
   if (!a.ok()) return a.status();
   return a->sequence;
 }
 
-Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
-                              const std::string& manifest, const std::vector<PartitionKey>& touched,
-                              const CellBox& changes) {
+Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
+                              const std::string& id, const std::string& manifest,
+                              const std::vector<PartitionKey>& touched, const CellBox& changes) {
   // Its id as the message id: an import retried through an election is stored once.
   Result<Appended> a =
-      Append(nats, kImportSubject, manifest, touched, changes, nullptr, "import/" + id);
+      Append(nats, trust, kImportSubject, manifest, touched, changes, nullptr, "import/" + id);
   if (!a.ok()) return a.status();
   return a->sequence;
 }
@@ -259,6 +297,44 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
     h.changes = box;
   }
   return h;
+}
+
+Status VerifyEntry(const ClusterTrust& trust, natsMsg* msg, bool headers_only) {
+  if (!trust.keyed()) return Status::Ok();
+  auto header = [msg](const char* key) {
+    const char* value = nullptr;
+    return natsMsgHeader_Get(msg, key, &value) == NATS_OK && value != nullptr ? std::string(value)
+                                                                              : std::string();
+  };
+  const std::string mac = header(kMacHeader);
+  if (mac.empty()) return Status::FailedPrecondition("the entry is not signed");
+  const std::string time = header(kTimeHeader), digest = header(kDigestHeader);
+  if (!trust.Verify(mac, {"bgkmap-log-1", natsMsg_GetSubject(msg), header(kMsgIdHeader), time,
+                          header(kRobotHeader), header(kSequenceHeader), header(kTouchedHeader),
+                          header(kChangesHeader), digest})) {
+    return Status::FailedPrecondition("the entry's HMAC does not verify (no cluster key)");
+  }
+  int64_t signed_ns = 0;
+  if (auto [end, ec] = std::from_chars(time.data(), time.data() + time.size(), signed_ns);
+      ec != std::errc() || end != time.data() + time.size()) {
+    return Status::FailedPrecondition("bad " + std::string(kTimeHeader));
+  }
+  jsMsgMetaData* raw = nullptr;
+  if (natsMsg_GetMetaData(&raw, msg) != NATS_OK) {
+    return Status::FailedPrecondition("the entry has no JetStream time");
+  }
+  NatsPtr<jsMsgMetaData> meta(raw);
+  if (!ClusterTrust::StoredInTime(signed_ns, meta->Timestamp, kMaxEntryDelay)) {
+    return Status::FailedPrecondition("stored " +
+                                      std::to_string((meta->Timestamp - signed_ns) / 1000000) +
+                                      " ms after it was signed: a copy published again");
+  }
+  if (!headers_only &&
+      ClusterTrust::Digest(std::string_view(
+          natsMsg_GetData(msg), static_cast<size_t>(natsMsg_GetDataLength(msg)))) != digest) {
+    return Status::FailedPrecondition("the payload is not the one signed");
+  }
+  return Status::Ok();
 }
 
 }  // namespace bgkmap::cluster

@@ -6,8 +6,16 @@
 // Each entry carries headers a shard reads without decoding the scan: the robot, its sequence
 // number, the partitions the scan can change (PartitionLayout::Touched) and the box of cells it
 // can change (what a Watch on any node learns from a headers-only reader of the log).
+//
+// With a cluster key (cluster_trust.h) an entry also carries the time it was signed, the SHA-256
+// of its payload and an HMAC over its subject, message id, time and every header above: a
+// reader believes an entry only if VerifyEntry accepts it. The message id is signed and
+// JetStream stores an id once within cluster.dedupe_window_s, and an entry stored longer after
+// its signature than kMaxEntryDelay (plus the clock skew) is refused, so a copy of a real entry
+// published again is never applied.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -15,6 +23,7 @@
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/v1/ingest.pb.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 
@@ -46,18 +55,19 @@ struct Appended {
 // JetStream has stored it on a majority of its replicas (the durability point of a cluster
 // ack). OutOfRange when it exceeds the servers' max_payload; Unavailable when the log cannot be
 // reached in time.
-Result<Appended> AppendScan(const NatsClient& nats, const std::string& encoded,
-                            const std::string& robot_id, uint64_t sequence,
-                            const std::vector<PartitionKey>& touched, const CellBox& changes);
+Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
+                            const std::string& encoded, const std::string& robot_id,
+                            uint64_t sequence, const std::vector<PartitionKey>& touched,
+                            const CellBox& changes);
 
 // Appends a clear of `box` (map cells), ordered with the scans like a single server's clear.
-Result<uint64_t> AppendClear(const NatsClient& nats, const CellBox& box,
+Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
                              const std::vector<PartitionKey>& touched);
 
 // Appends an import whose tiles are in the checkpoint stream's chunks `manifest` names.
-Result<uint64_t> AppendImport(const NatsClient& nats, const std::string& id,
-                              const std::string& manifest, const std::vector<PartitionKey>& touched,
-                              const CellBox& changes);
+Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
+                              const std::string& id, const std::string& manifest,
+                              const std::vector<PartitionKey>& touched, const CellBox& changes);
 
 // An ordered reader of the log from entry `start` (whole entries, or their headers only),
 // recreated by nats.c after a failure. Unavailable if the log cannot be read.
@@ -83,5 +93,15 @@ struct LogEntryHeader {
 };
 // DataLoss if the headers are missing or malformed (an entry not written by AppendScan).
 Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg);
+
+// How long after its signature an append may be stored: its retries through a stream leader's
+// election (10 s) with room to spare. Must stay below cluster.dedupe_window_s.
+inline constexpr std::chrono::seconds kMaxEntryDelay{60};
+
+// Whether entry `msg` (as a log reader delivered it) was appended by a shard holding the
+// cluster key: its HMAC verifies, it was stored in time (kMaxEntryDelay) and, unless
+// `headers_only`, its payload is the one signed. FailedPrecondition saying what failed; OK
+// without a key.
+Status VerifyEntry(const ClusterTrust& trust, natsMsg* msg, bool headers_only);
 
 }  // namespace bgkmap::cluster

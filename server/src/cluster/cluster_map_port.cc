@@ -122,6 +122,10 @@ MapState ClusterNode::State(bool /*with_disk_usage*/) {
     shard.owned.push_back({PartitionName(r.key), r.log_sequence, r.scans_integrated, r.tiles,
                            r.serving, r.restored_from});
   }
+  for (size_t k = 0; k < kUntrustedKinds; ++k) {
+    const Untrusted kind = static_cast<Untrusted>(k);
+    shard.refused.emplace_back(UntrustedName(kind), trust_->refused(kind));
+  }
   return state;
 }
 

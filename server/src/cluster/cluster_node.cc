@@ -57,26 +57,39 @@ class JetStreamWait {
 }  // namespace
 
 ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
-                         std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members,
-                         Georeference georeference, Executor executor)
+                         std::unique_ptr<ClusterTrust> trust, std::unique_ptr<NatsClient> nats,
+                         std::unique_ptr<Membership> members, Georeference georeference,
+                         Executor executor)
     : config_(config),
       params_(params),
       prepare_(std::move(prepare)),
       executor_(std::move(executor)),
       georeference_(std::move(georeference)),
       layout_(params, static_cast<int>(config.partition_tiles)),
+      trust_(std::move(trust)),
       nats_(std::move(nats)),
       members_(std::move(members)) {
   // A takeover waits for the lease to expire, then for the new owner to read the log.
-  reads_ = std::make_unique<ClusterReads>(*nats_, layout_, *members_, params_,
+  reads_ = std::make_unique<ClusterReads>(*nats_, *trust_, layout_, *members_, params_,
                                           static_cast<int64_t>(config.lease_s * 1000) + 10000);
 }
 
 Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
     const ClusterConfig& config, const MapParams& params, const std::string& params_yaml,
     ScanPreparer prepare, Georeference georeference, Executor executor) {
+  // The key first: a shard that cannot read it does not touch NATS. (Without one, the
+  // configuration was checked to say cluster.insecure: true.)
+  Result<std::unique_ptr<ClusterTrust>> trust = ClusterTrust::Open(config.key_file);
+  if (!trust.ok()) return trust.status();
+  if (!(*trust)->keyed()) {
+    spdlog::warn(
+        "event=cluster_insecure reason=\"cluster.insecure: true and no cluster.key_file: log "
+        "entries, tile replies and membership records are not signed\"");
+  }
   Result<std::unique_ptr<NatsClient>> nats =
-      NatsClient::Connect(SplitServers(config.nats), "bgkmapd-" + config.node);
+      NatsClient::Connect(SplitServers(config.nats), "bgkmapd-" + config.node,
+                          {config.nats_credentials, config.nats_tls.ca_file,
+                           config.nats_tls.cert_file, config.nats_tls.key_file});
   if (!nats.ok()) return nats.status();
   LogStreamOptions log;
   log.replicas = static_cast<int>(config.replicas);
@@ -100,16 +113,16 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
   if (Status s = wait.Until("the membership buckets",
                             [&] {
                               Result<std::unique_ptr<Membership>> m =
-                                  Membership::Open(**nats, mo, params_yaml);
+                                  Membership::Open(**nats, mo, params_yaml, **trust);
                               if (m.ok()) opened = std::move(m).value();
                               return m.status();
                             });
       !s.ok()) {
     return s;
   }
-  std::unique_ptr<ClusterNode> node(new ClusterNode(config, params, std::move(prepare),
-                                                    std::move(nats).value(), std::move(opened),
-                                                    std::move(georeference), std::move(executor)));
+  std::unique_ptr<ClusterNode> node(new ClusterNode(
+      config, params, std::move(prepare), std::move(trust).value(), std::move(nats).value(),
+      std::move(opened), std::move(georeference), std::move(executor)));
   if (Status s = wait.Until("the first heartbeat", [&] { return node->members_->Heartbeat(); });
       !s.ok()) {
     return s;
@@ -123,7 +136,9 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
 }
 
 void ClusterNode::FollowChanges(LogChangeFeed::OnChange on_change) {
-  if (!feed_) feed_ = std::make_unique<LogChangeFeed>(*nats_, layout_, std::move(on_change));
+  if (!feed_) {
+    feed_ = std::make_unique<LogChangeFeed>(*nats_, *trust_, layout_, std::move(on_change));
+  }
 }
 
 ClusterNode::~ClusterNode() {
@@ -158,7 +173,7 @@ Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const PreparedSca
   for (PartitionKey p : touched) {
     if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
   }
-  return AppendScan(*nats_, encoded, origin.robot_id, origin.sequence, touched, reach);
+  return AppendScan(*nats_, *trust_, encoded, origin.robot_id, origin.sequence, touched, reach);
 }
 
 Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
@@ -167,7 +182,7 @@ Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
   const int h = layout_.halo_cells();
   reach.min = {reach.min.x - h, reach.min.y - h};
   reach.max = {reach.max.x + h, reach.max.y + h};
-  return cluster::AppendClear(*nats_, box, layout_.Covering(reach));
+  return cluster::AppendClear(*nats_, *trust_, box, layout_.Covering(reach));
 }
 
 Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
@@ -196,7 +211,8 @@ Result<uint64_t> ClusterNode::AppendImport(std::span<const TileKey> keys,
       std::to_string(imports_++);
   Result<std::string> manifest = StoreImportTiles(*nats_, id, keys, adding);
   if (!manifest.ok()) return Status::Unavailable(manifest.status().message());
-  return cluster::AppendImport(*nats_, id, *manifest, {touched.begin(), touched.end()}, changes);
+  return cluster::AppendImport(*nats_, *trust_, id, *manifest, {touched.begin(), touched.end()},
+                               changes);
 }
 
 void ClusterNode::TrimLogIfDue() {
@@ -221,7 +237,7 @@ void ClusterNode::TrimLogIfDue() {
   }
   uint64_t floor = *end;
   for (PartitionKey p : *partitions) {
-    Result<std::optional<uint64_t>> c = ReadCheckpointSequence(*nats_, p);
+    Result<std::optional<uint64_t>> c = ReadCheckpointSequence(*nats_, *trust_, p);
     if (!c.ok() || !c->has_value()) return;  // a partition without one holds the whole log
     floor = std::min(floor, **c);
   }
@@ -319,7 +335,17 @@ void ClusterNode::Rebalance() {
 std::shared_ptr<PartitionReplica> ClusterNode::TakePartition(PartitionKey p, uint64_t end) {
   Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
   if (!map.ok()) return nullptr;
-  Result<std::optional<PartitionCheckpoint>> restored = ReadCheckpoint(*nats_, p, params_);
+  Result<std::optional<PartitionCheckpoint>> restored = ReadCheckpoint(*nats_, *trust_, p, params_);
+  if (restored.ok() && restored->has_value()) {
+    // An older checkpoint than the log still holds the entries after (a manifest published
+    // again): the entries between are gone, so it cannot be the partition's.
+    Result<uint64_t> first = FirstSequence(*nats_);
+    if (first.ok() && (*restored)->log_sequence + 1 < *first) {
+      restored = Status::DataLoss(
+          "its newest checkpoint (log entry " + std::to_string((*restored)->log_sequence) +
+          ") is older than the log's first entry " + std::to_string(*first));
+    }
+  }
   if (!restored.ok()) {
     spdlog::warn("event=partition_checkpoint_unreadable partition={} reason=\"{}\"",
                  PartitionName(p), restored.status().message());
@@ -342,8 +368,8 @@ std::shared_ptr<PartitionReplica> ClusterNode::TakePartition(PartitionKey p, uin
   const size_t tiles = *restored ? (*restored)->tiles.size() : 0;
   spdlog::info("event=partition_taken partition={} node={} restored_from={} tiles={}",
                PartitionName(p), config_.node, from, tiles);
-  return std::make_shared<PartitionReplica>(*nats_, layout_, p, std::move(map).value(), end,
-                                            std::move(restored).value());
+  return std::make_shared<PartitionReplica>(*nats_, *trust_, layout_, p, std::move(map).value(),
+                                            end, std::move(restored).value());
 }
 
 std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
@@ -442,7 +468,7 @@ void ClusterNode::WriteCheckpoints() {
       pending_checkpoints_.erase(first);
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const Status s = WriteCheckpoint(*nats_, key, c);
+    const Status s = WriteCheckpoint(*nats_, *trust_, key, c);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (s.ok()) {
@@ -459,6 +485,14 @@ void ClusterNode::WriteCheckpoints() {
 
 void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
                            const std::vector<std::shared_ptr<PartitionReplica>>& to) {
+  if (to.empty()) return;  // an entry read again for other partitions: nothing to do here
+  // Not appended by a shard: passed, applied nowhere, no robot's sequence recorded.
+  if (Status trusted = VerifyEntry(*trust_, msg, /*headers_only=*/false); !trusted.ok()) {
+    trust_->Refuse(Untrusted::kLogEntry,
+                   "log entry " + std::to_string(sequence) + ": " + trusted.message());
+    for (const auto& r : to) r->Apply(sequence, nullptr);
+    return;
+  }
   Result<LogEntryHeader> header = ReadEntryHeader(msg);
   if (header.ok() && header->kind == LogEntryHeader::Kind::kImport) {
     std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;

@@ -21,6 +21,7 @@
 #include "bgkmap/server/server_config.h"
 #include "cluster/cluster_log.h"
 #include "cluster/cluster_reads.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/log_change_feed.h"
 #include "cluster/membership.h"
 #include "cluster/nats_client.h"
@@ -112,8 +113,8 @@ class ClusterNode final : public MapPort {
 
  private:
   ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
-              std::unique_ptr<NatsClient> nats, std::unique_ptr<Membership> members,
-              Georeference georeference, Executor executor);
+              std::unique_ptr<ClusterTrust> trust, std::unique_ptr<NatsClient> nats,
+              std::unique_ptr<Membership> members, Georeference georeference, Executor executor);
   // Appends a checked and prepared scan to the log (durable on a majority of the log's replicas
   // when OK). OutOfRange when it is too large for the log; Unavailable if the log cannot be
   // reached.
@@ -152,6 +153,7 @@ class ClusterNode final : public MapPort {
   mutable std::mutex georeference_mu_;
   Georeference georeference_;  // guarded by georeference_mu_
   const PartitionLayout layout_;
+  const std::unique_ptr<ClusterTrust> trust_;  // the cluster key; outlives what uses it below
   std::unique_ptr<NatsClient> nats_;
   std::unique_ptr<Membership> members_;
   std::unique_ptr<ClusterReads> reads_;

@@ -8,6 +8,7 @@
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/v1/cluster.pb.h"
 #include "cluster/cluster_log.h"
+#include "cluster/partition_replica.h"
 #include "serving/tile_table.h"
 
 namespace bgkmap::cluster {
@@ -17,12 +18,60 @@ namespace {
 // fetch_timeout_ms.
 constexpr int64_t kRequestTimeoutMs = 3000;
 
+struct InboxDeleter {
+  void operator()(natsInbox* inbox) const { natsInbox_Destroy(inbox); }
+};
+
+// Sends `request` on `subject` and waits up to kRequestTimeoutMs for the first reply whose HMAC
+// verifies (TileReplyMac); replies that do not are refused and skipped. NATS_NO_RESPONDERS when
+// the server says nobody subscribes to `subject`.
+natsStatus RequestTrusted(const NatsClient& nats, const ClusterTrust& trust,
+                          const std::string& subject, const std::string& request,
+                          NatsPtr<natsMsg>* reply) {
+  natsInbox* raw_inbox = nullptr;
+  natsStatus st = natsInbox_Create(&raw_inbox);
+  if (st != NATS_OK) return st;
+  const std::unique_ptr<natsInbox, InboxDeleter> inbox(raw_inbox);
+  natsSubscription* raw_sub = nullptr;
+  st = natsConnection_SubscribeSync(&raw_sub, nats.connection(), inbox.get());
+  if (st != NATS_OK) return st;
+  const NatsPtr<natsSubscription> sub(raw_sub);  // destroyed: unsubscribed
+  st = natsConnection_PublishRequest(nats.connection(), subject.c_str(), inbox.get(),
+                                     request.data(), static_cast<int>(request.size()));
+  if (st != NATS_OK) return st;
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(kRequestTimeoutMs);
+  for (;;) {
+    const int64_t left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                             deadline - std::chrono::steady_clock::now())
+                             .count();
+    if (left <= 0) return NATS_TIMEOUT;
+    natsMsg* raw = nullptr;
+    st = natsSubscription_NextMsg(&raw, sub.get(), left);
+    if (st != NATS_OK) return st;
+    NatsPtr<natsMsg> msg(raw);
+    if (natsMsg_IsNoResponders(msg.get())) return NATS_NO_RESPONDERS;
+    const char* mac = nullptr;
+    if (!trust.keyed() ||
+        (natsMsgHeader_Get(msg.get(), kTileReplyMacHeader, &mac) == NATS_OK && mac != nullptr &&
+         TileReplyVerifies(
+             trust, mac, subject, inbox.get(), request,
+             std::string_view(natsMsg_GetData(msg.get()),
+                              static_cast<size_t>(natsMsg_GetDataLength(msg.get())))))) {
+      *reply = std::move(msg);
+      return NATS_OK;
+    }
+    trust.Refuse(Untrusted::kTileReply, "a reply to a fetch of " + subject + " is not signed");
+  }
+}
+
 }  // namespace
 
-ClusterReads::ClusterReads(const NatsClient& nats, const PartitionLayout& layout,
-                           const Membership& members, const MapParams& params,
-                           int64_t fetch_timeout_ms)
+ClusterReads::ClusterReads(const NatsClient& nats, const ClusterTrust& trust,
+                           const PartitionLayout& layout, const Membership& members,
+                           const MapParams& params, int64_t fetch_timeout_ms)
     : nats_(nats),
+      trust_(trust),
       layout_(layout),
       members_(members),
       params_(params),
@@ -46,14 +95,13 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
   request.mutable_max()->set_y(max.y);
   request.set_min_log_sequence(sequence);
   request.set_keys_only(keys != nullptr);
+  // A partition without data has no owner to ask (and anyone else on NATS may answer for it).
+  if (Result<bool> has = members_.HasPartition(p); has.ok() && !*has) return Status::Ok();
   std::string why;
   while (true) {
     const std::string bytes = request.SerializeAsString();
-    natsMsg* raw = nullptr;
-    const natsStatus st =
-        natsConnection_Request(&raw, nats_.connection(), subject.c_str(), bytes.data(),
-                               static_cast<int>(bytes.size()), kRequestTimeoutMs);
-    NatsPtr<natsMsg> reply_msg(raw);
+    NatsPtr<natsMsg> reply_msg;
+    const natsStatus st = RequestTrusted(nats_, trust_, subject, bytes, &reply_msg);
     v1::TileFetchReply reply;
     if (st == NATS_NO_RESPONDERS) {
       // Nobody serves it: a partition without data has nothing to serve; one with data is

@@ -1,13 +1,16 @@
 // Queries on any node of a cluster: the reads gather the statistics of the tiles a query needs
 // from the owners of their partitions (NATS request bgkmap.tiles.<partition>), as of at least
 // the log's last entry when the query began, put them in a map of their own and answer from it
-// with the engine's own estimates, so the answer is bitwise a single server's.
+// with the engine's own estimates, so the answer is bitwise a single server's. With a cluster
+// key a reply is believed only if its HMAC verifies for this very request (TileReplyMac); other
+// replies (anyone on NATS can answer) are refused and the read waits for the owner's.
 #pragma once
 
 #include <atomic>
 #include <memory>
 
 #include "bgkmap/core/terrain_map.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/membership.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
@@ -19,8 +22,8 @@ class ClusterReads final : public MapReads {
  public:
   // `fetch_timeout_ms`: how long a partition may have no shard serving it (a takeover) before
   // the read is Unavailable.
-  ClusterReads(const NatsClient& nats, const PartitionLayout& layout, const Membership& members,
-               const MapParams& params, int64_t fetch_timeout_ms);
+  ClusterReads(const NatsClient& nats, const ClusterTrust& trust, const PartitionLayout& layout,
+               const Membership& members, const MapParams& params, int64_t fetch_timeout_ms);
 
   // The log's last sequence, asked of the log (a round trip).
   uint64_t applied_version() const override;
@@ -48,6 +51,7 @@ class ClusterReads final : public MapReads {
                         TerrainMap& into, std::vector<TileKey>* keys = nullptr) const;
 
   const NatsClient& nats_;
+  const ClusterTrust& trust_;
   const PartitionLayout& layout_;
   const Membership& members_;
   const MapParams params_;

@@ -8,9 +8,9 @@
 
 namespace bgkmap::cluster {
 
-LogChangeFeed::LogChangeFeed(const NatsClient& nats, const PartitionLayout& layout,
-                             OnChange on_change)
-    : nats_(nats), layout_(layout), on_change_(std::move(on_change)) {
+LogChangeFeed::LogChangeFeed(const NatsClient& nats, const ClusterTrust& trust,
+                             const PartitionLayout& layout, OnChange on_change)
+    : nats_(nats), trust_(trust), layout_(layout), on_change_(std::move(on_change)) {
   // From the log's end as it is now: what a Watch started later must see comes after it.
   Result<uint64_t> end = LastSequence(nats_);
   if (end.ok()) last_ = *end;
@@ -49,6 +49,8 @@ void LogChangeFeed::Run() {
     const uint64_t sequence = *entry;
     if (sequence <= last_) continue;
     last_ = sequence;
+    // (Counted once, by the node's log reader, which reads the same entry.)
+    if (!VerifyEntry(trust_, msg.get(), /*headers_only=*/true).ok()) continue;
     Result<LogEntryHeader> header = ReadEntryHeader(msg.get());
     if (!header.ok()) {
       spdlog::warn("event=cluster_change_feed_bad_entry sequence={} reason=\"{}\"", sequence,

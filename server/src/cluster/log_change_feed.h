@@ -1,7 +1,8 @@
 // What changed in the cluster's map, as the log says, for Watch on any node: a headers-only
 // reader of the log (no scan payloads cross the network) that reports, entry by entry in the
 // log's order, the box of cells each entry can change. A node's Watch subscribers learn of every
-// change anywhere in the cluster this way and read the changed tiles from their owners.
+// change anywhere in the cluster this way and read the changed tiles from their owners. An
+// entry whose signed headers do not verify (VerifyEntry) is not reported.
 #pragma once
 
 #include <atomic>
@@ -10,6 +11,7 @@
 #include <thread>
 
 #include "bgkmap/core/grid.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 
@@ -20,8 +22,10 @@ class LogChangeFeed {
   // Called on the feed's thread with the log sequence of an entry and the cells it can change.
   using OnChange = std::function<void(uint64_t sequence, const CellBox& cells)>;
 
-  // Starts reading at the entry after the log's current end; `nats` and `layout` outlive it.
-  LogChangeFeed(const NatsClient& nats, const PartitionLayout& layout, OnChange on_change);
+  // Starts reading at the entry after the log's current end; `nats`, `trust` and `layout`
+  // outlive it.
+  LogChangeFeed(const NatsClient& nats, const ClusterTrust& trust, const PartitionLayout& layout,
+                OnChange on_change);
   ~LogChangeFeed();  // stops and joins the reader
   LogChangeFeed(const LogChangeFeed&) = delete;
   LogChangeFeed& operator=(const LogChangeFeed&) = delete;
@@ -33,6 +37,7 @@ class LogChangeFeed {
   void Run();
 
   const NatsClient& nats_;
+  const ClusterTrust& trust_;
   const PartitionLayout& layout_;
   const OnChange on_change_;
   std::atomic<bool> stop_{false};

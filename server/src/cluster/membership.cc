@@ -1,8 +1,10 @@
 #include "cluster/membership.h"
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -42,6 +44,25 @@ uint64_t Fnv1a(const std::string& s) {
   return h;
 }
 
+// The parameters as recorded: the YAML, then (with a key) a comment line holding its HMAC.
+constexpr const char* kParamsMacLine = "\n# bgkmap-mac ";
+
+std::string SignedParams(const ClusterTrust& trust, const std::string& yaml) {
+  if (!trust.keyed()) return yaml;
+  return yaml + kParamsMacLine + trust.Sign({"bgkmap-params-1", yaml});
+}
+
+// The YAML of a recorded value whose HMAC verifies (nullopt: not recorded by a shard).
+std::optional<std::string> TrustedParams(const ClusterTrust& trust, const std::string& value) {
+  if (!trust.keyed()) return value;
+  const size_t at = value.rfind(kParamsMacLine);
+  if (at == std::string::npos) return std::nullopt;
+  std::string yaml = value.substr(0, at);
+  const std::string mac = value.substr(at + std::string_view(kParamsMacLine).size());
+  if (!trust.Verify(mac, {"bgkmap-params-1", yaml})) return std::nullopt;
+  return yaml;
+}
+
 std::string FirstDifference(const std::string& a, const std::string& b) {
   std::istringstream sa(a), sb(b);
   std::string la, lb;
@@ -57,23 +78,33 @@ std::string FirstDifference(const std::string& a, const std::string& b) {
 
 Result<std::unique_ptr<Membership>> Membership::Open(const NatsClient& nats,
                                                      const MembershipOptions& options,
-                                                     const std::string& params_yaml) {
+                                                     const std::string& params_yaml,
+                                                     const ClusterTrust& trust) {
   Result<NatsPtr<kvStore>> cluster = OpenBucket(nats, "bgkmap_cluster", options.replicas, 0);
   if (!cluster.ok()) return cluster.status();
   // The first node sets the parameters; every other one must have the same.
+  const std::string mine = SignedParams(trust, params_yaml);
   uint64_t rev = 0;
-  natsStatus st = kvStore_Create(&rev, cluster->get(), "params", params_yaml.data(),
-                                 static_cast<int>(params_yaml.size()));
+  natsStatus st =
+      kvStore_Create(&rev, cluster->get(), "params", mine.data(), static_cast<int>(mine.size()));
   if (st != NATS_OK) {
     kvEntry* e = nullptr;
     st = kvStore_Get(&e, cluster->get(), "params");
     NatsPtr<kvEntry> entry(e);
     if (st != NATS_OK) return NatsStatus(st, "cluster: read the cluster's map parameters");
-    const std::string theirs(static_cast<const char*>(kvEntry_Value(entry.get())),
-                             static_cast<size_t>(kvEntry_ValueLen(entry.get())));
-    if (theirs != params_yaml) {
+    std::optional<std::string> theirs =
+        TrustedParams(trust, std::string(static_cast<const char*>(kvEntry_Value(entry.get())),
+                                         static_cast<size_t>(kvEntry_ValueLen(entry.get()))));
+    if (!theirs) {
+      // Not recorded by a shard: ours replace it.
+      trust.Refuse(Untrusted::kMembership, "the cluster's parameters are not signed");
+      st = kvStore_Put(&rev, cluster->get(), "params", mine.data(), static_cast<int>(mine.size()));
+      if (st != NATS_OK) return NatsStatus(st, "cluster: record the map parameters");
+      theirs = params_yaml;
+    }
+    if (*theirs != params_yaml) {
       return Status::FailedPrecondition("cluster: the map parameters differ from the cluster's: " +
-                                        FirstDifference(params_yaml, theirs));
+                                        FirstDifference(params_yaml, *theirs));
     }
   }
   Result<NatsPtr<kvStore>> nodes = OpenBucket(nats, "bgkmap_nodes", options.replicas,
@@ -81,7 +112,7 @@ Result<std::unique_ptr<Membership>> Membership::Open(const NatsClient& nats,
   if (!nodes.ok()) return nodes.status();
   Result<NatsPtr<kvStore>> partitions = OpenBucket(nats, "bgkmap_partitions", options.replicas, 0);
   if (!partitions.ok()) return partitions.status();
-  std::unique_ptr<Membership> m(new Membership(options, std::move(nodes).value().release(),
+  std::unique_ptr<Membership> m(new Membership(options, trust, std::move(nodes).value().release(),
                                                std::move(partitions).value().release()));
   if (Status s = m->StartWatching(); !s.ok()) return s;
   return m;
@@ -105,7 +136,7 @@ void Membership::Watch(kvStore* bucket, bool nodes) {
   while (!stop_ && watcher == nullptr) {
     kvWatchOptions o;
     kvWatchOptions_Init(&o);
-    o.MetaOnly = true;  // the keys are the news
+    o.MetaOnly = !trust_.keyed();  // without a key the keys are the news; with one, the values
     if (kvStore_WatchAll(&watcher, bucket, &o) != NATS_OK) {
       watcher = nullptr;
       std::this_thread::sleep_for(std::chrono::milliseconds(250));
@@ -118,6 +149,15 @@ void Membership::Watch(kvStore* bucket, bool nodes) {
     NatsPtr<kvEntry> entry(raw);
     const std::string key = kvEntry_Key(raw);
     const bool put = kvEntry_Operation(raw) == kvOp_Put;
+    // With a key, a deletion is no shard's (a node's key only expires) and a put counts once
+    // its HMAC verifies.
+    if ((!put && trust_.keyed()) ||
+        (put && !(nodes ? TrustedHeartbeat(raw) : TrustedPartition(raw)))) {
+      trust_.Refuse(Untrusted::kMembership,
+                    std::string(nodes ? "node '" : "partition '") + key +
+                        (put ? "': not signed by a shard" : "': deleted by someone"));
+      continue;
+    }
     std::lock_guard lock(mu_);
     if (nodes) {
       if (put) {
@@ -135,9 +175,44 @@ void Membership::Watch(kvStore* bucket, bool nodes) {
   }
 }
 
+bool Membership::TrustedHeartbeat(kvEntry* entry) const {
+  if (!trust_.keyed()) return true;
+  const std::string value(static_cast<const char*>(kvEntry_Value(entry)),
+                          static_cast<size_t>(kvEntry_ValueLen(entry)));
+  const size_t space = value.find(' ');
+  if (space == std::string::npos) return false;
+  const std::string time = value.substr(0, space);
+  if (!trust_.Verify(value.substr(space + 1), {"bgkmap-node-1", kvEntry_Key(entry), time})) {
+    return false;
+  }
+  int64_t signed_ns = 0;
+  if (auto [end, ec] = std::from_chars(time.data(), time.data() + time.size(), signed_ns);
+      ec != std::errc() || end != time.data() + time.size()) {
+    return false;
+  }
+  const auto lease = std::chrono::nanoseconds(static_cast<int64_t>(options_.lease_s * 1e9));
+  return ClusterTrust::StoredInTime(signed_ns, kvEntry_Created(entry), lease);
+}
+
+std::string Membership::PartitionValue(const std::string& name) const {
+  return trust_.keyed() ? trust_.Sign({"bgkmap-partition-1", name}) : "1";
+}
+
+bool Membership::TrustedPartition(kvEntry* entry) const {
+  if (!trust_.keyed()) return true;
+  const std::string value(static_cast<const char*>(kvEntry_Value(entry)),
+                          static_cast<size_t>(kvEntry_ValueLen(entry)));
+  return trust_.Verify(value, {"bgkmap-partition-1", kvEntry_Key(entry)});
+}
+
 Status Membership::Heartbeat() {
   uint64_t rev = 0;
-  const natsStatus st = kvStore_PutString(&rev, nodes_.get(), options_.node.c_str(), "alive");
+  std::string value = "alive";
+  if (trust_.keyed()) {
+    const std::string time = std::to_string(ClusterTrust::NowNs());
+    value = time + " " + trust_.Sign({"bgkmap-node-1", options_.node, time});
+  }
+  const natsStatus st = kvStore_PutString(&rev, nodes_.get(), options_.node.c_str(), value.c_str());
   if (st != NATS_OK) return NatsStatus(st, "cluster: heartbeat");
   return Status::Ok();
 }
@@ -167,13 +242,20 @@ Status Membership::AddPartition(PartitionKey p) {
   // Through the bucket's leader election after a NATS server's death (no responders for a
   // while), as the log's appends are.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  const std::string value = PartitionValue(name);
   for (;;) {
     uint64_t rev = 0;
-    const natsStatus st = kvStore_CreateString(&rev, partitions_.get(), name.c_str(), "1");
+    const natsStatus st =
+        kvStore_CreateString(&rev, partitions_.get(), name.c_str(), value.c_str());
     if (st == NATS_OK) break;
-    // Another node recorded it first: fine, if it is really there.
+    // Another node recorded it first: fine, if it is really there (a record not signed by a
+    // shard is replaced: the value is the same whoever writes it).
     Result<bool> has = HasPartition(p);
     if (has.ok() && *has) break;
+    if (has.ok() &&
+        kvStore_PutString(&rev, partitions_.get(), name.c_str(), value.c_str()) == NATS_OK) {
+      break;
+    }
     if (std::chrono::steady_clock::now() >= deadline) {
       return has.ok() ? NatsStatus(st, "cluster: record partition " + name) : has.status();
     }
@@ -209,6 +291,10 @@ Result<bool> Membership::HasPartition(PartitionKey p) const {
   NatsPtr<kvEntry> entry(e);
   if (st == NATS_NOT_FOUND) return false;
   if (st != NATS_OK) return NatsStatus(st, "cluster: look up partition " + PartitionName(p));
+  if (!TrustedPartition(entry.get())) {
+    trust_.Refuse(Untrusted::kMembership, "partition '" + PartitionName(p) + "': not signed");
+    return false;
+  }
   return true;
 }
 

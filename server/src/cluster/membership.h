@@ -11,6 +11,13 @@
 // every node computes the same owner from the same keys, and a node's death moves only its
 // partitions. Two nodes may briefly both serve a partition while the keys propagate; that is
 // harmless, because a partition is a deterministic function of the log.
+//
+// With a cluster key every record is signed (cluster_trust.h): a heartbeat's value is the time
+// it was made and an HMAC over the node's name and that time, and it counts only if the NATS
+// server stored it within a lease (plus the clock skew) of that time, so a copied heartbeat
+// keeps a dead node alive for kMaxClockSkew at most; a partition's value is an HMAC over its
+// name; the parameters carry an HMAC over them. Records that fail are refused and counted;
+// deletions in the nodes' bucket are ignored (a node's key only expires).
 #pragma once
 
 #include <atomic>
@@ -25,6 +32,7 @@
 #include <vector>
 
 #include "bgkmap/core/status.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 
@@ -39,10 +47,12 @@ struct MembershipOptions {
 class Membership {
  public:
   // Opens (or creates) the buckets and checks that `params_yaml` equals the cluster's
-  // (FailedPrecondition naming the first line that differs).
+  // (FailedPrecondition naming the first line that differs). Parameters recorded without a
+  // valid HMAC (not by a shard) are replaced by this node's. `trust` outlives the Membership.
   static Result<std::unique_ptr<Membership>> Open(const NatsClient& nats,
                                                   const MembershipOptions& options,
-                                                  const std::string& params_yaml);
+                                                  const std::string& params_yaml,
+                                                  const ClusterTrust& trust);
 
   // This node is alive: call every lease_s / 4.
   Status Heartbeat();
@@ -51,7 +61,7 @@ class Membership {
   std::vector<std::string> LiveNodes() const;
   // Every partition that has data, sorted.
   std::vector<PartitionKey> Partitions() const;
-  // Records that `p` has data (idempotent, cached).
+  // Records that `p` has data (idempotent, cached; a record without a valid HMAC is replaced).
   Status AddPartition(PartitionKey p);
   // Whether `p` has data, asked of the bucket (not the cache).
   Result<bool> HasPartition(PartitionKey p) const;
@@ -63,12 +73,19 @@ class Membership {
   static std::string OwnerOf(PartitionKey p, const std::vector<std::string>& live);
 
  private:
-  Membership(const MembershipOptions& options, kvStore* nodes, kvStore* partitions)
-      : options_(options), nodes_(nodes), partitions_(partitions) {}
+  Membership(const MembershipOptions& options, const ClusterTrust& trust, kvStore* nodes,
+             kvStore* partitions)
+      : options_(options), trust_(trust), nodes_(nodes), partitions_(partitions) {}
   Status StartWatching();
   void Watch(kvStore* bucket, bool nodes);
+  // Whether `entry` of the nodes' bucket is a heartbeat a shard made, within a lease.
+  bool TrustedHeartbeat(kvEntry* entry) const;
+  // The value of partition `name`'s record (an HMAC over the name; "1" without a key).
+  std::string PartitionValue(const std::string& name) const;
+  bool TrustedPartition(kvEntry* entry) const;
 
   const MembershipOptions options_;
+  const ClusterTrust& trust_;
   NatsPtr<kvStore> nodes_;
   NatsPtr<kvStore> partitions_;
   mutable std::mutex mu_;

@@ -2,6 +2,8 @@
 
 #include <mutex>
 
+#include "bgkmap/server/server_config.h"
+
 namespace bgkmap::cluster {
 
 Status NatsStatus(natsStatus s, const std::string& what, jsErrCode js_error) {
@@ -17,6 +19,7 @@ Status NatsStatus(natsStatus s, const std::string& what, jsErrCode js_error) {
 
 Result<std::unique_ptr<NatsClient>> NatsClient::Connect(const std::vector<std::string>& servers,
                                                         const std::string& name,
+                                                        const NatsSecurity& security,
                                                         int64_t timeout_ms) {
   static std::once_flag opened;
   std::call_once(opened, [] { nats_Open(-1); });
@@ -34,10 +37,35 @@ Result<std::unique_ptr<NatsClient>> NatsClient::Connect(const std::vector<std::s
   if (st == NATS_OK) st = natsOptions_SetTimeout(opts, timeout_ms);
   if (st == NATS_OK) st = natsOptions_SetMaxReconnect(opts, -1);  // forever
   if (st == NATS_OK) st = natsOptions_SetReconnectWait(opts, 250);
+  // The files are read here: a bad one is named, never its contents.
+  auto refuse = [&](const std::string& key, const std::string& file) {
+    natsOptions_Destroy(opts);
+    return Status::FailedPrecondition("cluster." + key + " '" + file +
+                                      "': " + nats_GetLastError(nullptr));
+  };
+  if (st == NATS_OK && !security.credentials_file.empty() &&
+      natsOptions_SetUserCredentialsFromFiles(opts, security.credentials_file.c_str(), nullptr) !=
+          NATS_OK) {
+    return refuse("nats_credentials", security.credentials_file);
+  }
+  if (st == NATS_OK && !security.ca_file.empty() &&
+      (natsOptions_SetSecure(opts, true) != NATS_OK ||
+       natsOptions_LoadCATrustedCertificates(opts, security.ca_file.c_str()) != NATS_OK)) {
+    return refuse("nats_tls.ca_file", security.ca_file);
+  }
+  if (st == NATS_OK && !security.cert_file.empty() &&
+      (natsOptions_SetSecure(opts, true) != NATS_OK ||
+       natsOptions_LoadCertificatesChain(opts, security.cert_file.c_str(),
+                                         security.key_file.c_str()) != NATS_OK)) {
+    return refuse("nats_tls.cert_file", security.cert_file);
+  }
   natsConnection* nc = nullptr;
   if (st == NATS_OK) st = natsConnection_Connect(&nc, opts);
   natsOptions_Destroy(opts);
-  if (st != NATS_OK) return NatsStatus(st, "cluster.nats: cannot connect to " + list);
+  if (st != NATS_OK) {
+    return NatsStatus(st, "cluster.nats: cannot connect to " + RedactUrlSecrets(list) + " (" +
+                              nats_GetLastError(nullptr) + ")");
+  }
   jsOptions jo;
   jsOptions_Init(&jo);
   jo.Wait = timeout_ms;

@@ -48,12 +48,22 @@ natsStatus RetryWhileElecting(Call call, int64_t timeout_ms) {
   }
 }
 
+// How a shard proves itself to NATS and checks the servers (cluster.nats_credentials,
+// cluster.nats_tls); every field may be empty.
+struct NatsSecurity {
+  std::string credentials_file;     // a .creds file: the user's JWT and nkey seed
+  std::string ca_file;              // set: TLS, the servers' certificates checked against these CAs
+  std::string cert_file, key_file;  // the client certificate, for servers that verify clients
+};
+
 class NatsClient {
  public:
   // Connects to any of `servers` ("nats://host:port"), reconnecting forever afterwards.
-  // Unavailable naming the servers if none answers within `timeout_ms`.
+  // Unavailable naming the servers (secrets in their URLs hidden) if none answers within
+  // `timeout_ms`; FailedPrecondition naming the setting if a file of `security` is unusable.
   static Result<std::unique_ptr<NatsClient>> Connect(const std::vector<std::string>& servers,
                                                      const std::string& name,
+                                                     const NatsSecurity& security = {},
                                                      int64_t timeout_ms = 5000);
   ~NatsClient();
   NatsClient(const NatsClient&) = delete;

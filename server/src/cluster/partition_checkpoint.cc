@@ -12,16 +12,28 @@ std::string Subject(PartitionKey p, const char* what) {
   return "bgkmap.ckpt." + PartitionName(p) + "." + what;
 }
 
+constexpr const char* kMacHeader = "Bgkmap-Mac";
+
+std::string ManifestMac(const ClusterTrust& trust, std::string_view subject,
+                        std::string_view bytes) {
+  return trust.Sign({"bgkmap-ckpt-1", subject, bytes});
+}
+
+// `mac` (not empty): the message's Bgkmap-Mac header.
 Result<uint64_t> Publish(const NatsClient& nats, const std::string& subject,
-                         const std::string& bytes) {
+                         const std::string& bytes, const std::string& mac = "") {
+  natsMsg* raw = nullptr;
+  natsStatus st =
+      natsMsg_Create(&raw, subject.c_str(), nullptr, bytes.data(), static_cast<int>(bytes.size()));
+  if (st != NATS_OK) return NatsStatus(st, "checkpoint: message");
+  NatsPtr<natsMsg> msg(raw);
+  if (!mac.empty() && (st = natsMsgHeader_Set(msg.get(), kMacHeader, mac.c_str())) != NATS_OK) {
+    return NatsStatus(st, "checkpoint: message header");
+  }
   jsPubAck* ack_raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
-  const natsStatus st = RetryWhileElecting(
-      [&] {
-        return js_Publish(&ack_raw, nats.jetstream(), subject.c_str(), bytes.data(),
-                          static_cast<int>(bytes.size()), nullptr, &jerr);
-      },
-      10000);
+  st = RetryWhileElecting(
+      [&] { return js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), nullptr, &jerr); }, 10000);
   NatsPtr<jsPubAck> ack(ack_raw);
   if (st != NATS_OK) return NatsStatus(st, "checkpoint: publish " + subject, jerr);
   return ack->Sequence;
@@ -93,7 +105,7 @@ static Status PublishChunks(const NatsClient& nats, const std::string& subject,
   return flush();
 }
 
-Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
+Status WriteCheckpoint(const NatsClient& nats, const ClusterTrust& trust, PartitionKey p,
                        const PartitionCheckpoint& checkpoint) {
   v1::CheckpointManifest manifest;
   manifest.set_log_sequence(checkpoint.log_sequence);
@@ -109,7 +121,8 @@ Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
   if (Status s = PublishChunks(nats, Subject(p, "chunk"), keys, tiles, manifest); !s.ok()) {
     return s;
   }
-  Result<uint64_t> written = Publish(nats, Subject(p, "manifest"), manifest.SerializeAsString());
+  const std::string subject = Subject(p, "manifest"), bytes = manifest.SerializeAsString();
+  Result<uint64_t> written = Publish(nats, subject, bytes, ManifestMac(trust, subject, bytes));
   if (!written.ok()) return written.status();
   // The previous checkpoint's chunks and manifests are no longer needed.
   const uint64_t first =
@@ -164,6 +177,7 @@ static Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> ReadChunks
 
 // The newest manifest of `p` (nullopt: none).
 static Result<std::optional<v1::CheckpointManifest>> ReadManifest(const NatsClient& nats,
+                                                                  const ClusterTrust& trust,
                                                                   PartitionKey p) {
   natsMsg* raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
@@ -177,6 +191,17 @@ static Result<std::optional<v1::CheckpointManifest>> ReadManifest(const NatsClie
   NatsPtr<natsMsg> last(raw);
   if (st == NATS_NOT_FOUND) return std::optional<v1::CheckpointManifest>();
   if (st != NATS_OK) return NatsStatus(st, "checkpoint: read " + subject, jerr);
+  const char* mac = nullptr;
+  if (trust.keyed() &&
+      (natsMsgHeader_Get(last.get(), kMacHeader, &mac) != NATS_OK || mac == nullptr ||
+       !trust.Verify(mac,
+                     {"bgkmap-ckpt-1", subject,
+                      std::string_view(natsMsg_GetData(last.get()),
+                                       static_cast<size_t>(natsMsg_GetDataLength(last.get())))}))) {
+    trust.Refuse(Untrusted::kCheckpoint, subject + ": the newest manifest is not signed");
+    return Status::DataLoss("checkpoint of partition " + PartitionName(p) +
+                            ": the newest manifest is not signed with the cluster key");
+  }
   v1::CheckpointManifest manifest;
   if (!manifest.ParseFromArray(natsMsg_GetData(last.get()), natsMsg_GetDataLength(last.get()))) {
     return Status::DataLoss("checkpoint of partition " + PartitionName(p) +
@@ -185,16 +210,18 @@ static Result<std::optional<v1::CheckpointManifest>> ReadManifest(const NatsClie
   return std::optional<v1::CheckpointManifest>(std::move(manifest));
 }
 
-Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats, PartitionKey p) {
-  Result<std::optional<v1::CheckpointManifest>> manifest = ReadManifest(nats, p);
+Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats,
+                                                       const ClusterTrust& trust, PartitionKey p) {
+  Result<std::optional<v1::CheckpointManifest>> manifest = ReadManifest(nats, trust, p);
   if (!manifest.ok()) return manifest.status();
   if (!manifest->has_value()) return std::optional<uint64_t>();
   return std::optional<uint64_t>((*manifest)->log_sequence());
 }
 
-Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
+Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats,
+                                                          const ClusterTrust& trust, PartitionKey p,
                                                           const MapParams& params) {
-  Result<std::optional<v1::CheckpointManifest>> read = ReadManifest(nats, p);
+  Result<std::optional<v1::CheckpointManifest>> read = ReadManifest(nats, trust, p);
   if (!read.ok()) return read.status();
   if (!read->has_value()) return std::optional<PartitionCheckpoint>();
   const v1::CheckpointManifest& manifest = **read;

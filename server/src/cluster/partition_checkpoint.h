@@ -3,6 +3,9 @@
 // shard taking a partition over restores the newest checkpoint and reads the log from the entry
 // after it, instead of from the log's start. Written as chunks and then a manifest, so a writer
 // that dies half way leaves the previous checkpoint whole; older chunks are purged afterwards.
+// With a cluster key the manifest carries an HMAC over its subject (the partition) and bytes;
+// the chunks it names by stream sequence are the writer's own. A manifest that fails it is
+// refused (DataLoss), so nobody else's checkpoint is restored or trims the log.
 #pragma once
 
 #include <cstdint>
@@ -15,6 +18,7 @@
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 
@@ -30,15 +34,17 @@ struct PartitionCheckpoint {
 
 Status EnsureCheckpointStream(const NatsClient& nats, int replicas);
 // Stores `checkpoint` of `p`; the tiles are encoded here.
-Status WriteCheckpoint(const NatsClient& nats, PartitionKey p,
+Status WriteCheckpoint(const NatsClient& nats, const ClusterTrust& trust, PartitionKey p,
                        const PartitionCheckpoint& checkpoint);
 // The newest checkpoint of `p` (nullopt: none), its tiles decoded for maps of `params`.
 // DataLoss if a chunk fails its checksum.
-Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats, PartitionKey p,
+Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats,
+                                                          const ClusterTrust& trust, PartitionKey p,
                                                           const MapParams& params);
 
 // The log sequence of the newest checkpoint of `p` (nullopt: none), without reading its tiles.
-Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats, PartitionKey p);
+Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats,
+                                                       const ClusterTrust& trust, PartitionKey p);
 
 // An import's tiles, stored in chunks (subject bgkmap.ckpt.import.<id>) before the import's
 // log entry; returns the encoded v1::CheckpointManifest naming them (the entry's payload).

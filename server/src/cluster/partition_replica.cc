@@ -18,10 +18,24 @@ std::string FetchSubject(PartitionKey key) { return "bgkmap.tiles." + PartitionN
 
 }  // namespace
 
-PartitionReplica::PartitionReplica(const NatsClient& nats, const PartitionLayout& layout,
-                                   PartitionKey key, std::unique_ptr<TerrainMap> map,
-                                   uint64_t serve_from, std::optional<PartitionCheckpoint> restored)
+std::string TileReplyMac(const ClusterTrust& trust, std::string_view subject,
+                         std::string_view reply_to, std::string_view request,
+                         std::string_view reply) {
+  return trust.Sign({"bgkmap-tiles-1", subject, reply_to, request, reply});
+}
+
+bool TileReplyVerifies(const ClusterTrust& trust, std::string_view mac, std::string_view subject,
+                       std::string_view reply_to, std::string_view request,
+                       std::string_view reply) {
+  return trust.Verify(mac, {"bgkmap-tiles-1", subject, reply_to, request, reply});
+}
+
+PartitionReplica::PartitionReplica(const NatsClient& nats, const ClusterTrust& trust,
+                                   const PartitionLayout& layout, PartitionKey key,
+                                   std::unique_ptr<TerrainMap> map, uint64_t serve_from,
+                                   std::optional<PartitionCheckpoint> restored)
     : nats_(nats),
+      trust_(trust),
       layout_(layout),
       key_(key),
       halo_(layout.HaloCells(key)),
@@ -224,7 +238,20 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
     }
   }
   const std::string out = reply.SerializeAsString();
-  natsConnection_Publish(nats_.connection(), reply_to, out.data(), static_cast<int>(out.size()));
+  natsMsg* raw = nullptr;
+  if (natsMsg_Create(&raw, reply_to, nullptr, out.data(), static_cast<int>(out.size())) !=
+      NATS_OK) {
+    return;  // the asker retries
+  }
+  NatsPtr<natsMsg> answer(raw);
+  if (trust_.keyed()) {
+    const std::string mac = TileReplyMac(
+        trust_, natsMsg_GetSubject(msg), reply_to,
+        std::string_view(natsMsg_GetData(msg), static_cast<size_t>(natsMsg_GetDataLength(msg))),
+        out);
+    if (natsMsgHeader_Set(answer.get(), kTileReplyMacHeader, mac.c_str()) != NATS_OK) return;
+  }
+  natsConnection_PublishMsg(nats_.connection(), answer.get());
 }
 
 bool PartitionReplica::WaitFor(uint64_t sequence, int64_t timeout_ms) const {

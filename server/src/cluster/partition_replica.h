@@ -7,7 +7,9 @@
 // sequence numbers are judged by the single server's rule (serving/robot_sequence.h: a scan at
 // or below its robot's last sequence is not applied; shards apply no limit on jumps or robots);
 // only the scans whose halo holds this partition are cut to the halo (RestrictScan) and
-// integrated. Tiles are stamped with the entry's log sequence number.
+// integrated. Tiles are stamped with the entry's log sequence number. A fetch's reply carries
+// an HMAC (header Bgkmap-Mac, TileReplyMac) over the request and the reply, so the asking node
+// can tell it from a reply anyone else on NATS sends (cluster_trust.h).
 #pragma once
 
 #include <atomic>
@@ -25,6 +27,7 @@
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/v1/ingest.pb.h"
 #include "cluster/cluster_log.h"
+#include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_checkpoint.h"
 #include "cluster/partition_layout.h"
@@ -42,12 +45,24 @@ struct ReplicaStats {
   uint64_t restored_from = 0;   // the checkpoint's log sequence it started from (0: none)
 };
 
+// The HMAC of a tile fetch's reply: over the subject asked (the partition), the requester's
+// reply subject (unique to one request), the request's bytes (its range, its min_log_sequence)
+// and the reply's bytes, so a reply is good for the one request it answers.
+std::string TileReplyMac(const ClusterTrust& trust, std::string_view subject,
+                         std::string_view reply_to, std::string_view request,
+                         std::string_view reply);
+// Whether `mac` is TileReplyMac of the same (true without a key).
+bool TileReplyVerifies(const ClusterTrust& trust, std::string_view mac, std::string_view subject,
+                       std::string_view reply_to, std::string_view request, std::string_view reply);
+inline constexpr const char* kTileReplyMacHeader = "Bgkmap-Mac";
+
 class PartitionReplica {
  public:
   // `serve_from`: the log's last sequence at creation; it serves once it has applied that.
   // `restored` (optional): the checkpoint it starts from (its tiles are moved into `map`).
-  PartitionReplica(const NatsClient& nats, const PartitionLayout& layout, PartitionKey key,
-                   std::unique_ptr<TerrainMap> map, uint64_t serve_from,
+  // `trust` signs its fetch replies and outlives it.
+  PartitionReplica(const NatsClient& nats, const ClusterTrust& trust, const PartitionLayout& layout,
+                   PartitionKey key, std::unique_ptr<TerrainMap> map, uint64_t serve_from,
                    std::optional<PartitionCheckpoint> restored = std::nullopt);
   ~PartitionReplica();  // BeginStop, then waits for running fetches
   PartitionReplica(const PartitionReplica&) = delete;
@@ -88,6 +103,7 @@ class PartitionReplica {
   void ServeFetch(natsMsg* msg);
 
   const NatsClient& nats_;
+  const ClusterTrust& trust_;
   const PartitionLayout& layout_;
   const PartitionKey key_;
   const CellBox halo_;

@@ -134,6 +134,7 @@ ServerMetrics CollectMetrics(MapPort& map, const ServiceCounts& service,
   m.memory_limit_bytes = memory_limit_bytes;
   m.process_resident_bytes = ProcessResidentBytes();
   m.corrections = state.corrections;
+  if (state.shard) m.cluster_refused = state.shard->refused;
   return m;
 }
 
@@ -166,6 +167,12 @@ std::string FormatMetrics(const ServerMetrics& m) {
   w.Gauge("bgkmap_correction_last_seconds", "Duration of the last correction, request to switch.",
           c.last_seconds);
   if (m.store) WriteStore(*m.store, m.memory_limit_bytes, w);
+  if (m.cluster_refused) {
+    w.Family("bgkmap_cluster_rejected_total", Type::kCounter,
+             "Records read from NATS refused since start because their cluster-key HMAC does not "
+             "verify (docs/scale-out.md, Trust), by kind.");
+    for (const auto& [kind, count] : *m.cluster_refused) w.Sample(count, {{"kind", kind}});
+  }
   if (m.process_resident_bytes) {
     w.Gauge("process_resident_memory_bytes", "Resident memory of the bgkmapd process (VmRSS).",
             *m.process_resident_bytes);

@@ -36,6 +36,8 @@ struct ServerMetrics {
   uint64_t memory_limit_bytes = 0;    // storage.max_memory_mb in bytes; 0 = unbounded
   std::optional<uint64_t> process_resident_bytes;
   CorrectionStats corrections;
+  // A shard of a cluster: records from NATS refused since start, by kind (ShardState::refused).
+  std::optional<std::vector<std::pair<std::string, uint64_t>>> cluster_refused;
 };
 
 // Reads every value from the map (MapPort::State) and `service`. Locks nothing map-wide (the

@@ -53,9 +53,9 @@ struct StorageState {
     uint64_t write_errors = 0;              // failed appends and checkpoints
     uint64_t writes_refused_for_space = 0;  // refused before they were tried
   } counters;
-  struct DiskUsage {           // only when asked for: it lists the store's directory
-    uint64_t tile_bytes = 0;   // SST files of the tiles column family
-    uint64_t log_bytes = 0;    // SST files of the log column family
+  struct DiskUsage {             // only when asked for: it lists the store's directory
+    uint64_t tile_bytes = 0;     // SST files of the tiles column family
+    uint64_t log_bytes = 0;      // SST files of the log column family
     uint64_t sources_bytes = 0;  // SST files of the retained raw scans
     uint64_t history_bytes = 0;  // SST files of the retained tile history
     uint64_t wal_bytes = 0;      // write-ahead log files
@@ -79,6 +79,9 @@ struct ShardState {
     uint64_t restored_from = 0;
   };
   std::vector<Partition> owned;
+  // Records read from NATS and refused since start (no valid cluster-key HMAC), by kind
+  // ("log_entry", "tile_reply", "membership", "checkpoint"): docs/scale-out.md, "Trust".
+  std::vector<std::pair<std::string, uint64_t>> refused;
 };
 
 // What Info and /metrics report. Read field by field, not at one map version.

@@ -12,6 +12,7 @@
 
 #include "bgkmap/client/client.h"
 #include "bgkmapd_process.h"
+#include "cluster_support.h"
 #include "nats_cluster.h"
 #include "test_support.h"
 
@@ -30,7 +31,9 @@ std::vector<std::string> ShardArgv(const std::string& nats, const std::string& n
           "--set",
           "cluster.replicas=3",
           "--set",
-          "cluster.startup_wait_s=" + std::to_string(startup_wait_s)};
+          "cluster.startup_wait_s=" + std::to_string(startup_wait_s),
+          "--set",
+          "cluster.key_file=" + TestClusterKeyFile()};
 }
 
 TEST(ClusterStartTest, AShardWaitsForJetStreamAndJoinsWhenItAnswers) {

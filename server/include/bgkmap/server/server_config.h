@@ -120,6 +120,24 @@ struct ClusterConfig {
   // log by this many entries is checkpointed even if idle, and the log is trimmed below the
   // oldest of the partitions' newest checkpoints (docs/scale-out.md, "Trimming the log").
   uint32_t trim_lag_entries = 0;
+  // key_file: a file holding the cluster's secret (at least 32 bytes, readable by its owner
+  // only). Every log entry, tile-fetch reply and membership record carries an HMAC-SHA256 with
+  // it, and a shard believes nothing that fails it (docs/scale-out.md, "Trust"). Only the path
+  // is configuration; the secret is never logged or printed.
+  std::string key_file;
+  // insecure: true lets a shard run without key_file (then anyone who can publish to NATS can
+  // change the map).
+  bool insecure = false;
+  // nats_credentials: a NATS user credentials file (.creds: the user's JWT and nkey seed), how
+  // the shard authenticates to NATS; "" = none (or a user in the URL).
+  std::string nats_credentials;
+  // nats_tls: TLS to the NATS servers. ca_file: the CAs the servers' certificates are checked
+  // against (set = TLS); cert_file and key_file (together): the shard's client certificate, for
+  // servers that verify clients.
+  struct NatsTls {
+    std::string ca_file, cert_file, key_file;
+    bool enabled() const { return !ca_file.empty() || !cert_file.empty(); }
+  } nats_tls;
   bool enabled() const { return !nats.empty(); }
 };
 
@@ -221,6 +239,11 @@ Status ValidateCluster(const ServerConfig& config);
 
 // True for a loopback address ("127.x.x.x:p", "localhost:p", "[::1]:p") or a unix socket.
 bool IsLoopbackAddress(const std::string& address);
+
+// `urls` (comma-separated, as cluster.nats) with the secret of any user info hidden:
+// "nats://bob:pw@h:4222" -> "nats://bob:***@h:4222", "nats://token@h" -> "nats://***@h". What
+// logs and --print-config show.
+std::string RedactUrlSecrets(const std::string& urls);
 
 // The per-token limits in effect (0 in the config: a quarter of the global limit, at least 1).
 uint32_t QueriesPerToken(const ServerConfig& config);
