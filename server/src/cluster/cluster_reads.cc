@@ -1,8 +1,14 @@
 #include "cluster/cluster_reads.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
+#include <charconv>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <map>
+#include <mutex>
 #include <thread>
 
 #include "bgkmap/storage/tile_codec.h"
@@ -22,50 +28,90 @@ struct InboxDeleter {
   void operator()(natsInbox* inbox) const { natsInbox_Destroy(inbox); }
 };
 
-// Sends `request` on `subject` and waits up to kRequestTimeoutMs for the first reply whose HMAC
-// verifies (TileReplyMac); replies that do not are refused and skipped. NATS_NO_RESPONDERS when
-// the server says nobody subscribes to `subject`.
-natsStatus RequestTrusted(const NatsClient& nats, const ClusterTrust& trust,
-                          const std::string& subject, const std::string& request,
-                          NatsPtr<natsMsg>* reply) {
-  natsInbox* raw_inbox = nullptr;
-  natsStatus st = natsInbox_Create(&raw_inbox);
-  if (st != NATS_OK) return st;
-  const std::unique_ptr<natsInbox, InboxDeleter> inbox(raw_inbox);
-  natsSubscription* raw_sub = nullptr;
-  st = natsConnection_SubscribeSync(&raw_sub, nats.connection(), inbox.get());
-  if (st != NATS_OK) return st;
-  const NatsPtr<natsSubscription> sub(raw_sub);  // destroyed: unsubscribed
-  st = natsConnection_PublishRequest(nats.connection(), subject.c_str(), inbox.get(),
-                                     request.data(), static_cast<int>(request.size()));
-  if (st != NATS_OK) return st;
+}  // namespace
+
+// One inbox for every fetch of this node ("_INBOX.<nuid>.<token>"), followed by one subscription
+// for the node's life: replies are routed to the waiting fetch by their token, and a reply for a
+// fetch no longer waiting is dropped. (No subscription per request: under a flood of forged
+// replies, short-lived inbox subscriptions crashed nats.c 3.4 in this process.)
+struct ClusterReads::Replies {
+  std::string prefix;
+  NatsPtr<natsSubscription> sub;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::map<uint64_t, std::deque<NatsPtr<natsMsg>>> waiting;  // by token
+  uint64_t next = 0;                                         // guarded by mu
+
+  static void OnReply(natsConnection*, natsSubscription*, natsMsg* msg, void* self) {
+    NatsPtr<natsMsg> owned(msg);
+    auto* r = static_cast<Replies*>(self);
+    const std::string_view subject = natsMsg_GetSubject(msg);
+    if (subject.size() <= r->prefix.size()) return;
+    const std::string_view tail = subject.substr(r->prefix.size());
+    uint64_t token = 0;
+    if (auto [end, ec] = std::from_chars(tail.data(), tail.data() + tail.size(), token);
+        ec != std::errc() || end != tail.data() + tail.size()) {
+      return;
+    }
+    std::lock_guard lock(r->mu);
+    auto it = r->waiting.find(token);
+    if (it == r->waiting.end() || it->second.size() >= 64) return;
+    it->second.push_back(std::move(owned));
+    r->cv.notify_all();
+  }
+};
+
+ClusterReads::~ClusterReads() {
+  if (replies_->sub && natsSubscription_Drain(replies_->sub.get()) == NATS_OK) {
+    natsSubscription_WaitForDrainCompletion(replies_->sub.get(), 5000);
+  }
+  replies_->sub.reset();
+}
+
+natsStatus ClusterReads::RequestTrusted(const std::string& subject, const std::string& request,
+                                        NatsPtr<natsMsg>* reply) const {
+  Replies& r = *replies_;
+  if (!r.sub) return NATS_ERR;
+  uint64_t token = 0;
+  {
+    std::lock_guard lock(r.mu);
+    token = r.next++;
+    r.waiting[token];
+  }
+  const std::string reply_to = r.prefix + std::to_string(token);
+  natsStatus st =
+      natsConnection_PublishRequest(nats_.connection(), subject.c_str(), reply_to.c_str(),
+                                    request.data(), static_cast<int>(request.size()));
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(kRequestTimeoutMs);
-  for (;;) {
-    const int64_t left = std::chrono::duration_cast<std::chrono::milliseconds>(
-                             deadline - std::chrono::steady_clock::now())
-                             .count();
-    if (left <= 0) return NATS_TIMEOUT;
-    natsMsg* raw = nullptr;
-    st = natsSubscription_NextMsg(&raw, sub.get(), left);
-    if (st != NATS_OK) return st;
-    NatsPtr<natsMsg> msg(raw);
-    if (natsMsg_IsNoResponders(msg.get())) return NATS_NO_RESPONDERS;
+  std::unique_lock lock(r.mu);
+  std::deque<NatsPtr<natsMsg>>& queue = r.waiting[token];
+  while (st == NATS_OK) {
+    if (!r.cv.wait_until(lock, deadline, [&] { return !queue.empty(); })) {
+      st = NATS_TIMEOUT;
+      break;
+    }
+    NatsPtr<natsMsg> msg = std::move(queue.front());
+    queue.pop_front();
+    if (natsMsg_IsNoResponders(msg.get())) {
+      st = NATS_NO_RESPONDERS;
+      break;
+    }
     const char* mac = nullptr;
-    if (!trust.keyed() ||
+    if (!trust_.keyed() ||
         (natsMsgHeader_Get(msg.get(), kTileReplyMacHeader, &mac) == NATS_OK && mac != nullptr &&
          TileReplyVerifies(
-             trust, mac, subject, inbox.get(), request,
+             trust_, mac, subject, reply_to, request,
              std::string_view(natsMsg_GetData(msg.get()),
                               static_cast<size_t>(natsMsg_GetDataLength(msg.get())))))) {
       *reply = std::move(msg);
-      return NATS_OK;
+      break;
     }
-    trust.Refuse(Untrusted::kTileReply, "a reply to a fetch of " + subject + " is not signed");
+    trust_.Refuse(Untrusted::kTileReply, "a reply to a fetch of " + subject + " is not signed");
   }
+  r.waiting.erase(token);
+  return st;
 }
-
-}  // namespace
 
 ClusterReads::ClusterReads(const NatsClient& nats, const ClusterTrust& trust,
                            const PartitionLayout& layout, const Membership& members,
@@ -75,7 +121,20 @@ ClusterReads::ClusterReads(const NatsClient& nats, const ClusterTrust& trust,
       layout_(layout),
       members_(members),
       params_(params),
-      fetch_timeout_ms_(fetch_timeout_ms) {}
+      fetch_timeout_ms_(fetch_timeout_ms),
+      replies_(std::make_unique<Replies>()) {
+  natsInbox* raw_inbox = nullptr;
+  natsSubscription* sub = nullptr;
+  if (natsInbox_Create(&raw_inbox) == NATS_OK) {
+    const std::unique_ptr<natsInbox, InboxDeleter> inbox(raw_inbox);
+    replies_->prefix = std::string(inbox.get()) + ".";
+    if (natsConnection_Subscribe(&sub, nats_.connection(), (replies_->prefix + "*").c_str(),
+                                 &Replies::OnReply, replies_.get()) == NATS_OK) {
+      replies_->sub.reset(sub);
+    }
+  }
+  if (!replies_->sub) spdlog::error("event=cluster_reads_no_inbox reason=\"cannot subscribe\"");
+}
 
 uint64_t ClusterReads::applied_version() const {
   Result<uint64_t> last = LastSequence(nats_);
@@ -101,7 +160,7 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
   while (true) {
     const std::string bytes = request.SerializeAsString();
     NatsPtr<natsMsg> reply_msg;
-    const natsStatus st = RequestTrusted(nats_, trust_, subject, bytes, &reply_msg);
+    const natsStatus st = RequestTrusted(subject, bytes, &reply_msg);
     v1::TileFetchReply reply;
     if (st == NATS_NO_RESPONDERS) {
       // Nobody serves it: a partition without data has nothing to serve; one with data is

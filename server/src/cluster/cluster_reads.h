@@ -24,6 +24,7 @@ class ClusterReads final : public MapReads {
   // the read is Unavailable.
   ClusterReads(const NatsClient& nats, const ClusterTrust& trust, const PartitionLayout& layout,
                const Membership& members, const MapParams& params, int64_t fetch_timeout_ms);
+  ~ClusterReads();  // stops the replies' subscription (waits for its callback)
 
   // The log's last sequence, asked of the log (a round trip).
   uint64_t applied_version() const override;
@@ -46,6 +47,12 @@ class ClusterReads final : public MapReads {
   Result<std::unique_ptr<TerrainMap>> Gather(TileKey min, TileKey max, uint64_t sequence) const;
 
  private:
+  struct Replies;
+  // Sends `request` on `subject` and waits up to 3 s for the first reply whose HMAC verifies
+  // (TileReplyMac); replies that do not are refused and skipped. NATS_NO_RESPONDERS when the
+  // server says nobody subscribes to `subject`.
+  natsStatus RequestTrusted(const std::string& subject, const std::string& request,
+                            NatsPtr<natsMsg>* reply) const;
   // The partition's tiles in [min, max] into `into`, or only their keys into `keys` if set.
   Status FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
                         TerrainMap& into, std::vector<TileKey>* keys = nullptr) const;
@@ -57,6 +64,7 @@ class ClusterReads final : public MapReads {
   const MapParams params_;
   const int64_t fetch_timeout_ms_;
   mutable std::atomic<uint64_t> last_sequence_{0};
+  std::unique_ptr<Replies> replies_;
 };
 
 }  // namespace bgkmap::cluster
