@@ -47,7 +47,25 @@ bool GetTileKeys(ByteReader& r, std::vector<TileKey>* keys) {
   return true;
 }
 
-void PutScan(ByteWriter& w, const PreparedScan& scan) {
+void PutCells(ByteWriter& w, const std::vector<ObservedCell>& cells) {
+  w.PutVarint(cells.size());
+  CellIndex prev{0, 0};
+  for (const ObservedCell& cell : cells) {
+    w.PutSignedVarint(int64_t{cell.cell.x} - prev.x);
+    w.PutSignedVarint(int64_t{cell.cell.y} - prev.y);
+    prev = cell.cell;
+  }
+  uint64_t previous = 0;
+  for (const ObservedCell& cell : cells) {
+    const uint64_t bits = std::bit_cast<uint64_t>(cell.y);
+    w.PutFixed64(bits ^ previous);
+    previous = bits;
+  }
+}
+
+void PutScan(ByteWriter& w, const LogRecord& record) {
+  static const PreparedScan kNone;
+  const PreparedScan& scan = record.scan ? *record.scan : kNone;
   const ScanPointCounts& c = scan.counts;
   for (uint64_t v : {c.input, c.kept, c.dropped_nonfinite, c.dropped_range, c.dropped_height,
                      c.dropped_out_of_bounds}) {
@@ -60,22 +78,15 @@ void PutScan(ByteWriter& w, const PreparedScan& scan) {
   PutTileKeys(w, scan.write_tiles);
   PutTileKeys(w, scan.read_tiles);
   PutTileKeys(w, scan.clear_tiles);
-  w.PutVarint(scan.cells.size());
-  CellIndex prev{0, 0};
-  for (const ObservedCell& cell : scan.cells) {
-    w.PutSignedVarint(int64_t{cell.cell.x} - prev.x);
-    w.PutSignedVarint(int64_t{cell.cell.y} - prev.y);
-    prev = cell.cell;
-  }
-  uint64_t previous = 0;
-  for (const ObservedCell& cell : scan.cells) {
-    const uint64_t bits = std::bit_cast<uint64_t>(cell.y);
-    w.PutFixed64(bits ^ previous);
-    previous = bits;
+  w.PutU8(record.cells_in_source ? 1 : 0);
+  if (record.cells_in_source) {
+    w.PutFixed32(record.cells_crc);
+  } else {
+    PutCells(w, scan.cells);
   }
 }
 
-bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan) {
+bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan, LogRecord* record) {
   ScanPointCounts& c = scan->counts;
   for (uint64_t* v : {&c.input, &c.kept, &c.dropped_nonfinite, &c.dropped_range, &c.dropped_height,
                       &c.dropped_out_of_bounds}) {
@@ -93,6 +104,12 @@ bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan) {
   if (!GetTileKeys(r, &scan->write_tiles) || !GetTileKeys(r, &scan->read_tiles) ||
       (format >= 2 && !GetTileKeys(r, &scan->clear_tiles))) {
     return false;
+  }
+  if (format >= 4) {
+    uint8_t in_source;
+    if (!r.GetU8(&in_source) || in_source > 1) return false;
+    record->cells_in_source = in_source == 1;
+    if (record->cells_in_source) return r.GetFixed32(&record->cells_crc);
   }
   uint64_t n;
   if (!r.GetVarint(&n) || n > r.remaining() / 10) return false;  // >= 2 + 8 bytes per cell
@@ -147,9 +164,17 @@ LogRecord LogRecord::Correction(uint64_t version, std::string robot_id, uint64_t
   return r;
 }
 
+uint32_t LoggedCellsCrc(const PreparedScan& scan) {
+  std::string bytes;
+  bytes.reserve(8 + scan.cells.size() * 11);
+  ByteWriter w(&bytes);
+  PutCells(w, scan.cells);
+  return Crc32c(bytes);
+}
+
 std::string EncodeLogRecord(const LogRecord& record) {
   std::string out;
-  if (record.type == LogRecord::Type::kScan && record.scan) {
+  if (record.type == LogRecord::Type::kScan && record.scan && !record.cells_in_source) {
     out.reserve(64 + record.scan->cells.size() * 11);
   }
   ByteWriter w(&out);
@@ -160,7 +185,7 @@ std::string EncodeLogRecord(const LogRecord& record) {
   w.PutVarint(record.sequence);
   w.PutSignedVarint(record.stamp_ns);
   if (record.type == LogRecord::Type::kScan) {
-    PutScan(w, record.scan ? *record.scan : PreparedScan{});
+    PutScan(w, record);
   } else if (record.type == LogRecord::Type::kClear) {
     const CellBox& b = record.clear_box;
     for (int v : {b.min.x, b.min.y, b.max.x, b.max.y}) w.PutSignedVarint(v);
@@ -196,7 +221,7 @@ Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
   record.robot_id = std::string(robot);
   if (type == static_cast<uint8_t>(LogRecord::Type::kScan)) {
     auto scan = std::make_shared<PreparedScan>();
-    if (!GetScan(r, format, scan.get())) return malformed;
+    if (!GetScan(r, format, scan.get(), &record)) return malformed;
     scan->stamp_ns = record.stamp_ns;  // the map time forgetting replays with
     record.type = LogRecord::Type::kScan;
     record.scan = std::move(scan);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <set>
 
 #include "bgkmap/core/terrain_map.h"
@@ -12,6 +13,9 @@ namespace {
 struct HistoryEntry {
   uint64_t version = 0;
   std::shared_ptr<const PreparedScan> scan;  // null: a clear
+  // The record as logged when its cells are kept in its raw scan: they are prepared again only
+  // if it is replayed (the plan reads its tile lists alone).
+  std::optional<LogRecord> cells_in_source;
   CellBox clear_box;
   bool revised = false;
   bool replay = false;
@@ -32,8 +36,9 @@ Status ReadHistory(const TileStore& store, const ReintegrationRequest& request,
   const std::set<uint64_t> in_log(request.revised_in_log.begin(), request.revised_in_log.end());
   std::set<uint64_t> replaced_seen;
   const Status stop = Status::OutOfRange("end of the history");
-  Status walked =
-      store.log().ForEach(request.base, [&](uint64_t version, Result<LogRecord> record) -> Status {
+  Status walked = store.log().ForEach(
+      request.base,
+      [&](uint64_t version, Result<LogRecord> record) -> Status {
         if (version >= request.end) return stop;
         if (!record.ok()) return record.status();
         if (record->type == LogRecord::Type::kCorrection) return Status::Ok();  // see header
@@ -50,11 +55,14 @@ Status ReadHistory(const TileStore& store, const ReintegrationRequest& request,
           if (r->second == nullptr) return Status::Ok();  // removed
           e.scan = r->second;
           e.revised = true;
+        } else if (record->cells_in_source) {
+          e.cells_in_source = std::move(*record);
         }
         e.revised = e.revised || in_log.contains(version);
         entries->push_back(std::move(e));
         return Status::Ok();
-      });
+      },
+      ScanLog::LogRead::kHeaders);
   if (!walked.ok() && walked.message() != stop.message()) return walked;
   for (const auto& [version, scan] : request.replacements) {
     if (!replaced_seen.contains(version)) {
@@ -135,8 +143,15 @@ Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationReq
     if (e.scan == nullptr) {
       map.ClearBox(e.clear_box, e.version);
     } else {
-      const TileWindow window = map.MakeWindow(*e.scan);
-      map.Integrate(*e.scan, window, e.version);
+      std::shared_ptr<const PreparedScan> scan = e.scan;
+      if (e.cells_in_source) {
+        Result<std::shared_ptr<const PreparedScan>> whole =
+            store.log().LoadCells(e.version, *e.cells_in_source);
+        if (!whole.ok()) return whole.status();
+        scan = std::move(whole).value();
+      }
+      const TileWindow window = map.MakeWindow(*scan);
+      map.Integrate(*scan, window, e.version);
     }
     map.set_version(e.version);
   }

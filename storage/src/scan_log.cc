@@ -12,15 +12,16 @@
 
 namespace bgkmap::storage {
 
-ScanLog::ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
-                 std::map<std::string, uint64_t> robots, uint64_t checkpoint_version,
-                 FreeSpaceGuard* guard, bool read_only)
+ScanLog::ScanLog(StoreDb* db, const StoreOptions& options, const MapParams& params,
+                 uint64_t map_version, std::map<std::string, uint64_t> robots,
+                 uint64_t checkpoint_version, FreeSpaceGuard* guard, bool read_only)
     : db_(db),
       guard_(guard),
       read_only_(read_only),
       durability_(options.durability),
       retain_sources_(options.retention.enabled()),
       periodic_sync_ms_(std::max<uint32_t>(1, options.periodic_sync_ms)),
+      params_(params),
       checkpoint_version_(checkpoint_version),
       last_version_(map_version),
       robots_(robots.begin(), robots.end()) {
@@ -108,7 +109,7 @@ Status ScanLog::Append(const LogRecord& record) {
     return Status::IoError("the store refuses writes since an earlier failure (" +
                            failed.message() + "); TileStore::Resume() once it is fixed");
   }
-  const std::string value = EncodeLogRecord(record);
+  const std::string value = EncodeStored(record);
   rocksdb::WriteBatch batch;
   rocksdb::Status s = batch.Put(db_->log, VersionKeyBytes(record.version), value);
   if (s.ok()) s = batch.Merge(db_->meta, kMapVersionKey, U64Bytes(record.version));
@@ -152,7 +153,42 @@ Status ScanLog::Append(const LogRecord& record) {
   return Status::Ok();
 }
 
-Status ScanLog::ForEach(uint64_t after, const Visitor& visit) const {
+std::string ScanLog::EncodeStored(const LogRecord& record) const {
+  LogRecord stored = record;
+  stored.cells_in_source = record.type == LogRecord::Type::kScan && record.scan &&
+                           record.raw_scan && retain_sources_ && db_->sources != nullptr;
+  if (stored.cells_in_source) stored.cells_crc = LoggedCellsCrc(*record.scan);
+  return EncodeLogRecord(stored);
+}
+
+Result<std::shared_ptr<const PreparedScan>> ScanLog::LoadCells(uint64_t version,
+                                                               const LogRecord& record) const {
+  if (!record.scan) return Status::InvalidArgument("not a scan record");
+  if (!record.cells_in_source) return record.scan;
+  const std::string where = "log record " + std::to_string(version) + ": ";
+  Result<std::optional<RawScan>> raw = LoadRawScan(version);
+  if (!raw.ok()) return Status::DataLoss(where + raw.status().message());
+  if (!raw->has_value()) {
+    return Status::DataLoss(where + "its cells are kept as its raw scan, which is missing");
+  }
+  const RawScan& source = **raw;
+  Result<PreparedScan> prepared =
+      PrepareScan(params_, source.points, source.pose, source.frame_is_map);
+  if (!prepared.ok()) return Status::DataLoss(where + prepared.status().message());
+  const PreparedScan& logged = *record.scan;
+  if (LoggedCellsCrc(*prepared) != record.cells_crc ||
+      prepared->write_tiles != logged.write_tiles || prepared->read_tiles != logged.read_tiles ||
+      prepared->clear_tiles != logged.clear_tiles || prepared->counts.kept != logged.counts.kept) {
+    return Status::DataLoss(where +
+                            "its raw scan prepares to other cells than were logged (a build "
+                            "that prepares scans differently from the one that logged it?)");
+  }
+  prepared->stamp_ns = record.stamp_ns;
+  return std::shared_ptr<const PreparedScan>(
+      std::make_shared<PreparedScan>(std::move(prepared).value()));
+}
+
+Status ScanLog::ForEach(uint64_t after, const Visitor& visit, LogRead mode) const {
   rocksdb::ReadOptions read;
   read.verify_checksums = true;
   read.fill_cache = false;  // a replay reads each record once
@@ -168,6 +204,17 @@ Status ScanLog::ForEach(uint64_t after, const Visitor& visit) const {
     if (record.ok() && record->version != version) {
       record = Status::DataLoss("log record stored under version " + std::to_string(version) +
                                 " says it is version " + std::to_string(record->version));
+    }
+    if (record.ok() && record->cells_in_source && mode == LogRead::kWhole) {
+      Result<std::shared_ptr<const PreparedScan>> whole = LoadCells(version, *record);
+      if (whole.ok()) {
+        record->scan = std::move(whole).value();
+        record->cells_in_source = false;
+      } else {
+        corrupt_.fetch_add(1);  // (its status names the version already)
+        if (Status s = visit(version, whole.status()); !s.ok()) return s;
+        continue;
+      }
     }
     if (!record.ok()) {
       corrupt_.fetch_add(1);

@@ -187,7 +187,7 @@ Status TileStore::ApplyCorrection(const LogRecord& correction, std::span<const L
   batch.Put(db_->log, VersionKeyBytes(correction.version), EncodeLogRecord(correction));
   batch.Merge(db_->meta, kMapVersionKey, U64Bytes(correction.version));
   for (const LogRecord& record : rewritten) {
-    batch.Put(db_->log, VersionKeyBytes(record.version), EncodeLogRecord(record));
+    batch.Put(db_->log, VersionKeyBytes(record.version), log_->EncodeStored(record));
     if (record.raw_scan && db_->sources != nullptr) {
       batch.Put(db_->sources, VersionKeyBytes(record.version), EncodeRawScan(*record.raw_scan));
     }

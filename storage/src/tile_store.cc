@@ -276,7 +276,7 @@ Status TileStore::Attach(std::unique_ptr<StoreDb> db) {
   guard_->SetPendingBytes([buffers = db->write_buffers] { return buffers->memory_usage(); });
   db_ = std::move(db);
   checkpoint_version_.store(*checkpoint);
-  log_.reset(new ScanLog(db_.get(), options_, std::max(*map_version, *checkpoint),
+  log_.reset(new ScanLog(db_.get(), options_, params_, std::max(*map_version, *checkpoint),
                          std::move(robots), *checkpoint, guard_.get(), read_only_.load()));
   return Status::Ok();
 }

@@ -56,6 +56,28 @@ TEST(LogRecordTest, ScanRoundTripsExactly) {
   }
 }
 
+// Format 4: a scan whose cells are kept in its raw scan is its headers and the cells' CRC.
+TEST(LogRecordTest, AScanWithItsCellsInItsSourceKeepsHeadersAndCrc) {
+  const auto scan = RandomScan(3, 800);
+  LogRecord in = LogRecord::Scan(77, "rover", 5, scan, 123);
+  in.cells_in_source = true;
+  in.cells_crc = LoggedCellsCrc(*scan);
+  const std::string bytes = EncodeLogRecord(in);
+  EXPECT_LT(bytes.size(), 100u);  // the 800 cells would be ~8 KB
+  Result<LogRecord> out = DecodeLogRecord(bytes);
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_TRUE(out->cells_in_source);
+  EXPECT_EQ(out->cells_crc, in.cells_crc);
+  EXPECT_TRUE(out->scan->cells.empty());
+  EXPECT_EQ(out->scan->write_tiles, scan->write_tiles);
+  EXPECT_EQ(out->scan->read_tiles, scan->read_tiles);
+  EXPECT_EQ(out->scan->counts.kept, scan->counts.kept);
+  // The CRC is of the cells: another cell's height changes it.
+  auto other = std::make_shared<PreparedScan>(*scan);
+  other->cells[400].y += 1e-9;
+  EXPECT_NE(LoggedCellsCrc(*other), in.cells_crc);
+}
+
 TEST(LogRecordTest, ClearRoundTrips) {
   const CellBox box{{-5, INT32_MIN}, {INT32_MAX, 7}};
   Result<LogRecord> out = DecodeLogRecord(EncodeLogRecord(LogRecord::Clear(42, box)));

@@ -13,27 +13,12 @@ namespace bgkmap::storage {
 namespace {
 
 using testing::Apply;
+using testing::MakeRawScan;
 using testing::NewMap;
 using testing::SmallParams;
 using testing::StatisticsIdentical;
 using testing::TempDir;
 using testing::Terrain;
-
-// Scan `index` of `robot` as the sensor saw it: points in the sensor frame and the true pose.
-RawScan MakeRawScan(int robot, int index) {
-  std::mt19937 rng(1000u * robot + index);
-  std::uniform_real_distribution<double> u(-6.0, 6.0);
-  RawScan source;
-  source.pose.translation = Eigen::Vector3d(0.5 * index, 2.0 * robot, 1.5);
-  const Eigen::Vector3d& o = source.pose.translation;
-  while (source.points.size() < 1500) {
-    const double dx = u(rng), dy = u(rng);
-    if (dx * dx + dy * dy > 36.0 || dx * dx + dy * dy < 1.5) continue;
-    source.points.push_back({static_cast<float>(dx), static_cast<float>(dy),
-                             static_cast<float>(Terrain(o.x() + dx, o.y() + dy) - o.z())});
-  }
-  return source;
-}
 
 // Odometry that drifts: 2 cm and 0.2 degrees of yaw more per scan.
 Pose Drifted(const Pose& truth, int index) {

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/raw_scan.h"
 #include "bgkmap/core/scan.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/storage/recovery.h"
@@ -70,6 +71,23 @@ inline std::shared_ptr<const PreparedScan> MakeScan(const MapParams& params, int
   pose.translation = origin;
   Result<PreparedScan> scan = PrepareScan(params, pts, pose);
   return std::make_shared<const PreparedScan>(std::move(scan).value());
+}
+
+// Scan `index` of `robot` as the sensor saw it (RawScan): points in the sensor frame and the
+// true pose, the same points as MakeScan's.
+inline RawScan MakeRawScan(int robot, int index) {
+  std::mt19937 rng(1000u * robot + index);
+  std::uniform_real_distribution<double> u(-6.0, 6.0);
+  RawScan source;
+  source.pose.translation = Eigen::Vector3d(0.5 * index, 2.0 * robot, 1.5);
+  const Eigen::Vector3d& o = source.pose.translation;
+  while (source.points.size() < 1500) {
+    const double dx = u(rng), dy = u(rng);
+    if (dx * dx + dy * dy > 36.0 || dx * dx + dy * dy < 1.5) continue;
+    source.points.push_back({static_cast<float>(dx), static_cast<float>(dy),
+                             static_cast<float>(Terrain(o.x() + dx, o.y() + dy) - o.z())});
+  }
+  return source;
 }
 
 // Integrates `scan` as map version `version`, as the server does; returns the changed tiles.

@@ -24,8 +24,9 @@ Result<RetainedScans> FindRetainedScans(const storage::TileStore& store, uint64_
                                         const std::string& robot_id,
                                         const std::function<bool(uint64_t)>& named) {
   RetainedScans out;
-  Status walked =
-      store.log().ForEach(from, [&](uint64_t version, Result<storage::LogRecord> record) -> Status {
+  Status walked = store.log().ForEach(
+      from,
+      [&](uint64_t version, Result<storage::LogRecord> record) -> Status {
         if (!record.ok()) {
           return Status::DataLoss("the retained log is damaged at version " +
                                   std::to_string(version) + ": " + record.status().message());
@@ -37,7 +38,8 @@ Result<RetainedScans> FindRetainedScans(const storage::TileStore& store, uint64_
         out.newest = std::max(out.newest, record->sequence);
         if (named(record->sequence)) out.named.emplace(record->sequence, std::move(*record));
         return Status::Ok();
-      });
+      },
+      storage::ScanLog::LogRead::kHeaders);  // a named scan is prepared again from its raw scan
   if (!walked.ok()) return walked;
   return out;
 }

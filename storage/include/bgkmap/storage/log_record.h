@@ -1,14 +1,16 @@
 // One entry of the scan log: a change applied to the map, recorded with everything needed to
 // apply it again bit for bit (the prepared scan's training set, not its raw points).
 //
-// Layout (format 2), little-endian:
+// Layout (format 4), little-endian:
 //   u8 format, u8 type, varint version, length-prefixed robot_id, varint sequence,
 //   zigzag stamp_ns, then
 //   scan:  varint counts (input, kept, nonfinite, range, height, out_of_bounds), f64 sensor_z,
 //          u8 has_sensor, f64 sensor_x, f64 sensor_y (format >= 2; format 1 had no sensor),
 //          write_tiles, read_tiles and (format >= 2) clear_tiles (varint count, zigzag deltas
 //          of x and y),
-//          cells (varint count, zigzag deltas of x and y), their y as f64 bits (XOR-delta)
+//          (format >= 4) u8 cells_in_source, then if 1 a fixed32 CRC-32C of the cells' encoding
+//          (LoggedCellsCrc), else (and always before format 4) the cells (varint count, zigzag
+//          deltas of x and y), their y as f64 bits (XOR-delta)
 //   clear: zigzag min.x, min.y, max.x, max.y
 //   correction (format >= 3): varint base_version, seed_tiles (as write_tiles), varint count and
 //          varint deltas of revised_versions (ascending)
@@ -27,7 +29,7 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kLogRecordFormat = 3;
+inline constexpr uint8_t kLogRecordFormat = 4;
 
 struct LogRecord {
   // kCorrection: some earlier scan records were rewritten (a pose correction) or removed; the
@@ -46,6 +48,12 @@ struct LogRecord {
   // kScan, optional and not part of the encoding: the raw scan, which the log keeps beside the
   // record (in its own family) while corrections may need it.
   std::shared_ptr<const RawScan> raw_scan;
+  // kScan: the observed cells are not in the record, only their CRC (cells_crc): they are
+  // prepared again from the raw scan kept beside it (ScanLog::LoadCells), so a retained scan's
+  // points are stored once (docs/storage.md). A decoded record of this kind has a scan with
+  // every field but `cells`.
+  bool cells_in_source = false;
+  uint32_t cells_crc = 0;  // cells_in_source: LoggedCellsCrc of the prepared scan
   // kCorrection: the retained checkpoint the rebuild starts from, the tiles the revised scans
   // changed before they were revised, and the revised scans' versions (removed ones included).
   uint64_t base_version = 0;
@@ -61,6 +69,10 @@ struct LogRecord {
 };
 
 std::string EncodeLogRecord(const LogRecord& record);
+
+// CRC-32C of the encoding of `scan`'s observed cells: what a record with cells_in_source keeps
+// to check that preparing the raw scan again gives the cells first logged.
+uint32_t LoggedCellsCrc(const PreparedScan& scan);
 
 // DataLoss if the checksum fails or the bytes are malformed; FailedPrecondition for a newer
 // format.

@@ -19,6 +19,7 @@
 #include <string_view>
 #include <thread>
 
+#include "bgkmap/core/map_params.h"
 #include "bgkmap/core/status.h"
 #include "bgkmap/storage/free_space.h"
 #include "bgkmap/storage/log_record.h"
@@ -58,6 +59,8 @@ class ScanLog {
   //                    caller must refuse the change. Earlier appends are unaffected; a
   //                    refusal for space latches nothing (the next append probes again).
   // Versions must be unique; appending an existing version replaces its record.
+  // A scan whose raw scan is kept is logged without its observed cells (cells_in_source): its
+  // points are stored once, and reading the record prepares them again (LoadCells).
   Status Append(const LogRecord& record);
 
   // Calls `visit(version, record)` for each record with version > `after`, in version order.
@@ -65,8 +68,21 @@ class ScanLog {
   // its version (and counted in corrupt_records()); visiting goes on. Stops at the first non-OK
   // status `visit` returns and returns it. An unreadable stretch of the log (a corrupt RocksDB
   // block) ends the walk with DataLoss.
+  // With LogRead::kWhole every scan record comes with its observed cells (a record that keeps
+  // them in its raw scan is prepared again: a failure, e.g. the raw scan missing or preparing
+  // differently, is that record's DataLoss); with kHeaders such a record comes as stored, its
+  // scan without cells (cells_in_source set), for readers of the tile lists and headers only.
+  enum class LogRead { kWhole, kHeaders };
   using Visitor = std::function<Status(uint64_t version, Result<LogRecord> record)>;
-  Status ForEach(uint64_t after, const Visitor& visit) const;
+  Status ForEach(uint64_t after, const Visitor& visit, LogRead mode = LogRead::kWhole) const;
+
+  // The prepared scan of `record` (of `version`) with its observed cells: the record's own scan
+  // unless cells_in_source, else its raw scan prepared again with the store's parameters and
+  // checked against the record (cells' CRC, tile lists, counts). DataLoss naming the version if
+  // the raw scan is missing or damaged or prepares differently (a build that prepares scans
+  // otherwise than the one that logged it).
+  Result<std::shared_ptr<const PreparedScan>> LoadCells(uint64_t version,
+                                                        const LogRecord& record) const;
 
   // The raw scan kept beside the record of `version` (StoreOptions::retention); nullopt if none
   // is kept (retention off, or dropped). DataLoss if it fails its checksum.
@@ -111,7 +127,7 @@ class ScanLog {
   friend class TileStore;
   // `guard`: the store's free-space reserve (outlives the log). `read_only`: the database was
   // opened read-only, every write is refused.
-  ScanLog(StoreDb* db, const StoreOptions& options, uint64_t map_version,
+  ScanLog(StoreDb* db, const StoreOptions& options, const MapParams& params, uint64_t map_version,
           std::map<std::string, uint64_t> robots, uint64_t checkpoint_version,
           FreeSpaceGuard* guard, bool read_only);
 
@@ -123,6 +139,8 @@ class ScanLog {
   // The guard's answer `s`, refused if the store is read-only; a refusal is counted.
   Status CountRefusal(Status s);
 
+  // `record` as the log stores it: without its cells when its raw scan is stored beside it.
+  std::string EncodeStored(const LogRecord& record) const;
   // Adds to `batch` the deletion of every record (and raw scan) with version <= `through`.
   void AddTruncation(rocksdb::WriteBatch* batch, uint64_t through);
   // `written_before`: written_bytes_ when the checkpoint started (appends may run beside it).
@@ -146,6 +164,7 @@ class ScanLog {
   const Durability durability_;
   const bool retain_sources_;
   const uint32_t periodic_sync_ms_;
+  const MapParams params_;  // the store's: what a scan logged without its cells is prepared with
 
   std::atomic<uint64_t> checkpoint_version_;
   std::atomic<uint64_t> appended_{0}, appended_bytes_{0};

@@ -71,8 +71,8 @@ struct StoreCounters {
 };
 
 struct DiskUsage {
-  uint64_t tile_bytes = 0;   // SST files of the tiles column family
-  uint64_t log_bytes = 0;    // SST files of the log column family
+  uint64_t tile_bytes = 0;     // SST files of the tiles column family
+  uint64_t log_bytes = 0;      // SST files of the log column family
   uint64_t sources_bytes = 0;  // SST files of the retained raw scans
   uint64_t history_bytes = 0;  // SST files of the retained tile history
   uint64_t wal_bytes = 0;      // write-ahead log files
