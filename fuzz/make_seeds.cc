@@ -161,6 +161,10 @@ void StorageSeeds(const io::Scan& scan) {
   auto prepared = std::make_shared<const PreparedScan>(Must(PrepareScan(params, few, scan.pose)));
   Put("log_record", "scan",
       storage::EncodeLogRecord(storage::LogRecord::Scan(7, "alpha", 3, prepared, 123456789)));
+  storage::LogRecord retained = storage::LogRecord::Scan(9, "alpha", 4, prepared, 123456790);
+  retained.cells_in_source = true;  // as logged beside its raw scan (format 4)
+  retained.cells_crc = storage::LoggedCellsCrc(*prepared);
+  Put("log_record", "scan_cells_in_source", storage::EncodeLogRecord(retained));
   Put("log_record", "clear",
       storage::EncodeLogRecord(storage::LogRecord::Clear(8, CellBox{{-5, -6}, {40, 2}})));
 
