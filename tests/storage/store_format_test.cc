@@ -40,7 +40,7 @@ std::string MetaFormat(const std::string& dir) {
   return format;
 }
 
-// Mutations checked: kStoreFormat left at 3 fails the upgrade's "4"; the half_life_s key without
+// Mutations checked: kStoreFormat left at 4 fails the upgrade's "5"; the half_life_s key without
 // a legacy value fails the open of the old store.
 TEST(StoreFormatTest, PreviousReleaseStoresUpgradeAndNewerOnesAreRefusedNamingBoth) {
   TempDir dir;
@@ -65,7 +65,7 @@ TEST(StoreFormatTest, PreviousReleaseStoresUpgradeAndNewerOnesAreRefusedNamingBo
     back->set_version(map->version());
     EXPECT_TRUE(MapsIdentical(*map, *back));
   }
-  EXPECT_EQ(MetaFormat(dir.path()), "4");
+  EXPECT_EQ(MetaFormat(dir.path()), "5");
   // Built without forgetting: asking for it is refused naming the key.
   MapParams forgetting = params;
   forgetting.half_life_s = 2;
@@ -74,11 +74,11 @@ TEST(StoreFormatTest, PreviousReleaseStoresUpgradeAndNewerOnesAreRefusedNamingBo
   EXPECT_NE(refused.status().message().find("half_life_s"), std::string::npos)
       << refused.status().message();
   // A newer store: one line naming both versions.
-  EditMeta(dir.path(), "format", "5");
+  EditMeta(dir.path(), "format", "6");
   Result<std::unique_ptr<TileStore>> newer = TileStore::OpenExisting(dir.path(), {});
   ASSERT_FALSE(newer.ok());
   EXPECT_EQ(newer.status().code(), Status::Code::kFailedPrecondition);
-  EXPECT_NE(newer.status().message().find("has format 5, newer than this build reads (4)"),
+  EXPECT_NE(newer.status().message().find("has format 6, newer than this build reads (5)"),
             std::string::npos)
       << newer.status().message();
 }

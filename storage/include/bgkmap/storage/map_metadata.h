@@ -25,7 +25,7 @@ namespace bgkmap::storage {
 // and archives are read (their missing keys take MapParamInfo::legacy_text) and upgraded. Format
 // 3: the sources and history families. Format 4 (forgetting): tile format 3 (a tile's stamp), the
 // half_life_s key (legacy 0), the log's stamp is the scan's map time; formats 1-3 upgrade.
-inline constexpr uint32_t kStoreFormat = 4;
+inline constexpr uint32_t kStoreFormat = 5;
 
 struct MapMetadata {
   uint32_t format = kStoreFormat;
