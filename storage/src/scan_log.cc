@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <deque>
+#include <future>
 #include <memory>
 
 #include "bgkmap/storage/raw_scan_codec.h"
@@ -188,12 +190,43 @@ Result<std::shared_ptr<const PreparedScan>> ScanLog::LoadCells(uint64_t version,
       std::make_shared<PreparedScan>(std::move(prepared).value()));
 }
 
+namespace {
+
+// A record read from the log, its cells (if they are kept in its raw scan) being prepared on
+// another thread: a replay prepares the next records while it integrates this one.
+struct ReadAhead {
+  uint64_t version = 0;
+  Result<LogRecord> record;
+  std::future<Result<std::shared_ptr<const PreparedScan>>> cells;  // invalid: none to prepare
+};
+
+// As many records ahead as there are cores to prepare them (at least one).
+size_t ReadAheadDepth() { return std::max(1u, std::thread::hardware_concurrency()); }
+
+}  // namespace
+
 Status ScanLog::ForEach(uint64_t after, const Visitor& visit, LogRead mode) const {
   rocksdb::ReadOptions read;
   read.verify_checksums = true;
   read.fill_cache = false;  // a replay reads each record once
   std::unique_ptr<rocksdb::Iterator> it(db_->db->NewIterator(read, db_->log));
   if (after == UINT64_MAX) return Status::Ok();
+  std::deque<ReadAhead> ahead;
+  // Visits the oldest record read ahead, with its cells.
+  auto visit_next = [&]() -> Status {
+    ReadAhead next = std::move(ahead.front());
+    ahead.pop_front();
+    if (next.cells.valid()) {
+      Result<std::shared_ptr<const PreparedScan>> whole = next.cells.get();
+      if (!whole.ok()) {
+        corrupt_.fetch_add(1);  // (its status names the version already)
+        return visit(next.version, whole.status());
+      }
+      next.record->scan = std::move(whole).value();
+      next.record->cells_in_source = false;
+    }
+    return visit(next.version, std::move(next.record));
+  };
   for (it->Seek(VersionKeyBytes(after + 1)); it->Valid(); it->Next()) {
     uint64_t version = 0;
     if (!ParseVersionKeyBytes(it->key().ToStringView(), &version)) {
@@ -205,23 +238,24 @@ Status ScanLog::ForEach(uint64_t after, const Visitor& visit, LogRead mode) cons
       record = Status::DataLoss("log record stored under version " + std::to_string(version) +
                                 " says it is version " + std::to_string(record->version));
     }
-    if (record.ok() && record->cells_in_source && mode == LogRead::kWhole) {
-      Result<std::shared_ptr<const PreparedScan>> whole = LoadCells(version, *record);
-      if (whole.ok()) {
-        record->scan = std::move(whole).value();
-        record->cells_in_source = false;
-      } else {
-        corrupt_.fetch_add(1);  // (its status names the version already)
-        if (Status s = visit(version, whole.status()); !s.ok()) return s;
-        continue;
-      }
-    }
     if (!record.ok()) {
       corrupt_.fetch_add(1);
       record = Status::DataLoss("log record " + std::to_string(version) + ": " +
                                 record.status().message());
     }
-    if (Status s = visit(version, std::move(record)); !s.ok()) return s;
+    ReadAhead entry{version, std::move(record), {}};
+    if (entry.record.ok() && entry.record->cells_in_source && mode == LogRead::kWhole) {
+      entry.cells = std::async(std::launch::async, [this, version, header = *entry.record] {
+        return LoadCells(version, header);
+      });
+    }
+    ahead.push_back(std::move(entry));
+    if (ahead.size() >= ReadAheadDepth()) {
+      if (Status s = visit_next(); !s.ok()) return s;  // (the preparations left are awaited)
+    }
+  }
+  while (!ahead.empty()) {
+    if (Status s = visit_next(); !s.ok()) return s;
   }
   if (!it->status().ok()) {
     corrupt_.fetch_add(1);
