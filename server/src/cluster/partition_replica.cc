@@ -33,6 +33,7 @@ bool TileReplyVerifies(const ClusterTrust& trust, std::string_view mac, std::str
 PartitionReplica::PartitionReplica(const NatsClient& nats, const ClusterTrust& trust,
                                    const PartitionLayout& layout, PartitionKey key,
                                    std::unique_ptr<TerrainMap> map, uint64_t serve_from,
+                                   RobotSequenceRule rule,
                                    std::optional<PartitionCheckpoint> restored)
     : nats_(nats),
       trust_(trust),
@@ -40,7 +41,8 @@ PartitionReplica::PartitionReplica(const NatsClient& nats, const ClusterTrust& t
       key_(key),
       halo_(layout.HaloCells(key)),
       serve_from_(serve_from),
-      map_(std::move(map)) {
+      map_(std::move(map)),
+      sequence_rule_(rule) {
   if (restored) {
     for (auto& [k, tile] : restored->tiles) map_->SetTile(k, *tile);
     robot_last_ = std::move(restored->robot_sequences);
@@ -127,6 +129,11 @@ void PartitionReplica::Apply(uint64_t sequence, const PreparedScan* prepared) {
   }
   if (map_lock.owns_lock()) map_lock.unlock();
   if (!serving_ && sequence >= serve_from_) StartServing();
+}
+
+void PartitionReplica::ApplyRetire(uint64_t sequence, const std::string& robot_id) {
+  robot_last_.erase(robot_id);
+  Apply(sequence, nullptr);
 }
 
 void PartitionReplica::ApplyClear(uint64_t sequence, const CellBox& box) {

@@ -24,6 +24,7 @@
 
 #include "bgkmap/client/client.h"
 #include "bgkmap/server/map_server.h"
+#include "bgkmap/storage/map_archive.h"
 #include "bgkmapd_process.h"
 #include "cluster_support.h"
 #include "nats_cluster.h"
@@ -168,7 +169,7 @@ TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
 
   const std::string not_yet =
       " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap and Info are";
+      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, RetireRobot and Info are";
   auto expect_unimplemented = [&](const RpcStatus& status, const std::string& call) {
     EXPECT_EQ(status.code(), RpcCode::kUnimplemented) << call << ": " << status.message();
     EXPECT_EQ(status.message(), call + not_yet);
@@ -179,7 +180,6 @@ TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
                        "CorrectPoses");
   expect_unimplemented(a.client().RemoveScans("r1", 2, 1).status(),  // first > last: still
                        "RemoveScans");
-  expect_unimplemented(a.client().RetireRobot("").status(), "RetireRobot");  // empty id: still
 }
 
 // Mutations: ReadCheckpoint returning nothing (the takeover replays the log: "no partition was
@@ -440,6 +440,131 @@ TEST(ClusterTest, WatchOnAnyShardSeesEveryChange) {
   EXPECT_TRUE(same);
   watch->Cancel();
   EXPECT_EQ(watch->Wait().code(), RpcCode::kCancelled);
+}
+
+// What a client hears of one step, in words both a single server and a shard must say alike.
+std::string Heard(const RpcResult<ScanAck>& ack) {
+  if (!ack.ok()) return "refused " + std::to_string(static_cast<int>(ack.status().code()));
+  return ack->status == AckStatus::kApplied     ? "applied"
+         : ack->status == AckStatus::kDuplicate ? "duplicate"
+                                                : "other";
+}
+std::string Heard(const RpcResult<RetiredRobot>& retired) {
+  if (!retired.ok()) return "refused " + std::to_string(static_cast<int>(retired.status().code()));
+  return "retired last=" + std::to_string(retired->last_sequence) +
+         " robots=" + std::to_string(retired->robots);
+}
+
+// server.max_robots = 2 and server.max_sequence_jump = 100 on a single server and on two shards,
+// and RetireRobot through either shard, interleaved with three robots' scans: every answer
+// (applied, duplicate, the refusal's code, the retired robot's last sequence and the robots
+// left) and the map are the single server's. After r2's retirement its sequence starts again at
+// 1: those scans are applied again, not taken for retries of its old ones. Mutations: replicas
+// without the limits (a refused scan integrated: the regions differ); the ledger not forgetting
+// a retired robot (r3 refused as one robot too many); the message id without the epoch (r2's
+// new scan 1 answered as a duplicate).
+TEST(ClusterTest, RobotLimitsAndRetirementAsOneServer) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  ServerConfig single = TestConfig();
+  ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
+  for (ServerConfig* c : {&single, &ca, &cb}) {
+    c->limits.max_robots = 2;
+    c->limits.max_sequence_jump = 100;
+  }
+  ServerFixture one(single), a(ca), b(cb);
+  const std::vector<OwnedScan> r1 = SubScans("r1", 4), r2 = SubScans("r2", 4),
+                               r3 = SubScans("r3", 4);
+  OwnedScan jump = r1[7];
+  jump.sequence = 5000;  // more than 100 above r1's last
+  std::vector<std::string> want, got;
+  auto scan = [&](Client& via, const OwnedScan& s) {
+    want.push_back(s.robot_id + "/" + std::to_string(s.sequence) + " " +
+                   Heard(one.client().Insert(s.Data())));
+    got.push_back(s.robot_id + "/" + std::to_string(s.sequence) + " " +
+                  Heard(via.Insert(s.Data())));
+  };
+  auto retire = [&](Client& via, const std::string& robot) {
+    want.push_back("retire " + robot + " " + Heard(one.client().RetireRobot(robot)));
+    got.push_back("retire " + robot + " " + Heard(via.RetireRobot(robot)));
+  };
+  for (size_t i = 0; i < 6; ++i) {
+    scan(a.client(), r1[i]);
+    scan(b.client(), r2[i]);
+  }
+  scan(a.client(), r3[0]);       // a third robot: RESOURCE_EXHAUSTED
+  scan(b.client(), jump);        // OUT_OF_RANGE
+  scan(a.client(), r1[6]);       // applied: the jump changed nothing
+  retire(a.client(), "r2");      // last 6, one robot left
+  retire(b.client(), "nobody");  // NOT_FOUND
+  for (size_t i = 0; i < 6; ++i) scan(b.client(), r3[i]);
+  scan(a.client(), r2[6]);  // r2 is new again: one robot too many
+  retire(b.client(), "r3");
+  for (size_t i = 0; i < 4; ++i) scan(a.client(), r2[i]);  // r2 from 1 again: applied
+  scan(b.client(), r2[2]);                                 // a retry: duplicate
+  EXPECT_EQ(got, want);
+  const MetricBox street = KnownBox(*one.server().SnapshotMap());
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<Raster> region = via->QueryRegion({street, {}, 1});
+    ASSERT_TRUE(region.ok()) << region.status().message();
+    EXPECT_TRUE(SameBits(*region, one.client().QueryRegion({street, {}, 1}).value()));
+    RpcResult<MapInfo> info = via->Info();
+    ASSERT_TRUE(info.ok()) << info.status().message();
+    std::vector<std::pair<std::string, uint64_t>> robots, single_robots;
+    for (const RobotInfo& r : info->robots) robots.emplace_back(r.robot_id, r.last_sequence);
+    const MapInfo single_info = one.client().Info().value();
+    for (const RobotInfo& r : single_info.robots) {
+      single_robots.emplace_back(r.robot_id, r.last_sequence);
+    }
+    EXPECT_EQ(robots, single_robots);
+  }
+}
+
+// An archive with finite extreme statistics imported twice through two shards: the second
+// import is refused as a single server refuses it (OUT_OF_RANGE, the same message naming the
+// tile and cell), and the map is the single server's. Mutation: the shard without
+// CheckImportSums (the second import is stored and the partitions' sums overflow).
+TEST(ClusterTest, ImportWhoseSumsWouldOverflowIsRefusedAsByOneServer) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  ServerConfig single = TestConfig();
+  ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
+  for (ServerConfig* c : {&single, &ca, &cb}) c->map.dynamics = Dynamics::kOff;
+  const std::string archive = dir.Sub("extreme.bgkmap");
+  {
+    storage::MapMetadata meta;
+    meta.params = single.map;
+    Result<std::unique_ptr<storage::MapArchiveWriter>> w =
+        storage::MapArchiveWriter::Create(archive, meta);
+    ASSERT_TRUE(w.ok()) << w.status().ToString();
+    Tile tile(single.map.tile_size);
+    tile.w()[0] = 1e308;  // finite, possible; twice is not
+    tile.s()[0] = 1e308;
+    tile.a()[0] = 3e38f;
+    tile.b()[0] = 3e38f;
+    tile.w()[1] = 1.0;
+    tile.s()[1] = 0.5;
+    ASSERT_TRUE((*w)->Add({0, 0}, tile).ok());
+    ASSERT_TRUE((*w)->Finish().ok());
+  }
+  ServerFixture one(single), a(ca), b(cb);
+  ASSERT_TRUE(one.client().ImportMap(archive).ok());
+  RpcResult<ImportResult> first = a.client().ImportMap(archive);
+  ASSERT_TRUE(first.ok()) << first.status().message();
+  RpcResult<ImportResult> want = one.client().ImportMap(archive);
+  RpcResult<ImportResult> got = b.client().ImportMap(archive);
+  ASSERT_FALSE(want.ok());
+  ASSERT_FALSE(got.ok()) << "the sums overflow to inf";
+  EXPECT_EQ(got.status().code(), RpcCode::kOutOfRange) << got.status().message();
+  EXPECT_EQ(got.status().message(), want.status().message());
+  const MetricBox box{0.05, 0.05, 6.35, 6.35};  // tile (0, 0)
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<Raster> region = via->QueryRegion({box, {}, 1});
+    ASSERT_TRUE(region.ok()) << region.status().message();
+    EXPECT_TRUE(SameBits(*region, one.client().QueryRegion({box, {}, 1}).value()));
+  }
 }
 
 }  // namespace
