@@ -1,4 +1,6 @@
 // ClusterNode as the map port (serving/map_port.h): what a handler asks of a shard.
+#include <spdlog/spdlog.h>
+
 #include <filesystem>
 
 #include "bgkmap/storage/map_metadata.h"
@@ -31,9 +33,11 @@ Status NotOnShard(MapWrites::Operation operation) {
       "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, RetireRobot and Info are");
 }
 
-// How long an append waits for the node's robot ledger to read its entry (the ledger reads
-// headers only and is normally a few milliseconds behind the log's end).
-constexpr int64_t kVerdictWaitMs = 10000;
+// How long an append waits for the node's robot ledger to read its entry: normally a few
+// milliseconds (it reads headers only), but while JetStream elects a stream leader after a NATS
+// server's death the ledger's reader waits too (16-21 s measured on 2 loaded cores); the robot
+// would otherwise hear UNAVAILABLE for a scan the log has stored.
+constexpr int64_t kVerdictWaitMs = 60000;
 
 }  // namespace
 
@@ -210,6 +214,11 @@ MapState ClusterNode::State(bool /*with_disk_usage*/) {
   MapState state;
   state.version = known_version();
   state.robots = Robots();
+  state.scans_applied = ledger_->scans_admitted();
+  {
+    std::lock_guard lock(summary_mu_);
+    state.summary = summary_;
+  }
   state.georeference = georeference();
   const ClusterStatus status = Describe();
   ShardState& shard = state.shard.emplace();
@@ -229,8 +238,19 @@ MapState ClusterNode::State(bool /*with_disk_usage*/) {
 }
 
 void ClusterNode::ReadVersion(std::function<void(uint64_t)> done) {
-  // A round trip to the log: not on the caller's (gRPC's) thread.
-  executor_([this, done = std::move(done)] { done(applied_version()); });
+  // A round trip to the log, then one to each partition's owner for its counts (what Info
+  // reports with the version): not on the caller's (gRPC's) thread.
+  executor_([this, done = std::move(done)] {
+    const uint64_t version = applied_version();
+    Result<MapSummary> summary = reads_->Summarize(version);
+    if (summary.ok()) {
+      std::lock_guard lock(summary_mu_);
+      summary_ = *summary;
+    } else {
+      spdlog::warn("event=cluster_summary_failed reason=\"{}\"", summary.status().message());
+    }
+    done(version);
+  });
 }
 
 }  // namespace bgkmap::cluster

@@ -109,12 +109,14 @@ class ClusterNode final : public MapPort {
                                                  uint64_t since) override {
     return reads_->TilesChangedSince(min, max, since);
   }
-  // Info: the shard's place in the cluster; its counts are its own (empty) local map's.
+  // Info: the shard's place in the cluster, and the cluster's counts as of the last
+  // ReadVersion (which gathers them from the partitions' owners; State() never waits on them).
   uint64_t known_version() const override { return reads_->known_version(); }
   // The cluster's robots as the ledger has read the log (counters since the log's start or the
   // checkpoint the ledger started from; no stamps, points or poses: the headers carry none).
   std::vector<RobotStats> Robots() const override { return ledger_->Robots(); }
   MapState State(bool with_disk_usage = false) override;
+  // On a worker: the log's last sequence, and the cluster's counts as of at least it.
   void ReadVersion(std::function<void(uint64_t)> done) override;
 
  private:
@@ -179,6 +181,8 @@ class ClusterNode final : public MapPort {
   std::unique_ptr<Membership> members_;
   std::unique_ptr<ClusterReads> reads_;
   std::unique_ptr<RobotLedger> ledger_;
+  mutable std::mutex summary_mu_;
+  MapSummary summary_;  // the cluster's counts as of the last ReadVersion; guarded by summary_mu_
 
   mutable std::mutex mu_;
   std::map<PartitionKey, std::shared_ptr<PartitionReplica>> replicas_;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "bgkmap/core/tile_summary.h"
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/v1/cluster.pb.h"
 
@@ -211,8 +212,8 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
                     std::to_string(Stats().log_sequence) + ", not yet " +
                     std::to_string(request.min_log_sequence()));
   } else {
-    const TileKey lo{std::max(request.min().x(), layout_.MinTile(key_).x),
-                     std::max(request.min().y(), layout_.MinTile(key_).y)};
+    TileKey lo{std::max(request.min().x(), layout_.MinTile(key_).x),
+               std::max(request.min().y(), layout_.MinTile(key_).y)};
     const TileKey hi{std::min(request.max().x(), layout_.MaxTile(key_).x),
                      std::min(request.max().y(), layout_.MaxTile(key_).y)};
     const int64_t budget = nats_.max_payload() - 4096;
@@ -222,6 +223,10 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
     {
       std::lock_guard progress(progress_mu_);
       reply.set_log_sequence(applied_);
+    }
+    if (request.summary_only()) {
+      SummarizeInto(lo, hi, reply.mutable_summary());
+      lo = {hi.x + 1, hi.y + 1};  // nothing more: no keys, no tiles
     }
     for (int x = lo.x; x <= hi.x && !reply.more(); ++x) {
       for (int y = lo.y; y <= hi.y; ++y) {
@@ -259,6 +264,26 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
     if (natsMsgHeader_Set(answer.get(), kTileReplyMacHeader, mac.c_str()) != NATS_OK) return;
   }
   natsConnection_PublishMsg(nats_.connection(), answer.get());
+}
+
+void PartitionReplica::SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const {
+  // Requires map_mu_ (shared). The tiles of the range that exist, as Info counts them.
+  CellBox bounds;
+  map_->ForEachTile([&](TileKey k, const Tile& t) {
+    if (k.x < lo.x || k.x > hi.x || k.y < lo.y || k.y > hi.y) return;
+    const TileSummary summary = SummarizeTile(layout_.geometry(), k, &t);
+    if (summary.known_cells == 0) return;
+    out->set_known_tiles(out->known_tiles() + 1);
+    out->set_known_cells(out->known_cells() + summary.known_cells);
+    bounds.Extend(summary.known_box.min);
+    bounds.Extend(summary.known_box.max);
+  });
+  if (bounds.empty()) return;
+  v1::CellBox* box = out->mutable_known_cells_box();
+  box->set_min_x(bounds.min.x);
+  box->set_min_y(bounds.min.y);
+  box->set_max_x(bounds.max.x);
+  box->set_max_y(bounds.max.y);
 }
 
 bool PartitionReplica::WaitFor(uint64_t sequence, int64_t timeout_ms) const {

@@ -27,6 +27,7 @@
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/v1/cluster.pb.h"
 #include "bgkmap/v1/ingest.pb.h"
 #include "cluster/cluster_log.h"
 #include "cluster/cluster_trust.h"
@@ -107,6 +108,8 @@ class PartitionReplica {
   void StartServing();
   static void OnFetch(natsConnection* nc, natsSubscription* sub, natsMsg* msg, void* self);
   void ServeFetch(natsMsg* msg);
+  // Counts the partition's tiles with lo <= key <= hi into `out` (map_mu_ held, shared).
+  void SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const;
 
   const NatsClient& nats_;
   const ClusterTrust& trust_;

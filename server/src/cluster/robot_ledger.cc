@@ -99,6 +99,7 @@ void RobotLedger::Read(uint64_t sequence, natsMsg* msg) {
       robot.robot_id = header->robot_id;
       robot.last_sequence = header->robot_sequence;
       ++robot.scans_applied;
+      ++scans_admitted_;
     } else if (it != robots_.end()) {
       ++(verdict.admission == RobotAdmission::kDuplicate ? it->second.scans_duplicate
                                                          : it->second.scans_rejected);
@@ -148,6 +149,11 @@ std::vector<RobotStats> RobotLedger::Robots() const {
   out.reserve(robots_.size());
   for (const auto& [id, robot] : robots_) out.push_back(robot);
   return out;
+}
+
+uint64_t RobotLedger::scans_admitted() const {
+  std::lock_guard lock(mu_);
+  return scans_admitted_;
 }
 
 uint64_t RobotLedger::last_sequence() const {

@@ -63,6 +63,9 @@ class RobotLedger {
   uint64_t Epoch(const std::string& robot_id) const;
   std::vector<RobotStats> Robots() const;  // sorted by id, as of the last entry read
   uint64_t last_sequence() const;          // the last entry read (0: none)
+  // Scans admitted since the ledger started (its log's start or checkpoint): the cluster's
+  // scans applied, as a single server counts them since its start.
+  uint64_t scans_admitted() const;
 
   static constexpr size_t kKeptVerdicts = 65536;
 
@@ -81,6 +84,7 @@ class RobotLedger {
   mutable std::mutex mu_;
   mutable std::condition_variable read_cv_;
   uint64_t last_ = 0;
+  uint64_t scans_admitted_ = 0;
   std::map<std::string, RobotStats> robots_;
   std::map<std::string, uint64_t> retirements_;
   std::map<uint64_t, LedgerVerdict> verdicts_;  // the newest kKeptVerdicts entries' verdicts

@@ -35,7 +35,8 @@ namespace {
 
 // Two shards fed two robots' scans, r1 through a and r2 through b, one at a time (the log's
 // order is the reference's), answer right away (no waiting: a query reads at least every
-// acknowledged scan) as one server of the same method does.
+// acknowledged scan) as one server of the same method does, and Info on either counts what the
+// single server's Info counts (mutation: a partition's owner counting its halo's tiles too).
 void ExpectTwoShardsAnswerAsOne(Method method) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
@@ -54,6 +55,24 @@ void ExpectTwoShardsAnswerAsOne(Method method) {
   }
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
+  // Info on either shard counts the whole cluster as the single server counts its map.
+  const MapInfo want = ref.single.client().Info().value();
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<MapInfo> got = via->Info();
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_EQ(got->tile_count, want.tile_count);
+    EXPECT_EQ(got->known_cells, want.known_cells);
+    EXPECT_EQ(got->known_cells_box, want.known_cells_box);
+    EXPECT_EQ(got->known_bounds.min_x, want.known_bounds.min_x);
+    EXPECT_EQ(got->known_bounds.max_y, want.known_bounds.max_y);
+    EXPECT_EQ(got->scans_applied, want.scans_applied);
+    ASSERT_EQ(got->robots.size(), want.robots.size());
+    for (size_t i = 0; i < want.robots.size(); ++i) {
+      EXPECT_EQ(got->robots[i].robot_id, want.robots[i].robot_id);
+      EXPECT_EQ(got->robots[i].last_sequence, want.robots[i].last_sequence);
+      EXPECT_EQ(got->robots[i].scans_applied, want.robots[i].scans_applied);
+    }
+  }
 }
 
 TEST(ClusterTest, AnswersEqualSingleServer) { ExpectTwoShardsAnswerAsOne(Method::kBgkPlus); }
