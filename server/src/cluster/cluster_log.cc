@@ -209,6 +209,14 @@ Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
   return a->sequence;
 }
 
+Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust) {
+  Result<std::string> id = RandomMessageId("export/");
+  if (!id.ok()) return id.status();
+  Result<Appended> a = Append(nats, trust, kExportSubject, "", {}, CellBox{}, nullptr, *id);
+  if (!a.ok()) return a.status();
+  return a->sequence;
+}
+
 Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
                                                 bool headers_only) {
   jsSubOptions so;
@@ -287,11 +295,13 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
   h.kind = subject == kClearSubject    ? LogEntryHeader::Kind::kClear
            : subject == kImportSubject ? LogEntryHeader::Kind::kImport
            : subject == kRetireSubject ? LogEntryHeader::Kind::kRetire
+           : subject == kExportSubject ? LogEntryHeader::Kind::kExport
                                        : LogEntryHeader::Kind::kScan;
   const bool scan = h.kind == LogEntryHeader::Kind::kScan;
   const bool robot_entry = scan || h.kind == LogEntryHeader::Kind::kRetire;
-  const bool retire = h.kind == LogEntryHeader::Kind::kRetire;  // names no partition
-  if ((natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK && !retire) ||
+  const bool no_partition =
+      h.kind == LogEntryHeader::Kind::kRetire || h.kind == LogEntryHeader::Kind::kExport;
+  if ((natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK && !no_partition) ||
       (robot_entry && natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK) ||
       (scan && natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK)) {
     return Status::DataLoss("cluster log entry without bgkmap headers");

@@ -39,6 +39,9 @@ inline constexpr const char* kClearSubject = "bgkmap.log.clear";  // a v1::CellB
 inline constexpr const char* kImportSubject = "bgkmap.log.import";
 // A robot's retirement (RetireRobot): no payload; the robot is in the entry's robot header.
 inline constexpr const char* kRetireSubject = "bgkmap.log.retire";
+// An export's snapshot point (ExportMap): no payload; every replica keeps a copy of its own tiles
+// as of this entry for the exporting shard to gather.
+inline constexpr const char* kExportSubject = "bgkmap.log.export";
 
 struct LogStreamOptions {
   int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
@@ -78,6 +81,9 @@ Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
 Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
                               const std::string& robot_id);
 
+// Appends an export's snapshot point (kExportSubject).
+Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust);
+
 // An ordered reader of the log from entry `start` (whole entries, or their headers only),
 // recreated by nats.c after a failure. Unavailable if the log cannot be read.
 Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
@@ -93,7 +99,7 @@ Result<uint64_t> FirstSequence(const NatsClient& nats);
 Status TrimLog(const NatsClient& nats, uint64_t keep_from);
 
 struct LogEntryHeader {
-  enum class Kind { kScan, kClear, kImport, kRetire };
+  enum class Kind { kScan, kClear, kImport, kRetire, kExport };
   Kind kind = Kind::kScan;  // clears and imports have no robot; a retirement no robot_sequence
   std::string robot_id;
   uint64_t robot_sequence = 0;

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "bgkmap/storage/map_metadata.h"
+#include "cluster/cluster_export.h"
 #include "cluster/cluster_node.h"
 #include "serving/archive_upload.h"
 #include "serving/tile_table.h"
@@ -30,7 +31,7 @@ Status NotOnShard(MapWrites::Operation operation) {
   return Status::Unimplemented(
       std::string(CallName(operation)) +
       " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, RetireRobot and Info are");
+      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, ExportMap, RetireRobot and Info are");
 }
 
 // How long an append waits for the node's robot ledger to read its entry: normally a few
@@ -42,7 +43,9 @@ constexpr int64_t kVerdictWaitMs = 60000;
 }  // namespace
 
 Status ClusterNode::Offers(Operation operation) const {
-  if (operation == Operation::kRetireRobot) return Status::Ok();
+  if (operation == Operation::kRetireRobot || operation == Operation::kExportMap) {
+    return Status::Ok();
+  }
   return NotOnShard(operation);
 }
 
@@ -164,9 +167,42 @@ Status ClusterNode::CheckImportSums(std::span<const TileKey> keys,
   return table.CheckSumsFinite(keys, adding);
 }
 
-void ClusterNode::SubmitExport(const std::optional<CellBox>&,
+void ClusterNode::SubmitExport(const std::optional<CellBox>& box,
                                std::function<void(Result<std::unique_ptr<ArchiveChunks>>)> done) {
-  done(NotOnShard(Operation::kExportMap));
+  // Round trips to the log and to every owner: on a worker, not the caller's (gRPC's) thread.
+  executor_([this, box, done = std::move(done)] { done(Export(box)); });
+}
+
+Result<std::unique_ptr<ArchiveChunks>> ClusterNode::Export(const std::optional<CellBox>& box) {
+  // The snapshot point: an entry of the log, so every owner copies its tiles at the same place
+  // in the log's order (later entries go on being applied meanwhile).
+  Result<uint64_t> at = AppendExport(*nats_, *trust_);
+  if (!at.ok()) return Status::Unavailable(at.status().message());
+  if (!ledger_->WaitRead(*at, kVerdictWaitMs)) {
+    return Status::Unavailable("the cluster's robot ledger has not read the export's entry");
+  }
+  // Every partition with data at the entry was recorded before it (before its first entry).
+  Result<std::vector<PartitionKey>> recorded = members_->ListRecordedPartitions();
+  if (!recorded.ok()) return Status::Unavailable(recorded.status().message());
+  std::vector<PartitionKey> partitions;
+  for (PartitionKey p : *recorded) {
+    const CellBox cells = layout_.Cells(p);
+    if (!box || (cells.max.x >= box->min.x && cells.min.x <= box->max.x &&
+                 cells.max.y >= box->min.y && cells.min.y <= box->max.y)) {
+      partitions.push_back(p);
+    }
+  }
+  Result<std::unique_ptr<TerrainMap>> tiles = reads_->GatherAt(partitions, *at);
+  if (!tiles.ok()) return tiles.status();
+  storage::MapMetadata metadata;
+  metadata.params = params_;
+  metadata.georeference = georeference();
+  // Versions as a single server fed the same changes counts them (RobotLedger::ChangesAt): the
+  // archive's, and each tile's (stamped with the log sequence of its last change here). Robots'
+  // sequences are not written, as a single server without a store writes none.
+  metadata.map_version = metadata.checkpoint_version = ledger_->ChangesAt(*at);
+  return ClusterArchive::Start(std::move(tiles).value(), metadata, box, *at,
+                               [this](uint64_t s) { return ledger_->ChangesAt(s); });
 }
 
 void ClusterNode::SubmitCorrection(CorrectionSpec spec,

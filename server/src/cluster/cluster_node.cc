@@ -515,6 +515,10 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
     for (const auto& r : to) r->ApplyImport(sequence, tiles);
     return;
   }
+  if (header.ok() && header->kind == LogEntryHeader::Kind::kExport) {
+    for (const auto& r : to) r->ApplyExport(sequence);
+    return;
+  }
   if (header.ok() && header->kind == LogEntryHeader::Kind::kRetire) {
     for (const auto& r : to) r->ApplyRetire(sequence, header->robot_id);
     return;

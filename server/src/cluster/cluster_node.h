@@ -67,8 +67,9 @@ class ClusterNode final : public MapPort {
   // sequence. Robots' sequence numbers (and server.max_robots, server.max_sequence_jump) are
   // judged in the log's order by the partitions and by this node's RobotLedger; a scan's or a
   // retirement's answer is the ledger's verdict on its entry. A retry the log stores once is
-  // answered as a duplicate (or refused again, if its entry was). Exports, pose corrections and
-  // scan removals are not distributed yet: Unimplemented.
+  // answered as a duplicate (or refused again, if its entry was). An export is a snapshot point
+  // in the log (Export). Pose corrections and scan removals are not distributed yet:
+  // Unimplemented.
   const MapParams& params() const override { return params_; }
   const GridGeometry& geometry() const override { return layout_.geometry(); }
   Status Offers(Operation operation) const override;
@@ -143,6 +144,9 @@ class ClusterNode final : public MapPort {
   // log entry names them. Its log sequence number once stored.
   Result<uint64_t> AppendImport(std::span<const TileKey> keys,
                                 std::span<const std::unique_ptr<Tile>> tiles);
+  // ExportMap: appends an export's snapshot point and gathers the tiles of the partitions that
+  // meet `box` (all with data without one) exactly as of it from their owners.
+  Result<std::unique_ptr<ArchiveChunks>> Export(const std::optional<CellBox>& box);
   // OutOfRange, as TileTable::CheckSumsFinite, if adding `tiles` to the cluster's tiles as of
   // the log's end would give a sum that is not finite (the tiles gathered from their owners).
   Status CheckImportSums(std::span<const TileKey> keys,

@@ -144,7 +144,7 @@ uint64_t ClusterReads::applied_version() const {
 
 Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
                                     TerrainMap& into, std::vector<TileKey>* keys,
-                                    v1::PartitionSummary* summary) const {
+                                    v1::PartitionSummary* summary, uint64_t at) const {
   const std::string subject = "bgkmap.tiles." + PartitionName(p);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(fetch_timeout_ms_);
@@ -156,6 +156,7 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
   request.set_min_log_sequence(sequence);
   request.set_keys_only(keys != nullptr);
   request.set_summary_only(summary != nullptr);
+  request.set_at_log_sequence(at);
   // A partition without data has no owner to ask (and anyone else on NATS may answer for it).
   if (Result<bool> has = members_.HasPartition(p); has.ok() && !*has) return Status::Ok();
   std::string why;
@@ -215,6 +216,20 @@ Result<std::unique_ptr<TerrainMap>> ClusterReads::Gather(TileKey min, TileKey ma
     const TileKey lo{std::max(min.x, layout_.MinTile(p).x), std::max(min.y, layout_.MinTile(p).y)};
     const TileKey hi{std::min(max.x, layout_.MaxTile(p).x), std::min(max.y, layout_.MaxTile(p).y)};
     if (Status s = FetchPartition(p, lo, hi, sequence, **map); !s.ok()) return s;
+  }
+  return map;
+}
+
+Result<std::unique_ptr<TerrainMap>> ClusterReads::GatherAt(
+    const std::vector<PartitionKey>& partitions, uint64_t at) const {
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+  if (!map.ok()) return map.status();
+  for (PartitionKey p : partitions) {
+    if (Status s = FetchPartition(p, layout_.MinTile(p), layout_.MaxTile(p), at, **map, nullptr,
+                                  nullptr, at);
+        !s.ok()) {
+      return s;
+    }
   }
   return map;
 }

@@ -48,6 +48,11 @@ class ClusterReads final : public MapReads {
   // Info's counts of the whole cluster (tiles with a known cell, known cells, their bounds) as of
   // at least log entry `sequence`: each partition's owner counts its own tiles.
   Result<MapSummary> Summarize(uint64_t sequence) const;
+  // The tiles of `partitions` exactly as of log entry `at`, an export's snapshot point (each
+  // owner's copy taken when it applied the entry). Unavailable naming a partition whose owner
+  // has no such copy (it was taken over after the entry) once the fetch timeout passes.
+  Result<std::unique_ptr<TerrainMap>> GatherAt(const std::vector<PartitionKey>& partitions,
+                                               uint64_t at) const;
   // The tiles with min <= key <= max as of at least log entry `sequence`, in a map of their own.
   Result<std::unique_ptr<TerrainMap>> Gather(TileKey min, TileKey max, uint64_t sequence) const;
 
@@ -62,7 +67,7 @@ class ClusterReads final : public MapReads {
   // only their counts into `summary` if set.
   Status FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
                         TerrainMap& into, std::vector<TileKey>* keys = nullptr,
-                        v1::PartitionSummary* summary = nullptr) const;
+                        v1::PartitionSummary* summary = nullptr, uint64_t at = 0) const;
 
   const NatsClient& nats_;
   const ClusterTrust& trust_;

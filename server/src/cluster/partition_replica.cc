@@ -137,6 +137,63 @@ void PartitionReplica::ApplyRetire(uint64_t sequence, const std::string& robot_i
   Apply(sequence, nullptr);
 }
 
+void PartitionReplica::ApplyExport(uint64_t sequence) {
+  auto copy = std::make_shared<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>>();
+  {
+    std::shared_lock map_lock(map_mu_);
+    const TileKey lo = layout_.MinTile(key_), hi = layout_.MaxTile(key_);
+    map_->ForEachTile([&](TileKey k, const Tile& t) {
+      if (k.x >= lo.x && k.x <= hi.x && k.y >= lo.y && k.y <= hi.y) {
+        copy->emplace_back(k, std::make_unique<Tile>(t));
+      }
+    });
+  }
+  std::sort(copy->begin(), copy->end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  {
+    std::lock_guard lock(snapshots_mu_);
+    snapshots_[sequence] = std::move(copy);
+    while (snapshots_.size() > kKeptSnapshots) snapshots_.erase(snapshots_.begin());
+  }
+  Apply(sequence, nullptr);
+}
+
+void PartitionReplica::ServeSnapshot(const v1::TileFetchRequest& request, TileKey lo, TileKey hi,
+                                     int64_t budget, v1::TileFetchReply* reply) const {
+  std::shared_ptr<const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> tiles;
+  {
+    std::lock_guard lock(snapshots_mu_);
+    auto it = snapshots_.find(request.at_log_sequence());
+    if (it != snapshots_.end()) tiles = it->second;
+  }
+  if (tiles == nullptr) {
+    reply->set_error("partition " + PartitionName(key_) + " has no snapshot at log entry " +
+                     std::to_string(request.at_log_sequence()) +
+                     " (taken over since, or too many exports since)");
+    return;
+  }
+  reply->set_log_sequence(request.at_log_sequence());
+  int64_t bytes = 0;
+  uint32_t skipped = 0;
+  for (const auto& [k, tile] : *tiles) {
+    if (k.x < lo.x || k.x > hi.x || k.y < lo.y || k.y > hi.y) continue;
+    if (skipped < request.skip()) {
+      ++skipped;
+      continue;
+    }
+    std::string encoded = storage::EncodeTile(*tile);
+    if (bytes + static_cast<int64_t>(encoded.size()) + 16 > budget && reply->keys_size() > 0) {
+      reply->set_more(true);
+      return;
+    }
+    bytes += static_cast<int64_t>(encoded.size()) + 16;
+    v1::TileKey* key = reply->add_keys();
+    key->set_x(k.x);
+    key->set_y(k.y);
+    reply->add_tiles(std::move(encoded));
+  }
+}
+
 void PartitionReplica::ApplyClear(uint64_t sequence, const CellBox& box) {
   CellBox cut;
   cut.min = {std::max(box.min.x, halo_.min.x), std::max(box.min.y, halo_.min.y)};
@@ -207,7 +264,8 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
   v1::TileFetchReply reply;
   if (!request.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
     reply.set_error("tile fetch: the request does not decode");
-  } else if (!WaitFor(request.min_log_sequence(), kFetchWaitMs)) {
+  } else if (!WaitFor(std::max(request.min_log_sequence(), request.at_log_sequence()),
+                      kFetchWaitMs)) {
     reply.set_error("partition " + PartitionName(key_) + " has read the log up to " +
                     std::to_string(Stats().log_sequence) + ", not yet " +
                     std::to_string(request.min_log_sequence()));
@@ -219,8 +277,12 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
     const int64_t budget = nats_.max_payload() - 4096;
     int64_t bytes = 0;
     uint32_t skipped = 0;
+    if (request.at_log_sequence() != 0) {
+      ServeSnapshot(request, lo, hi, budget, &reply);
+      lo = {hi.x + 1, hi.y + 1};  // served: nothing from the live map
+    }
     std::shared_lock map_lock(map_mu_);
-    {
+    if (request.at_log_sequence() == 0) {
       std::lock_guard progress(progress_mu_);
       reply.set_log_sequence(applied_);
     }

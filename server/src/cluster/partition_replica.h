@@ -83,6 +83,10 @@ class PartitionReplica {
   void Apply(uint64_t sequence, const PreparedScan* prepared);
   // Applies entry `sequence`, the retirement of `robot_id`: its sequence state is forgotten.
   void ApplyRetire(uint64_t sequence, const std::string& robot_id);
+  // Applies entry `sequence`, an export's snapshot point: keeps a copy of the partition's own
+  // tiles as of it (the newest kKeptSnapshots), served to fetches with at_log_sequence.
+  void ApplyExport(uint64_t sequence);
+  static constexpr size_t kKeptSnapshots = 4;
   // Applies entry `sequence`, a clear of `box` (map cells): the cells of the box in this
   // partition and its halo are forgotten, as a single server forgets them.
   void ApplyClear(uint64_t sequence, const CellBox& box);
@@ -108,6 +112,10 @@ class PartitionReplica {
   void StartServing();
   static void OnFetch(natsConnection* nc, natsSubscription* sub, natsMsg* msg, void* self);
   void ServeFetch(natsMsg* msg);
+  // Fills `reply` from the snapshot at request.at_log_sequence(): tiles in [lo, hi] from
+  // request.skip(), at most `budget` bytes.
+  void ServeSnapshot(const v1::TileFetchRequest& request, TileKey lo, TileKey hi, int64_t budget,
+                     v1::TileFetchReply* reply) const;
   // Counts the partition's tiles with lo <= key <= hi into `out` (map_mu_ held, shared).
   void SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const;
 
@@ -121,6 +129,10 @@ class PartitionReplica {
 
   mutable std::shared_mutex map_mu_;  // the log reader writes, fetches read
   std::unique_ptr<TerrainMap> map_;
+  // Export snapshots by log sequence: the partition's own tiles, sorted by key.
+  mutable std::mutex snapshots_mu_;
+  std::map<uint64_t, std::shared_ptr<const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>>>
+      snapshots_;
 
   mutable std::mutex progress_mu_;
   mutable std::condition_variable progress_cv_;

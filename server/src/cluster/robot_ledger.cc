@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 
 namespace bgkmap::cluster {
@@ -35,6 +36,7 @@ uint64_t RobotLedger::Seed() {
           robots_[robot].last_sequence = sequence;
         }
         last_ = (*c)->log_sequence;
+        first_ = last_ + 1;
         spdlog::info("event=robot_ledger_seeded log_sequence={} partition={} robots={}", last_,
                      PartitionName(p), robots_.size());
         return last_ + 1;
@@ -112,6 +114,11 @@ void RobotLedger::Read(uint64_t sequence, natsMsg* msg) {
       ++retirements_[header->robot_id];
     }
   }
+  const bool changed = header.ok() && ((header->kind == LogEntryHeader::Kind::kScan &&
+                                        verdict.admission == RobotAdmission::kAdmitted) ||
+                                       header->kind == LogEntryHeader::Kind::kClear ||
+                                       header->kind == LogEntryHeader::Kind::kImport);
+  if (!changed) unchanged_.push_back(sequence);
   verdicts_.emplace(sequence, std::move(verdict));
   while (verdicts_.size() > kKeptVerdicts) verdicts_.erase(verdicts_.begin());
   last_ = sequence;
@@ -149,6 +156,13 @@ std::vector<RobotStats> RobotLedger::Robots() const {
   out.reserve(robots_.size());
   for (const auto& [id, robot] : robots_) out.push_back(robot);
   return out;
+}
+
+uint64_t RobotLedger::ChangesAt(uint64_t sequence) const {
+  std::lock_guard lock(mu_);
+  if (sequence < first_) return 0;
+  const auto unchanged = std::upper_bound(unchanged_.begin(), unchanged_.end(), sequence);
+  return sequence - first_ + 1 - static_cast<uint64_t>(unchanged - unchanged_.begin());
 }
 
 uint64_t RobotLedger::scans_admitted() const {

@@ -63,6 +63,11 @@ class RobotLedger {
   uint64_t Epoch(const std::string& robot_id) const;
   std::vector<RobotStats> Robots() const;  // sorted by id, as of the last entry read
   uint64_t last_sequence() const;          // the last entry read (0: none)
+  // How many of the entries up to `sequence` (read already) changed the map: admitted scans,
+  // clears and imports; refused scans, retirements, exports and entries that fail their HMAC
+  // change nothing. What a single server fed the same changes calls the version of the map
+  // after them (ExportMap writes it; counted from the ledger's start).
+  uint64_t ChangesAt(uint64_t sequence) const;
   // Scans admitted since the ledger started (its log's start or checkpoint): the cluster's
   // scans applied, as a single server counts them since its start.
   uint64_t scans_admitted() const;
@@ -85,6 +90,8 @@ class RobotLedger {
   mutable std::condition_variable read_cv_;
   uint64_t last_ = 0;
   uint64_t scans_admitted_ = 0;
+  std::vector<uint64_t> unchanged_;  // the entries that changed nothing, ascending
+  uint64_t first_ = 1;               // the first entry the ledger reads
   std::map<std::string, RobotStats> robots_;
   std::map<std::string, uint64_t> retirements_;
   std::map<uint64_t, LedgerVerdict> verdicts_;  // the newest kKeptVerdicts entries' verdicts

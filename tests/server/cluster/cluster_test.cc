@@ -15,6 +15,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -188,13 +190,11 @@ TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
 
   const std::string not_yet =
       " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, RetireRobot and Info are";
+      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, ExportMap, RetireRobot and Info are";
   auto expect_unimplemented = [&](const RpcStatus& status, const std::string& call) {
     EXPECT_EQ(status.code(), RpcCode::kUnimplemented) << call << ": " << status.message();
     EXPECT_EQ(status.message(), call + not_yet);
   };
-  expect_unimplemented(a.client().ExportMap(std::nullopt, dir.Sub("map.bgkmap")).status(),
-                       "ExportMap");
   expect_unimplemented(a.client().CorrectPoses("r1", {{1, scans[0].pose}}).status(),
                        "CorrectPoses");
   expect_unimplemented(a.client().RemoveScans("r1", 2, 1).status(),  // first > last: still
@@ -584,6 +584,114 @@ TEST(ClusterTest, ImportWhoseSumsWouldOverflowIsRefusedAsByOneServer) {
     ASSERT_TRUE(region.ok()) << region.status().message();
     EXPECT_TRUE(SameBits(*region, one.client().QueryRegion({box, {}, 1}).value()));
   }
+}
+
+// The bytes of a file (an exported archive).
+std::string FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Whether two archives are the same bytes, else their sizes and the first offset that differs.
+::testing::AssertionResult SameFile(const std::string& a, const std::string& b) {
+  const std::string x = FileBytes(a), y = FileBytes(b);
+  if (x == y && !x.empty()) return ::testing::AssertionSuccess();
+  size_t i = 0;
+  while (i < x.size() && i < y.size() && x[i] == y[i]) ++i;
+  return ::testing::AssertionFailure() << a << " (" << x.size() << " bytes) and " << b << " ("
+                                       << y.size() << " bytes) differ from byte " << i;
+}
+
+// ExportMap through either shard, of the whole map and of a box across partitions, is the single
+// server's archive of the same scans byte for byte (header, versions, tiles in key order,
+// trailer); an export taken while scans stream in through the other shard holds exactly the
+// scans before its entry in the log (a single server fed those exports the same bytes).
+// Mutations (the first run failed so): the archive's version and its tiles' versions left as log
+// sequences (the export entries before the last export shift them: the bytes differ).
+TEST(ClusterTest, ExportsEqualSingleServerByteForByte) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  const size_t half = scans.size() / 2;
+  ServerFixture single;
+  InsertAll(single.client(), scans, 0, half);
+  const MetricBox box{-6.0, -6.0, 7.0, 7.0};
+  ASSERT_TRUE(single.client().ExportMap(std::nullopt, dir.Sub("single.bgkmap")).ok());
+  ASSERT_TRUE(single.client().ExportMap(box, dir.Sub("single-box.bgkmap")).ok());
+  ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
+  InsertAll(a.client(), scans, 0, half);
+  // The rest of the scans stream in through a while b exports.
+  std::thread more([&] { InsertAll(a.client(), scans, half, scans.size()); });
+  RpcResult<ExportResult> whole = b.client().ExportMap(std::nullopt, dir.Sub("whole.bgkmap"));
+  more.join();
+  ASSERT_TRUE(whole.ok()) << whole.status().message();
+  RpcResult<ExportResult> boxed = a.client().ExportMap(box, dir.Sub("box.bgkmap"));
+  ASSERT_TRUE(boxed.ok()) << boxed.status().message();
+  InsertAll(single.client(), scans, half, scans.size());
+  ASSERT_TRUE(single.client().ExportMap(box, dir.Sub("single-box-all.bgkmap")).ok());
+  EXPECT_TRUE(SameFile(dir.Sub("box.bgkmap"), dir.Sub("single-box-all.bgkmap")));
+  ASSERT_TRUE(single.client().ExportMap(std::nullopt, dir.Sub("single-all.bgkmap")).ok());
+  RpcResult<ExportResult> all = b.client().ExportMap(std::nullopt, dir.Sub("all.bgkmap"));
+  ASSERT_TRUE(all.ok()) << all.status().message();
+  EXPECT_TRUE(SameFile(dir.Sub("all.bgkmap"), dir.Sub("single-all.bgkmap")));
+  // The export during ingest holds exactly the scans before its entry: its version says how many,
+  // and a single server fed those exports the same bytes.
+  Result<std::unique_ptr<storage::MapArchiveReader>> during =
+      storage::MapArchiveReader::Open(dir.Sub("whole.bgkmap"));
+  ASSERT_TRUE(during.ok()) << during.status().ToString();
+  const uint64_t k = (*during)->metadata().map_version;
+  ASSERT_GE(k, half);
+  ASSERT_LE(k, scans.size());
+  ServerFixture prefix;
+  InsertAll(prefix.client(), scans, 0, k);
+  ASSERT_TRUE(prefix.client().ExportMap(std::nullopt, dir.Sub("prefix.bgkmap")).ok());
+  EXPECT_TRUE(SameFile(dir.Sub("whole.bgkmap"), dir.Sub("prefix.bgkmap"))) << k << " scans";
+  std::printf("the export during ingest holds %llu of %zu scans\n",
+              static_cast<unsigned long long>(k), scans.size());
+}
+
+// A shard killed with -9, then an export and a retirement through the survivor while it takes
+// the dead shard's partitions over (from their checkpoints, replaying the log through the
+// export's entry): the archive is the single server's byte for byte, and r2's scans sent again
+// from 1 after its retirement are applied as a single server applies them.
+TEST(ClusterTest, ExportAndRetirementDuringATakeover) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  ServerFixture single;
+  InsertAll(single.client(), scans, 0, scans.size());
+  ASSERT_TRUE(single.client().ExportMap(std::nullopt, dir.Sub("single.bgkmap")).ok());
+  BgkmapdProcess a(NodeArgs(nats.urls(), "a")), b(NodeArgs(nats.urls(), "b"));
+  ASSERT_TRUE(a.started() && b.started());
+  Client to_a(a.target());
+  InsertAll(to_a, scans, 0, scans.size());
+  ASSERT_FALSE(b.WaitForLine("event=partition_checkpointed", 20).empty()) << "b wrote none";
+  b.Signal(SIGKILL);
+  RpcResult<ExportResult> exported = to_a.ExportMap(std::nullopt, dir.Sub("shard.bgkmap"));
+  ASSERT_TRUE(exported.ok()) << exported.status().message();
+  EXPECT_TRUE(SameFile(dir.Sub("shard.bgkmap"), dir.Sub("single.bgkmap")));
+  // b's partitions were taken over from their checkpoints, not from the log's start.
+  bool restored = false;
+  for (const std::string& line : a.Log()) {
+    restored = restored || (line.find("event=partition_taken") != std::string::npos &&
+                            line.find("restored_from=0 ") == std::string::npos);
+  }
+  EXPECT_TRUE(restored) << "no partition was restored from a checkpoint";
+  RpcResult<RetiredRobot> retired = to_a.RetireRobot("r2");
+  RpcResult<RetiredRobot> want = single.client().RetireRobot("r2");
+  ASSERT_TRUE(retired.ok() && want.ok()) << retired.status().message();
+  EXPECT_EQ(retired->last_sequence, want->last_sequence);
+  EXPECT_EQ(retired->robots, want->robots);
+  std::vector<OwnedScan> again = SubScans("r2", 4);
+  again.resize(3);
+  InsertAll(single.client(), again, 0, again.size());
+  InsertAll(to_a, again, 0, again.size());
+  const MetricBox street = KnownBox(*single.server().SnapshotMap());
+  RpcResult<Raster> got = to_a.QueryRegion({street, {}, 1});
+  ASSERT_TRUE(got.ok()) << got.status().message();
+  EXPECT_TRUE(SameBits(*got, single.client().QueryRegion({street, {}, 1}).value()));
 }
 
 }  // namespace
