@@ -294,6 +294,18 @@ TEST(ClusterTest, TrimmedLogLosesNothing) {
   ASSERT_FALSE(c.WaitForLine("event=partition_serving", 15).empty()) << "c took nothing";
   EXPECT_TRUE(EventuallySameAnswers(to_c, ref, std::chrono::steady_clock::now()));
   EXPECT_TRUE(EventuallySameAnswers(to_a, ref, std::chrono::steady_clock::now()));
+  // c's robot ledger started on the trimmed log from a checkpoint's robot table: it knows the
+  // robots as the single server does (mutation: a ledger reading the trimmed log from its first
+  // entry knows fewer scans of them).
+  RpcResult<MapInfo> info = to_c.Info();
+  ASSERT_TRUE(info.ok()) << info.status().message();
+  const MapInfo want = ref.single.client().Info().value();
+  ASSERT_EQ(info->robots.size(), want.robots.size());
+  for (size_t i = 0; i < want.robots.size(); ++i) {
+    EXPECT_EQ(info->robots[i].robot_id, want.robots[i].robot_id);
+    EXPECT_EQ(info->robots[i].last_sequence, want.robots[i].last_sequence);
+  }
+  EXPECT_FALSE(c.FindLine("event=robot_ledger_seeded").empty());
   std::printf("%s\n", trimmed.c_str());
 }
 
