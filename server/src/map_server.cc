@@ -149,7 +149,8 @@ struct MapServer::Impl {
     Result<std::unique_ptr<cluster::ClusterNode>> joined = cluster::ClusterNode::Start(
         config.cluster, config.map, params_yaml.c_str(), prepare,
         Georeference{config.georeference.crs, config.georeference.origin},
-        [this](std::function<void()> task) { boost::asio::post(query_pool, std::move(task)); });
+        [this](std::function<void()> task) { boost::asio::post(query_pool, std::move(task)); },
+        RobotSequenceRule{config.limits.max_robots, config.limits.max_sequence_jump});
     if (!joined.ok()) return joined.status();
     cluster = std::move(joined).value();
     // A shard's watchers learn of changes anywhere in the cluster from the log.

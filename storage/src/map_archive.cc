@@ -241,4 +241,23 @@ Result<ImportReport> ImportMap(const std::string& path, TerrainMap& map) {
   return report;
 }
 
+bool CropTileToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Tile& tile) {
+  const CellIndex origin = geometry.TileOrigin(key);
+  const int n = tile.tile_size();
+  const bool inside = origin.x >= box.min.x && origin.y >= box.min.y &&
+                      origin.x + n - 1 <= box.max.x && origin.y + n - 1 <= box.max.y;
+  if (inside) return true;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const CellIndex cell{origin.x + x, origin.y + y};
+      if (cell.x >= box.min.x && cell.x <= box.max.x && cell.y >= box.min.y &&
+          cell.y <= box.max.y) {
+        continue;
+      }
+      tile.ClearCell(y * n + x);
+    }
+  }
+  return !IsZeroTile(tile);
+}
+
 }  // namespace bgkmap::storage

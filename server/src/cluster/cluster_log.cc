@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <optional>
 #include <sstream>
 
 #include "bgkmap/v1/types.pb.h"
@@ -62,8 +63,21 @@ namespace {
 // A scan's robot, for its entry's headers.
 struct RobotHeaders {
   const std::string& robot_id;
-  uint64_t sequence;
+  std::optional<uint64_t> sequence;  // none: a retirement
 };
+
+// A random message id: a retry through an election is stored once, and the same entry
+// published again by anyone within the dedupe window too (the id is signed).
+Result<std::string> RandomMessageId(const std::string& prefix) {
+  unsigned char nonce[16];
+  if (RAND_bytes(nonce, sizeof nonce) != 1) return Status::IoError("cluster: no random bytes");
+  std::string id = prefix;
+  for (unsigned char b : nonce) {
+    id += "0123456789abcdef"[b >> 4];
+    id += "0123456789abcdef"[b & 15];
+  }
+  return id;
+}
 
 // Appends `payload` on `subject` with the partitions it touches, the robot's headers when
 // `robot` is set and message id `msg_id` when not empty; retried through a leader's election
@@ -91,7 +105,8 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
     if (!parts.empty()) parts += ' ';
     parts += PartitionName(p);
   }
-  st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
+  // (None for an entry that names no partition: a header's empty value does not survive NATS.)
+  if (!parts.empty()) st = natsMsgHeader_Set(msg.get(), kTouchedHeader, parts.c_str());
   std::string cells;
   if (st == NATS_OK && !changes.empty()) {
     cells = std::to_string(changes.min.x);
@@ -101,10 +116,13 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
     }
     st = natsMsgHeader_Set(msg.get(), kChangesHeader, cells.c_str());
   }
-  const std::string sequence = robot != nullptr ? std::to_string(robot->sequence) : "";
+  const std::string sequence =
+      robot != nullptr && robot->sequence ? std::to_string(*robot->sequence) : "";
   if (robot != nullptr) {
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kRobotHeader, robot->robot_id.c_str());
-    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
+    if (st == NATS_OK && robot->sequence) {
+      st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
+    }
   }
   if (trust.keyed()) {
     const std::string time = std::to_string(ClusterTrust::NowNs());
@@ -142,8 +160,8 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
 
 Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
                             const std::string& encoded, const std::string& robot_id,
-                            uint64_t sequence, const std::vector<PartitionKey>& touched,
-                            const CellBox& changes) {
+                            uint64_t sequence, const std::string& id_suffix,
+                            const std::vector<PartitionKey>& touched, const CellBox& changes) {
   if (static_cast<int64_t>(encoded.size()) + 1024 > nats.max_payload()) {
     return Status::OutOfRange("scan: " + std::to_string(encoded.size()) +
                               " bytes exceed the NATS servers' max_payload of " +
@@ -152,7 +170,7 @@ Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
   // The robot's own id and sequence: a retry, through this node or another, is stored once.
   const RobotHeaders robot{robot_id, sequence};
   return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot,
-                robot_id + "/" + std::to_string(sequence));
+                robot_id + "/" + std::to_string(sequence) + id_suffix);
 }
 
 Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
@@ -162,17 +180,21 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, 
   cells.set_min_y(box.min.y);
   cells.set_max_x(box.max.x);
   cells.set_max_y(box.max.y);
-  // A random message id: a retry through an election is stored once, and the same entry
-  // published again by anyone within the dedupe window too (the id is signed).
-  unsigned char nonce[16];
-  if (RAND_bytes(nonce, sizeof nonce) != 1) return Status::IoError("cluster: no random bytes");
-  std::string id = "clear/";
-  for (unsigned char b : nonce) {
-    id += "0123456789abcdef"[b >> 4];
-    id += "0123456789abcdef"[b & 15];
-  }
+  Result<std::string> id = RandomMessageId("clear/");
+  if (!id.ok()) return id.status();
   Result<Appended> a =
-      Append(nats, trust, kClearSubject, cells.SerializeAsString(), touched, box, nullptr, id);
+      Append(nats, trust, kClearSubject, cells.SerializeAsString(), touched, box, nullptr, *id);
+  if (!a.ok()) return a.status();
+  return a->sequence;
+}
+
+Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
+                              const std::string& robot_id) {
+  Result<std::string> id = RandomMessageId("retire/");
+  if (!id.ok()) return id.status();
+  // Every replica reads every entry's robot headers, so no partition is named.
+  const RobotHeaders robot{robot_id, std::nullopt};
+  Result<Appended> a = Append(nats, trust, kRetireSubject, "", {}, CellBox{}, &robot, *id);
   if (!a.ok()) return a.status();
   return a->sequence;
 }
@@ -183,6 +205,14 @@ Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
   // Its id as the message id: an import retried through an election is stored once.
   Result<Appended> a =
       Append(nats, trust, kImportSubject, manifest, touched, changes, nullptr, "import/" + id);
+  if (!a.ok()) return a.status();
+  return a->sequence;
+}
+
+Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust) {
+  Result<std::string> id = RandomMessageId("export/");
+  if (!id.ok()) return id.status();
+  Result<Appended> a = Append(nats, trust, kExportSubject, "", {}, CellBox{}, nullptr, *id);
   if (!a.ok()) return a.status();
   return a->sequence;
 }
@@ -264,22 +294,27 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
   const std::string_view subject(natsMsg_GetSubject(msg));
   h.kind = subject == kClearSubject    ? LogEntryHeader::Kind::kClear
            : subject == kImportSubject ? LogEntryHeader::Kind::kImport
+           : subject == kRetireSubject ? LogEntryHeader::Kind::kRetire
+           : subject == kExportSubject ? LogEntryHeader::Kind::kExport
                                        : LogEntryHeader::Kind::kScan;
   const bool scan = h.kind == LogEntryHeader::Kind::kScan;
-  if (natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK ||
-      (scan && (natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK ||
-                natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK))) {
+  const bool robot_entry = scan || h.kind == LogEntryHeader::Kind::kRetire;
+  const bool no_partition =
+      h.kind == LogEntryHeader::Kind::kRetire || h.kind == LogEntryHeader::Kind::kExport;
+  if ((natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK && !no_partition) ||
+      (robot_entry && natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK) ||
+      (scan && natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK)) {
     return Status::DataLoss("cluster log entry without bgkmap headers");
   }
+  if (robot_entry) h.robot_id = robot;
   if (scan) {
-    h.robot_id = robot;
     const std::string_view seq(sequence);
     if (auto [end, ec] = std::from_chars(seq.data(), seq.data() + seq.size(), h.robot_sequence);
         ec != std::errc() || end != seq.data() + seq.size()) {
       return Status::DataLoss("cluster log entry: bad " + std::string(kSequenceHeader));
     }
   }
-  std::istringstream parts{std::string(touched)};
+  std::istringstream parts{std::string(touched != nullptr ? touched : "")};
   for (std::string name; parts >> name;) {
     std::optional<PartitionKey> p = ParsePartitionName(name);
     if (!p) return Status::DataLoss("cluster log entry: bad partition '" + name + "'");

@@ -37,6 +37,11 @@ inline constexpr const char* kClearSubject = "bgkmap.log.clear";  // a v1::CellB
 // beforehand in the checkpoint stream, so the log entry itself stays small and the import is one
 // entry (atomic in the log's order, as a single server's import is one change).
 inline constexpr const char* kImportSubject = "bgkmap.log.import";
+// A robot's retirement (RetireRobot): no payload; the robot is in the entry's robot header.
+inline constexpr const char* kRetireSubject = "bgkmap.log.retire";
+// An export's snapshot point (ExportMap): no payload; every replica keeps a copy of its own tiles
+// as of this entry for the exporting shard to gather.
+inline constexpr const char* kExportSubject = "bgkmap.log.export";
 
 struct LogStreamOptions {
   int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
@@ -53,12 +58,14 @@ struct Appended {
 
 // Appends robot `robot_id`'s scan `sequence`, `encoded` as it was sent (a bgkmap.v1.Scan), once
 // JetStream has stored it on a majority of its replicas (the durability point of a cluster
-// ack). OutOfRange when it exceeds the servers' max_payload; Unavailable when the log cannot be
-// reached in time.
+// ack). Its message id, which the log stores once, is "robot/sequence" + `id_suffix` (what tells
+// a new scan from a retry: after a retirement the robot's sequence starts again, and a scan whose
+// entry the robot-sequence rule refused may be sent again and judged again). OutOfRange when it
+// exceeds the servers' max_payload; Unavailable when the log cannot be reached in time.
 Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
                             const std::string& encoded, const std::string& robot_id,
-                            uint64_t sequence, const std::vector<PartitionKey>& touched,
-                            const CellBox& changes);
+                            uint64_t sequence, const std::string& id_suffix,
+                            const std::vector<PartitionKey>& touched, const CellBox& changes);
 
 // Appends a clear of `box` (map cells), ordered with the scans like a single server's clear.
 Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
@@ -68,6 +75,14 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, 
 Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
                               const std::string& id, const std::string& manifest,
                               const std::vector<PartitionKey>& touched, const CellBox& changes);
+
+// Appends the retirement of robot `robot_id`: every replica and every ledger forgets the robot's
+// sequence state when it reads the entry (robot_ledger.h).
+Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
+                              const std::string& robot_id);
+
+// Appends an export's snapshot point (kExportSubject).
+Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust);
 
 // An ordered reader of the log from entry `start` (whole entries, or their headers only),
 // recreated by nats.c after a failure. Unavailable if the log cannot be read.
@@ -84,8 +99,8 @@ Result<uint64_t> FirstSequence(const NatsClient& nats);
 Status TrimLog(const NatsClient& nats, uint64_t keep_from);
 
 struct LogEntryHeader {
-  enum class Kind { kScan, kClear, kImport };
-  Kind kind = Kind::kScan;  // clears and imports have no robot
+  enum class Kind { kScan, kClear, kImport, kRetire, kExport };
+  Kind kind = Kind::kScan;  // clears and imports have no robot; a retirement no robot_sequence
   std::string robot_id;
   uint64_t robot_sequence = 0;
   std::vector<PartitionKey> touched;  // sorted

@@ -59,11 +59,12 @@ class JetStreamWait {
 ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
                          std::unique_ptr<ClusterTrust> trust, std::unique_ptr<NatsClient> nats,
                          std::unique_ptr<Membership> members, Georeference georeference,
-                         Executor executor)
+                         Executor executor, RobotSequenceRule rule)
     : config_(config),
       params_(params),
       prepare_(std::move(prepare)),
       executor_(std::move(executor)),
+      rule_(rule),
       georeference_(std::move(georeference)),
       layout_(params, static_cast<int>(config.partition_tiles)),
       trust_(std::move(trust)),
@@ -72,11 +73,12 @@ ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, S
   // A takeover waits for the lease to expire, then for the new owner to read the log.
   reads_ = std::make_unique<ClusterReads>(*nats_, *trust_, layout_, *members_, params_,
                                           static_cast<int64_t>(config.lease_s * 1000) + 10000);
+  ledger_ = std::make_unique<RobotLedger>(*nats_, *trust_, *members_, rule_);
 }
 
 Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
     const ClusterConfig& config, const MapParams& params, const std::string& params_yaml,
-    ScanPreparer prepare, Georeference georeference, Executor executor) {
+    ScanPreparer prepare, Georeference georeference, Executor executor, RobotSequenceRule rule) {
   // The key first: a shard that cannot read it does not touch NATS. (Without one, the
   // configuration was checked to say cluster.insecure: true.)
   Result<std::unique_ptr<ClusterTrust>> trust = ClusterTrust::Open(config.key_file);
@@ -122,7 +124,7 @@ Result<std::unique_ptr<ClusterNode>> ClusterNode::Start(
   }
   std::unique_ptr<ClusterNode> node(new ClusterNode(
       config, params, std::move(prepare), std::move(trust).value(), std::move(nats).value(),
-      std::move(opened), std::move(georeference), std::move(executor)));
+      std::move(opened), std::move(georeference), std::move(executor), rule));
   if (Status s = wait.Until("the first heartbeat", [&] { return node->members_->Heartbeat(); });
       !s.ok()) {
     return s;
@@ -143,6 +145,7 @@ void ClusterNode::FollowChanges(LogChangeFeed::OnChange on_change) {
 
 ClusterNode::~ClusterNode() {
   feed_.reset();
+  ledger_.reset();
   {
     std::lock_guard lock(stop_mu_);
     stop_ = true;
@@ -157,8 +160,8 @@ ClusterNode::~ClusterNode() {
   replicas_.clear();
 }
 
-Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const PreparedScan& prepared) {
-  const std::string encoded = origin.encoded();
+Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const std::string& encoded,
+                                     const PreparedScan& prepared, const std::string& id_suffix) {
   // Refused before anything is recorded: the log takes messages up to the servers' max_payload.
   if (static_cast<int64_t>(encoded.size()) + 1024 > nats_->max_payload()) {
     return Status::OutOfRange("scan: " + std::to_string(encoded.size()) +
@@ -173,7 +176,8 @@ Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const PreparedSca
   for (PartitionKey p : touched) {
     if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
   }
-  return AppendScan(*nats_, *trust_, encoded, origin.robot_id, origin.sequence, touched, reach);
+  return AppendScan(*nats_, *trust_, encoded, origin.robot_id, origin.sequence, id_suffix, touched,
+                    reach);
 }
 
 Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
@@ -369,7 +373,7 @@ std::shared_ptr<PartitionReplica> ClusterNode::TakePartition(PartitionKey p, uin
   spdlog::info("event=partition_taken partition={} node={} restored_from={} tiles={}",
                PartitionName(p), config_.node, from, tiles);
   return std::make_shared<PartitionReplica>(*nats_, *trust_, layout_, p, std::move(map).value(),
-                                            end, std::move(restored).value());
+                                            end, rule_, std::move(restored).value());
 }
 
 std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
@@ -509,6 +513,14 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
       }
     }
     for (const auto& r : to) r->ApplyImport(sequence, tiles);
+    return;
+  }
+  if (header.ok() && header->kind == LogEntryHeader::Kind::kExport) {
+    for (const auto& r : to) r->ApplyExport(sequence);
+    return;
+  }
+  if (header.ok() && header->kind == LogEntryHeader::Kind::kRetire) {
+    for (const auto& r : to) r->ApplyRetire(sequence, header->robot_id);
     return;
   }
   if (header.ok() && header->kind == LogEntryHeader::Kind::kClear) {

@@ -27,6 +27,7 @@
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 #include "cluster/partition_replica.h"
+#include "cluster/robot_ledger.h"
 #include "serving/map_port.h"
 
 namespace bgkmap::cluster {
@@ -47,12 +48,13 @@ class ClusterNode final : public MapPort {
  public:
   // Connects, creates or checks the log and the buckets, and starts taking partitions.
   // `georeference`: the configured one (a shard keeps it in memory); `executor`: where reads
-  // that ask the log run instead of the caller's thread.
+  // that ask the log run instead of the caller's thread; `rule`: server.max_robots and
+  // server.max_sequence_jump (every shard must run the same).
   static Result<std::unique_ptr<ClusterNode>> Start(const ClusterConfig& config,
                                                     const MapParams& params,
                                                     const std::string& params_yaml,
                                                     ScanPreparer prepare, Georeference georeference,
-                                                    Executor executor);
+                                                    Executor executor, RobotSequenceRule rule);
   ~ClusterNode();  // leaves: stops the heartbeat (its partitions move when the lease expires)
 
   // Reports every later log entry's changed cells to `on_change` (Watch on this node); once.
@@ -60,11 +62,14 @@ class ClusterNode final : public MapPort {
   ClusterStatus Describe() const;
   const PartitionLayout& layout() const { return layout_; }
 
-  // ---- MapPort. Changes go to the log: a scan, a clear or an import is answered (on the
-  // caller's thread) once the log has stored it, its map version the entry's log sequence.
-  // Robots' sequence numbers are judged by the partitions as they read the log; a retry the
-  // log stores once is answered as a duplicate. Exports, pose corrections, scan removals and
-  // robot retirements are not distributed yet: Unimplemented.
+  // ---- MapPort. Changes go to the log: a scan, a clear, an import or a retirement is answered
+  // (on the caller's thread) once the log has stored it, its map version the entry's log
+  // sequence. Robots' sequence numbers (and server.max_robots, server.max_sequence_jump) are
+  // judged in the log's order by the partitions and by this node's RobotLedger; a scan's or a
+  // retirement's answer is the ledger's verdict on its entry. A retry the log stores once is
+  // answered as a duplicate (or refused again, if its entry was). An export is a snapshot point
+  // in the log (Export). Pose corrections and scan removals are not distributed yet:
+  // Unimplemented.
   const MapParams& params() const override { return params_; }
   const GridGeometry& geometry() const override { return layout_.geometry(); }
   Status Offers(Operation operation) const override;
@@ -76,9 +81,9 @@ class ClusterNode final : public MapPort {
                             std::function<void(ScanOutcome)> done,
                             uint64_t* last_sequence = nullptr) override;
   void SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done) override;
-  // Spooled to the system's temporary directory and checked like a single server's; the tiles
-  // are then stored beside the log and one entry names them (AppendImport). Sums that would
-  // overflow are not checked (no shard holds every tile).
+  // Spooled to the system's temporary directory and checked like a single server's (sums that
+  // would not be finite: CheckImportSums); the tiles are then stored beside the log and one
+  // entry names them (AppendImport).
   Result<std::unique_ptr<ArchiveUpload>> BeginImport() override;
   void SubmitExport(const std::optional<CellBox>& box,
                     std::function<void(Result<std::unique_ptr<ArchiveChunks>>)> done) override;
@@ -105,26 +110,47 @@ class ClusterNode final : public MapPort {
                                                  uint64_t since) override {
     return reads_->TilesChangedSince(min, max, since);
   }
-  // Info: the shard's place in the cluster; its counts are its own (empty) local map's.
+  // Info: the shard's place in the cluster, and the cluster's counts as of the last
+  // ReadVersion (which gathers them from the partitions' owners; State() never waits on them).
   uint64_t known_version() const override { return reads_->known_version(); }
-  std::vector<RobotStats> Robots() const override { return {}; }
+  // The cluster's robots as the ledger has read the log (counters since the log's start or the
+  // checkpoint the ledger started from; no stamps, points or poses: the headers carry none).
+  std::vector<RobotStats> Robots() const override { return ledger_->Robots(); }
   MapState State(bool with_disk_usage = false) override;
+  // On a worker: the log's last sequence, and the cluster's counts as of at least it.
   void ReadVersion(std::function<void(uint64_t)> done) override;
 
  private:
   ClusterNode(const ClusterConfig& config, const MapParams& params, ScanPreparer prepare,
               std::unique_ptr<ClusterTrust> trust, std::unique_ptr<NatsClient> nats,
-              std::unique_ptr<Membership> members, Georeference georeference, Executor executor);
+              std::unique_ptr<Membership> members, Georeference georeference, Executor executor,
+              RobotSequenceRule rule);
   // Appends a checked and prepared scan to the log (durable on a majority of the log's replicas
   // when OK). OutOfRange when it is too large for the log; Unavailable if the log cannot be
   // reached.
-  Result<Appended> Append(const ScanOrigin& origin, const PreparedScan& prepared);
+  // `encoded`: origin.encoded(), taken once; `id_suffix`: AppendScan's.
+  Result<Appended> Append(const ScanOrigin& origin, const std::string& encoded,
+                          const PreparedScan& prepared, const std::string& id_suffix);
+  // Appends the scan as SubmitScan does, and finds the ledger's verdict on its entry. A copy the
+  // log stored already is a retry, answered by that entry's verdict, unless that entry was
+  // refused by the robot-sequence rule (then the scan is appended again after it, to be judged
+  // again as a single server judges a scan sent again) or its robot was retired since (then it
+  // is a new scan of the robot's next epoch).
+  Result<std::pair<Appended, std::optional<LedgerVerdict>>> AppendJudged(
+      const ScanOrigin& origin, const PreparedScan& prepared);
   // Appends a clear of `box` (map cells); its log sequence number once stored.
   Result<uint64_t> AppendClear(const CellBox& box);
   // Appends an import (a merge) of `tiles` at `keys`: the tiles are stored first, then one
   // log entry names them. Its log sequence number once stored.
   Result<uint64_t> AppendImport(std::span<const TileKey> keys,
                                 std::span<const std::unique_ptr<Tile>> tiles);
+  // ExportMap: appends an export's snapshot point and gathers the tiles of the partitions that
+  // meet `box` (all with data without one) exactly as of it from their owners.
+  Result<std::unique_ptr<ArchiveChunks>> Export(const std::optional<CellBox>& box);
+  // OutOfRange, as TileTable::CheckSumsFinite, if adding `tiles` to the cluster's tiles as of
+  // the log's end would give a sum that is not finite (the tiles gathered from their owners).
+  Status CheckImportSums(std::span<const TileKey> keys,
+                         std::span<const std::unique_ptr<Tile>> tiles) const;
   Georeference georeference() const;
   // Ties the shard's map in a local frame to `georeference` (an import's).
   Status AdoptGeoreference(const Georeference& georeference);
@@ -150,6 +176,7 @@ class ClusterNode final : public MapPort {
   const MapParams params_;
   const ScanPreparer prepare_;
   const Executor executor_;
+  const RobotSequenceRule rule_;
   mutable std::mutex georeference_mu_;
   Georeference georeference_;  // guarded by georeference_mu_
   const PartitionLayout layout_;
@@ -157,6 +184,9 @@ class ClusterNode final : public MapPort {
   std::unique_ptr<NatsClient> nats_;
   std::unique_ptr<Membership> members_;
   std::unique_ptr<ClusterReads> reads_;
+  std::unique_ptr<RobotLedger> ledger_;
+  mutable std::mutex summary_mu_;
+  MapSummary summary_;  // the cluster's counts as of the last ReadVersion; guarded by summary_mu_
 
   mutable std::mutex mu_;
   std::map<PartitionKey, std::shared_ptr<PartitionReplica>> replicas_;

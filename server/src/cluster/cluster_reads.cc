@@ -143,7 +143,8 @@ uint64_t ClusterReads::applied_version() const {
 }
 
 Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
-                                    TerrainMap& into, std::vector<TileKey>* keys) const {
+                                    TerrainMap& into, std::vector<TileKey>* keys,
+                                    v1::PartitionSummary* summary, uint64_t at) const {
   const std::string subject = "bgkmap.tiles." + PartitionName(p);
   const auto deadline =
       std::chrono::steady_clock::now() + std::chrono::milliseconds(fetch_timeout_ms_);
@@ -154,6 +155,8 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
   request.mutable_max()->set_y(max.y);
   request.set_min_log_sequence(sequence);
   request.set_keys_only(keys != nullptr);
+  request.set_summary_only(summary != nullptr);
+  request.set_at_log_sequence(at);
   // A partition without data has no owner to ask (and anyone else on NATS may answer for it).
   if (Result<bool> has = members_.HasPartition(p); has.ok() && !*has) return Status::Ok();
   std::string why;
@@ -175,6 +178,9 @@ Status ClusterReads::FetchPartition(PartitionKey p, TileKey min, TileKey max, ui
       return Status::DataLoss("partition " + PartitionName(p) + ": the reply does not decode");
     } else if (!reply.error().empty()) {
       why = reply.error();
+    } else if (summary != nullptr) {
+      *summary = reply.summary();
+      return Status::Ok();
     } else {
       if (keys != nullptr) {
         for (const v1::TileKey& k : reply.keys()) keys->push_back({k.x(), k.y()});
@@ -212,6 +218,42 @@ Result<std::unique_ptr<TerrainMap>> ClusterReads::Gather(TileKey min, TileKey ma
     if (Status s = FetchPartition(p, lo, hi, sequence, **map); !s.ok()) return s;
   }
   return map;
+}
+
+Result<std::unique_ptr<TerrainMap>> ClusterReads::GatherAt(
+    const std::vector<PartitionKey>& partitions, uint64_t at) const {
+  Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+  if (!map.ok()) return map.status();
+  for (PartitionKey p : partitions) {
+    if (Status s = FetchPartition(p, layout_.MinTile(p), layout_.MaxTile(p), at, **map, nullptr,
+                                  nullptr, at);
+        !s.ok()) {
+      return s;
+    }
+  }
+  return map;
+}
+
+Result<MapSummary> ClusterReads::Summarize(uint64_t sequence) const {
+  MapSummary out;
+  Result<std::unique_ptr<TerrainMap>> unused = TerrainMap::Create(params_);  // (no tiles come)
+  if (!unused.ok()) return unused.status();
+  for (PartitionKey p : members_.Partitions()) {
+    v1::PartitionSummary s;
+    if (Status st = FetchPartition(p, layout_.MinTile(p), layout_.MaxTile(p), sequence, **unused,
+                                   nullptr, &s);
+        !st.ok()) {
+      return st;
+    }
+    out.tile_count += s.known_tiles();
+    out.known_cells += s.known_cells();
+    if (s.has_known_cells_box()) {
+      const v1::CellBox& b = s.known_cells_box();
+      out.known_bounds.Extend({b.min_x(), b.min_y()});
+      out.known_bounds.Extend({b.max_x(), b.max_y()});
+    }
+  }
+  return out;
 }
 
 Result<Raster> ClusterReads::ReadRegion(const CellBox& box, const std::vector<Layer>& layers,

@@ -10,11 +10,13 @@
 #include <memory>
 
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/v1/cluster.pb.h"
 #include "cluster/cluster_trust.h"
 #include "cluster/membership.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 #include "serving/map_reads.h"
+#include "serving/map_summary.h"
 
 namespace bgkmap::cluster {
 
@@ -43,6 +45,14 @@ class ClusterReads final : public MapReads {
         "a cluster keeps no per-tile change versions: region deltas are not answered");
   }
 
+  // Info's counts of the whole cluster (tiles with a known cell, known cells, their bounds) as of
+  // at least log entry `sequence`: each partition's owner counts its own tiles.
+  Result<MapSummary> Summarize(uint64_t sequence) const;
+  // The tiles of `partitions` exactly as of log entry `at`, an export's snapshot point (each
+  // owner's copy taken when it applied the entry). Unavailable naming a partition whose owner
+  // has no such copy (it was taken over after the entry) once the fetch timeout passes.
+  Result<std::unique_ptr<TerrainMap>> GatherAt(const std::vector<PartitionKey>& partitions,
+                                               uint64_t at) const;
   // The tiles with min <= key <= max as of at least log entry `sequence`, in a map of their own.
   Result<std::unique_ptr<TerrainMap>> Gather(TileKey min, TileKey max, uint64_t sequence) const;
 
@@ -53,9 +63,11 @@ class ClusterReads final : public MapReads {
   // server says nobody subscribes to `subject`.
   natsStatus RequestTrusted(const std::string& subject, const std::string& request,
                             NatsPtr<natsMsg>* reply) const;
-  // The partition's tiles in [min, max] into `into`, or only their keys into `keys` if set.
+  // The partition's tiles in [min, max] into `into`, or only their keys into `keys` if set, or
+  // only their counts into `summary` if set.
   Status FetchPartition(PartitionKey p, TileKey min, TileKey max, uint64_t sequence,
-                        TerrainMap& into, std::vector<TileKey>* keys = nullptr) const;
+                        TerrainMap& into, std::vector<TileKey>* keys = nullptr,
+                        v1::PartitionSummary* summary = nullptr, uint64_t at = 0) const;
 
   const NatsClient& nats_;
   const ClusterTrust& trust_;

@@ -218,6 +218,20 @@ Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats,
   return std::optional<uint64_t>((*manifest)->log_sequence());
 }
 
+Result<std::optional<PartitionCheckpoint>> ReadCheckpointRobots(const NatsClient& nats,
+                                                                const ClusterTrust& trust,
+                                                                PartitionKey p) {
+  Result<std::optional<v1::CheckpointManifest>> manifest = ReadManifest(nats, trust, p);
+  if (!manifest.ok()) return manifest.status();
+  if (!manifest->has_value()) return std::optional<PartitionCheckpoint>();
+  PartitionCheckpoint out;
+  out.log_sequence = (*manifest)->log_sequence();
+  for (const auto& [robot, sequence] : (*manifest)->robot_sequences()) {
+    out.robot_sequences[robot] = sequence;
+  }
+  return std::optional<PartitionCheckpoint>(std::move(out));
+}
+
 Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats,
                                                           const ClusterTrust& trust, PartitionKey p,
                                                           const MapParams& params) {

@@ -46,6 +46,12 @@ Result<std::optional<PartitionCheckpoint>> ReadCheckpoint(const NatsClient& nats
 Result<std::optional<uint64_t>> ReadCheckpointSequence(const NatsClient& nats,
                                                        const ClusterTrust& trust, PartitionKey p);
 
+// The robot table of the newest checkpoint of `p` (nullopt: none), as of its log sequence,
+// without reading its tiles (log_sequence and robot_sequences set; no tiles).
+Result<std::optional<PartitionCheckpoint>> ReadCheckpointRobots(const NatsClient& nats,
+                                                                const ClusterTrust& trust,
+                                                                PartitionKey p);
+
 // An import's tiles, stored in chunks (subject bgkmap.ckpt.import.<id>) before the import's
 // log entry; returns the encoded v1::CheckpointManifest naming them (the entry's payload).
 Result<std::string> StoreImportTiles(const NatsClient& nats, const std::string& id,

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "bgkmap/core/tile_summary.h"
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/v1/cluster.pb.h"
 
@@ -33,6 +34,7 @@ bool TileReplyVerifies(const ClusterTrust& trust, std::string_view mac, std::str
 PartitionReplica::PartitionReplica(const NatsClient& nats, const ClusterTrust& trust,
                                    const PartitionLayout& layout, PartitionKey key,
                                    std::unique_ptr<TerrainMap> map, uint64_t serve_from,
+                                   RobotSequenceRule rule,
                                    std::optional<PartitionCheckpoint> restored)
     : nats_(nats),
       trust_(trust),
@@ -40,7 +42,8 @@ PartitionReplica::PartitionReplica(const NatsClient& nats, const ClusterTrust& t
       key_(key),
       halo_(layout.HaloCells(key)),
       serve_from_(serve_from),
-      map_(std::move(map)) {
+      map_(std::move(map)),
+      sequence_rule_(rule) {
   if (restored) {
     for (auto& [k, tile] : restored->tiles) map_->SetTile(k, *tile);
     robot_last_ = std::move(restored->robot_sequences);
@@ -129,6 +132,68 @@ void PartitionReplica::Apply(uint64_t sequence, const PreparedScan* prepared) {
   if (!serving_ && sequence >= serve_from_) StartServing();
 }
 
+void PartitionReplica::ApplyRetire(uint64_t sequence, const std::string& robot_id) {
+  robot_last_.erase(robot_id);
+  Apply(sequence, nullptr);
+}
+
+void PartitionReplica::ApplyExport(uint64_t sequence) {
+  auto copy = std::make_shared<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>>();
+  {
+    std::shared_lock map_lock(map_mu_);
+    const TileKey lo = layout_.MinTile(key_), hi = layout_.MaxTile(key_);
+    map_->ForEachTile([&](TileKey k, const Tile& t) {
+      if (k.x >= lo.x && k.x <= hi.x && k.y >= lo.y && k.y <= hi.y) {
+        copy->emplace_back(k, std::make_unique<Tile>(t));
+      }
+    });
+  }
+  std::sort(copy->begin(), copy->end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  {
+    std::lock_guard lock(snapshots_mu_);
+    snapshots_[sequence] = std::move(copy);
+    while (snapshots_.size() > kKeptSnapshots) snapshots_.erase(snapshots_.begin());
+  }
+  Apply(sequence, nullptr);
+}
+
+void PartitionReplica::ServeSnapshot(const v1::TileFetchRequest& request, TileKey lo, TileKey hi,
+                                     int64_t budget, v1::TileFetchReply* reply) const {
+  std::shared_ptr<const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> tiles;
+  {
+    std::lock_guard lock(snapshots_mu_);
+    auto it = snapshots_.find(request.at_log_sequence());
+    if (it != snapshots_.end()) tiles = it->second;
+  }
+  if (tiles == nullptr) {
+    reply->set_error("partition " + PartitionName(key_) + " has no snapshot at log entry " +
+                     std::to_string(request.at_log_sequence()) +
+                     " (taken over since, or too many exports since)");
+    return;
+  }
+  reply->set_log_sequence(request.at_log_sequence());
+  int64_t bytes = 0;
+  uint32_t skipped = 0;
+  for (const auto& [k, tile] : *tiles) {
+    if (k.x < lo.x || k.x > hi.x || k.y < lo.y || k.y > hi.y) continue;
+    if (skipped < request.skip()) {
+      ++skipped;
+      continue;
+    }
+    std::string encoded = storage::EncodeTile(*tile);
+    if (bytes + static_cast<int64_t>(encoded.size()) + 16 > budget && reply->keys_size() > 0) {
+      reply->set_more(true);
+      return;
+    }
+    bytes += static_cast<int64_t>(encoded.size()) + 16;
+    v1::TileKey* key = reply->add_keys();
+    key->set_x(k.x);
+    key->set_y(k.y);
+    reply->add_tiles(std::move(encoded));
+  }
+}
+
 void PartitionReplica::ApplyClear(uint64_t sequence, const CellBox& box) {
   CellBox cut;
   cut.min = {std::max(box.min.x, halo_.min.x), std::max(box.min.y, halo_.min.y)};
@@ -199,22 +264,31 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
   v1::TileFetchReply reply;
   if (!request.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
     reply.set_error("tile fetch: the request does not decode");
-  } else if (!WaitFor(request.min_log_sequence(), kFetchWaitMs)) {
+  } else if (!WaitFor(std::max(request.min_log_sequence(), request.at_log_sequence()),
+                      kFetchWaitMs)) {
     reply.set_error("partition " + PartitionName(key_) + " has read the log up to " +
                     std::to_string(Stats().log_sequence) + ", not yet " +
                     std::to_string(request.min_log_sequence()));
   } else {
-    const TileKey lo{std::max(request.min().x(), layout_.MinTile(key_).x),
-                     std::max(request.min().y(), layout_.MinTile(key_).y)};
+    TileKey lo{std::max(request.min().x(), layout_.MinTile(key_).x),
+               std::max(request.min().y(), layout_.MinTile(key_).y)};
     const TileKey hi{std::min(request.max().x(), layout_.MaxTile(key_).x),
                      std::min(request.max().y(), layout_.MaxTile(key_).y)};
     const int64_t budget = nats_.max_payload() - 4096;
     int64_t bytes = 0;
     uint32_t skipped = 0;
+    if (request.at_log_sequence() != 0) {
+      ServeSnapshot(request, lo, hi, budget, &reply);
+      lo = {hi.x + 1, hi.y + 1};  // served: nothing from the live map
+    }
     std::shared_lock map_lock(map_mu_);
-    {
+    if (request.at_log_sequence() == 0) {
       std::lock_guard progress(progress_mu_);
       reply.set_log_sequence(applied_);
+    }
+    if (request.summary_only()) {
+      SummarizeInto(lo, hi, reply.mutable_summary());
+      lo = {hi.x + 1, hi.y + 1};  // nothing more: no keys, no tiles
     }
     for (int x = lo.x; x <= hi.x && !reply.more(); ++x) {
       for (int y = lo.y; y <= hi.y; ++y) {
@@ -252,6 +326,26 @@ void PartitionReplica::ServeFetch(natsMsg* msg) {
     if (natsMsgHeader_Set(answer.get(), kTileReplyMacHeader, mac.c_str()) != NATS_OK) return;
   }
   natsConnection_PublishMsg(nats_.connection(), answer.get());
+}
+
+void PartitionReplica::SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const {
+  // Requires map_mu_ (shared). The tiles of the range that exist, as Info counts them.
+  CellBox bounds;
+  map_->ForEachTile([&](TileKey k, const Tile& t) {
+    if (k.x < lo.x || k.x > hi.x || k.y < lo.y || k.y > hi.y) return;
+    const TileSummary summary = SummarizeTile(layout_.geometry(), k, &t);
+    if (summary.known_cells == 0) return;
+    out->set_known_tiles(out->known_tiles() + 1);
+    out->set_known_cells(out->known_cells() + summary.known_cells);
+    bounds.Extend(summary.known_box.min);
+    bounds.Extend(summary.known_box.max);
+  });
+  if (bounds.empty()) return;
+  v1::CellBox* box = out->mutable_known_cells_box();
+  box->set_min_x(bounds.min.x);
+  box->set_min_y(bounds.min.y);
+  box->set_max_x(bounds.max.x);
+  box->set_max_y(bounds.max.y);
 }
 
 bool PartitionReplica::WaitFor(uint64_t sequence, int64_t timeout_ms) const {

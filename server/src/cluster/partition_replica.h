@@ -4,8 +4,10 @@
 // of its start.
 //
 // The node's log reader (LogReader) hands it every entry after the last it applied, so the robots'
-// sequence numbers are judged by the single server's rule (serving/robot_sequence.h: a scan at
-// or below its robot's last sequence is not applied; shards apply no limit on jumps or robots);
+// sequence numbers are judged by the single server's rule with its limits
+// (serving/robot_sequence.h: a scan at or below its robot's last sequence, more than
+// max_sequence_jump above it, or of a robot beyond max_robots is not applied; a retirement entry
+// forgets the robot), exactly as the node's RobotLedger judges them;
 // only the scans whose halo holds this partition are cut to the halo (RestrictScan) and
 // integrated. Tiles are stamped with the entry's log sequence number. A fetch's reply carries
 // an HMAC (header Bgkmap-Mac, TileReplyMac) over the request and the reply, so the asking node
@@ -25,6 +27,7 @@
 
 #include "bgkmap/core/status.h"
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/v1/cluster.pb.h"
 #include "bgkmap/v1/ingest.pb.h"
 #include "cluster/cluster_log.h"
 #include "cluster/cluster_trust.h"
@@ -61,8 +64,10 @@ class PartitionReplica {
   // `serve_from`: the log's last sequence at creation; it serves once it has applied that.
   // `restored` (optional): the checkpoint it starts from (its tiles are moved into `map`).
   // `trust` signs its fetch replies and outlives it.
+  // `rule`: server.max_robots and server.max_sequence_jump, the same on every shard.
   PartitionReplica(const NatsClient& nats, const ClusterTrust& trust, const PartitionLayout& layout,
                    PartitionKey key, std::unique_ptr<TerrainMap> map, uint64_t serve_from,
+                   RobotSequenceRule rule,
                    std::optional<PartitionCheckpoint> restored = std::nullopt);
   ~PartitionReplica();  // BeginStop, then waits for running fetches
   PartitionReplica(const PartitionReplica&) = delete;
@@ -76,6 +81,12 @@ class PartitionReplica {
   // Applies entry `sequence`: integrates `prepared` (the whole scan; null: nothing here) cut to
   // the halo. Then serves, once caught up.
   void Apply(uint64_t sequence, const PreparedScan* prepared);
+  // Applies entry `sequence`, the retirement of `robot_id`: its sequence state is forgotten.
+  void ApplyRetire(uint64_t sequence, const std::string& robot_id);
+  // Applies entry `sequence`, an export's snapshot point: keeps a copy of the partition's own
+  // tiles as of it (the newest kKeptSnapshots), served to fetches with at_log_sequence.
+  void ApplyExport(uint64_t sequence);
+  static constexpr size_t kKeptSnapshots = 4;
   // Applies entry `sequence`, a clear of `box` (map cells): the cells of the box in this
   // partition and its halo are forgotten, as a single server forgets them.
   void ApplyClear(uint64_t sequence, const CellBox& box);
@@ -101,6 +112,12 @@ class PartitionReplica {
   void StartServing();
   static void OnFetch(natsConnection* nc, natsSubscription* sub, natsMsg* msg, void* self);
   void ServeFetch(natsMsg* msg);
+  // Fills `reply` from the snapshot at request.at_log_sequence(): tiles in [lo, hi] from
+  // request.skip(), at most `budget` bytes.
+  void ServeSnapshot(const v1::TileFetchRequest& request, TileKey lo, TileKey hi, int64_t budget,
+                     v1::TileFetchReply* reply) const;
+  // Counts the partition's tiles with lo <= key <= hi into `out` (map_mu_ held, shared).
+  void SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const;
 
   const NatsClient& nats_;
   const ClusterTrust& trust_;
@@ -112,13 +129,17 @@ class PartitionReplica {
 
   mutable std::shared_mutex map_mu_;  // the log reader writes, fetches read
   std::unique_ptr<TerrainMap> map_;
+  // Export snapshots by log sequence: the partition's own tiles, sorted by key.
+  mutable std::mutex snapshots_mu_;
+  std::map<uint64_t, std::shared_ptr<const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>>>
+      snapshots_;
 
   mutable std::mutex progress_mu_;
   mutable std::condition_variable progress_cv_;
   uint64_t applied_ = 0;
   uint64_t scans_integrated_ = 0;
   double catch_up_seconds_ = 0;
-  const RobotSequenceRule sequence_rule_;       // duplicates only: no limits on a shard
+  const RobotSequenceRule sequence_rule_;
   std::map<std::string, uint64_t> robot_last_;  // the log reader's thread only
   uint64_t restored_from_ = 0;
   uint64_t checkpointed_scans_ = 0;     // scans_integrated_ at the last checkpoint

@@ -5,29 +5,6 @@
 #include "bgkmap/storage/tile_codec.h"
 
 namespace bgkmap {
-namespace {
-
-// Zeroes the cells of `tile` (at `key`) outside `box`; false if nothing is left.
-bool CropToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Tile& tile) {
-  const CellIndex origin = geometry.TileOrigin(key);
-  const int n = tile.tile_size();
-  const bool inside = origin.x >= box.min.x && origin.y >= box.min.y &&
-                      origin.x + n - 1 <= box.max.x && origin.y + n - 1 <= box.max.y;
-  if (inside) return true;
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) {
-      const CellIndex cell{origin.x + x, origin.y + y};
-      if (cell.x >= box.min.x && cell.x <= box.max.x && cell.y >= box.min.y &&
-          cell.y <= box.max.y) {
-        continue;
-      }
-      tile.ClearCell(y * n + x);
-    }
-  }
-  return !storage::IsZeroTile(tile);
-}
-
-}  // namespace
 
 Result<std::unique_ptr<ArchiveExport>> ArchiveExport::Start(std::unique_ptr<TilesAtVersion> tiles,
                                                             const storage::MapMetadata& metadata,
@@ -59,7 +36,7 @@ Status ArchiveExport::EncodeNext() {
   ++next_;
   std::unique_ptr<Tile> tile = std::move(loaded).value();
   if (tile == nullptr || storage::IsZeroTile(*tile)) return Status::Ok();
-  if (box_ && !CropToBox(geometry_, key, *box_, *tile)) return Status::Ok();
+  if (box_ && !storage::CropTileToBox(geometry_, key, *box_, *tile)) return Status::Ok();
   return writer_->Add(key, *tile);
 }
 

@@ -129,8 +129,8 @@ struct CorrectionOutcome {
 
 class MapWrites {
  public:
-  // The operations a map may not offer (yet): a cluster node does not export, correct poses,
-  // remove scans or retire robots. Offers() is OK, or Unimplemented naming the call and what
+  // The operations a map may not offer (yet): a cluster node does not correct poses or remove
+  // scans. Offers() is OK, or Unimplemented naming the call and what
   // the map does offer; the operation itself then answers the same.
   enum class Operation { kExportMap, kCorrectPoses, kRemoveScans, kRetireRobot };
   virtual Status Offers(Operation operation) const = 0;

@@ -15,6 +15,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -24,6 +26,7 @@
 
 #include "bgkmap/client/client.h"
 #include "bgkmap/server/map_server.h"
+#include "bgkmap/storage/map_archive.h"
 #include "bgkmapd_process.h"
 #include "cluster_support.h"
 #include "nats_cluster.h"
@@ -34,7 +37,8 @@ namespace {
 
 // Two shards fed two robots' scans, r1 through a and r2 through b, one at a time (the log's
 // order is the reference's), answer right away (no waiting: a query reads at least every
-// acknowledged scan) as one server of the same method does.
+// acknowledged scan) as one server of the same method does, and Info on either counts what the
+// single server's Info counts (mutation: a partition's owner counting its halo's tiles too).
 void ExpectTwoShardsAnswerAsOne(Method method) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
@@ -53,6 +57,24 @@ void ExpectTwoShardsAnswerAsOne(Method method) {
   }
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
+  // Info on either shard counts the whole cluster as the single server counts its map.
+  const MapInfo want = ref.single.client().Info().value();
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<MapInfo> got = via->Info();
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    EXPECT_EQ(got->tile_count, want.tile_count);
+    EXPECT_EQ(got->known_cells, want.known_cells);
+    EXPECT_EQ(got->known_cells_box, want.known_cells_box);
+    EXPECT_EQ(got->known_bounds.min_x, want.known_bounds.min_x);
+    EXPECT_EQ(got->known_bounds.max_y, want.known_bounds.max_y);
+    EXPECT_EQ(got->scans_applied, want.scans_applied);
+    ASSERT_EQ(got->robots.size(), want.robots.size());
+    for (size_t i = 0; i < want.robots.size(); ++i) {
+      EXPECT_EQ(got->robots[i].robot_id, want.robots[i].robot_id);
+      EXPECT_EQ(got->robots[i].last_sequence, want.robots[i].last_sequence);
+      EXPECT_EQ(got->robots[i].scans_applied, want.robots[i].scans_applied);
+    }
+  }
 }
 
 TEST(ClusterTest, AnswersEqualSingleServer) { ExpectTwoShardsAnswerAsOne(Method::kBgkPlus); }
@@ -168,18 +190,15 @@ TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
 
   const std::string not_yet =
       " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap and Info are";
+      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, ExportMap, RetireRobot and Info are";
   auto expect_unimplemented = [&](const RpcStatus& status, const std::string& call) {
     EXPECT_EQ(status.code(), RpcCode::kUnimplemented) << call << ": " << status.message();
     EXPECT_EQ(status.message(), call + not_yet);
   };
-  expect_unimplemented(a.client().ExportMap(std::nullopt, dir.Sub("map.bgkmap")).status(),
-                       "ExportMap");
   expect_unimplemented(a.client().CorrectPoses("r1", {{1, scans[0].pose}}).status(),
                        "CorrectPoses");
   expect_unimplemented(a.client().RemoveScans("r1", 2, 1).status(),  // first > last: still
                        "RemoveScans");
-  expect_unimplemented(a.client().RetireRobot("").status(), "RetireRobot");  // empty id: still
 }
 
 // Mutations: ReadCheckpoint returning nothing (the takeover replays the log: "no partition was
@@ -275,6 +294,18 @@ TEST(ClusterTest, TrimmedLogLosesNothing) {
   ASSERT_FALSE(c.WaitForLine("event=partition_serving", 15).empty()) << "c took nothing";
   EXPECT_TRUE(EventuallySameAnswers(to_c, ref, std::chrono::steady_clock::now()));
   EXPECT_TRUE(EventuallySameAnswers(to_a, ref, std::chrono::steady_clock::now()));
+  // c's robot ledger started on the trimmed log from a checkpoint's robot table: it knows the
+  // robots as the single server does (mutation: a ledger reading the trimmed log from its first
+  // entry knows fewer scans of them).
+  RpcResult<MapInfo> info = to_c.Info();
+  ASSERT_TRUE(info.ok()) << info.status().message();
+  const MapInfo want = ref.single.client().Info().value();
+  ASSERT_EQ(info->robots.size(), want.robots.size());
+  for (size_t i = 0; i < want.robots.size(); ++i) {
+    EXPECT_EQ(info->robots[i].robot_id, want.robots[i].robot_id);
+    EXPECT_EQ(info->robots[i].last_sequence, want.robots[i].last_sequence);
+  }
+  EXPECT_FALSE(c.FindLine("event=robot_ledger_seeded").empty());
   std::printf("%s\n", trimmed.c_str());
 }
 
@@ -440,6 +471,239 @@ TEST(ClusterTest, WatchOnAnyShardSeesEveryChange) {
   EXPECT_TRUE(same);
   watch->Cancel();
   EXPECT_EQ(watch->Wait().code(), RpcCode::kCancelled);
+}
+
+// What a client hears of one step, in words both a single server and a shard must say alike.
+std::string Heard(const RpcResult<ScanAck>& ack) {
+  if (!ack.ok()) return "refused " + std::to_string(static_cast<int>(ack.status().code()));
+  return ack->status == AckStatus::kApplied     ? "applied"
+         : ack->status == AckStatus::kDuplicate ? "duplicate"
+                                                : "other";
+}
+std::string Heard(const RpcResult<RetiredRobot>& retired) {
+  if (!retired.ok()) return "refused " + std::to_string(static_cast<int>(retired.status().code()));
+  return "retired last=" + std::to_string(retired->last_sequence) +
+         " robots=" + std::to_string(retired->robots);
+}
+
+// server.max_robots = 2 and server.max_sequence_jump = 100 on a single server and on two shards,
+// and RetireRobot through either shard, interleaved with three robots' scans: every answer
+// (applied, duplicate, the refusal's code, the retired robot's last sequence and the robots
+// left) and the map are the single server's. After r2's retirement its sequence starts again at
+// 1: those scans are applied again, not taken for retries of its old ones. Mutations: replicas
+// without the limits (a refused scan integrated: the regions differ); the ledger not forgetting
+// a retired robot (r3 refused as one robot too many); the message id without the epoch (r2's
+// new scan 1 answered as a duplicate).
+TEST(ClusterTest, RobotLimitsAndRetirementAsOneServer) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  ServerConfig single = TestConfig();
+  ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
+  for (ServerConfig* c : {&single, &ca, &cb}) {
+    c->limits.max_robots = 2;
+    c->limits.max_sequence_jump = 100;
+  }
+  ServerFixture one(single), a(ca), b(cb);
+  const std::vector<OwnedScan> r1 = SubScans("r1", 4), r2 = SubScans("r2", 4),
+                               r3 = SubScans("r3", 4);
+  OwnedScan jump = r1[7];
+  jump.sequence = 5000;  // more than 100 above r1's last
+  std::vector<std::string> want, got;
+  auto scan = [&](Client& via, const OwnedScan& s) {
+    want.push_back(s.robot_id + "/" + std::to_string(s.sequence) + " " +
+                   Heard(one.client().Insert(s.Data())));
+    got.push_back(s.robot_id + "/" + std::to_string(s.sequence) + " " +
+                  Heard(via.Insert(s.Data())));
+  };
+  auto retire = [&](Client& via, const std::string& robot) {
+    want.push_back("retire " + robot + " " + Heard(one.client().RetireRobot(robot)));
+    got.push_back("retire " + robot + " " + Heard(via.RetireRobot(robot)));
+  };
+  for (size_t i = 0; i < 6; ++i) {
+    scan(a.client(), r1[i]);
+    scan(b.client(), r2[i]);
+  }
+  scan(a.client(), r3[0]);       // a third robot: RESOURCE_EXHAUSTED
+  scan(b.client(), jump);        // OUT_OF_RANGE
+  scan(a.client(), r1[6]);       // applied: the jump changed nothing
+  retire(a.client(), "r2");      // last 6, one robot left
+  retire(b.client(), "nobody");  // NOT_FOUND
+  for (size_t i = 0; i < 6; ++i) scan(b.client(), r3[i]);
+  scan(a.client(), r2[6]);  // r2 is new again: one robot too many
+  retire(b.client(), "r3");
+  for (size_t i = 0; i < 4; ++i) scan(a.client(), r2[i]);  // r2 from 1 again: applied
+  scan(b.client(), r2[2]);                                 // a retry: duplicate
+  EXPECT_EQ(got, want);
+  const MetricBox street = KnownBox(*one.server().SnapshotMap());
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<Raster> region = via->QueryRegion({street, {}, 1});
+    ASSERT_TRUE(region.ok()) << region.status().message();
+    EXPECT_TRUE(SameBits(*region, one.client().QueryRegion({street, {}, 1}).value()));
+    RpcResult<MapInfo> info = via->Info();
+    ASSERT_TRUE(info.ok()) << info.status().message();
+    std::vector<std::pair<std::string, uint64_t>> robots, single_robots;
+    for (const RobotInfo& r : info->robots) robots.emplace_back(r.robot_id, r.last_sequence);
+    const MapInfo single_info = one.client().Info().value();
+    for (const RobotInfo& r : single_info.robots) {
+      single_robots.emplace_back(r.robot_id, r.last_sequence);
+    }
+    EXPECT_EQ(robots, single_robots);
+  }
+}
+
+// An archive with finite extreme statistics imported twice through two shards: the second
+// import is refused as a single server refuses it (OUT_OF_RANGE, the same message naming the
+// tile and cell), and the map is the single server's. Mutation: the shard without
+// CheckImportSums (the second import is stored and the partitions' sums overflow).
+TEST(ClusterTest, ImportWhoseSumsWouldOverflowIsRefusedAsByOneServer) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  ServerConfig single = TestConfig();
+  ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
+  for (ServerConfig* c : {&single, &ca, &cb}) c->map.dynamics = Dynamics::kOff;
+  const std::string archive = dir.Sub("extreme.bgkmap");
+  {
+    storage::MapMetadata meta;
+    meta.params = single.map;
+    Result<std::unique_ptr<storage::MapArchiveWriter>> w =
+        storage::MapArchiveWriter::Create(archive, meta);
+    ASSERT_TRUE(w.ok()) << w.status().ToString();
+    Tile tile(single.map.tile_size);
+    tile.w()[0] = 1e308;  // finite, possible; twice is not
+    tile.s()[0] = 1e308;
+    tile.a()[0] = 3e38f;
+    tile.b()[0] = 3e38f;
+    tile.w()[1] = 1.0;
+    tile.s()[1] = 0.5;
+    ASSERT_TRUE((*w)->Add({0, 0}, tile).ok());
+    ASSERT_TRUE((*w)->Finish().ok());
+  }
+  ServerFixture one(single), a(ca), b(cb);
+  ASSERT_TRUE(one.client().ImportMap(archive).ok());
+  RpcResult<ImportResult> first = a.client().ImportMap(archive);
+  ASSERT_TRUE(first.ok()) << first.status().message();
+  RpcResult<ImportResult> want = one.client().ImportMap(archive);
+  RpcResult<ImportResult> got = b.client().ImportMap(archive);
+  ASSERT_FALSE(want.ok());
+  ASSERT_FALSE(got.ok()) << "the sums overflow to inf";
+  EXPECT_EQ(got.status().code(), RpcCode::kOutOfRange) << got.status().message();
+  EXPECT_EQ(got.status().message(), want.status().message());
+  const MetricBox box{0.05, 0.05, 6.35, 6.35};  // tile (0, 0)
+  for (Client* via : {&a.client(), &b.client()}) {
+    RpcResult<Raster> region = via->QueryRegion({box, {}, 1});
+    ASSERT_TRUE(region.ok()) << region.status().message();
+    EXPECT_TRUE(SameBits(*region, one.client().QueryRegion({box, {}, 1}).value()));
+  }
+}
+
+// The bytes of a file (an exported archive).
+std::string FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// Whether two archives are the same bytes, else their sizes and the first offset that differs.
+::testing::AssertionResult SameFile(const std::string& a, const std::string& b) {
+  const std::string x = FileBytes(a), y = FileBytes(b);
+  if (x == y && !x.empty()) return ::testing::AssertionSuccess();
+  size_t i = 0;
+  while (i < x.size() && i < y.size() && x[i] == y[i]) ++i;
+  return ::testing::AssertionFailure() << a << " (" << x.size() << " bytes) and " << b << " ("
+                                       << y.size() << " bytes) differ from byte " << i;
+}
+
+// ExportMap through either shard, of the whole map and of a box across partitions, is the single
+// server's archive of the same scans byte for byte (header, versions, tiles in key order,
+// trailer); an export taken while scans stream in through the other shard holds exactly the
+// scans before its entry in the log (a single server fed those exports the same bytes).
+// Mutations (the first run failed so): the archive's version and its tiles' versions left as log
+// sequences (the export entries before the last export shift them: the bytes differ).
+TEST(ClusterTest, ExportsEqualSingleServerByteForByte) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  const size_t half = scans.size() / 2;
+  ServerFixture single;
+  InsertAll(single.client(), scans, 0, half);
+  const MetricBox box{-6.0, -6.0, 7.0, 7.0};
+  ASSERT_TRUE(single.client().ExportMap(std::nullopt, dir.Sub("single.bgkmap")).ok());
+  ASSERT_TRUE(single.client().ExportMap(box, dir.Sub("single-box.bgkmap")).ok());
+  ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
+  InsertAll(a.client(), scans, 0, half);
+  // The rest of the scans stream in through a while b exports.
+  std::thread more([&] { InsertAll(a.client(), scans, half, scans.size()); });
+  RpcResult<ExportResult> whole = b.client().ExportMap(std::nullopt, dir.Sub("whole.bgkmap"));
+  more.join();
+  ASSERT_TRUE(whole.ok()) << whole.status().message();
+  RpcResult<ExportResult> boxed = a.client().ExportMap(box, dir.Sub("box.bgkmap"));
+  ASSERT_TRUE(boxed.ok()) << boxed.status().message();
+  InsertAll(single.client(), scans, half, scans.size());
+  ASSERT_TRUE(single.client().ExportMap(box, dir.Sub("single-box-all.bgkmap")).ok());
+  EXPECT_TRUE(SameFile(dir.Sub("box.bgkmap"), dir.Sub("single-box-all.bgkmap")));
+  ASSERT_TRUE(single.client().ExportMap(std::nullopt, dir.Sub("single-all.bgkmap")).ok());
+  RpcResult<ExportResult> all = b.client().ExportMap(std::nullopt, dir.Sub("all.bgkmap"));
+  ASSERT_TRUE(all.ok()) << all.status().message();
+  EXPECT_TRUE(SameFile(dir.Sub("all.bgkmap"), dir.Sub("single-all.bgkmap")));
+  // The export during ingest holds exactly the scans before its entry: its version says how many,
+  // and a single server fed those exports the same bytes.
+  Result<std::unique_ptr<storage::MapArchiveReader>> during =
+      storage::MapArchiveReader::Open(dir.Sub("whole.bgkmap"));
+  ASSERT_TRUE(during.ok()) << during.status().ToString();
+  const uint64_t k = (*during)->metadata().map_version;
+  ASSERT_GE(k, half);
+  ASSERT_LE(k, scans.size());
+  ServerFixture prefix;
+  InsertAll(prefix.client(), scans, 0, k);
+  ASSERT_TRUE(prefix.client().ExportMap(std::nullopt, dir.Sub("prefix.bgkmap")).ok());
+  EXPECT_TRUE(SameFile(dir.Sub("whole.bgkmap"), dir.Sub("prefix.bgkmap"))) << k << " scans";
+  std::printf("the export during ingest holds %llu of %zu scans\n",
+              static_cast<unsigned long long>(k), scans.size());
+}
+
+// A shard killed with -9, then an export and a retirement through the survivor while it takes
+// the dead shard's partitions over (from their checkpoints, replaying the log through the
+// export's entry): the archive is the single server's byte for byte, and r2's scans sent again
+// from 1 after its retirement are applied as a single server applies them.
+TEST(ClusterTest, ExportAndRetirementDuringATakeover) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = TwoRobots();
+  ServerFixture single;
+  InsertAll(single.client(), scans, 0, scans.size());
+  ASSERT_TRUE(single.client().ExportMap(std::nullopt, dir.Sub("single.bgkmap")).ok());
+  BgkmapdProcess a(NodeArgs(nats.urls(), "a")), b(NodeArgs(nats.urls(), "b"));
+  ASSERT_TRUE(a.started() && b.started());
+  Client to_a(a.target());
+  InsertAll(to_a, scans, 0, scans.size());
+  ASSERT_FALSE(b.WaitForLine("event=partition_checkpointed", 20).empty()) << "b wrote none";
+  b.Signal(SIGKILL);
+  RpcResult<ExportResult> exported = to_a.ExportMap(std::nullopt, dir.Sub("shard.bgkmap"));
+  ASSERT_TRUE(exported.ok()) << exported.status().message();
+  EXPECT_TRUE(SameFile(dir.Sub("shard.bgkmap"), dir.Sub("single.bgkmap")));
+  // b's partitions were taken over from their checkpoints, not from the log's start.
+  bool restored = false;
+  for (const std::string& line : a.Log()) {
+    restored = restored || (line.find("event=partition_taken") != std::string::npos &&
+                            line.find("restored_from=0 ") == std::string::npos);
+  }
+  EXPECT_TRUE(restored) << "no partition was restored from a checkpoint";
+  RpcResult<RetiredRobot> retired = to_a.RetireRobot("r2");
+  RpcResult<RetiredRobot> want = single.client().RetireRobot("r2");
+  ASSERT_TRUE(retired.ok() && want.ok()) << retired.status().message();
+  EXPECT_EQ(retired->last_sequence, want->last_sequence);
+  EXPECT_EQ(retired->robots, want->robots);
+  std::vector<OwnedScan> again = SubScans("r2", 4);
+  again.resize(3);
+  InsertAll(single.client(), again, 0, again.size());
+  InsertAll(to_a, again, 0, again.size());
+  const MetricBox street = KnownBox(*single.server().SnapshotMap());
+  RpcResult<Raster> got = to_a.QueryRegion({street, {}, 1});
+  ASSERT_TRUE(got.ok()) << got.status().message();
+  EXPECT_TRUE(SameBits(*got, single.client().QueryRegion({street, {}, 1}).value()));
 }
 
 }  // namespace

@@ -26,6 +26,10 @@ inline constexpr std::string_view kMapArchiveMagic = "BGKMAPA1";
 // returns it.
 using ArchiveSink = std::function<Status(std::string_view bytes)>;
 
+// Zeroes the cells of `tile` (at `key`) outside `box` (an export of a box); false if nothing is
+// left (the tile is then not written).
+bool CropTileToBox(const GridGeometry& geometry, TileKey key, const CellBox& box, Tile& tile);
+
 // Writes one archive, to a file or to any byte sink (e.g. a network stream). The encoding is the
 // same for both; only a file is synced and renamed into place.
 class MapArchiveWriter {
