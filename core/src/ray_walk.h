@@ -41,4 +41,41 @@ void WalkRayBack(CellIndex end, double sx, double sy, double length, Visit&& vis
   }
 }
 
+// A walked cell's tile and its place in it, followed one step at a time as a walk moves (every
+// step changes x or y by one), without the divisions of GridGeometry::TileOf and LocalIndex.
+struct TileCursor {
+  explicit TileCursor(int tile_size) : T(tile_size) {}
+
+  void Reset(CellIndex c) {
+    cell = c;
+    key = {FloorDiv(c.x, T), FloorDiv(c.y, T)};
+    lx = FloorMod(c.x, T);
+    ly = FloorMod(c.y, T);
+  }
+  // c is a neighbour of the current cell (4-connected).
+  void MoveTo(CellIndex c) {
+    if (c.x != cell.x) Step(c.x - cell.x, lx, key.x);
+    if (c.y != cell.y) Step(c.y - cell.y, ly, key.y);
+    cell = c;
+  }
+  int index() const { return ly * T + lx; }  // GridGeometry::LocalIndex
+
+  const int T;
+  CellIndex cell;
+  TileKey key;
+  int lx = 0, ly = 0;
+
+ private:
+  void Step(int d, int& local, int& tile) const {
+    local += d;
+    if (local == T) {
+      local = 0;
+      ++tile;
+    } else if (local < 0) {
+      local = T - 1;
+      --tile;
+    }
+  }
+};
+
 }  // namespace bgkmap::internal

@@ -9,6 +9,7 @@
 #include "radix_sort.h"
 #include "ray_walk.h"
 #include "scan_pass.h"
+#include "seen_tops.h"
 
 namespace bgkmap {
 namespace {
@@ -76,52 +77,64 @@ double ScanIntegrator::Pass::Elevation(CellIndex c) const {
   return (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w);
 }
 
+// The cells the scan's rays pass clearly below on their way to their returns, once per ray
+// (semantics "Dynamics"), in the order the rays are walked.
+void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
+                                                std::vector<CellIndex>& out) const {
+  const MapParams& p = self.params_;
+  const double margin = p.clear_margin;
+  const double res = p.resolution;
+  const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
+  const double length = p.clear_ray_length / res;
+  // Cells within l of the return are skipped: there the kernel blends the return's own
+  // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
+  const double skip = p.kernel_length / res;
+  internal::SeenTops tops(scan, T * T);
+  internal::TileCursor at(T);
+  TileKey last_key{0, 0};
+  const Tile* tile = nullptr;
+  double* tile_tops = nullptr;
+  bool have_last = false;
+  const auto enter = [&] {  // the footprint holds every tile a ray crosses
+    if (have_last && at.key == last_key) return;
+    last_key = at.key;
+    tile = window.at(at.key);
+    tile_tops = tile != nullptr ? tops.Of(at.key) : nullptr;
+    have_last = true;
+  };
+  for (const ObservedCell& oc : scan.cells) {
+    const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
+    if (!(dist > skip)) continue;
+    const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
+    at.Reset(oc.cell);
+    internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
+      at.MoveTo(c);
+      if (t < skip) return;
+      enter();
+      if (tile_tops == nullptr) return;
+      // The top of what the cell has seen: its elevation plus its disagreement's deviation,
+      // so an old object's remains, mixed with new ground, still stand above a grazing ray.
+      double& top = tile_tops[at.index()];
+      if (std::isnan(top) && !SeenTop(*tile, at.index(), ReadFactorOf(*tile), &top)) {
+        top = internal::SeenTops::kNone;
+      }
+      if (oc.y + rise * t < top - margin) out.push_back(c);
+    });
+  }
+}
+
 // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
 // "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
 // elevation (something appeared), and a ray passing clearly below one on its way to its return
 // (what was there has gone).
 std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(const PreparedScan& scan) const {
   std::vector<CellIndex> out;
-  const MapParams& p = self.params_;
-  const double margin = p.clear_margin;
+  const double margin = self.params_.clear_margin;
   for (const ObservedCell& oc : scan.cells) {
     const double m = Elevation(oc.cell);
     if (oc.y > m + margin) out.push_back(oc.cell);  // false for NaN (unknown)
   }
-  if (p.clear_ray_length > 0) {
-    const double res = p.resolution;
-    const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
-    const double length = p.clear_ray_length / res;
-    // Cells within l of the return are skipped: there the kernel blends the return's own
-    // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
-    const double skip = p.kernel_length / res;
-    TileKey last_key{0, 0};
-    const Tile* last_tile = nullptr;
-    double last_f = 1.0;
-    bool have_last = false;
-    for (const ObservedCell& oc : scan.cells) {
-      const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
-      if (!(dist > skip)) continue;
-      const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
-      internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
-        if (t < skip) return;
-        const TileKey key = self.geometry_.TileOf(c);
-        if (!have_last || key != last_key) {  // the footprint holds every tile a ray crosses
-          last_key = key;
-          last_tile = window.at(key);
-          last_f = last_tile != nullptr ? ReadFactorOf(*last_tile) : 1.0;
-          have_last = true;
-        }
-        if (last_tile == nullptr) return;
-        const int i = self.geometry_.LocalIndex(c);
-        // The top of what the cell has seen: its elevation plus its disagreement's deviation,
-        // so an old object's remains, mixed with new ground, still stand above a grazing ray.
-        double top;
-        if (!SeenTop(*last_tile, i, last_f, &top)) return;
-        if (oc.y + rise * t < top - margin) out.push_back(c);
-      });
-    }
-  }
+  if (self.params_.clear_ray_length > 0) AddRayContradictions(scan, out);
   SortCells(out);
   return out;
 }
