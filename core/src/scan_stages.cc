@@ -77,8 +77,27 @@ double ScanIntegrator::Pass::Elevation(CellIndex c) const {
   return (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w);
 }
 
+namespace {
+
+// The cells a ray's walk from t0 to t1 can visit (ray_walk.h), with a cell to spare each side
+// for rounding.
+CellBox RayBox(CellIndex end, double sx, double sy, double dist, double t0, double t1) {
+  const double x0 = end.x + 0.5, y0 = end.y + 0.5;
+  const double ux = (sx - x0) / dist, uy = (sy - y0) / dist;
+  const double xa = x0 + ux * t0, xb = x0 + ux * t1, ya = y0 + uy * t0, yb = y0 + uy * t1;
+  return {{static_cast<int>(std::floor(std::min(xa, xb))) - 1,
+           static_cast<int>(std::floor(std::min(ya, yb))) - 1},
+          {static_cast<int>(std::floor(std::max(xa, xb))) + 1,
+           static_cast<int>(std::floor(std::max(ya, yb))) + 1}};
+}
+
+}  // namespace
+
 // The cells the scan's rays pass clearly below on their way to their returns, once per ray
-// (semantics "Dynamics"), in the order the rays are walked.
+// (semantics "Dynamics"), in the order the rays are walked. A ray whose lowest height over its
+// walk is not below the highest top (less the margin) of the blocks it crosses contradicts
+// nothing there and is not walked: the same cells, bit for bit (the heights and the tops'
+// differences are monotone in IEEE arithmetic).
 void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
                                                 std::vector<CellIndex>& out) const {
   const MapParams& p = self.params_;
@@ -89,36 +108,42 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
   // Cells within l of the return are skipped: there the kernel blends the return's own
   // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
   const double skip = p.kernel_length / res;
-  internal::SeenTops tops(scan, T * T);
+  // The top of what a cell has seen: its elevation plus its disagreement's deviation, so an
+  // old object's remains, mixed with new ground, still stand above a grazing ray.
+  const auto fill = [&](TileKey key, double* tops) {
+    const Tile* tile = window.at(key);
+    if (tile == nullptr) return false;
+    const double f = ReadFactorOf(*tile);
+    for (int i = 0; i < T * T; ++i) {
+      if (!SeenTop(*tile, i, f, &tops[i])) tops[i] = internal::SeenTops::kNone;
+    }
+    return true;
+  };
+  internal::SeenTops tops(scan, T, fill);
   internal::TileCursor at(T);
   TileKey last_key{0, 0};
-  const Tile* tile = nullptr;
-  double* tile_tops = nullptr;
+  const double* tile_tops = nullptr;
   bool have_last = false;
-  const auto enter = [&] {  // the footprint holds every tile a ray crosses
-    if (have_last && at.key == last_key) return;
-    last_key = at.key;
-    tile = window.at(at.key);
-    tile_tops = tile != nullptr ? tops.Of(at.key) : nullptr;
-    have_last = true;
-  };
   for (const ObservedCell& oc : scan.cells) {
     const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
     if (!(dist > skip)) continue;
     const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
+    const double limit = std::min(length, dist);        // the walk's t stays below it
+    if (!(skip < limit)) continue;
+    const double low = std::min(oc.y + rise * skip, oc.y + rise * limit);
+    if (!(low < tops.MaxIn(RayBox(oc.cell, sx, sy, dist, skip, limit)) - margin)) continue;
     at.Reset(oc.cell);
     internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
       at.MoveTo(c);
       if (t < skip) return;
-      enter();
-      if (tile_tops == nullptr) return;
-      // The top of what the cell has seen: its elevation plus its disagreement's deviation,
-      // so an old object's remains, mixed with new ground, still stand above a grazing ray.
-      double& top = tile_tops[at.index()];
-      if (std::isnan(top) && !SeenTop(*tile, at.index(), ReadFactorOf(*tile), &top)) {
-        top = internal::SeenTops::kNone;
+      if (!have_last || at.key != last_key) {  // the footprint holds every tile a ray crosses
+        last_key = at.key;
+        tile_tops = tops.Of(at.key);
+        have_last = true;
       }
-      if (oc.y + rise * t < top - margin) out.push_back(c);
+      if (tile_tops != nullptr && oc.y + rise * t < tile_tops[at.index()] - margin) {
+        out.push_back(c);
+      }
     });
   }
 }

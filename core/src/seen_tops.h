@@ -1,12 +1,16 @@
-// The free-space test's per-cell reads, remembered for one scan: a dense scan's rays cross each
+// The free-space test's per-cell reads, computed once per scan: a dense scan's rays cross each
 // cell near its returns ten times or more, and the top of what a cell has seen is the same every
-// time (the map as the scan finds it). Internal to core.
+// time (the map as the scan finds it). With each tile's tops, the highest top of every 8 x 8
+// block of cells, so that a ray passing above every block it crosses needs no walk. Internal to
+// core.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <type_traits>
 #include <vector>
 
 #include "bgkmap/core/grid.h"
@@ -16,48 +20,82 @@ namespace bgkmap::internal {
 
 class SeenTops {
  public:
-  // Not yet read.
-  static constexpr double kUnread = std::numeric_limits<double>::quiet_NaN();
   // An unknown cell: no ray height is below it, so it is never contradicted.
   static constexpr double kNone = -std::numeric_limits<double>::infinity();
+  static constexpr int kBlock = 8;  // cells per block edge
 
-  // For the tiles `scan` may read or change (its sorted, disjoint tile lists), `cells` per tile.
-  SeenTops(const PreparedScan& scan, int cells) : cells_(cells) {
-    keys_.reserve(scan.write_tiles.size() + scan.read_tiles.size() + scan.clear_tiles.size());
-    for (const auto* list : {&scan.write_tiles, &scan.read_tiles, &scan.clear_tiles}) {
-      keys_.insert(keys_.end(), list->begin(), list->end());
-    }
-    std::sort(keys_.begin(), keys_.end());
-    slab_of_.assign(keys_.size(), -1);
-    Scratch().clear();
-  }
+  // Fill(key, tops) writes the top of each of tile `key`'s cells (kNone where unknown), or
+  // returns false for a tile the window does not hold. `fill` must outlive this object.
+  template <typename Fill>
+  SeenTops(const PreparedScan& scan, int tile_size, Fill&& fill);
 
-  // The remembered tops of tile `key`'s cells (kUnread until read). Valid until the next call.
-  double* Of(TileKey key) {
-    auto it = std::lower_bound(keys_.begin(), keys_.end(), key);
-    if (it == keys_.end() || *it != key) {  // not in the scan's lists (a wider window): added
-      slab_of_.insert(slab_of_.begin() + (it - keys_.begin()), -1);
-      it = keys_.insert(it, key);
-    }
-    int32_t& slab = slab_of_[it - keys_.begin()];
-    std::vector<double>& tops = Scratch();
-    if (slab < 0) {  // first visit: a slab of unread cells
-      slab = static_cast<int32_t>(tops.size() / cells_);
-      tops.resize(tops.size() + cells_, kUnread);
-    }
-    return tops.data() + static_cast<size_t>(slab) * cells_;
-  }
+  // Tile `key`'s tops, filled at the first call; null for a tile the window does not hold.
+  // Valid as long as this object.
+  const double* Of(TileKey key);
+  // The highest top in the blocks that meet `box`; +inf where that is not known (a box outside
+  // the scan's tiles' rectangle).
+  double MaxIn(const CellBox& box);
 
  private:
+  struct Slab {
+    TileKey key;
+    int32_t index;  // into Scratch::tops; -1: not filled; -2: no tile
+  };
+  struct Scratch {
+    std::vector<std::unique_ptr<double[]>> tops;  // a tile's cells each; the first `used` in use
+    size_t used = 0;
+    size_t cells = 0;  // per buffer
+    std::vector<double> block_max;
+  };
   // One buffer per thread, kept from scan to scan: no allocation once it has grown.
-  static std::vector<double>& Scratch() {
-    thread_local std::vector<double> tops;
-    return tops;
+  static Scratch& Buffers() {
+    thread_local Scratch s;
+    return s;
   }
+  Slab& SlabOf(TileKey key);
+  void FillSlab(Slab& slab);
 
-  int cells_;
-  std::vector<TileKey> keys_;
-  std::vector<int32_t> slab_of_;
+  const int T;
+  const int blocks_;         // per tile edge
+  std::vector<Slab> slabs_;  // sorted by key
+  TileKey min_{0, 0};
+  int tiles_x_ = 0, tiles_y_ = 0;  // the block grid's rectangle, in tiles (0: none)
+  bool (*fill_)(const void*, TileKey, double*) = nullptr;
+  const void* fill_arg_ = nullptr;
 };
+
+template <typename Fill>
+SeenTops::SeenTops(const PreparedScan& scan, int tile_size, Fill&& fill)
+    : T(tile_size), blocks_((tile_size + kBlock - 1) / kBlock) {
+  fill_arg_ = &fill;
+  fill_ = [](const void* f, TileKey key, double* tops) {
+    return (*static_cast<const std::remove_reference_t<Fill>*>(f))(key, tops);
+  };
+  for (const auto* list : {&scan.write_tiles, &scan.read_tiles, &scan.clear_tiles}) {
+    for (const TileKey& k : *list) slabs_.push_back({k, -1});
+  }
+  std::sort(slabs_.begin(), slabs_.end(),
+            [](const Slab& a, const Slab& b) { return a.key < b.key; });
+  Scratch& s = Buffers();
+  s.used = 0;
+  if (s.cells != static_cast<size_t>(T) * T) {  // another map's tile size
+    s.tops.clear();
+    s.cells = static_cast<size_t>(T) * T;
+  }
+  s.block_max.clear();
+  if (slabs_.empty()) return;
+  TileKey max = slabs_.front().key;
+  min_ = max;
+  for (const Slab& sl : slabs_) {
+    min_ = {std::min(min_.x, sl.key.x), std::min(min_.y, sl.key.y)};
+    max = {std::max(max.x, sl.key.x), std::max(max.y, sl.key.y)};
+  }
+  const int64_t w = int64_t{max.x} - min_.x + 1, h = int64_t{max.y} - min_.y + 1;
+  if (w * h > 4 * static_cast<int64_t>(slabs_.size()) + 4096) return;  // scattered: no grid
+  tiles_x_ = static_cast<int>(w);
+  tiles_y_ = static_cast<int>(h);
+  s.block_max.assign(static_cast<size_t>(w * h) * blocks_ * blocks_,
+                     std::numeric_limits<double>::quiet_NaN());  // NaN: tile not filled yet
+}
 
 }  // namespace bgkmap::internal
