@@ -120,6 +120,7 @@ struct ScanIntegrator::Pass {
 
   // Reads of the map as the scan finds it.
   bool SeenTop(const Tile& tile, int i, double f, double* top) const;
+  void FillSeenTops(const Tile& tile, double* tops) const;
   double Elevation(CellIndex c) const;
   std::vector<CellIndex> Contradicted(const PreparedScan& scan) const;
   void AddRayContradictions(const PreparedScan& scan, std::vector<CellIndex>& out) const;

@@ -57,6 +57,35 @@ bool ScanIntegrator::Pass::SeenTop(const Tile& tile, int i, double f, double* to
   return true;
 }
 
+// SeenTop of every cell of `tile`, kNone where unknown: SeenTop's arithmetic written out for a
+// tile without plane moments, in one pass over its arrays.
+void ScanIntegrator::Pass::FillSeenTops(const Tile& tile, double* tops) const {
+  const double f = ReadFactorOf(tile);
+  const int n = tile.cell_count();
+  if (tile.has_plane()) {
+    for (int i = 0; i < n; ++i) {
+      if (!SeenTop(tile, i, f, &tops[i])) tops[i] = internal::SeenTops::kNone;
+    }
+    return;
+  }
+  const MapParams& p = self.params_;
+  const double* tw = tile.w().data();
+  const double* ts = tile.s().data();
+  const double* tq = tile.q().data();
+  for (int i = 0; i < n; ++i) {
+    const double w = f * tw[i];
+    if (!(w > 0.0)) {
+      tops[i] = internal::SeenTops::kNone;
+      continue;
+    }
+    const double s = f * ts[i];
+    const double height = (p.lambda * p.prior_mean + s) / (p.lambda + w);
+    const double mean = s / w;  // Disagreement(w, s, q)
+    const double disagreement = std::max(0.0, (f * tq[i]) / w - mean * mean);
+    tops[i] = height + std::sqrt(disagreement);
+  }
+}
+
 // Elevation of a known cell, NaN otherwise.
 double ScanIntegrator::Pass::Elevation(CellIndex c) const {
   const Tile* tile = TileAt(c);
@@ -113,10 +142,7 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
   const auto fill = [&](TileKey key, double* tops) {
     const Tile* tile = window.at(key);
     if (tile == nullptr) return false;
-    const double f = ReadFactorOf(*tile);
-    for (int i = 0; i < T * T; ++i) {
-      if (!SeenTop(*tile, i, f, &tops[i])) tops[i] = internal::SeenTops::kNone;
-    }
+    FillSeenTops(*tile, tops);
     return true;
   };
   internal::SeenTops tops(scan, T, fill);
@@ -133,7 +159,7 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
     const double low = std::min(oc.y + rise * skip, oc.y + rise * limit);
     if (!(low < tops.MaxIn(RayBox(oc.cell, sx, sy, dist, skip, limit)) - margin)) continue;
     at.Reset(oc.cell);
-    internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
+    internal::WalkRayBack(oc.cell, sx, sy, length, dist, [&](CellIndex c, double t) {
       at.MoveTo(c);
       if (t < skip) return;
       if (!have_last || at.key != last_key) {  // the footprint holds every tile a ray crosses
@@ -202,6 +228,13 @@ float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch)
     }
   }
   if (patch.size() < 3) return kNoValue;
+  // A step over its critical value alone makes v 1 (TraversabilityValue): no plane fit needed.
+  double zmin = patch.front().z, zmax = patch.front().z;  // as ComputeFeatures has them
+  for (const PatchPoint& q : patch) {
+    zmin = std::min(zmin, q.z);
+    zmax = std::max(zmax, q.z);
+  }
+  if (zmax - zmin > p.step_crit) return 1.0f;
   return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), p));
 }
 
