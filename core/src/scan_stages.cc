@@ -9,7 +9,7 @@
 #include "radix_sort.h"
 #include "ray_walk.h"
 #include "scan_pass.h"
-#include "seen_tops.h"
+#include "tile_slabs.h"
 
 namespace bgkmap {
 namespace {
@@ -64,7 +64,7 @@ void ScanIntegrator::Pass::FillSeenTops(const Tile& tile, double* tops) const {
   const int n = tile.cell_count();
   if (tile.has_plane()) {
     for (int i = 0; i < n; ++i) {
-      if (!SeenTop(tile, i, f, &tops[i])) tops[i] = internal::SeenTops::kNone;
+      if (!SeenTop(tile, i, f, &tops[i])) tops[i] = internal::TileSlabs::kNone;
     }
     return;
   }
@@ -75,7 +75,7 @@ void ScanIntegrator::Pass::FillSeenTops(const Tile& tile, double* tops) const {
   for (int i = 0; i < n; ++i) {
     const double w = f * tw[i];
     if (!(w > 0.0)) {
-      tops[i] = internal::SeenTops::kNone;
+      tops[i] = internal::TileSlabs::kNone;
       continue;
     }
     const double s = f * ts[i];
@@ -145,7 +145,7 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
     FillSeenTops(*tile, tops);
     return true;
   };
-  internal::SeenTops tops(scan, T, fill);
+  internal::TileSlabs tops(scan, T, fill);
   internal::TileCursor at(T);
   TileKey last_key{0, 0};
   const double* tile_tops = nullptr;
@@ -190,26 +190,39 @@ std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(const PreparedScan& sc
   return out;
 }
 
-// The height v is computed from at cell c: its elevation, or for bgk-ll its own observations'
-// mean (NaN if it has none).
-double ScanIntegrator::Pass::FeatureHeight(CellIndex c) const {
-  const Tile* tile = TileAt(c);
-  if (tile == nullptr || !tile->has_plane()) return Elevation(c);
-  return OwnHeight(*tile, self.geometry_.LocalIndex(c));
+// The heights v is computed from at the cells of tile `key`: their elevations, or for bgk-ll
+// their own observations' means (NaN where there are none). False for a tile the window does
+// not hold.
+bool ScanIntegrator::Pass::FillFeatureHeights(TileKey key, double* z) const {
+  const Tile* tile = window.at(key);
+  if (tile == nullptr) return false;
+  const int n = tile->cell_count();
+  if (tile->has_plane()) {
+    for (int i = 0; i < n; ++i) z[i] = OwnHeight(*tile, i);
+    return true;
+  }
+  const double f = ReadFactorOf(*tile);  // 1 for the tiles the scan writes (brought to its time)
+  const MapParams& p = self.params_;
+  for (int i = 0; i < n; ++i) {  // Elevation's arithmetic
+    const double w = f * tile->w()[i];
+    z[i] = w > 0.0 ? (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w) : kNoValue;
+  }
+  return true;
 }
 
 // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
-// with fewer than three known cells within the robot radius.
-float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const {
+// with fewer than three known cells within the robot radius. `heights` holds FillFeatureHeights.
+float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch,
+                                    internal::TileSlabs& heights) const {
   patch.clear();
   const MapParams& p = self.params_;
   const double res = p.resolution;
   const int R = self.neighbourhood_radius_;
   const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
   if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
-    const Tile* tile = TileAt(c);
-    const double* w = tile->w().data();
-    const double* s = tile->s().data();
+    const TileKey key = self.geometry_.TileOf(c);
+    const double* w = window.at(key)->w().data();
+    const double* z = heights.Of(key);
     const int centre = ly * T + lx;
     for (const CellIndex& o : self.neighbourhood_) {
       const int i = centre + o.y * T + o.x;
@@ -217,14 +230,22 @@ float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch)
       // bgk-ll: v from the data, the cells' own observations, not from the fitted surface
       // (which fills unobserved cells, e.g. behind an occluding edge, with planes that would
       // read as steps).
-      const double z = tile->has_plane() ? OwnHeight(*tile, i)
-                                         : (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i]);
-      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+      if (!std::isnan(z[i])) patch.push_back({o.x * res, o.y * res, z[i]});
     }
   } else {
+    TileKey last{0, 0};
+    const double* z = nullptr;
+    bool have = false;
     for (const CellIndex& o : self.neighbourhood_) {
-      const double z = FeatureHeight({c.x + o.x, c.y + o.y});
-      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+      const CellIndex n{c.x + o.x, c.y + o.y};
+      const TileKey key = self.geometry_.TileOf(n);
+      if (!have || key != last) {
+        last = key;
+        z = heights.Of(key);
+        have = true;
+      }
+      const double h = z != nullptr ? z[self.geometry_.LocalIndex(n)] : kNoValue;
+      if (!std::isnan(h)) patch.push_back({o.x * res, o.y * res, h});
     }
   }
   if (patch.size() < 3) return kNoValue;
@@ -416,8 +437,10 @@ std::vector<std::pair<CellIndex, float>> ScanIntegrator::Pass::TrainingValues(
   std::vector<PatchPoint> patch;
   patch.reserve(self.neighbourhood_.size());
   std::vector<std::pair<CellIndex, float>> values;
+  const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
+  internal::TileSlabs heights(scan, T, fill);
   const auto add = [&](CellIndex c) {
-    const float v = ValueAt(c, patch);
+    const float v = ValueAt(c, patch, heights);
     if (!std::isnan(v)) values.emplace_back(c, v);
   };
   if (self.params_.method == Method::kBgkTrav) {

@@ -1,7 +1,9 @@
-// The free-space test's per-cell reads, computed once per scan: a dense scan's rays cross each
-// cell near its returns ten times or more, and the top of what a cell has seen is the same every
-// time (the map as the scan finds it). With each tile's tops, the highest top of every 8 x 8
-// block of cells, so that a ray passing above every block it crosses needs no walk. Internal to
+// A value per cell of the tiles a scan reads, computed once per scan and tile instead of at every
+// read: the free-space test's seen tops (a dense scan's rays cross each cell near its returns ten
+// times or more, and the map they read is the map as the scan finds it), and the features'
+// heights (each cell is in the patch of every observed cell within the robot radius). With each
+// tile's values, the highest of every 8 x 8 block of cells, so that a ray passing above every
+// block it crosses needs no walk. One scan's slabs are in use at a time per thread. Internal to
 // core.
 #pragma once
 
@@ -18,31 +20,31 @@
 
 namespace bgkmap::internal {
 
-class SeenTops {
+class TileSlabs {
  public:
-  // An unknown cell: no ray height is below it, so it is never contradicted.
+  // An unknown cell's top: no ray height is below it, so it is never contradicted.
   static constexpr double kNone = -std::numeric_limits<double>::infinity();
   static constexpr int kBlock = 8;  // cells per block edge
 
-  // Fill(key, tops) writes the top of each of tile `key`'s cells (kNone where unknown), or
-  // returns false for a tile the window does not hold. `fill` must outlive this object.
+  // Fill(key, values) writes the value of each of tile `key`'s cells, or returns false for a
+  // tile the window does not hold. `fill` must outlive this object.
   template <typename Fill>
-  SeenTops(const PreparedScan& scan, int tile_size, Fill&& fill);
+  TileSlabs(const PreparedScan& scan, int tile_size, Fill&& fill);
 
-  // Tile `key`'s tops, filled at the first call; null for a tile the window does not hold.
+  // Tile `key`'s values, filled at the first call; null for a tile the window does not hold.
   // Valid as long as this object.
   const double* Of(TileKey key);
-  // The highest top in the blocks that meet `box`; +inf where that is not known (a box outside
-  // the scan's tiles' rectangle).
+  // The highest value (NaN left out) in the blocks that meet `box`; +inf where that is not
+  // known (a box outside the scan's tiles' rectangle).
   double MaxIn(const CellBox& box);
 
  private:
   struct Slab {
     TileKey key;
-    int32_t index;  // into Scratch::tops; -1: not filled; -2: no tile
+    int32_t index;  // into Scratch::values; -1: not filled; -2: no tile
   };
   struct Scratch {
-    std::vector<std::unique_ptr<double[]>> tops;  // a tile's cells each; the first `used` in use
+    std::vector<std::unique_ptr<double[]>> values;  // a tile's cells each; the first `used` in use
     size_t used = 0;
     size_t cells = 0;  // per buffer
     std::vector<double> block_max;
@@ -65,11 +67,11 @@ class SeenTops {
 };
 
 template <typename Fill>
-SeenTops::SeenTops(const PreparedScan& scan, int tile_size, Fill&& fill)
+TileSlabs::TileSlabs(const PreparedScan& scan, int tile_size, Fill&& fill)
     : T(tile_size), blocks_((tile_size + kBlock - 1) / kBlock) {
   fill_arg_ = &fill;
-  fill_ = [](const void* f, TileKey key, double* tops) {
-    return (*static_cast<const std::remove_reference_t<Fill>*>(f))(key, tops);
+  fill_ = [](const void* f, TileKey key, double* values) {
+    return (*static_cast<const std::remove_reference_t<Fill>*>(f))(key, values);
   };
   for (const auto* list : {&scan.write_tiles, &scan.read_tiles, &scan.clear_tiles}) {
     for (const TileKey& k : *list) slabs_.push_back({k, -1});
@@ -79,7 +81,7 @@ SeenTops::SeenTops(const PreparedScan& scan, int tile_size, Fill&& fill)
   Scratch& s = Buffers();
   s.used = 0;
   if (s.cells != static_cast<size_t>(T) * T) {  // another map's tile size
-    s.tops.clear();
+    s.values.clear();
     s.cells = static_cast<size_t>(T) * T;
   }
   s.block_max.clear();

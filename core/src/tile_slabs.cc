@@ -1,8 +1,8 @@
-#include "seen_tops.h"
+#include "tile_slabs.h"
 
 namespace bgkmap::internal {
 
-SeenTops::Slab& SeenTops::SlabOf(TileKey key) {
+TileSlabs::Slab& TileSlabs::SlabOf(TileKey key) {
   auto it = std::lower_bound(slabs_.begin(), slabs_.end(), key,
                              [](const Slab& s, const TileKey& k) { return s.key < k; });
   if (it == slabs_.end() || it->key != key) {  // not in the scan's lists (a wider window)
@@ -11,12 +11,12 @@ SeenTops::Slab& SeenTops::SlabOf(TileKey key) {
   return *it;
 }
 
-void SeenTops::FillSlab(Slab& slab) {
+void TileSlabs::FillSlab(Slab& slab) {
   Scratch& s = Buffers();
   const size_t cells = static_cast<size_t>(T) * T;
-  if (s.used == s.tops.size()) s.tops.push_back(std::make_unique<double[]>(cells));
-  double* tops = s.tops[s.used].get();
-  if (fill_(fill_arg_, slab.key, tops)) {
+  if (s.used == s.values.size()) s.values.push_back(std::make_unique<double[]>(cells));
+  double* values = s.values[s.used].get();
+  if (fill_(fill_arg_, slab.key, values)) {
     slab.index = static_cast<int32_t>(s.used++);
   } else {
     slab.index = -2;
@@ -27,11 +27,11 @@ void SeenTops::FillSlab(Slab& slab) {
   const int64_t row = int64_t{tiles_x_} * blocks_;
   for (int by = 0; by < blocks_; ++by) {
     for (int bx = 0; bx < blocks_; ++bx) {
-      double m = kNone;  // NaN tops never compare below a ray: left out
+      double m = kNone;  // NaN never compares below a ray: left out
       if (slab.index >= 0) {
         for (int y = by * kBlock; y < std::min(T, (by + 1) * kBlock); ++y) {
           for (int x = bx * kBlock; x < std::min(T, (bx + 1) * kBlock); ++x) {
-            if (tops[y * T + x] > m) m = tops[y * T + x];
+            if (values[y * T + x] > m) m = values[y * T + x];
           }
         }
       }
@@ -40,14 +40,14 @@ void SeenTops::FillSlab(Slab& slab) {
   }
 }
 
-const double* SeenTops::Of(TileKey key) {
+const double* TileSlabs::Of(TileKey key) {
   Slab& slab = SlabOf(key);
   if (slab.index == -1) FillSlab(slab);
   if (slab.index < 0) return nullptr;
-  return Buffers().tops[slab.index].get();
+  return Buffers().values[slab.index].get();
 }
 
-double SeenTops::MaxIn(const CellBox& box) {
+double TileSlabs::MaxIn(const CellBox& box) {
   constexpr double kUnknown = std::numeric_limits<double>::infinity();
   if (tiles_x_ == 0) return kUnknown;
   const int64_t x0 = int64_t{box.min.x} - int64_t{min_.x} * T;
