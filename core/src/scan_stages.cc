@@ -145,7 +145,7 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
     FillSeenTops(*tile, tops);
     return true;
   };
-  internal::TileSlabs tops(scan, T, fill);
+  internal::TileSlabs tops(scan, T, true, fill);
   internal::TileCursor at(T);
   TileKey last_key{0, 0};
   const double* tile_tops = nullptr;
@@ -438,7 +438,7 @@ std::vector<std::pair<CellIndex, float>> ScanIntegrator::Pass::TrainingValues(
   patch.reserve(self.neighbourhood_.size());
   std::vector<std::pair<CellIndex, float>> values;
   const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
-  internal::TileSlabs heights(scan, T, fill);
+  internal::TileSlabs heights(scan, T, false, fill);
   const auto add = [&](CellIndex c) {
     const float v = ValueAt(c, patch, heights);
     if (!std::isnan(v)) values.emplace_back(c, v);

@@ -41,10 +41,13 @@ void TileSlabs::FillSlab(Slab& slab) {
 }
 
 const double* TileSlabs::Of(TileKey key) {
+  if (have_last_ && key == last_key_) return last_;
   Slab& slab = SlabOf(key);
   if (slab.index == -1) FillSlab(slab);
-  if (slab.index < 0) return nullptr;
-  return Buffers().values[slab.index].get();
+  last_key_ = key;
+  last_ = slab.index < 0 ? nullptr : Buffers().values[slab.index].get();
+  have_last_ = true;
+  return last_;
 }
 
 double TileSlabs::MaxIn(const CellBox& box) {

@@ -28,8 +28,9 @@ class TileSlabs {
 
   // Fill(key, values) writes the value of each of tile `key`'s cells, or returns false for a
   // tile the window does not hold. `fill` must outlive this object.
+  // With `blocks`, each tile's block maxima for MaxIn.
   template <typename Fill>
-  TileSlabs(const PreparedScan& scan, int tile_size, Fill&& fill);
+  TileSlabs(const PreparedScan& scan, int tile_size, bool blocks, Fill&& fill);
 
   // Tile `key`'s values, filled at the first call; null for a tile the window does not hold.
   // Valid as long as this object.
@@ -60,6 +61,9 @@ class TileSlabs {
   const int T;
   const int blocks_;         // per tile edge
   std::vector<Slab> slabs_;  // sorted by key
+  TileKey last_key_{0, 0};   // the last Of, answered again without a search
+  const double* last_ = nullptr;
+  bool have_last_ = false;
   TileKey min_{0, 0};
   int tiles_x_ = 0, tiles_y_ = 0;  // the block grid's rectangle, in tiles (0: none)
   bool (*fill_)(const void*, TileKey, double*) = nullptr;
@@ -67,7 +71,7 @@ class TileSlabs {
 };
 
 template <typename Fill>
-TileSlabs::TileSlabs(const PreparedScan& scan, int tile_size, Fill&& fill)
+TileSlabs::TileSlabs(const PreparedScan& scan, int tile_size, bool blocks, Fill&& fill)
     : T(tile_size), blocks_((tile_size + kBlock - 1) / kBlock) {
   fill_arg_ = &fill;
   fill_ = [](const void* f, TileKey key, double* values) {
@@ -85,7 +89,7 @@ TileSlabs::TileSlabs(const PreparedScan& scan, int tile_size, Fill&& fill)
     s.cells = static_cast<size_t>(T) * T;
   }
   s.block_max.clear();
-  if (slabs_.empty()) return;
+  if (slabs_.empty() || !blocks) return;
   TileKey max = slabs_.front().key;
   min_ = max;
   for (const Slab& sl : slabs_) {
