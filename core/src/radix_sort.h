@@ -1,5 +1,6 @@
 // LSD radix sort of 64-bit keys, returning the stable sorting permutation. A scan's keys are
-// cell offsets within the scan's bounding box, so most high bytes are zero and are skipped.
+// cell offsets within the scan's bounding box, so most high bytes are the same for all and are
+// skipped.
 #pragma once
 
 #include <cstdint>

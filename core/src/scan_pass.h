@@ -8,6 +8,7 @@
 
 #include "bgkmap/core/scan_integrator.h"
 #include "bgkmap/core/terrain_features.h"
+#include "tile_slabs.h"
 
 namespace bgkmap {
 
@@ -120,11 +121,12 @@ struct ScanIntegrator::Pass {
 
   // Reads of the map as the scan finds it.
   bool SeenTop(const Tile& tile, int i, double f, double* top) const;
+  void FillSeenTops(const Tile& tile, double* tops) const;
   double Elevation(CellIndex c) const;
   std::vector<CellIndex> Contradicted(const PreparedScan& scan) const;
   void AddRayContradictions(const PreparedScan& scan, std::vector<CellIndex>& out) const;
-  double FeatureHeight(CellIndex c) const;
-  float ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const;
+  bool FillFeatureHeights(TileKey key, double* z) const;
+  float ValueAt(CellIndex c, std::vector<PatchPoint>& patch, internal::TileSlabs& heights) const;
 };
 
 }  // namespace bgkmap

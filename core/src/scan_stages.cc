@@ -9,6 +9,7 @@
 #include "radix_sort.h"
 #include "ray_walk.h"
 #include "scan_pass.h"
+#include "tile_slabs.h"
 
 namespace bgkmap {
 namespace {
@@ -56,6 +57,35 @@ bool ScanIntegrator::Pass::SeenTop(const Tile& tile, int i, double f, double* to
   return true;
 }
 
+// SeenTop of every cell of `tile`, kNone where unknown: SeenTop's arithmetic written out for a
+// tile without plane moments, in one pass over its arrays.
+void ScanIntegrator::Pass::FillSeenTops(const Tile& tile, double* tops) const {
+  const double f = ReadFactorOf(tile);
+  const int n = tile.cell_count();
+  if (tile.has_plane()) {
+    for (int i = 0; i < n; ++i) {
+      if (!SeenTop(tile, i, f, &tops[i])) tops[i] = internal::TileSlabs::kNone;
+    }
+    return;
+  }
+  const MapParams& p = self.params_;
+  const double* tw = tile.w().data();
+  const double* ts = tile.s().data();
+  const double* tq = tile.q().data();
+  for (int i = 0; i < n; ++i) {
+    const double w = f * tw[i];
+    if (!(w > 0.0)) {
+      tops[i] = internal::TileSlabs::kNone;
+      continue;
+    }
+    const double s = f * ts[i];
+    const double height = (p.lambda * p.prior_mean + s) / (p.lambda + w);
+    const double mean = s / w;  // Disagreement(w, s, q)
+    const double disagreement = std::max(0.0, (f * tq[i]) / w - mean * mean);
+    tops[i] = height + std::sqrt(disagreement);
+  }
+}
+
 // Elevation of a known cell, NaN otherwise.
 double ScanIntegrator::Pass::Elevation(CellIndex c) const {
   const Tile* tile = TileAt(c);
@@ -76,76 +106,123 @@ double ScanIntegrator::Pass::Elevation(CellIndex c) const {
   return (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w);
 }
 
+namespace {
+
+// The cells a ray's walk from t0 to t1 can visit (ray_walk.h), with a cell to spare each side
+// for rounding.
+CellBox RayBox(CellIndex end, double sx, double sy, double dist, double t0, double t1) {
+  const double x0 = end.x + 0.5, y0 = end.y + 0.5;
+  const double ux = (sx - x0) / dist, uy = (sy - y0) / dist;
+  const double xa = x0 + ux * t0, xb = x0 + ux * t1, ya = y0 + uy * t0, yb = y0 + uy * t1;
+  return {{static_cast<int>(std::floor(std::min(xa, xb))) - 1,
+           static_cast<int>(std::floor(std::min(ya, yb))) - 1},
+          {static_cast<int>(std::floor(std::max(xa, xb))) + 1,
+           static_cast<int>(std::floor(std::max(ya, yb))) + 1}};
+}
+
+}  // namespace
+
+// The cells the scan's rays pass clearly below on their way to their returns, once per ray
+// (semantics "Dynamics"), in the order the rays are walked. A ray whose lowest height over its
+// walk is not below the highest top (less the margin) of the blocks it crosses contradicts
+// nothing there and is not walked: the same cells, bit for bit (the heights and the tops'
+// differences are monotone in IEEE arithmetic).
+void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
+                                                std::vector<CellIndex>& out) const {
+  const MapParams& p = self.params_;
+  const double margin = p.clear_margin;
+  const double res = p.resolution;
+  const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
+  const double length = p.clear_ray_length / res;
+  // Cells within l of the return are skipped: there the kernel blends the return's own
+  // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
+  const double skip = p.kernel_length / res;
+  // The top of what a cell has seen: its elevation plus its disagreement's deviation, so an
+  // old object's remains, mixed with new ground, still stand above a grazing ray.
+  const auto fill = [&](TileKey key, double* tops) {
+    const Tile* tile = window.at(key);
+    if (tile == nullptr) return false;
+    FillSeenTops(*tile, tops);
+    return true;
+  };
+  internal::TileSlabs tops(scan, T, true, fill);
+  internal::TileCursor at(T);
+  TileKey last_key{0, 0};
+  const double* tile_tops = nullptr;
+  bool have_last = false;
+  for (const ObservedCell& oc : scan.cells) {
+    const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
+    if (!(dist > skip)) continue;
+    const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
+    const double limit = std::min(length, dist);        // the walk's t stays below it
+    if (!(skip < limit)) continue;
+    const double low = std::min(oc.y + rise * skip, oc.y + rise * limit);
+    if (!(low < tops.MaxIn(RayBox(oc.cell, sx, sy, dist, skip, limit)) - margin)) continue;
+    at.Reset(oc.cell);
+    internal::WalkRayBack(oc.cell, sx, sy, length, dist, [&](CellIndex c, double t) {
+      at.MoveTo(c);
+      if (t < skip) return;
+      if (!have_last || at.key != last_key) {  // the footprint holds every tile a ray crosses
+        last_key = at.key;
+        tile_tops = tops.Of(at.key);
+        have_last = true;
+      }
+      if (tile_tops != nullptr && oc.y + rise * t < tile_tops[at.index()] - margin) {
+        out.push_back(c);
+      }
+    });
+  }
+}
+
 // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
 // "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
 // elevation (something appeared), and a ray passing clearly below one on its way to its return
 // (what was there has gone).
 std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(const PreparedScan& scan) const {
   std::vector<CellIndex> out;
-  const MapParams& p = self.params_;
-  const double margin = p.clear_margin;
+  const double margin = self.params_.clear_margin;
   for (const ObservedCell& oc : scan.cells) {
     const double m = Elevation(oc.cell);
     if (oc.y > m + margin) out.push_back(oc.cell);  // false for NaN (unknown)
   }
-  if (p.clear_ray_length > 0) {
-    const double res = p.resolution;
-    const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
-    const double length = p.clear_ray_length / res;
-    // Cells within l of the return are skipped: there the kernel blends the return's own
-    // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
-    const double skip = p.kernel_length / res;
-    TileKey last_key{0, 0};
-    const Tile* last_tile = nullptr;
-    double last_f = 1.0;
-    bool have_last = false;
-    for (const ObservedCell& oc : scan.cells) {
-      const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
-      if (!(dist > skip)) continue;
-      const double rise = (scan.sensor_z - oc.y) / dist;  // ray height gained per cell
-      internal::WalkRayBack(oc.cell, sx, sy, length, [&](CellIndex c, double t) {
-        if (t < skip) return;
-        const TileKey key = self.geometry_.TileOf(c);
-        if (!have_last || key != last_key) {  // the footprint holds every tile a ray crosses
-          last_key = key;
-          last_tile = window.at(key);
-          last_f = last_tile != nullptr ? ReadFactorOf(*last_tile) : 1.0;
-          have_last = true;
-        }
-        if (last_tile == nullptr) return;
-        const int i = self.geometry_.LocalIndex(c);
-        // The top of what the cell has seen: its elevation plus its disagreement's deviation,
-        // so an old object's remains, mixed with new ground, still stand above a grazing ray.
-        double top;
-        if (!SeenTop(*last_tile, i, last_f, &top)) return;
-        if (oc.y + rise * t < top - margin) out.push_back(c);
-      });
-    }
-  }
+  if (self.params_.clear_ray_length > 0) AddRayContradictions(scan, out);
   SortCells(out);
   return out;
 }
 
-// The height v is computed from at cell c: its elevation, or for bgk-ll its own observations'
-// mean (NaN if it has none).
-double ScanIntegrator::Pass::FeatureHeight(CellIndex c) const {
-  const Tile* tile = TileAt(c);
-  if (tile == nullptr || !tile->has_plane()) return Elevation(c);
-  return OwnHeight(*tile, self.geometry_.LocalIndex(c));
+// The heights v is computed from at the cells of tile `key`: their elevations, or for bgk-ll
+// their own observations' means (NaN where there are none). False for a tile the window does
+// not hold.
+bool ScanIntegrator::Pass::FillFeatureHeights(TileKey key, double* z) const {
+  const Tile* tile = window.at(key);
+  if (tile == nullptr) return false;
+  const int n = tile->cell_count();
+  if (tile->has_plane()) {
+    for (int i = 0; i < n; ++i) z[i] = OwnHeight(*tile, i);
+    return true;
+  }
+  const double f = ReadFactorOf(*tile);  // 1 for the tiles the scan writes (brought to its time)
+  const MapParams& p = self.params_;
+  for (int i = 0; i < n; ++i) {  // Elevation's arithmetic
+    const double w = f * tile->w()[i];
+    z[i] = w > 0.0 ? (p.lambda * p.prior_mean + f * tile->s()[i]) / (p.lambda + w) : kNoValue;
+  }
+  return true;
 }
 
 // Traversability training value v at `c` from the current elevations (semantics 6), or NaN
-// with fewer than three known cells within the robot radius.
-float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch) const {
+// with fewer than three known cells within the robot radius. `heights` holds FillFeatureHeights.
+float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch,
+                                    internal::TileSlabs& heights) const {
   patch.clear();
   const MapParams& p = self.params_;
   const double res = p.resolution;
   const int R = self.neighbourhood_radius_;
   const int lx = FloorMod(c.x, T), ly = FloorMod(c.y, T);
   if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
-    const Tile* tile = TileAt(c);
-    const double* w = tile->w().data();
-    const double* s = tile->s().data();
+    const TileKey key = self.geometry_.TileOf(c);
+    const double* w = window.at(key)->w().data();
+    const double* z = heights.Of(key);
     const int centre = ly * T + lx;
     for (const CellIndex& o : self.neighbourhood_) {
       const int i = centre + o.y * T + o.x;
@@ -153,17 +230,32 @@ float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch)
       // bgk-ll: v from the data, the cells' own observations, not from the fitted surface
       // (which fills unobserved cells, e.g. behind an occluding edge, with planes that would
       // read as steps).
-      const double z = tile->has_plane() ? OwnHeight(*tile, i)
-                                         : (p.lambda * p.prior_mean + s[i]) / (p.lambda + w[i]);
-      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+      if (!std::isnan(z[i])) patch.push_back({o.x * res, o.y * res, z[i]});
     }
   } else {
+    TileKey last{0, 0};
+    const double* z = nullptr;
+    bool have = false;
     for (const CellIndex& o : self.neighbourhood_) {
-      const double z = FeatureHeight({c.x + o.x, c.y + o.y});
-      if (!std::isnan(z)) patch.push_back({o.x * res, o.y * res, z});
+      const CellIndex n{c.x + o.x, c.y + o.y};
+      const TileKey key = self.geometry_.TileOf(n);
+      if (!have || key != last) {
+        last = key;
+        z = heights.Of(key);
+        have = true;
+      }
+      const double h = z != nullptr ? z[self.geometry_.LocalIndex(n)] : kNoValue;
+      if (!std::isnan(h)) patch.push_back({o.x * res, o.y * res, h});
     }
   }
   if (patch.size() < 3) return kNoValue;
+  // A step over its critical value alone makes v 1 (TraversabilityValue): no plane fit needed.
+  double zmin = patch.front().z, zmax = patch.front().z;  // as ComputeFeatures has them
+  for (const PatchPoint& q : patch) {
+    zmin = std::min(zmin, q.z);
+    zmax = std::max(zmax, q.z);
+  }
+  if (zmax - zmin > p.step_crit) return 1.0f;
   return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), p));
 }
 
@@ -345,8 +437,10 @@ std::vector<std::pair<CellIndex, float>> ScanIntegrator::Pass::TrainingValues(
   std::vector<PatchPoint> patch;
   patch.reserve(self.neighbourhood_.size());
   std::vector<std::pair<CellIndex, float>> values;
+  const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
+  internal::TileSlabs heights(scan, T, false, fill);
   const auto add = [&](CellIndex c) {
-    const float v = ValueAt(c, patch);
+    const float v = ValueAt(c, patch, heights);
     if (!std::isnan(v)) values.emplace_back(c, v);
   };
   if (self.params_.method == Method::kBgkTrav) {

@@ -1,0 +1,85 @@
+#include "tile_slabs.h"
+
+namespace bgkmap::internal {
+
+TileSlabs::Slab& TileSlabs::SlabOf(TileKey key) {
+  auto it = std::lower_bound(slabs_.begin(), slabs_.end(), key,
+                             [](const Slab& s, const TileKey& k) { return s.key < k; });
+  if (it == slabs_.end() || it->key != key) {  // not in the scan's lists (a wider window)
+    it = slabs_.insert(it, {key, -1});
+  }
+  return *it;
+}
+
+void TileSlabs::FillSlab(Slab& slab) {
+  Scratch& s = Buffers();
+  const size_t cells = static_cast<size_t>(T) * T;
+  if (s.used == s.values.size()) s.values.push_back(std::make_unique<double[]>(cells));
+  double* values = s.values[s.used].get();
+  if (fill_(fill_arg_, slab.key, values)) {
+    slab.index = static_cast<int32_t>(s.used++);
+  } else {
+    slab.index = -2;
+  }
+  const int64_t gx = int64_t{slab.key.x} - min_.x, gy = int64_t{slab.key.y} - min_.y;
+  if (tiles_x_ == 0 || gx < 0 || gy < 0 || gx >= tiles_x_ || gy >= tiles_y_) return;
+  // The block rows of the grid are whole rows of blocks across the rectangle.
+  const int64_t row = int64_t{tiles_x_} * blocks_;
+  for (int by = 0; by < blocks_; ++by) {
+    for (int bx = 0; bx < blocks_; ++bx) {
+      double m = kNone;  // NaN never compares below a ray: left out
+      if (slab.index >= 0) {
+        for (int y = by * kBlock; y < std::min(T, (by + 1) * kBlock); ++y) {
+          for (int x = bx * kBlock; x < std::min(T, (bx + 1) * kBlock); ++x) {
+            if (values[y * T + x] > m) m = values[y * T + x];
+          }
+        }
+      }
+      s.block_max[(gy * blocks_ + by) * row + gx * blocks_ + bx] = m;
+    }
+  }
+}
+
+const double* TileSlabs::Of(TileKey key) {
+  if (have_last_ && key == last_key_) return last_;
+  Slab& slab = SlabOf(key);
+  if (slab.index == -1) FillSlab(slab);
+  last_key_ = key;
+  last_ = slab.index < 0 ? nullptr : Buffers().values[slab.index].get();
+  have_last_ = true;
+  return last_;
+}
+
+double TileSlabs::MaxIn(const CellBox& box) {
+  constexpr double kUnknown = std::numeric_limits<double>::infinity();
+  if (tiles_x_ == 0) return kUnknown;
+  const int64_t x0 = int64_t{box.min.x} - int64_t{min_.x} * T;
+  const int64_t y0 = int64_t{box.min.y} - int64_t{min_.y} * T;
+  const int64_t x1 = int64_t{box.max.x} - int64_t{min_.x} * T;
+  const int64_t y1 = int64_t{box.max.y} - int64_t{min_.y} * T;
+  if (x0 < 0 || y0 < 0 || x1 >= int64_t{tiles_x_} * T || y1 >= int64_t{tiles_y_} * T) {
+    return kUnknown;
+  }
+  const Scratch& s = Buffers();
+  const int64_t row = int64_t{tiles_x_} * blocks_;
+  double m = kNone;
+  // The start of the block after the one holding c (blocks do not cross tiles).
+  const auto next = [&](int64_t c) {
+    const int64_t t0 = c / T * T;
+    return t0 + std::min<int64_t>(T, ((c - t0) / kBlock + 1) * kBlock);
+  };
+  for (int64_t y = y0; y <= y1; y = next(y)) {
+    for (int64_t x = x0; x <= x1; x = next(x)) {
+      const int64_t tx = x / T, ty = y / T;
+      const int64_t b =
+          (ty * blocks_ + (y - ty * T) / kBlock) * row + tx * blocks_ + (x - tx * T) / kBlock;
+      if (std::isnan(s.block_max[b])) {
+        Of({static_cast<int>(min_.x + tx), static_cast<int>(min_.y + ty)});
+      }
+      m = std::max(m, s.block_max[b]);
+    }
+  }
+  return m;
+}
+
+}  // namespace bgkmap::internal
