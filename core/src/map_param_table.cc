@@ -145,6 +145,22 @@ Status FootprintWeight(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
+// A footprint box edge: 0 or a vehicle's size, up to 20 m. The box needs both edges > 0; with
+// either 0 the footprint is the disk (no cross-check: stores written before the keys existed
+// name them one at a time, each with its legacy 0).
+Status FootprintEdge(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 20) return Bad(key, v, "must be <= 20 metres (0: the disk of robot_radius)");
+  return Status::Ok();
+}
+
+// The sensor's offset from the footprint box's centre, within 20 m.
+Status FootprintOffset(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Finite(key, v, p); !s.ok()) return s;
+  if (std::abs(v) > 20) return Bad(key, v, "must lie in [-20, 20] metres");
+  return Status::Ok();
+}
+
 MapParamInfo Real(std::string_view key, double MapParams::*field, bool shapes, Check check,
                   std::string_view doc) {
   MapParamInfo info{key, MapParamKind::kDouble, shapes, doc};
@@ -247,6 +263,20 @@ const std::vector<MapParamInfo>& Table() {
       Legacy(Real("footprint_weight", &P::footprint_weight, kStats, FootprintWeight,
                   "weight of the footprint evidence per scan, in observations at a cell"),
              "0.1"),
+      // The footprint as the vehicle's box; maps from before it were built with the disk (0).
+      Legacy(Real("footprint_length", &P::footprint_length, kStats, FootprintEdge,
+                  "the vehicle's length along the sensor's heading, metres; > 0 (with "
+                  "footprint_width): the footprint is this box, its obstacle evidence cleared"),
+             "0"),
+      Legacy(Real("footprint_width", &P::footprint_width, kStats, FootprintEdge,
+                  "the vehicle's width, metres; 0: the footprint is the disk of robot_radius"),
+             "0"),
+      Legacy(Real("footprint_sensor_x", &P::footprint_sensor_x, kStats, FootprintOffset,
+                  "the sensor's position ahead of the footprint box's centre, metres"),
+             "0"),
+      Legacy(Real("footprint_sensor_y", &P::footprint_sensor_y, kStats, FootprintOffset,
+                  "the sensor's position left of the footprint box's centre, metres"),
+             "0"),
       // Forgetting; maps from before it were built without (0).
       Legacy(Real("half_life_s", &P::half_life_s, kStats, FiniteNonNegative,
                   "seconds of map time (scan stamps) in which a statistic's weight halves "

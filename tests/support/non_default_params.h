@@ -39,6 +39,10 @@ inline MapParams NonDefaultParams() {
   p.sensor_height = 0.75;
   p.footprint_weight = 0.3;
   p.half_life_s = 12.5;
+  p.footprint_length = 4.5;
+  p.footprint_width = 1.8;
+  p.footprint_sensor_x = -0.4;
+  p.footprint_sensor_y = 0.1;
   return p;
 }
 

@@ -83,6 +83,14 @@ struct MapParams {
   // ground sensor_height below the sensor, within robot_radius (docs/semantics.md).
   double sensor_height = 0.0;
   double footprint_weight = 0.1;
+  // The footprint as the vehicle's box (issue 24, P6): > 0 replaces the disk of robot_radius by
+  // a footprint_length x footprint_width box turned to the sensor's heading, the sensor at
+  // (footprint_sensor_x, footprint_sensor_y) from its centre (x forward); its cells' obstacle
+  // evidence is cleared, the robot stands there. 0: the disk (docs/semantics.md, "Dynamics").
+  double footprint_length = 0.0;
+  double footprint_width = 0.0;
+  double footprint_sensor_x = 0.0;
+  double footprint_sensor_y = 0.0;
   // Forgetting (dynamics on): > 0 halves every statistic's weight per half_life_s seconds of map
   // time (scan stamps), docs/semantics.md "Forgetting"; 0: off.
   double half_life_s = 0.0;
