@@ -68,6 +68,10 @@ struct MapParams {
   std::array<double, 3> weights = {0.4, 0.4, 0.2};
   double trav_threshold = 0.5;
   double variance_threshold = 0.05;
+  // Seen too little (dynamics on): a cell failing the state rule only for want of traversability
+  // evidence, with less elevation weight than this many full-kernel observations, is unknown
+  // (docs/semantics.md, "Seen too little"); 0: non-traversable, the paper's rule.
+  double thin_evidence_weight = 0.5;
   double min_range = 1.0;
   double max_range = 100.0;
   double max_height_above_sensor = 0.5;
