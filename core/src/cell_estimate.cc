@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "bgkmap/core/sparse_kernel.h"
+
 namespace bgkmap {
 namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -62,7 +64,7 @@ float CellEstimate::Get(Layer layer) const {
     case Layer::kDisagreement:
       return disagreement;
     case Layer::kBlockReason:
-      return state == CellState::kUnknown ? kNaN : static_cast<float>(block_reasons);
+      return std::isnan(elevation_weight) ? kNaN : static_cast<float>(block_reasons);
   }
   return kNaN;
 }
@@ -122,6 +124,22 @@ LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const
   return out;
 }
 
+// As ScanIntegrator sums it for its caps; the last parameters' value is kept per thread.
+double FullKernelWeight(const MapParams& p) {
+  if (!InfersElevation(p.method)) return 1.0;  // raw elevation: one per observation
+  thread_local double res = 0.0, l = 0.0, full = 0.0;
+  if (p.resolution != res || p.kernel_length != l) {
+    const KernelStencil kernel(p.resolution, p.kernel_length);
+    full = 0.0;
+    for (int r = 0; r < kernel.row_count(); ++r) {
+      for (int j = 0; j <= 2 * kernel.half_width(r); ++j) full += kernel.row_weights_double(r)[j];
+    }
+    res = p.resolution;
+    l = p.kernel_length;
+  }
+  return full;
+}
+
 namespace {
 
 // The conditions of the state rule a known cell fails (BlockReason bits), on the estimate's own
@@ -139,8 +157,21 @@ uint8_t FailedConditions(const MapParams& p, const CellEstimate& e, double ab, d
   if (!(e.traversability_variance < p.variance_threshold)) r |= kBlockedVariance;
   if (!(d <= p.step_crit * p.step_crit)) r |= kBlockedDisagreement;
   // No evidence at all fails the mean and the variance through the prior alone: say so instead.
-  if (r != 0 && no_value) r = kBlockedNoValue;
+  if (r != 0 && no_value) r = kBlockedNoValue | (r & kBlockedDisagreement);
   return r;
+}
+
+// P3' (docs/semantics.md, "Seen too little"): with dynamics, a cell that fails only for want of
+// traversability evidence (no value, or the variance alone) and holds less elevation weight than
+// thin_evidence_weight full-kernel observations is unknown, not an obstacle: it was barely seen.
+// One seen more than that whose Beta evidence is still thin had it reset again and again (a
+// changing place: a new object's edge) and stays blocked. Without dynamics the paper's rule.
+CellState StateOf(const MapParams& p, uint8_t reasons, double w) {
+  if (reasons == 0) return CellState::kTraversable;
+  const bool thin = reasons == kBlockedNoValue || reasons == kBlockedVariance;
+  const bool seen_little = w < p.thin_evidence_weight * FullKernelWeight(p);
+  return thin && seen_little && p.dynamics == Dynamics::kOn ? CellState::kUnknown
+                                                            : CellState::kNonTraversable;
 }
 
 }  // namespace
@@ -182,7 +213,7 @@ CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, floa
     e.traversability_variance = 0.0f;
   }
   e.block_reasons = FailedConditions(p, e, ab, disagreement);
-  e.state = e.block_reasons == 0 ? CellState::kTraversable : CellState::kNonTraversable;
+  e.state = StateOf(p, e.block_reasons, w);
   return e;
 }
 

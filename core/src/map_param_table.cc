@@ -145,6 +145,29 @@ Status FootprintWeight(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
+// Full-kernel observations: 0 (off) up to the confidence cap's order.
+Status ThinWeight(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 100) return Bad(key, v, "must lie in [0, 100] full-kernel observations");
+  return Status::Ok();
+}
+
+// A footprint box edge: 0 or a vehicle's size, up to 20 m. The box needs both edges > 0; with
+// either 0 the footprint is the disk (no cross-check: stores written before the keys existed
+// name them one at a time, each with its legacy 0).
+Status FootprintEdge(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 20) return Bad(key, v, "must be <= 20 metres (0: the disk of robot_radius)");
+  return Status::Ok();
+}
+
+// The sensor's offset from the footprint box's centre, within 20 m.
+Status FootprintOffset(std::string_view key, double v, const MapParams& p) {
+  if (Status s = Finite(key, v, p); !s.ok()) return s;
+  if (std::abs(v) > 20) return Bad(key, v, "must lie in [-20, 20] metres");
+  return Status::Ok();
+}
+
 MapParamInfo Real(std::string_view key, double MapParams::*field, bool shapes, Check check,
                   std::string_view doc) {
   MapParamInfo info{key, MapParamKind::kDouble, shapes, doc};
@@ -212,6 +235,9 @@ const std::vector<MapParamInfo>& Table() {
              "[w_step, w_slope, w_rough] of v (Eq. 5), summing to 1"),
       Real("trav_threshold", &P::trav_threshold, kDerived, TravThreshold, "v_th of Eq. 6"),
       Real("variance_threshold", &P::variance_threshold, kDerived, Positive, "sigma_th^2 of Eq. 6"),
+      Legacy(Real("thin_evidence_weight", &P::thin_evidence_weight, kDerived, ThinWeight,
+                  "a thin cell seen less (full-kernel observations) is unknown; 0: off"),
+             "0.5"),
       Real("min_range", &P::min_range, kStats, FiniteNonNegative,
            "drop closer points (the robot's own body), metres"),
       Real("max_range", &P::max_range, kStats, MaxRange, "drop farther points, metres"),
@@ -247,6 +273,18 @@ const std::vector<MapParamInfo>& Table() {
       Legacy(Real("footprint_weight", &P::footprint_weight, kStats, FootprintWeight,
                   "weight of the footprint evidence per scan, in observations at a cell"),
              "0.1"),
+      Legacy(Real("footprint_length", &P::footprint_length, kStats, FootprintEdge,
+                  "the vehicle's length, metres; > 0 with the width: the footprint is its box"),
+             "0"),
+      Legacy(Real("footprint_width", &P::footprint_width, kStats, FootprintEdge,
+                  "the vehicle's width, metres; 0: the footprint is the disk of robot_radius"),
+             "0"),
+      Legacy(Real("footprint_sensor_x", &P::footprint_sensor_x, kStats, FootprintOffset,
+                  "the sensor's position ahead of the footprint box's centre, metres"),
+             "0"),
+      Legacy(Real("footprint_sensor_y", &P::footprint_sensor_y, kStats, FootprintOffset,
+                  "the sensor's position left of the footprint box's centre, metres"),
+             "0"),
       // Forgetting; maps from before it were built without (0).
       Legacy(Real("half_life_s", &P::half_life_s, kStats, FiniteNonNegative,
                   "seconds of map time (scan stamps) in which a statistic's weight halves "

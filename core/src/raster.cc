@@ -13,17 +13,19 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 struct PixelAggregate {
   double w = 0, s = 0, q = 0;
   float worst_trav = -1, worst_var = -1, worst_disagreement = -1;
-  uint8_t block_reasons = 0;  // every reason any of its cells is blocked for
-  bool known = false;
-  bool any_non_traversable = false;  // the pixel is traversable only if all its cells are
+  uint8_t block_reasons = 0;         // every reason any of its cells is blocked for
+  bool known = false;                // some cell has statistics
+  bool any_non_traversable = false;  // then the pixel is non-traversable
+  bool any_unknown = false;          // else unknown if a cell with statistics is (seen too little)
 
   // A coarse pixel's elevation is the kernel mean of its cells' sums (bgk-ll too: planes about
   // different centres do not add); each cell's state is its own estimate's.
   void Add(const MapParams& p, double cw, double cs, double cq, float ca, float cb,
            const double* plane) {
     const CellEstimate e = EstimateCell(p, cw, cs, cq, ca, cb, plane);
-    if (e.state == CellState::kUnknown) return;
+    if (std::isnan(e.elevation_weight)) return;  // no statistics
     known = true;
+    any_unknown |= e.state == CellState::kUnknown;
     w += cw;
     s += cs;
     q += cq;
@@ -42,7 +44,9 @@ struct PixelAggregate {
     if (!known) return e;
     e.traversability = worst_trav >= 0 ? worst_trav : kNaN;
     e.traversability_variance = worst_var >= 0 ? worst_var : kNaN;
-    e.state = any_non_traversable ? CellState::kNonTraversable : CellState::kTraversable;
+    e.state = any_non_traversable ? CellState::kNonTraversable
+              : any_unknown       ? CellState::kUnknown
+                                  : CellState::kTraversable;
     e.elevation_weight = static_cast<float>(w);
     e.disagreement = worst_disagreement >= 0 ? worst_disagreement : kNaN;
     e.block_reasons = block_reasons;

@@ -130,14 +130,35 @@ std::vector<BinnedPoint> TransformAndBin(const MapParams& params, std::span<cons
   return binned;
 }
 
+// The vehicle's box (footprint_length x footprint_width) under a sensor at `t`, turned to the
+// sensor's heading (its x axis on the map's xy plane; east if it points straight up or down),
+// the sensor at (footprint_sensor_x, footprint_sensor_y) from the box's centre.
+std::vector<CellIndex> FootprintBoxCells(const MapParams& p, const GridGeometry& grid,
+                                         const Pose& T) {
+  const Eigen::Vector3d ax = T.rotation.col(0);
+  const double norm = std::hypot(ax.x(), ax.y());
+  const double c = norm > 1e-9 ? ax.x() / norm : 1.0, s = norm > 1e-9 ? ax.y() / norm : 0.0;
+  const Eigen::Vector3d& t = T.translation;
+  auto place = [&](double u, double v) {  // box frame (centre, x forward) to map
+    const double bu = u - p.footprint_sensor_x, bv = v - p.footprint_sensor_y;
+    return Point2{t.x() + c * bu - s * bv, t.y() + s * bu + c * bv};
+  };
+  const double hl = 0.5 * p.footprint_length, hw = 0.5 * p.footprint_width;
+  const Point2 corners[] = {place(hl, hw), place(-hl, hw), place(-hl, -hw), place(hl, -hw)};
+  return CellsInPolygon(grid, corners, {t.x(), t.y()});
+}
+
 // The ground the robot stands on, which its lidar never sees (min_range): the cells of the disk
-// of robot_radius around the sensor (cell_shapes.h), at sensor z - sensor_height. Only with
-// dynamics, a sensor and a sensor_height.
+// of robot_radius around the sensor (cell_shapes.h), or of the vehicle's box, at sensor z -
+// sensor_height. Only with dynamics, a sensor and a sensor_height.
 void AddRobotFootprint(const MapParams& params, const Pose& T, PreparedScan& scan) {
   if (!scan.has_sensor || params.dynamics != Dynamics::kOn || !(params.sensor_height > 0)) return;
   const GridGeometry grid(params.resolution, params.tile_size);
   const Eigen::Vector3d& t = T.translation;
-  scan.footprint_cells = CellsInDisk(grid, {t.x(), t.y()}, params.robot_radius);
+  scan.footprint_box = params.footprint_length > 0 && params.footprint_width > 0;
+  scan.footprint_cells = scan.footprint_box
+                             ? FootprintBoxCells(params, grid, T)
+                             : CellsInDisk(grid, {t.x(), t.y()}, params.robot_radius);
   scan.footprint_y = t.z() - params.sensor_height;
 }
 
@@ -186,6 +207,7 @@ PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, con
     if (keep.Contains(c)) out.footprint_cells.push_back(c);
   }
   out.footprint_y = scan.footprint_y;
+  out.footprint_box = scan.footprint_box;
   out.stamp_ns = scan.stamp_ns;
   if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeScanTiles(params, out);
   return out;

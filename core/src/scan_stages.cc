@@ -520,6 +520,9 @@ void ScanIntegrator::Pass::AddFootprint(const PreparedScan& scan) const {
     } else {
       internal::CapElevation(w, s, q, 1, self.caps_.w);
     }
+    // The vehicle's box: the robot stands on this cell now, so what said obstacle there (a
+    // vehicle that drove off, a blend of its own body) is gone; the disk keeps A (semantics).
+    if (scan.footprint_box) tile->a()[i] = 0.0f;
     if (InfersTraversability(p.method)) {
       tile->b()[i] += bf;
       if (self.caps_.ab > 0) internal::CapBeta(&tile->a()[i], &tile->b()[i], 1, self.caps_.ab);

@@ -42,6 +42,7 @@ TEST(CellEstimateTest, TraversabilityIsTheBetaPosterior) {
 
 TEST(CellEstimateTest, StateUsesBothThresholds) {
   MapParams p;
+  p.dynamics = Dynamics::kOff;  // the paper's rule; with dynamics, see SeenTooLittleIsUnknown
   p.trav_threshold = 0.5;
   p.variance_threshold = 0.05;
   // Well supported and flat: traversable.
@@ -60,6 +61,7 @@ TEST(CellEstimateTest, StateUsesBothThresholds) {
 TEST(CellEstimateTest, DirectMethodsReportTheStoredValue) {
   MapParams p;
   p.method = Method::kBaseline;
+  p.dynamics = Dynamics::kOff;  // with dynamics a cell without a value is unknown (P3)
   const CellEstimate e = EstimateCell(p, 1.0, 0.3, 0.0, 0.25f, 0.75f);
   EXPECT_FLOAT_EQ(e.traversability, 0.25f);
   EXPECT_EQ(e.traversability_variance, 0.0f);
@@ -107,7 +109,8 @@ TEST(CellEstimateTest, BlockReasonNamesTheFailedConditions) {
   MapParams p;  // bgk+, dynamics on, trav_threshold 0.5, variance_threshold 0.05
   auto reasons = [&](double w, double s, double q, float a, float b) {
     const CellEstimate e = EstimateCell(p, w, s, q, a, b);
-    EXPECT_EQ(e.block_reasons == 0, e.state != CellState::kNonTraversable);
+    EXPECT_EQ(e.block_reasons == 0,
+              e.state == CellState::kTraversable || std::isnan(e.elevation_weight));
     return e.block_reasons;
   };
   EXPECT_EQ(reasons(10.0, 5.0, 2.5, 0.5f, 9.5f), 0);                    // flat, much evidence
@@ -119,6 +122,40 @@ TEST(CellEstimateTest, BlockReasonNamesTheFailedConditions) {
   EXPECT_EQ(reasons(2.0, 1.0, 1.0, 8.0f, 2.0f), kBlockedMean | kBlockedDisagreement);
   p.dynamics = Dynamics::kOff;  // the paper judges no disagreement
   EXPECT_EQ(reasons(2.0, 1.0, 1.0, 0.5f, 9.5f), 0);
+}
+
+// P3 (docs/semantics.md, "Seen too little"): with dynamics, a cell that fails the state rule
+// only for want of evidence is unknown, not an obstacle; evidence of an obstacle (the mean, the
+// disagreement) still blocks, also when thin; without dynamics the paper's rule blocks all.
+// Catches: the rule applied without dynamics, a thin cell with a high mean let through as
+// unknown, the disagreement dropped from a no-value cell.
+TEST(CellEstimateTest, SeenTooLittleIsUnknown) {
+  MapParams p;                                                             // dynamics on
+  const CellEstimate thin = EstimateCell(p, 1.0, 0.5, 0.25, 0.05f, 0.3f);  // mean 0.14, var 0.08
+  EXPECT_EQ(thin.state, CellState::kUnknown);
+  EXPECT_EQ(thin.block_reasons, kBlockedVariance);
+  EXPECT_FLOAT_EQ(thin.elevation, 0.5f);  // its elevation is known all the same
+  const CellEstimate no_value = EstimateCell(p, 1.0, 0.5, 0.25, 0.0f, 0.0f);
+  EXPECT_EQ(no_value.state, CellState::kUnknown);
+  EXPECT_EQ(no_value.Get(Layer::kBlockReason), static_cast<float>(kBlockedNoValue));
+  // Thin evidence of an obstacle: blocked (mean 0.86 with variance 0.08).
+  EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.3f, 0.05f).state, CellState::kNonTraversable);
+  // No traversability value but observations 1 m apart: blocked.
+  const CellEstimate split = EstimateCell(p, 2.0, 1.0, 1.0, 0.0f, 0.0f);
+  EXPECT_EQ(split.state, CellState::kNonTraversable);
+  EXPECT_EQ(split.block_reasons, kBlockedNoValue | kBlockedDisagreement);
+  // P3': seen more than thin_evidence_weight (0.5) full-kernel observations (3.8955 at 0.1 m
+  // cells, l = 0.3 m) and still thin: its Beta evidence was reset again and again (a changing
+  // place), blocked. Catches the weight condition dropped or taken against the wrong sum.
+  EXPECT_EQ(EstimateCell(p, 1.9, 0.95, 0.475, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.05f, 0.3f).state, CellState::kNonTraversable);
+  EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.0f, 0.0f).state, CellState::kNonTraversable);
+  p.thin_evidence_weight = 0.0;  // off: the paper's state
+  EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.05f, 0.3f).state, CellState::kNonTraversable);
+  p.thin_evidence_weight = 0.5;
+  p.dynamics = Dynamics::kOff;
+  EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.05f, 0.3f).state, CellState::kNonTraversable);
+  EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.0f, 0.0f).state, CellState::kNonTraversable);
 }
 
 // The explanation layers through CellEstimate::Get: the disagreement in metres (NaN without

@@ -3,6 +3,8 @@
 // robot_radius, weighted footprint_weight at each cell, so real returns win.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -122,6 +124,70 @@ TEST(FootprintPriorTest, DoesNotDependOnTheTiling) {
     }
   }
   EXPECT_GT(compared, 1000);
+}
+
+// P6 (docs/semantics.md, "Dynamics"): the footprint as the vehicle's box, turned to the
+// sensor's heading, the sensor off its centre. Catches: the box not turned (yaw ignored), the
+// offset applied with the wrong sign or frame, the disk used instead.
+TEST(FootprintPriorTest, TheBoxCoversTheVehicleTurnedToItsHeading) {
+  MapParams p = FootprintParams(1.0);
+  p.footprint_length = 2.0;
+  p.footprint_width = 1.0;
+  p.footprint_sensor_x = 0.5;  // the sensor 0.5 m ahead of the box's centre
+  Pose T = At(Eigen::Vector3d(0.0, 0.0, 1.0));
+  T.rotation = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Result<PreparedScan> scan = PrepareScan(p, {}, T);
+  ASSERT_TRUE(scan.ok());
+  // Heading north: the box spans x in [-0.5, 0.5], y in [-1.5, 0.5]; 10 x 20 cell centres.
+  const std::vector<CellIndex>& cells = scan->footprint_cells;
+  EXPECT_EQ(cells.size(), 200u);
+  auto has = [&](int x, int y) {
+    return std::binary_search(cells.begin(), cells.end(), CellIndex{x, y});
+  };
+  EXPECT_TRUE(has(-5, -15) && has(4, -15) && has(-5, 4) && has(4, 4));
+  EXPECT_FALSE(has(-6, 0) || has(5, 0) || has(0, -16) || has(0, 5));
+  EXPECT_TRUE(scan->footprint_box);
+  EXPECT_DOUBLE_EQ(scan->footprint_y, 0.0);
+}
+
+// The robot stands on its box: obstacle evidence learnt there (here set by hand: a vehicle that
+// drove off) is cleared and the cell is traversable; the disk of robot_radius keeps it (the old
+// rule). Catches: A not cleared, cleared outside the box, or cleared by the disk too.
+TEST(FootprintPriorTest, TheBoxClearsObstacleEvidenceUnderTheRobot) {
+  for (const bool box : {false, true}) {
+    MapParams p = FootprintParams(1.0);
+    if (box) p.footprint_length = 1.0, p.footprint_width = 1.0;
+    std::unique_ptr<TerrainMap> map = TerrainMap::Create(p).value();
+    const GridGeometry& g = map->geometry();
+    for (const CellIndex c : {CellIndex{0, 0}, CellIndex{9, 0}}) {  // under the robot; 0.9 m off
+      Tile& t = map->GetOrCreateTile(g.TileOf(c));
+      const int i = g.LocalIndex(c);
+      t.w()[i] = 1.0;
+      t.a()[i] = 5.0f;  // evidence of an obstacle
+    }
+    ASSERT_TRUE(map->IntegrateScan({}, At(Eigen::Vector3d(0.05, 0.05, 1.0))).ok());
+    const Tile& t = *map->FindTile(g.TileOf({0, 0}));
+    EXPECT_EQ(t.a()[g.LocalIndex({0, 0})], box ? 0.0f : 5.0f) << box;
+    EXPECT_EQ(map->Estimate({0, 0}).state,
+              box ? CellState::kTraversable : CellState::kNonTraversable)
+        << box;
+    EXPECT_EQ(t.a()[g.LocalIndex({9, 0})], 5.0f) << box;  // outside both footprints
+  }
+}
+
+// A box needs both edges; one alone leaves the disk of robot_radius (29 cells).
+TEST(FootprintPriorTest, ABoxNeedsBothEdges) {
+  MapParams p = FootprintParams(1.0);
+  p.footprint_length = 4.0;
+  ASSERT_TRUE(p.Validate().ok());
+  Result<PreparedScan> disk = PrepareScan(p, {}, At(Eigen::Vector3d(0.05, 0.05, 1.0)));
+  EXPECT_EQ(disk->footprint_cells.size(), 29u);
+  EXPECT_FALSE(disk->footprint_box);
+  p.footprint_length = 25.0;
+  EXPECT_FALSE(p.Validate().ok());
+  p.footprint_length = 4.0;
+  p.footprint_sensor_x = -25.0;
+  EXPECT_FALSE(p.Validate().ok());
 }
 
 }  // namespace

@@ -260,7 +260,16 @@ TEST(ForgettingTest, SensorScansReplayBitwiseAndOldEvidenceBecomesUncertain) {
   EXPECT_NEAR(old.elevation_weight, fresh.elevation_weight * std::exp2(-20.0),
               1e-6 * fresh.elevation_weight * std::exp2(-20.0));
   EXPECT_GT(old.elevation_variance, p.variance_threshold);
-  EXPECT_EQ(old.state, CellState::kNonTraversable);
+  // Aged below half a full-kernel observation and failing only the variance: seen too little,
+  // unknown (thin_evidence_weight); with the paper's state, non-traversable.
+  EXPECT_EQ(old.block_reasons, kBlockedVariance);
+  EXPECT_EQ(old.state, CellState::kUnknown);
+  MapParams paper_state = p;
+  paper_state.thin_evidence_weight = 0.0;
+  const Tile* t = later->FindTile(later->geometry().TileOf(later->geometry().CellAt(1.0, 1.0)));
+  const int i = later->geometry().LocalIndex(later->geometry().CellAt(1.0, 1.0));
+  EXPECT_EQ(EstimateCell(paper_state, t->w()[i], t->s()[i], t->q()[i], t->a()[i], t->b()[i]).state,
+            CellState::kNonTraversable);
 }
 
 // A tile a scan only reads (its v's patch, its free-space rays) is read as of the scan's time:

@@ -3,8 +3,9 @@
 // stride x stride cells, the elevation layers come from EstimateCell on the summed W, S and Q of
 // the block's known cells; traversability and its variance are each the maximum over the known
 // cells' own estimates (TerrainMap::Estimate, cell by cell), as is the disagreement; the state is
-// traversable only if every known cell's own state is traversable, and the block reason is the
-// union of the cells' reasons. A block without a known cell is unknown (NaN,
+// traversable only if every cell with statistics is traversable, non-traversable if one is, and
+// otherwise unknown (a cell seen too little, dynamics); the block reason is the union of the
+// cells' reasons. A block without a known cell is unknown (NaN,
 // state 0).
 #pragma once
 
@@ -25,7 +26,7 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
   const GridGeometry& geo = map.geometry();
   const float nan = std::numeric_limits<float>::quiet_NaN();
   double w = 0, s = 0, q = 0;
-  bool known = false, all_traversable = true;
+  bool known = false, all_traversable = true, any_thin = false, any_blocked = false;
   float worst_trav = nan, worst_var = nan, worst_disagreement = nan;
   int reasons = 0;
   const int x0 = box.min.x + col * stride;
@@ -33,8 +34,10 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
   for (int y = ytop; y > ytop - stride && y >= box.min.y; --y) {
     for (int x = x0; x < x0 + stride && x <= box.max.x; ++x) {
       const CellEstimate e = map.Estimate({x, y});
-      if (e.state == CellState::kUnknown) continue;
+      if (std::isnan(e.elevation_weight)) continue;  // no statistics
       known = true;
+      any_thin |= e.state == CellState::kUnknown;
+      any_blocked |= e.state == CellState::kNonTraversable;
       const Tile* t = map.FindTile(geo.TileOf({x, y}));
       const int i = geo.LocalIndex({x, y});
       w += t->w()[i];
@@ -82,8 +85,13 @@ inline std::vector<float> StrideOraclePixel(const TerrainMap& map, const CellBox
         out.push_back(static_cast<float>(reasons));
         break;
       case Layer::kState: {
-        out.push_back(static_cast<float>(all_traversable ? CellState::kTraversable
-                                                         : CellState::kNonTraversable));
+        // Seen-too-little cells (dynamics) are unknown on their own and make an otherwise
+        // traversable block unknown; any blocked cell blocks it.
+        const CellState st = all_traversable ? CellState::kTraversable
+                             : any_blocked   ? CellState::kNonTraversable
+                             : any_thin      ? CellState::kUnknown
+                                             : CellState::kNonTraversable;
+        out.push_back(static_cast<float>(st));
         break;
       }
     }

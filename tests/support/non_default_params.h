@@ -25,6 +25,7 @@ inline MapParams NonDefaultParams() {
   p.weights = {0.1, 0.7, 0.2};
   p.trav_threshold = 0.4;
   p.variance_threshold = 0.1;
+  p.thin_evidence_weight = 1.5;
   p.min_range = 0.5;
   p.max_range = 80;
   p.max_height_above_sensor = -0.25;
@@ -39,6 +40,10 @@ inline MapParams NonDefaultParams() {
   p.sensor_height = 0.75;
   p.footprint_weight = 0.3;
   p.half_life_s = 12.5;
+  p.footprint_length = 4.5;
+  p.footprint_width = 1.8;
+  p.footprint_sensor_x = -0.4;
+  p.footprint_sensor_y = 0.1;
   return p;
 }
 

@@ -93,9 +93,11 @@ Cause DriveCauses::Judge(size_t i, int k, const TerrainMap& map) const {
   const CellIndex c = driven_[i].cell;
   const CellState state = map.Estimate(c).state;
   if (state == CellState::kTraversable) return Cause::kTraversable;
-  if (state == CellState::kUnknown)
-    return h.seen ? Cause::kUnknownForgotten : Cause::kUnknownNeverSeen;
+  // A cell seen too little (dynamics: unknown with statistics) keeps its reason, no value or the
+  // variance; a cell without statistics is unknown.
   const uint8_t r = BlockReasonsAt(map, c);
+  if (state == CellState::kUnknown && r == 0)
+    return h.seen ? Cause::kUnknownForgotten : Cause::kUnknownNeverSeen;
   if (r & kNoValue) return Cause::kNoValue;
   if (r & kHighMean) {
     if (h.max_da_vehicle) return Cause::kMeanVehicle;

@@ -47,7 +47,7 @@ struct CellEstimate {
   CellState state;
   float elevation_weight;
   float disagreement;     // sqrt of what the state rule judges; NaN without weight or dynamics
-  uint8_t block_reasons;  // BlockReason bits; 0 unless state is kNonTraversable
+  uint8_t block_reasons;  // BlockReason bits: the conditions failed; 0 = traversable or none
 
   float Get(Layer layer) const;
 };
@@ -61,8 +61,9 @@ struct CellEstimate {
 //    variance_threshold; otherwise non-traversable (also when the mean is undefined).
 // With dynamics on, the observations' disagreement D = Q/W - (S/W)^2 (their kernel-weighted
 // variance) is added to the elevation variance, and a cell whose observations disagree by more
-// than a step the robot can take (sqrt(D) > step_crit) is non-traversable.
-// block_reasons: the conditions above that a non-traversable cell fails (BlockReason).
+// than a step the robot can take (sqrt(D) > step_crit) is non-traversable; one that fails only
+// for want of evidence (kBlockedNoValue or kBlockedVariance alone) with W < thin_evidence_weight
+// FullKernelWeight(p) is unknown, seen too little.
 // bgk-ll: `plane` holds the cell's Tile::kPlaneMoments plane moments (Tile::PlaneOf), and the
 // elevation is the intercept of the local plane fit (FitLocalPlane) instead of the kernel mean;
 // the disagreement is the fit's residual instead of the spread around the mean; the elevation
@@ -87,6 +88,10 @@ struct LocalPlane {
   double leverage;
 };
 LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const double* plane);
+
+// The weight one full-kernel observation (every cell within l observed once) gives a cell: the
+// unit of max_confidence_scans and thin_evidence_weight; 1 for the raw-elevation methods.
+double FullKernelWeight(const MapParams& p);
 
 // D = Q/W - (S/W)^2, clamped at 0 against rounding; 0 without weight.
 double Disagreement(double w, double s, double q);

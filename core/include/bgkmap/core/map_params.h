@@ -68,6 +68,10 @@ struct MapParams {
   std::array<double, 3> weights = {0.4, 0.4, 0.2};
   double trav_threshold = 0.5;
   double variance_threshold = 0.05;
+  // Seen too little (dynamics on): a cell failing the state rule only for want of traversability
+  // evidence, with less elevation weight than this many full-kernel observations, is unknown
+  // (docs/semantics.md, "Seen too little"); 0: non-traversable, the paper's rule.
+  double thin_evidence_weight = 0.5;
   double min_range = 1.0;
   double max_range = 100.0;
   double max_height_above_sensor = 0.5;
@@ -83,6 +87,14 @@ struct MapParams {
   // ground sensor_height below the sensor, within robot_radius (docs/semantics.md).
   double sensor_height = 0.0;
   double footprint_weight = 0.1;
+  // The footprint as the vehicle's box (issue 24, P6): > 0 replaces the disk of robot_radius by
+  // a footprint_length x footprint_width box turned to the sensor's heading, the sensor at
+  // (footprint_sensor_x, footprint_sensor_y) from its centre (x forward); its cells' obstacle
+  // evidence is cleared, the robot stands there. 0: the disk (docs/semantics.md, "Dynamics").
+  double footprint_length = 0.0;
+  double footprint_width = 0.0;
+  double footprint_sensor_x = 0.0;
+  double footprint_sensor_y = 0.0;
   // Forgetting (dynamics on): > 0 halves every statistic's weight per half_life_s seconds of map
   // time (scan stamps), docs/semantics.md "Forgetting"; 0: off.
   double half_life_s = 0.0;

@@ -45,8 +45,8 @@ CellBox TilePatchCells(const GridGeometry& geometry, const CellBox& region, int 
 // Extracts `layers` over `box` (clipped to nothing: unknown cells come out as NaN).
 // Aggregation over a stride block: statistics are summed (the posterior of the union of the
 // block's training data) for elevation, and the block's worst (largest) traversability,
-// variance and disagreement are kept, so a coarse view never hides an obstacle; the state is
-// traversable only if every known cell is, and the block reason holds every reason of its cells.
+// variance and disagreement are kept, so a coarse view never hides an obstacle; state: blocked if
+// a cell is, else unknown if one was seen too little, else traversable; reasons: all the cells'.
 Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vector<Layer>& layers,
                      int stride = 1);
 

@@ -64,10 +64,13 @@ struct PreparedScan {
   bool has_sensor = false;
   double sensor_x = 0.0, sensor_y = 0.0;
   // The robot's footprint (sensor_height > 0, dynamics on, a sensor): the cells whose centres
-  // lie within robot_radius of the sensor, sorted, and the ground's height there (sensor z -
-  // sensor_height).
+  // lie within robot_radius of the sensor, or in the vehicle's box (footprint_length), sorted, and
+  // the ground's height there (sensor z - sensor_height).
   std::vector<CellIndex> footprint_cells;
   double footprint_y = 0.0;
+  // The footprint is the vehicle's box (footprint_length > 0): its cells' obstacle evidence is
+  // cleared as the robot stands there.
+  bool footprint_box = false;
   // Map time of the scan, ns (the sender's stamp; 0: unstamped). Only forgetting reads it
   // (half_life_s > 0, docs/semantics.md "Forgetting"); PrepareScan leaves it 0, the caller sets it.
   int64_t stamp_ns = 0;
