@@ -74,6 +74,45 @@ Status ReadHistory(const TileStore& store, const ReintegrationRequest& request,
   return Status::Ok();
 }
 
+// Replays the history's chosen records onto the needed tiles as they were at `base`, and puts
+// the affected tiles' results in `out->tiles`. A record whose cells are kept in its raw scan is
+// prepared again here, only if it is replayed.
+Status Replay(const TileStore& store, uint64_t base_version,
+              const std::vector<HistoryEntry>& history, Reintegration* out) {
+  Result<std::vector<std::unique_ptr<Tile>>> base = store.LoadTilesAt(base_version, out->needed);
+  if (!base.ok()) return base.status();
+  Result<std::unique_ptr<TerrainMap>> scratch = TerrainMap::Create(store.params());
+  if (!scratch.ok()) return scratch.status();
+  TerrainMap& map = **scratch;
+  for (size_t i = 0; i < out->needed.size(); ++i) {
+    if ((*base)[i] != nullptr) map.SetTile(out->needed[i], *(*base)[i]);
+  }
+  map.set_version(base_version);
+  for (const HistoryEntry& e : history) {
+    if (!e.replay) continue;
+    if (e.scan == nullptr) {
+      map.ClearBox(e.clear_box, e.version);
+    } else {
+      std::shared_ptr<const PreparedScan> scan = e.scan;
+      if (e.cells_in_source) {
+        Result<std::shared_ptr<const PreparedScan>> whole =
+            store.log().LoadCells(e.version, *e.cells_in_source);
+        if (!whole.ok()) return whole.status();
+        scan = std::move(whole).value();
+      }
+      const TileWindow window = map.MakeWindow(*scan);
+      map.Integrate(*scan, window, e.version);
+    }
+    map.set_version(e.version);
+  }
+  out->tiles.reserve(out->affected.size());
+  for (TileKey k : out->affected) {
+    const Tile* t = map.FindTile(k);
+    out->tiles.push_back(t == nullptr ? nullptr : std::make_unique<Tile>(*t));
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationRequest& request) {
@@ -129,37 +168,7 @@ Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationReq
   for (const HistoryEntry& e : history) out.records_replayed += e.replay ? 1 : 0;
   if (request.plan_only) return out;
 
-  Result<std::vector<std::unique_ptr<Tile>>> base = store.LoadTilesAt(request.base, out.needed);
-  if (!base.ok()) return base.status();
-  Result<std::unique_ptr<TerrainMap>> scratch = TerrainMap::Create(store.params());
-  if (!scratch.ok()) return scratch.status();
-  TerrainMap& map = **scratch;
-  for (size_t i = 0; i < out.needed.size(); ++i) {
-    if ((*base)[i] != nullptr) map.SetTile(out.needed[i], *(*base)[i]);
-  }
-  map.set_version(request.base);
-  for (const HistoryEntry& e : history) {
-    if (!e.replay) continue;
-    if (e.scan == nullptr) {
-      map.ClearBox(e.clear_box, e.version);
-    } else {
-      std::shared_ptr<const PreparedScan> scan = e.scan;
-      if (e.cells_in_source) {
-        Result<std::shared_ptr<const PreparedScan>> whole =
-            store.log().LoadCells(e.version, *e.cells_in_source);
-        if (!whole.ok()) return whole.status();
-        scan = std::move(whole).value();
-      }
-      const TileWindow window = map.MakeWindow(*scan);
-      map.Integrate(*scan, window, e.version);
-    }
-    map.set_version(e.version);
-  }
-  out.tiles.reserve(out.affected.size());
-  for (TileKey k : out.affected) {
-    const Tile* t = map.FindTile(k);
-    out.tiles.push_back(t == nullptr ? nullptr : std::make_unique<Tile>(*t));
-  }
+  if (Status s = Replay(store, request.base, history, &out); !s.ok()) return s;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }
