@@ -1,11 +1,13 @@
 #include "cluster/cluster_log.h"
 
 #include <openssl/rand.h>
+#include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <charconv>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 #include "bgkmap/v1/types.pb.h"
 
@@ -234,6 +236,36 @@ Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t
         NatsStatus(st, headers_only ? "read the log's headers" : "read the log", jerr).message());
   }
   return sub;
+}
+
+void FollowLogHeaders(const NatsClient& nats, uint64_t start, const std::atomic<bool>& stop,
+                      std::string_view event,
+                      const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry) {
+  uint64_t next = start;
+  NatsPtr<natsSubscription> sub;
+  while (!stop) {
+    if (!sub) {
+      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats, next, true);
+      if (!opened.ok()) {
+        spdlog::warn("event={} reason=\"{}\"", event, opened.status().message());
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        continue;
+      }
+      sub = std::move(opened).value();
+    }
+    natsMsg* raw = nullptr;
+    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
+    if (st == NATS_TIMEOUT) continue;
+    if (st != NATS_OK) {
+      sub.reset();
+      continue;
+    }
+    NatsPtr<natsMsg> msg(raw);
+    const std::optional<uint64_t> entry = EntrySequence(msg.get());
+    if (!entry || *entry < next) continue;
+    next = *entry + 1;
+    on_entry(*entry, msg.get());
+  }
 }
 
 std::optional<uint64_t> EntrySequence(natsMsg* msg) {

@@ -15,10 +15,13 @@
 // published again is never applied.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bgkmap/core/status.h"
@@ -90,6 +93,14 @@ Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t
                                                 bool headers_only);
 // The log sequence of an entry an OpenLogReader delivered (nullopt: no JetStream metadata).
 std::optional<uint64_t> EntrySequence(natsMsg* msg);
+
+// Reads the log's entry headers from `start` until `stop` is set, calling `on_entry(sequence,
+// msg)` once per entry in log order. A reader that fails is opened again from the entry after
+// the last one given, so none is skipped or repeated; each failure to open is logged as
+// `event=<event>` and retried after 250 ms. Blocks: run it on the reader's own thread.
+void FollowLogHeaders(const NatsClient& nats, uint64_t start, const std::atomic<bool>& stop,
+                      std::string_view event,
+                      const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry);
 
 // The sequence number of the log's last entry (0: empty).
 Result<uint64_t> LastSequence(const NatsClient& nats);

@@ -23,50 +23,29 @@ LogChangeFeed::~LogChangeFeed() {
 }
 
 void LogChangeFeed::Run() {
-  NatsPtr<natsSubscription> sub;
-  while (!stop_) {
-    if (!sub) {
-      // After a failure, from the entry after the last one reported: no change is skipped.
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats_, last_ + 1, true);
-      if (!opened.ok()) {
-        spdlog::warn("event=cluster_change_feed_open_failed reason=\"{}\"",
-                     opened.status().message());
-        std::this_thread::sleep_for(std::chrono::milliseconds(250));
-        continue;
-      }
-      sub = std::move(opened).value();
-    }
-    natsMsg* raw = nullptr;
-    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
-    if (st == NATS_TIMEOUT) continue;
-    if (st != NATS_OK) {
-      sub.reset();
-      continue;
-    }
-    NatsPtr<natsMsg> msg(raw);
-    const std::optional<uint64_t> entry = EntrySequence(msg.get());
-    if (!entry) continue;
-    const uint64_t sequence = *entry;
-    if (sequence <= last_) continue;
-    last_ = sequence;
-    // (Counted once, by the node's log reader, which reads the same entry.)
-    if (!VerifyEntry(trust_, msg.get(), /*headers_only=*/true).ok()) continue;
-    Result<LogEntryHeader> header = ReadEntryHeader(msg.get());
-    if (!header.ok()) {
-      spdlog::warn("event=cluster_change_feed_bad_entry sequence={} reason=\"{}\"", sequence,
-                   header.status().message());
-      continue;
-    }
-    CellBox cells = header->changes;
-    if (cells.empty()) {  // an entry older than the header: its partitions, halos included
-      for (PartitionKey p : header->touched) {
-        const CellBox h = layout_.HaloCells(p);
-        cells.Extend(h.min);
-        cells.Extend(h.max);
-      }
-    }
-    if (!cells.empty()) on_change_(sequence, cells);
-  }
+  // From the entry after the last one reported: no change is skipped or reported twice.
+  FollowLogHeaders(
+      nats_, last_ + 1, stop_, "cluster_change_feed_open_failed",
+      [this](uint64_t sequence, natsMsg* msg) {
+        last_ = sequence;
+        // (Counted once, by the node's log reader, which reads the same entry.)
+        if (!VerifyEntry(trust_, msg, /*headers_only=*/true).ok()) return;
+        Result<LogEntryHeader> header = ReadEntryHeader(msg);
+        if (!header.ok()) {
+          spdlog::warn("event=cluster_change_feed_bad_entry sequence={} reason=\"{}\"", sequence,
+                       header.status().message());
+          return;
+        }
+        CellBox cells = header->changes;
+        if (cells.empty()) {  // an entry older than the header: its partitions, halos included
+          for (PartitionKey p : header->touched) {
+            const CellBox h = layout_.HaloCells(p);
+            cells.Extend(h.min);
+            cells.Extend(h.max);
+          }
+        }
+        if (!cells.empty()) on_change_(sequence, cells);
+      });
 }
 
 }  // namespace bgkmap::cluster

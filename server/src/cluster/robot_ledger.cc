@@ -50,32 +50,9 @@ uint64_t RobotLedger::Seed() {
 }
 
 void RobotLedger::Run() {
-  uint64_t next = Seed();
-  NatsPtr<natsSubscription> sub;
-  while (!stop_) {
-    if (!sub) {
-      // After a failure, from the entry after the last one read: none is skipped.
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats_, next, true);
-      if (!opened.ok()) {
-        spdlog::warn("event=robot_ledger_open_failed reason=\"{}\"", opened.status().message());
-        std::this_thread::sleep_for(std::chrono::milliseconds(250));
-        continue;
-      }
-      sub = std::move(opened).value();
-    }
-    natsMsg* raw = nullptr;
-    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
-    if (st == NATS_TIMEOUT) continue;
-    if (st != NATS_OK) {
-      sub.reset();
-      continue;
-    }
-    NatsPtr<natsMsg> msg(raw);
-    const std::optional<uint64_t> entry = EntrySequence(msg.get());
-    if (!entry || *entry < next) continue;
-    Read(*entry, msg.get());
-    next = *entry + 1;
-  }
+  const uint64_t start = Seed();
+  FollowLogHeaders(nats_, start, stop_, "robot_ledger_open_failed",
+                   [this](uint64_t entry, natsMsg* msg) { Read(entry, msg); });
 }
 
 void RobotLedger::Read(uint64_t sequence, natsMsg* msg) {
