@@ -115,9 +115,14 @@
   overlays.traversability.addTo(map);
   L.control.layers(base, overlays, { collapsed: false }).addTo(map);
   L.control.scale({ imperial: false }).addTo(map);
+  // A view set while the fleet loads (by a script, say) is kept: the first view does not jump it.
+  let viewSetMeanwhile = false;
+  map.whenReady(() => { viewSetMeanwhile = true; });
   const fleet = await loadFleet();
   const view = ['x', 'y', 'z'].map((k) => Number(params.get(k)));
-  if (params.has('x') && params.has('y') && view.every(Number.isFinite)) {
+  if (viewSetMeanwhile) {
+    // kept
+  } else if (params.has('x') && params.has('y') && view.every(Number.isFinite)) {
     map.setView([view[1], view[0]], params.has('z') ? view[2] : 0, { animate: false });
   } else {
     map.fitBounds(firstView(fleet), { animate: false });

@@ -235,7 +235,9 @@ try {
   } else {
     await page.goto(base + '/', { waitUntil: 'load' });
   }
-  await page.waitForFunction(() => window.bgkmap && window.bgkmap.map, null, { timeout: 10000 });
+  // The page sets its own first view before it goes live: the test's view comes after it.
+  await page.waitForFunction(() => window.bgkmap && window.bgkmap.map &&
+    document.getElementById('status').textContent.includes('live'), null, { timeout: 10000 });
   // The whole street and empty land east of it: 0.4 m per pixel.
   await page.evaluate(() => window.bgkmap.map.setView([10, 60], -2, { animate: false }));
   const tilesSettled = () => page.waitForFunction(() => {
@@ -288,7 +290,11 @@ try {
   }
   await drawn('webmap-after.png');
   const events = await page.evaluate(() => window.bgkmap.events);
-  log(`after the insert: ${after} map pixels at ${seconds.toFixed(2)} s, ${events - eventsBefore} events`);
+  const view = await page.evaluate(() => {
+    const m = window.bgkmap.map;
+    return `zoom ${m.getZoom()}, centre x ${m.getCenter().lng.toFixed(1)} y ${m.getCenter().lat.toFixed(1)}`;
+  });
+  log(`after the insert: ${after} map pixels at ${seconds.toFixed(2)} s, ${events - eventsBefore} events, ${view}`);
   check(after > before + 5000,
     `an inserted scan appears, live (after ${seconds.toFixed(2)} s, deadline ${appearLimit} s; +${after - before} pixels)`);
   check(events > eventsBefore, 'the page was told by /events');

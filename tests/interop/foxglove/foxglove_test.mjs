@@ -247,8 +247,9 @@ test('the grid is a region query bit for bit; poses and clouds are the scans sen
     m.forEach((v, i) => assert.ok(Math.abs(v - r[i]) < 1e-9, `${robot} rotation[${i}] ${v} vs ${r[i]}`));
   }
   // /scans: b's cloud is scan 2's points as sent, in b's frame at the transform's stamp.
-  const cloud = fox.latest('/scans', (m) => m.frame_id === 'b');
-  assert.ok(cloud, 'b\'s cloud arrived');
+  // The cloud follows its transform on the wire: wait for it, not only for the transform.
+  const cloud = await waitFor(fox.client, 'message',
+    () => fox.latest('/scans', (m) => m.frame_id === 'b'), 'b\'s cloud');
   const stamp = (t) => `${t.seconds}.${String(t.nanos).padStart(9, '0')}`;
   assert.equal(stamp(cloud.message.timestamp), stamp(byRobot.b.timestamp));
   assert.equal(cloud.message.point_stride, 12);
