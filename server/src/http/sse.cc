@@ -81,11 +81,12 @@ void EventStreams::Open(const HttpRequest& request, PrincipalRef who,
   lock.unlock();
 
   std::weak_ptr<Session> weak = session;
+  const uint64_t hello_version = map_.known_version();
   session->out->StartStream(
       "HTTP/1.1 200 OK\r\nServer: bgkmapd\r\nContent-Type: text/event-stream\r\n"
       "Cache-Control: no-cache\r\nX-Accel-Buffering: no\r\nConnection: close\r\n\r\n"
       "retry: 1000\n\n" +
-          EventText("hello", {{"map_version", map_.known_version()}}),
+          EventText("hello", {{"map_version", hello_version}}),
       [this, key] { Remove(key); });
   // The whole map: a key range no tile lies outside of.
   const uint64_t id = hub_.Subscribe({INT_MIN, INT_MIN}, {INT_MAX, INT_MAX},
@@ -103,7 +104,14 @@ void EventStreams::Open(const HttpRequest& request, PrincipalRef who,
     hub_.Unsubscribe(id);
     return;
   }
-  spdlog::debug("event=web_events_open clients={}", sessions_.size());
+  const size_t clients = sessions_.size();
+  lock.unlock();
+  // A change between the hello and the subscription reached no one: a second hello with the newer
+  // version tells the page to reload what it shows (as after a reconnection).
+  if (const uint64_t now = map_.known_version(); now != hello_version) {
+    session->out->Send(EventText("hello", {{"map_version", now}}));
+  }
+  spdlog::debug("event=web_events_open clients={}", clients);
 }
 
 void EventStreams::Flush(const std::shared_ptr<Session>& s) {
