@@ -8,6 +8,8 @@
 #   traffic       perfect poses, traffic
 #   static_noise  pose error, no traffic
 #   traffic_noise pose error, traffic
+#   static_noise_stated, traffic_noise_stated  the same, the robot stating its pose error
+#                 (experiments/robots/car_sim_pose_error.yaml: pose_sigma_z)
 #   static_on_traffic_cells  the reference map judged on the traffic run's trail cells (what
 #                 the map calls those cells when no vehicle ever drove there)
 # Scores: AUC against the ground truth (the world at the last scan), the driven cells (final
@@ -42,20 +44,26 @@ sim traffic --change "$ROOT/experiments/city_traffic.yaml"
 evaluate() {  # run name, sequence, extra eval arguments
   stage "evaluating $1"
   rm -rf "${OUT:?}/$1"
-  "$BGKMAP" eval "$OUT/sim/$2" --config "$CONFIG" --footprint-radius 0.8 --methods "$METHODS" \
+  "$BGKMAP" eval "$OUT/sim/$2" --config "${RUN_CONFIG:-$CONFIG}" --footprint-radius 0.8 --methods "$METHODS" \
     --name "$1" --out "$OUT/$1" "${@:3}" > /dev/null
 }
 evaluate static static --figure-scans 50
 evaluate traffic traffic --figure-scans 50
 evaluate static_noise static --pose-noise 1 --figure-scans 50
 evaluate traffic_noise traffic --pose-noise 1 --figure-scans 50
+# The same pose error, stated by the robot (pose_sigma_z, docs/semantics.md "Pose noise").
+RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
+  evaluate static_noise_stated static --pose-noise 1 --no-figures
+RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
+  evaluate traffic_noise_stated traffic --pose-noise 1 --no-figures
 evaluate static_on_traffic_cells static --traffic "$OUT/sim/traffic/traffic.json" --no-odd-even \
   --no-figures
 
 python3 - "$OUT" > "$OUT/table.md" <<'PY'
 import json, sys, os
 out = sys.argv[1]
-runs = ["static", "traffic", "static_noise", "traffic_noise", "static_on_traffic_cells"]
+runs = ["static", "traffic", "static_noise", "traffic_noise", "static_noise_stated",
+        "traffic_noise_stated", "static_on_traffic_cells"]
 pct = lambda v: "n/a" if v is None else "%.2f" % (100 * v)
 ref = {m["method"]: m for m in json.load(open(os.path.join(out, "static", "eval.json")))["methods"]}
 print("| Run | Method | AUC | AUC - reference | Driven: traversable, final (%) | On arrival: known / "

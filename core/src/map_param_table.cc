@@ -152,6 +152,13 @@ Status ThinWeight(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
+// A pose's vertical error: 0 (off) up to 0.5 m (beyond that no step could be told from noise).
+Status PoseSigmaZ(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 0.5) return Bad(key, v, "must lie in [0, 0.5] metres (0: off)");
+  return Status::Ok();
+}
+
 // A footprint box edge: 0 or a vehicle's size, up to 20 m. The box needs both edges > 0; with
 // either 0 the footprint is the disk (no cross-check: stores written before the keys existed
 // name them one at a time, each with its legacy 0).
@@ -231,6 +238,11 @@ const std::vector<MapParamInfo>& Table() {
       Real("step_crit", &P::step_crit, kStats, Positive, "critical step height, metres"),
       Real("slope_crit_deg", &P::slope_crit_deg, kStats, SlopeCrit, "critical slope, degrees"),
       Real("roughness_crit", &P::roughness_crit, kStats, Positive, "critical roughness, metres"),
+      // Maps from before it discounted nothing (0).
+      Legacy(Real("pose_sigma_z", &P::pose_sigma_z, kStats, PoseSigmaZ,
+                  "the poses' vertical error per scan (1 sigma), metres; step and roughness "
+                  "discount it; 0: off"),
+             "0"),
       Triple("weights", &P::weights, kStats, Weights,
              "[w_step, w_slope, w_rough] of v (Eq. 5), summing to 1"),
       Real("trav_threshold", &P::trav_threshold, kDerived, TravThreshold, "v_th of Eq. 6"),

@@ -255,8 +255,9 @@ float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch,
     zmin = std::min(zmin, q.z);
     zmax = std::max(zmax, q.z);
   }
-  if (zmax - zmin > p.step_crit) return 1.0f;
-  return static_cast<float>(TraversabilityValue(ComputeFeatures(patch), p));
+  if (DiscountStep(zmax - zmin, p.pose_sigma_z) > p.step_crit) return 1.0f;
+  return static_cast<float>(
+      TraversabilityValue(DiscountPoseNoise(ComputeFeatures(patch), p.pose_sigma_z), p));
 }
 
 // ---- 0. Free-space evidence ----

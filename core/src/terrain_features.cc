@@ -38,6 +38,17 @@ TerrainFeatures ComputeFeatures(std::span<const PatchPoint> patch) {
   return f;
 }
 
+TerrainFeatures DiscountPoseNoise(TerrainFeatures f, double sigma_z) {
+  if (sigma_z <= 0) return f;
+  f.step = DiscountStep(f.step, sigma_z);
+  f.roughness = std::sqrt(std::max(0.0, f.roughness * f.roughness - sigma_z * sigma_z));
+  return f;
+}
+
+double DiscountStep(double step, double sigma_z) {
+  return sigma_z <= 0 ? step : std::max(0.0, step - 2.0 * std::numbers::sqrt2 * sigma_z);
+}
+
 double TraversabilityValue(const TerrainFeatures& f, const MapParams& p) {
   if (f.step > p.step_crit || f.slope_deg > p.slope_crit_deg || f.roughness > p.roughness_crit) {
     return 1.0;

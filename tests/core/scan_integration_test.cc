@@ -77,6 +77,30 @@ TEST(ScanIntegrationTest, FlatGroundBecomesTraversableAndAStepDoesNot) {
   EXPECT_NEAR(map->EstimateAt(-2.05, 0.55).elevation, testing::RollingWithStep(-2.05, 0.55), 0.01);
 }
 
+// Pose noise (semantics "Pose noise"): sparse scans of flat ground whose poses differ by 6 cm
+// in z leave neighbourhoods of cells last set by different scans, steps of noise; pose_sigma_z
+// discounts them, and a 0.3 m step stays an obstacle.
+TEST(ScanIntegrationTest, PoseSigmaZDiscountsTheStepsPoseNoiseMakes) {
+  auto traversability_at = [](double sigma_z, double x) {
+    MapParams p;
+    p.pose_sigma_z = sigma_z;
+    auto map = NewMap(p);
+    const auto ground = [](double gx, double) { return gx > 2.0 ? 0.3 : 0.0; };
+    for (int s = 0; s < 8; ++s) {
+      const Eigen::Vector3d truth(0, 0, 1.0);
+      const Eigen::Vector3d believed(0, 0, 1.0 + (s % 2 == 0 ? 0.03 : -0.03));
+      // The points are where the sensor truly was; the pose the map gets is off by +-3 cm.
+      auto pts = testing::SampleSurface(ground, truth, 6.0, 3000, 31 + s);
+      EXPECT_TRUE(map->IntegrateScan(pts, testing::At(believed)).ok());
+    }
+    return map->EstimateAt(x, 0.55).traversability;
+  };
+  const float flat_noisy = traversability_at(0.0, -2.0);
+  const float flat_discounted = traversability_at(0.03, -2.0);
+  EXPECT_LT(flat_discounted, 0.5f * flat_noisy) << flat_noisy << " -> " << flat_discounted;
+  EXPECT_GT(traversability_at(0.03, 2.0), 0.6f);  // the 0.3 m step
+}
+
 TEST(ScanIntegrationTest, ReportsExactlyTheTilesWhoseStatisticsChanged) {
   MapParams p;
   p.tile_size = 8;

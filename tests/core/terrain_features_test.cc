@@ -73,6 +73,29 @@ TEST(TerrainFeaturesTest, ValueCombinesWeightedCriteria) {
   EXPECT_EQ(TraversabilityValue({0.0, 0.0, 0.06}, p), 1.0);  // roughness beyond critical
 }
 
+TEST(TerrainFeaturesTest, PoseNoiseDiscountsStepAndRoughnessOnly) {
+  const TerrainFeatures f{0.1, 5.0, 0.03};
+  // Off: the same features, bit for bit.
+  const TerrainFeatures off = DiscountPoseNoise(f, 0.0);
+  EXPECT_EQ(off.step, f.step);
+  EXPECT_EQ(off.slope_deg, f.slope_deg);
+  EXPECT_EQ(off.roughness, f.roughness);
+  // 2 cm per scan: the step less 2 sqrt(2) x 2 cm, the roughness less 2 cm in quadrature.
+  const TerrainFeatures d = DiscountPoseNoise(f, 0.02);
+  EXPECT_NEAR(d.step, 0.1 - 2 * std::sqrt(2.0) * 0.02, 1e-15);
+  EXPECT_NEAR(d.roughness, std::sqrt(0.03 * 0.03 - 0.02 * 0.02), 1e-15);
+  EXPECT_EQ(d.slope_deg, f.slope_deg);  // a tilt is not a height error
+  EXPECT_EQ(DiscountStep(f.step, 0.02), d.step);
+  // What noise alone explains is nothing, never less.
+  const TerrainFeatures n = DiscountPoseNoise({0.05, 1.0, 0.01}, 0.03);
+  EXPECT_EQ(n.step, 0.0);
+  EXPECT_EQ(n.roughness, 0.0);
+  // A step beyond the critical one by more than the noise is still an obstacle.
+  MapParams p;  // step_crit 0.15 m
+  EXPECT_EQ(TraversabilityValue(DiscountPoseNoise({0.25, 0.0, 0.0}, 0.03), p), 1.0);
+  EXPECT_LT(TraversabilityValue(DiscountPoseNoise({0.15, 0.0, 0.0}, 0.03), p), 0.2);
+}
+
 TEST(DiskOffsetsTest, KeepsCellsExactlyAtTheRadius) {
   const auto offsets = DiskOffsets(0.3, 0.1);  // (0.3/0.1)^2 is 8.999999999999998 in doubles
   EXPECT_EQ(offsets.size(), 29u);

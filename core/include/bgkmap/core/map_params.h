@@ -65,6 +65,9 @@ struct MapParams {
   double step_crit = 0.15;
   double slope_crit_deg = 20.0;
   double roughness_crit = 0.05;
+  // Vertical error of the robot's poses, one sigma per scan (metres; 0: off): step and
+  // roughness discount what two scans of flat ground differ by (docs/semantics.md, "Pose noise").
+  double pose_sigma_z = 0.0;
   std::array<double, 3> weights = {0.4, 0.4, 0.2};
   double trav_threshold = 0.5;
   double variance_threshold = 0.05;
