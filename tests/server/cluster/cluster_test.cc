@@ -165,10 +165,10 @@ TEST(ClusterTest, RetriesAndDuplicatesChangeNothing) {
   EXPECT_TRUE(SameAnswers(b.client(), ref));
 }
 
-// The calls a shard does not take yet answer UNIMPLEMENTED naming themselves and the calls it
-// does take, before the request is looked at (a bad request too); Info on a shard names it and
-// sees the scans its own acks reported. (Through the map port: MapWrites::Offers, ReadVersion.)
-TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
+// Info on a shard names it and sees the scans its own acks reported. (Through the map port:
+// ReadVersion.) Every call is taken on a shard: CorrectPoses and RemoveScans are tested in
+// cluster_correction_test.cc.
+TEST(ClusterTest, InfoOnAShardNamesIt) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
   ASSERT_TRUE(nats.started());
@@ -187,18 +187,6 @@ TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
   EXPECT_EQ(info->cluster->node, "a");
   EXPECT_EQ(info->cluster->partition_tiles, kPartitionTiles);
   EXPECT_GE(info->map_version, acked);
-
-  const std::string not_yet =
-      " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, ExportMap, RetireRobot and Info are";
-  auto expect_unimplemented = [&](const RpcStatus& status, const std::string& call) {
-    EXPECT_EQ(status.code(), RpcCode::kUnimplemented) << call << ": " << status.message();
-    EXPECT_EQ(status.message(), call + not_yet);
-  };
-  expect_unimplemented(a.client().CorrectPoses("r1", {{1, scans[0].pose}}).status(),
-                       "CorrectPoses");
-  expect_unimplemented(a.client().RemoveScans("r1", 2, 1).status(),  // first > last: still
-                       "RemoveScans");
 }
 
 // Mutations: ReadCheckpoint returning nothing (the takeover replays the log: "no partition was
