@@ -235,7 +235,8 @@ TEST(ClusterTest, KilledShardsPartitionsAreServedAgain) {
 
 // The log trimmed below the partitions' checkpoints (cluster.trim_lag_entries): a shard killed
 // afterwards has its partitions restored from checkpoints and the log's rest, and a shard that
-// joins afterwards too; the answers stay the single server's. Mutations: the floor taken as the
+// joins afterwards too; the answers stay the single server's. CorrectPoses and RemoveScans are
+// refused (FAILED_PRECONDITION: they need the whole log). Mutations: the floor taken as the
 // log's end, ignoring the checkpoints (scans after the first trim are in no checkpoint yet: the
 // takeover misses them and the answers differ); no checkpoint by lag (nothing is trimmed).
 TEST(ClusterTest, TrimmedLogLosesNothing) {
@@ -271,6 +272,14 @@ TEST(ClusterTest, TrimmedLogLosesNothing) {
   // The rest, and time for more trims (every 4 leases): entries no checkpoint holds yet stay.
   InsertAll(to_a, scans, half, scans.size());
   std::this_thread::sleep_for(std::chrono::seconds(5));
+  // Corrections replay the log from its start: refused on a log that is trimmed, naming the
+  // setting that keeps it (the map unchanged: the answers below).
+  for (const RpcStatus& refused : {to_a.CorrectPoses("r1", {{2, scans[0].pose}}).status(),
+                                   to_a.RemoveScans("r2", 1, 3).status()}) {
+    EXPECT_EQ(refused.code(), RpcCode::kFailedPrecondition) << refused.message();
+    EXPECT_NE(refused.message().find("cluster.trim_lag_entries"), std::string::npos)
+        << refused.message();
+  }
   EXPECT_TRUE(SameAnswers(to_a, ref));
 
   b.Signal(SIGKILL);
