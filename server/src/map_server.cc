@@ -141,9 +141,9 @@ struct MapServer::Impl {
   Status JoinCluster() {
     YAML::Emitter params_yaml;
     params_yaml << MapParamsToYaml(config.map);
-    auto prepare = [params = config.map, limits = config.limits](const v1::Scan& scan,
-                                                                 PreparedScan* out) {
-      const grpc::Status s = PrepareScanMessage(scan, params, limits, out);
+    auto prepare = [params = config.map, limits = config.limits](
+                       const v1::Scan& scan, const Pose* pose, PreparedScan* out) {
+      const grpc::Status s = PrepareScanMessage(scan, params, limits, out, nullptr, pose);
       return s.ok() ? Status::Ok() : Status::InvalidArgument(s.error_message());
     };
     Result<std::unique_ptr<cluster::ClusterNode>> joined = cluster::ClusterNode::Start(

@@ -219,6 +219,82 @@ Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust)
   return a->sequence;
 }
 
+Result<uint64_t> AppendCorrection(const NatsClient& nats, const ClusterTrust& trust,
+                                  const std::string& robot_id, const std::string& payload,
+                                  const std::vector<PartitionKey>& touched,
+                                  const CellBox& changes) {
+  Result<std::string> id = RandomMessageId("correct/");
+  if (!id.ok()) return id.status();
+  const RobotHeaders robot{robot_id, std::nullopt};
+  Result<Appended> a = Append(nats, trust, kCorrectSubject, payload, touched, changes, &robot, *id);
+  if (!a.ok()) return a.status();
+  return a->sequence;
+}
+
+Result<NatsPtr<natsMsg>> GetEntry(const NatsClient& nats, const ClusterTrust& trust,
+                                  uint64_t sequence) {
+  natsMsg* raw = nullptr;
+  jsErrCode jerr = static_cast<jsErrCode>(0);
+  const natsStatus st = RetryWhileElecting(
+      [&] { return js_GetMsg(&raw, nats.jetstream(), kLogStream, sequence, nullptr, &jerr); },
+      kElectionMs);
+  NatsPtr<natsMsg> msg(raw);
+  if (st == NATS_NOT_FOUND || jerr == JSNoMessageFoundErr) {
+    return Status::DataLoss("the cluster log holds no entry " + std::to_string(sequence));
+  }
+  if (st != NATS_OK) {
+    return Status::Unavailable(
+        NatsStatus(st, "read log entry " + std::to_string(sequence), jerr).message());
+  }
+  if (Status s = VerifyEntryStoredAt(trust, msg.get(), false, natsMsg_GetTime(msg.get()));
+      !s.ok()) {
+    return s;
+  }
+  return msg;
+}
+
+Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool headers_only,
+                    const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry,
+                    int64_t stall_ms) {
+  uint64_t next = first;
+  NatsPtr<natsSubscription> sub;
+  auto progress = std::chrono::steady_clock::now();
+  while (next <= last) {
+    if (std::chrono::steady_clock::now() - progress > std::chrono::milliseconds(stall_ms)) {
+      return Status::Unavailable("the cluster log gave no entry after " + std::to_string(next - 1) +
+                                 " for " + std::to_string(stall_ms) + " ms");
+    }
+    if (!sub) {
+      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats, next, headers_only);
+      if (!opened.ok()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(250));
+        continue;
+      }
+      sub = std::move(opened).value();
+    }
+    natsMsg* raw = nullptr;
+    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
+    if (st == NATS_TIMEOUT) continue;
+    if (st != NATS_OK) {
+      sub.reset();
+      continue;
+    }
+    NatsPtr<natsMsg> msg(raw);
+    const std::optional<uint64_t> entry = EntrySequence(msg.get());
+    if (!entry || *entry < next) continue;
+    if (*entry > next && next == first) {
+      return Status::FailedPrecondition("the cluster log no longer holds entry " +
+                                        std::to_string(first) + " (it was trimmed to " +
+                                        std::to_string(*entry) + ")");
+    }
+    if (*entry > last) break;
+    progress = std::chrono::steady_clock::now();
+    next = *entry + 1;
+    on_entry(*entry, msg.get());
+  }
+  return Status::Ok();
+}
+
 Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
                                                 bool headers_only) {
   jsSubOptions so;
@@ -324,13 +400,15 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
   const char* touched = nullptr;
   LogEntryHeader h;
   const std::string_view subject(natsMsg_GetSubject(msg));
-  h.kind = subject == kClearSubject    ? LogEntryHeader::Kind::kClear
-           : subject == kImportSubject ? LogEntryHeader::Kind::kImport
-           : subject == kRetireSubject ? LogEntryHeader::Kind::kRetire
-           : subject == kExportSubject ? LogEntryHeader::Kind::kExport
-                                       : LogEntryHeader::Kind::kScan;
+  h.kind = subject == kClearSubject     ? LogEntryHeader::Kind::kClear
+           : subject == kImportSubject  ? LogEntryHeader::Kind::kImport
+           : subject == kRetireSubject  ? LogEntryHeader::Kind::kRetire
+           : subject == kExportSubject  ? LogEntryHeader::Kind::kExport
+           : subject == kCorrectSubject ? LogEntryHeader::Kind::kCorrect
+                                        : LogEntryHeader::Kind::kScan;
   const bool scan = h.kind == LogEntryHeader::Kind::kScan;
-  const bool robot_entry = scan || h.kind == LogEntryHeader::Kind::kRetire;
+  const bool robot_entry =
+      scan || h.kind == LogEntryHeader::Kind::kRetire || h.kind == LogEntryHeader::Kind::kCorrect;
   const bool no_partition =
       h.kind == LogEntryHeader::Kind::kRetire || h.kind == LogEntryHeader::Kind::kExport;
   if ((natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK && !no_partition) ||
@@ -368,6 +446,17 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
 
 Status VerifyEntry(const ClusterTrust& trust, natsMsg* msg, bool headers_only) {
   if (!trust.keyed()) return Status::Ok();
+  jsMsgMetaData* raw = nullptr;
+  if (natsMsg_GetMetaData(&raw, msg) != NATS_OK) {
+    return Status::FailedPrecondition("the entry has no JetStream time");
+  }
+  NatsPtr<jsMsgMetaData> meta(raw);
+  return VerifyEntryStoredAt(trust, msg, headers_only, meta->Timestamp);
+}
+
+Status VerifyEntryStoredAt(const ClusterTrust& trust, natsMsg* msg, bool headers_only,
+                           int64_t stored_ns) {
+  if (!trust.keyed()) return Status::Ok();
   auto header = [msg](const char* key) {
     const char* value = nullptr;
     return natsMsgHeader_Get(msg, key, &value) == NATS_OK && value != nullptr ? std::string(value)
@@ -386,14 +475,9 @@ Status VerifyEntry(const ClusterTrust& trust, natsMsg* msg, bool headers_only) {
       ec != std::errc() || end != time.data() + time.size()) {
     return Status::FailedPrecondition("bad " + std::string(kTimeHeader));
   }
-  jsMsgMetaData* raw = nullptr;
-  if (natsMsg_GetMetaData(&raw, msg) != NATS_OK) {
-    return Status::FailedPrecondition("the entry has no JetStream time");
-  }
-  NatsPtr<jsMsgMetaData> meta(raw);
-  if (!ClusterTrust::StoredInTime(signed_ns, meta->Timestamp, kMaxEntryDelay)) {
+  if (!ClusterTrust::StoredInTime(signed_ns, stored_ns, kMaxEntryDelay)) {
     return Status::FailedPrecondition("stored " +
-                                      std::to_string((meta->Timestamp - signed_ns) / 1000000) +
+                                      std::to_string((stored_ns - signed_ns) / 1000000) +
                                       " ms after it was signed: a copy published again");
   }
   if (!headers_only &&

@@ -45,6 +45,10 @@ inline constexpr const char* kRetireSubject = "bgkmap.log.retire";
 // An export's snapshot point (ExportMap): no payload; every replica keeps a copy of its own tiles
 // as of this entry for the exporting shard to gather.
 inline constexpr const char* kExportSubject = "bgkmap.log.export";
+// A pose correction or a removal (CorrectPoses, RemoveScans): a v1::LogCorrection naming the
+// revised scans by their log sequences; the robot in its headers, the partitions whose halos
+// the scans meet before or after the revision (cluster_corrections.cc).
+inline constexpr const char* kCorrectSubject = "bgkmap.log.correct";
 
 struct LogStreamOptions {
   int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
@@ -87,6 +91,25 @@ Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
 // Appends an export's snapshot point (kExportSubject).
 Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust);
 
+// Appends a correction of `robot_id`'s scans (kCorrectSubject; `payload` a v1::LogCorrection).
+Result<uint64_t> AppendCorrection(const NatsClient& nats, const ClusterTrust& trust,
+                                  const std::string& robot_id, const std::string& payload,
+                                  const std::vector<PartitionKey>& touched, const CellBox& changes);
+
+// Entry `sequence` of the log, whole, read by its sequence (not through a reader), verified as
+// VerifyEntry verifies: FailedPrecondition if it was not appended by a shard with the key,
+// DataLoss if the log does not hold it, Unavailable if the log cannot be read.
+Result<NatsPtr<natsMsg>> GetEntry(const NatsClient& nats, const ClusterTrust& trust,
+                                  uint64_t sequence);
+
+// Reads the log's entries first..last in order (whole, or their headers only), calling
+// `on_entry(sequence, msg)` once per entry; a reader that fails is opened again from the entry
+// after the last one given. Unavailable when no entry came for `stall_ms`; FailedPrecondition
+// when the log no longer holds entry `first` (trimmed).
+Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool headers_only,
+                    const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry,
+                    int64_t stall_ms = 30000);
+
 // An ordered reader of the log from entry `start` (whole entries, or their headers only),
 // recreated by nats.c after a failure. Unavailable if the log cannot be read.
 Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
@@ -110,8 +133,9 @@ Result<uint64_t> FirstSequence(const NatsClient& nats);
 Status TrimLog(const NatsClient& nats, uint64_t keep_from);
 
 struct LogEntryHeader {
-  enum class Kind { kScan, kClear, kImport, kRetire, kExport };
-  Kind kind = Kind::kScan;  // clears and imports have no robot; a retirement no robot_sequence
+  enum class Kind { kScan, kClear, kImport, kRetire, kExport, kCorrect };
+  // Clears and imports have no robot; a retirement and a correction no robot_sequence.
+  Kind kind = Kind::kScan;
   std::string robot_id;
   uint64_t robot_sequence = 0;
   std::vector<PartitionKey> touched;  // sorted
@@ -129,5 +153,9 @@ inline constexpr std::chrono::seconds kMaxEntryDelay{60};
 // `headers_only`, its payload is the one signed. FailedPrecondition saying what failed; OK
 // without a key.
 Status VerifyEntry(const ClusterTrust& trust, natsMsg* msg, bool headers_only);
+// The same for an entry read by its sequence (GetEntry), stored at `stored_ns` (ns since the
+// epoch: natsMsg_GetTime).
+Status VerifyEntryStoredAt(const ClusterTrust& trust, natsMsg* msg, bool headers_only,
+                           int64_t stored_ns);
 
 }  // namespace bgkmap::cluster

@@ -12,28 +12,6 @@
 namespace bgkmap::cluster {
 namespace {
 
-const char* CallName(MapWrites::Operation operation) {
-  switch (operation) {
-    case MapWrites::Operation::kExportMap:
-      return "ExportMap";
-    case MapWrites::Operation::kCorrectPoses:
-      return "CorrectPoses";
-    case MapWrites::Operation::kRemoveScans:
-      return "RemoveScans";
-    case MapWrites::Operation::kRetireRobot:
-      return "RetireRobot";
-  }
-  return "this call";
-}
-
-// The calls a shard does not take yet (docs/scale-out.md, "What is not distributed yet").
-Status NotOnShard(MapWrites::Operation operation) {
-  return Status::Unimplemented(
-      std::string(CallName(operation)) +
-      " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, ExportMap, RetireRobot and Info are");
-}
-
 // How long an append waits for the node's robot ledger to read its entry: normally a few
 // milliseconds (it reads headers only), but while JetStream elects a stream leader after a NATS
 // server's death the ledger's reader waits too (16-21 s measured on 2 loaded cores); the robot
@@ -42,12 +20,7 @@ constexpr int64_t kVerdictWaitMs = 60000;
 
 }  // namespace
 
-Status ClusterNode::Offers(Operation operation) const {
-  if (operation == Operation::kRetireRobot || operation == Operation::kExportMap) {
-    return Status::Ok();
-  }
-  return NotOnShard(operation);
-}
+Status ClusterNode::Offers(Operation) const { return Status::Ok(); }
 
 Result<std::pair<Appended, std::optional<LedgerVerdict>>> ClusterNode::AppendJudged(
     const ScanOrigin& origin, const PreparedScan& prepared) {
@@ -207,9 +180,20 @@ Result<std::unique_ptr<ArchiveChunks>> ClusterNode::Export(const std::optional<C
 
 void ClusterNode::SubmitCorrection(CorrectionSpec spec,
                                    std::function<void(CorrectionOutcome)> done) {
-  CorrectionOutcome outcome;
-  outcome.status = NotOnShard(spec.remove ? Operation::kRemoveScans : Operation::kCorrectPoses);
-  done(std::move(outcome));
+  // Reads the log (its headers, the named scans) and appends one entry (cluster_corrections.cc):
+  // on a worker. Answered once the log stores the entry, as a clear is; queries then read the
+  // rebuilt partitions (an owner answers once it has applied the entry).
+  executor_([this, spec = std::move(spec), done = std::move(done)] {
+    Result<CorrectionOutcome> outcome = Correct(spec);
+    if (outcome.ok()) {
+      ledger_->WaitRead(outcome->version, kVerdictWaitMs);
+      done(std::move(outcome).value());
+      return;
+    }
+    CorrectionOutcome refused;
+    refused.status = outcome.status();
+    done(std::move(refused));
+  });
 }
 
 void ClusterNode::RetireRobot(const std::string& robot_id,

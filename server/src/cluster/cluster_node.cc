@@ -488,52 +488,29 @@ void ClusterNode::WriteCheckpoints() {
 }
 
 void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
-                           const std::vector<std::shared_ptr<PartitionReplica>>& to) {
+                           const std::vector<std::shared_ptr<PartitionReplica>>& to,
+                           const Revisions* revisions) {
   if (to.empty()) return;  // an entry read again for other partitions: nothing to do here
-  // Not appended by a shard: passed, applied nowhere, no robot's sequence recorded.
+  // Not appended by a shard: passed, applied nowhere, no robot's sequence recorded. (A
+  // rebuild's replay passes it again without counting it twice.)
   if (Status trusted = VerifyEntry(*trust_, msg, /*headers_only=*/false); !trusted.ok()) {
-    trust_->Refuse(Untrusted::kLogEntry,
-                   "log entry " + std::to_string(sequence) + ": " + trusted.message());
+    if (revisions == nullptr) {
+      trust_->Refuse(Untrusted::kLogEntry,
+                     "log entry " + std::to_string(sequence) + ": " + trusted.message());
+    }
     for (const auto& r : to) r->Apply(sequence, nullptr);
     return;
   }
   Result<LogEntryHeader> header = ReadEntryHeader(msg);
-  if (header.ok() && header->kind == LogEntryHeader::Kind::kImport) {
-    std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;
-    if (!to.empty()) {
-      const std::string manifest(natsMsg_GetData(msg),
-                                 static_cast<size_t>(natsMsg_GetDataLength(msg)));
-      Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> read =
-          ReadImportTiles(*nats_, manifest, params_);
-      if (read.ok()) {
-        tiles = std::move(read).value();
-      } else {
-        spdlog::error("event=log_entry_skipped sequence={} reason=\"import: {}\"", sequence,
-                      read.status().message());
-      }
-    }
-    for (const auto& r : to) r->ApplyImport(sequence, tiles);
+  if (header.ok() && header->kind != LogEntryHeader::Kind::kScan) {
+    DispatchChange(sequence, msg, *header, to, revisions);
     return;
   }
-  if (header.ok() && header->kind == LogEntryHeader::Kind::kExport) {
-    for (const auto& r : to) r->ApplyExport(sequence);
-    return;
-  }
-  if (header.ok() && header->kind == LogEntryHeader::Kind::kRetire) {
-    for (const auto& r : to) r->ApplyRetire(sequence, header->robot_id);
-    return;
-  }
-  if (header.ok() && header->kind == LogEntryHeader::Kind::kClear) {
-    v1::CellBox cells;
-    CellBox box;  // empty: nothing is cleared, the entry is passed
-    if (!cells.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
-      spdlog::error("event=log_entry_skipped sequence={} reason=\"the clear does not decode\"",
-                    sequence);
-    } else {
-      box = {{cells.min_x(), cells.min_y()}, {cells.max_x(), cells.max_y()}};
-    }
-    for (const auto& r : to) r->ApplyClear(sequence, box);
-    return;
+  // A scan a correction revised (in a rebuild's replay): its corrected pose, or not at all.
+  const Revision* revision = nullptr;
+  if (revisions != nullptr) {
+    auto it = revisions->find(sequence);
+    if (it != revisions->end()) revision = &it->second;
   }
   std::vector<bool> integrate(to.size(), false);
   bool any = false;
@@ -541,8 +518,12 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
     spdlog::error("event=log_entry_skipped sequence={} reason=\"{}\"", sequence,
                   header.status().message());
   } else {
-    for (size_t i = 0; i < to.size(); ++i)
-      any = (integrate[i] = to[i]->Admit(sequence, *header)) || any;
+    for (size_t i = 0; i < to.size(); ++i) {
+      // Admitted even when removed: a removal changes no robot's sequence.
+      const bool admitted = to[i]->Admit(sequence, *header, revision != nullptr);
+      integrate[i] = admitted && (revision == nullptr || !revision->removed);
+      any = integrate[i] || any;
+    }
   }
   PreparedScan prepared;
   bool ready = false;
@@ -552,7 +533,7 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
     if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
       s = Status::DataLoss("the scan does not decode");
     } else {
-      s = prepare_(scan, &prepared);
+      s = prepare_(scan, revision != nullptr ? &revision->pose : nullptr, &prepared);
     }
     ready = s.ok();
     if (!ready) {
@@ -561,6 +542,46 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
   }
   for (size_t i = 0; i < to.size(); ++i) {
     to[i]->Apply(sequence, integrate[i] && ready ? &prepared : nullptr);
+  }
+}
+
+void ClusterNode::DispatchChange(uint64_t sequence, natsMsg* msg, const LogEntryHeader& header,
+                                 const std::vector<std::shared_ptr<PartitionReplica>>& to,
+                                 const Revisions* revisions) {
+  using Kind = LogEntryHeader::Kind;
+  if (header.kind == Kind::kImport) {
+    std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> tiles;
+    const std::string manifest(natsMsg_GetData(msg),
+                               static_cast<size_t>(natsMsg_GetDataLength(msg)));
+    Result<std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>> read =
+        ReadImportTiles(*nats_, manifest, params_);
+    if (read.ok()) {
+      tiles = std::move(read).value();
+    } else {
+      spdlog::error("event=log_entry_skipped sequence={} reason=\"import: {}\"", sequence,
+                    read.status().message());
+    }
+    for (const auto& r : to) r->ApplyImport(sequence, tiles);
+  } else if (header.kind == Kind::kRetire) {
+    for (const auto& r : to) r->ApplyRetire(sequence, header.robot_id);
+  } else if (header.kind == Kind::kClear) {
+    v1::CellBox cells;
+    CellBox box;  // empty: nothing is cleared, the entry is passed
+    if (!cells.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
+      spdlog::error("event=log_entry_skipped sequence={} reason=\"the clear does not decode\"",
+                    sequence);
+    } else {
+      box = {{cells.min_x(), cells.min_y()}, {cells.max_x(), cells.max_y()}};
+    }
+    for (const auto& r : to) r->ApplyClear(sequence, box);
+  } else if (revisions != nullptr) {
+    // A rebuild's replay: an earlier correction is in `revisions` already, and an export's
+    // copies were taken when it was first read.
+    for (const auto& r : to) r->Apply(sequence, nullptr);
+  } else if (header.kind == Kind::kExport) {
+    for (const auto& r : to) r->ApplyExport(sequence);
+  } else if (header.kind == Kind::kCorrect) {
+    ApplyCorrection(sequence, header, to);
   }
 }
 

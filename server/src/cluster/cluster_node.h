@@ -23,6 +23,7 @@
 #include "cluster/cluster_reads.h"
 #include "cluster/cluster_trust.h"
 #include "cluster/log_change_feed.h"
+#include "cluster/log_corrections.h"
 #include "cluster/membership.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
@@ -32,8 +33,9 @@
 
 namespace bgkmap::cluster {
 
-// Checks and prepares a scan exactly as the node that accepted it did (the same parameters).
-using ScanPreparer = std::function<Status(const v1::Scan&, PreparedScan*)>;
+// Checks and prepares a scan exactly as the node that accepted it did (the same parameters);
+// with `pose` (not null) instead of the scan's own pose (a correction's).
+using ScanPreparer = std::function<Status(const v1::Scan&, const Pose* pose, PreparedScan*)>;
 // Runs a task on a worker (the server's query pool): what must not run on the caller's thread.
 using Executor = std::function<void(std::function<void()>)>;
 
@@ -68,13 +70,17 @@ class ClusterNode final : public MapPort {
   // judged in the log's order by the partitions and by this node's RobotLedger; a scan's or a
   // retirement's answer is the ledger's verdict on its entry. A retry the log stores once is
   // answered as a duplicate (or refused again, if its entry was). An export is a snapshot point
-  // in the log (Export). Pose corrections and scan removals are not distributed yet:
-  // Unimplemented.
+  // in the log (Export). A pose correction or a scan removal is one entry too, after which each
+  // partition it touches is rebuilt from the log (cluster_corrections.cc); it needs the whole
+  // log (cluster.trim_lag_entries: 0).
   const MapParams& params() const override { return params_; }
   const GridGeometry& geometry() const override { return layout_.geometry(); }
   Status Offers(Operation operation) const override;
-  bool retains_scans() const override { return false; }
-  uint64_t retained_records_bound() const override { return 0; }
+  // The log is the retained scans, unless it is trimmed.
+  bool retains_scans() const override { return config_.trim_lag_entries == 0; }
+  uint64_t retained_records_bound() const override {
+    return retains_scans() ? ledger_->last_sequence() : 0;
+  }
   bool TakeDuplicate(const std::string&, uint64_t, uint64_t*) override { return false; }
   void CountRejected(const std::string&) override {}
   RobotAdmission SubmitScan(ScanOrigin origin, std::shared_ptr<const PreparedScan> scan,
@@ -165,9 +171,30 @@ class ClusterNode final : public MapPort {
   // again from an earlier entry when a new partition needs the log from its start.
   void ReadLog();
   std::vector<std::shared_ptr<PartitionReplica>> Replicas() const;
-  // Decodes and prepares entry `msg` once for every replica that integrates it.
+  // Decodes and prepares entry `msg` once for every replica that integrates it. `revisions`
+  // (a rebuild's replay): scans prepared with their corrected poses or not integrated, and
+  // correction and export entries passed.
   void Dispatch(uint64_t sequence, natsMsg* msg,
-                const std::vector<std::shared_ptr<PartitionReplica>>& to);
+                const std::vector<std::shared_ptr<PartitionReplica>>& to,
+                const Revisions* revisions = nullptr);
+  // Dispatch of an entry that is not a scan (`header` read and verified).
+  void DispatchChange(uint64_t sequence, natsMsg* msg, const LogEntryHeader& header,
+                      const std::vector<std::shared_ptr<PartitionReplica>>& to,
+                      const Revisions* revisions);
+  // ---- Corrections (cluster_corrections.cc).
+  // CorrectPoses / RemoveScans: resolves the robot's scans against the log as a single server
+  // resolves them against its retained log (the same refusals), and appends one entry.
+  Result<CorrectionOutcome> Correct(const CorrectionSpec& spec);
+  // Entry `log_sequence`, a scan, prepared again (with `pose` instead of its own, if not null).
+  Result<PreparedScan> PrepareLogged(uint64_t log_sequence, const Pose* pose) const;
+  // Correction entry `sequence`: the replicas of `to` whose partition it touches are rebuilt
+  // (RebuildAt); the others pass it.
+  void ApplyCorrection(uint64_t sequence, const LogEntryHeader& header,
+                       const std::vector<std::shared_ptr<PartitionReplica>>& to);
+  // Replays the log's entries before `sequence` into fresh copies of `replicas` with the
+  // revisions in force at `sequence`, then switches each replica to its copy at `sequence`.
+  Status RebuildAt(uint64_t sequence,
+                   const std::vector<std::shared_ptr<PartitionReplica>>& replicas);
   // Copies the owned partitions of `to` that are due (cluster.checkpoint_scans) for the writer.
   void QueueCheckpoints(const std::vector<std::shared_ptr<PartitionReplica>>& to);
   void WriteCheckpoints();  // the checkpoint writer's loop

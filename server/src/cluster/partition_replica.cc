@@ -97,7 +97,7 @@ uint64_t PartitionReplica::applied() const {
   return applied_;
 }
 
-bool PartitionReplica::Admit(uint64_t /*sequence*/, const LogEntryHeader& header) {
+bool PartitionReplica::Admit(uint64_t /*sequence*/, const LogEntryHeader& header, bool revised) {
   auto it = robot_last_.find(header.robot_id);
   const std::optional<uint64_t> last =
       it == robot_last_.end() ? std::nullopt : std::optional<uint64_t>(it->second);
@@ -106,7 +106,25 @@ bool PartitionReplica::Admit(uint64_t /*sequence*/, const LogEntryHeader& header
     return false;
   }
   robot_last_[header.robot_id] = header.robot_sequence;
-  return std::binary_search(header.touched.begin(), header.touched.end(), key_);
+  return revised || std::binary_search(header.touched.begin(), header.touched.end(), key_);
+}
+
+void PartitionReplica::AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence) {
+  std::unique_ptr<TerrainMap> map;
+  {
+    std::unique_lock theirs(rebuilt.map_mu_);
+    map = std::move(rebuilt.map_);
+  }
+  std::unique_lock map_lock(map_mu_);
+  map_ = std::move(map);
+  {
+    // Under the map's lock: a reader sees the rebuilt tiles with the correction's sequence.
+    std::lock_guard progress(progress_mu_);
+    applied_ = sequence;
+    progress_cv_.notify_all();
+  }
+  map_lock.unlock();
+  if (!serving_ && sequence >= serve_from_) StartServing();
 }
 
 void PartitionReplica::Apply(uint64_t sequence, const PreparedScan* prepared) {

@@ -76,8 +76,14 @@ class PartitionReplica {
   PartitionKey key() const { return key_; }
   uint64_t applied() const;
   // Entry `sequence` (after applied()): records its robot's sequence and says whether its scan
-  // is to be integrated here (not a duplicate, and it touches this partition).
-  bool Admit(uint64_t sequence, const LogEntryHeader& header);
+  // is to be integrated here (not a duplicate, and it touches this partition; `revised`: a
+  // corrected scan, whose partitions the header does not tell, is integrated if admitted, and
+  // Apply cuts it to the halo).
+  bool Admit(uint64_t sequence, const LogEntryHeader& header, bool revised = false);
+  // Switches to `rebuilt`'s tiles (a replay of the log before entry `sequence` with a
+  // correction's revisions, ClusterNode::RebuildAt) and applies entry `sequence`. The robots'
+  // sequences stay: a correction changes no admission.
+  void AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence);
   // Applies entry `sequence`: integrates `prepared` (the whole scan; null: nothing here) cut to
   // the halo. Then serves, once caught up.
   void Apply(uint64_t sequence, const PreparedScan* prepared);

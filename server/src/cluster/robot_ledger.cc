@@ -94,7 +94,8 @@ void RobotLedger::Read(uint64_t sequence, natsMsg* msg) {
   const bool changed = header.ok() && ((header->kind == LogEntryHeader::Kind::kScan &&
                                         verdict.admission == RobotAdmission::kAdmitted) ||
                                        header->kind == LogEntryHeader::Kind::kClear ||
-                                       header->kind == LogEntryHeader::Kind::kImport);
+                                       header->kind == LogEntryHeader::Kind::kImport ||
+                                       header->kind == LogEntryHeader::Kind::kCorrect);
   if (!changed) unchanged_.push_back(sequence);
   verdicts_.emplace(sequence, std::move(verdict));
   while (verdicts_.size() > kKeptVerdicts) verdicts_.erase(verdicts_.begin());

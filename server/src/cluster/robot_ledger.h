@@ -64,9 +64,10 @@ class RobotLedger {
   std::vector<RobotStats> Robots() const;  // sorted by id, as of the last entry read
   uint64_t last_sequence() const;          // the last entry read (0: none)
   // How many of the entries up to `sequence` (read already) changed the map: admitted scans,
-  // clears and imports; refused scans, retirements, exports and entries that fail their HMAC
-  // change nothing. What a single server fed the same changes calls the version of the map
-  // after them (ExportMap writes it; counted from the ledger's start).
+  // clears, imports and corrections (a single server gives a correction a version too); refused
+  // scans, retirements, exports and entries that fail their HMAC change nothing. What a single
+  // server fed the same changes calls the version of the map after them (ExportMap writes it;
+  // counted from the ledger's start).
   uint64_t ChangesAt(uint64_t sequence) const;
   // Scans admitted since the ledger started (its log's start or checkpoint): the cluster's
   // scans applied, as a single server counts them since its start.

@@ -35,8 +35,8 @@ grpc::ServerUnaryReactor* RefusedUnary(grpc::CallbackServerContext* call,
   return reactor;
 }
 
-// UNIMPLEMENTED, before the request is looked at, for a call the map does not offer (a cluster
-// node, docs/scale-out.md, "What is not distributed yet").
+// UNIMPLEMENTED, before the request is looked at, for a call the map does not offer
+// (MapWrites::Offers; today both maps, a single server and a cluster node, offer every call).
 grpc::Status Offered(const ServiceContext& ctx, MapWrites::Operation operation) {
   return ToGrpcStatus(ctx.map.Offers(operation));
 }

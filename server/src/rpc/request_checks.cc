@@ -132,13 +132,14 @@ grpc::Status ScanPoints(const v1::Scan& scan, const ServerLimits& limits,
 
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
                                 const ServerLimits& limits, PreparedScan* out,
-                                std::shared_ptr<RawScan>* raw) {
+                                std::shared_ptr<RawScan>* raw, const Pose* pose_override) {
   if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) return s;
   std::vector<Point3f> points;
   if (grpc::Status s = ScanPoints(scan, limits, &points); !s.ok()) return s;
   if (!scan.has_pose()) return Invalid("pose: missing");
   Pose pose;
   if (grpc::Status s = CheckPose(scan.pose(), params, limits, &pose); !s.ok()) return s;
+  if (pose_override != nullptr) pose = *pose_override;
 
   Result<PreparedScan> prepared = PrepareScan(params, points, pose);
   if (!prepared.ok()) return ToGrpcStatus(prepared.status());

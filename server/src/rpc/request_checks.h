@@ -19,10 +19,13 @@ namespace bgkmap {
 // Checks a scan (robot id, packed float32 or compact points, pose) and prepares it. Pure: reads
 // no map state. Compact points are dequantized first (proto/codec's compact_points.h) and the
 // scan is prepared from exactly those points. `raw` (optional) receives the raw scan as
-// integrated, for a map that retains scans.
+// integrated, for a map that retains scans. `pose` (optional): prepared with this checked pose
+// instead of the scan's own (a pose correction on a shard: as a single server prepares a
+// retained scan again with its corrected pose).
 grpc::Status PrepareScanMessage(const v1::Scan& scan, const MapParams& params,
                                 const ServerLimits& limits, PreparedScan* out,
-                                std::shared_ptr<RawScan>* raw = nullptr);
+                                std::shared_ptr<RawScan>* raw = nullptr,
+                                const Pose* pose_override = nullptr);
 
 // A finite pose within the coordinate limits whose quaternion has unit norm (within
 // server.quaternion_tolerance), as the engine's Pose; the message names pose.<field>.

@@ -129,9 +129,9 @@ struct CorrectionOutcome {
 
 class MapWrites {
  public:
-  // The operations a map may not offer (yet): a cluster node does not correct poses or remove
-  // scans. Offers() is OK, or Unimplemented naming the call and what
-  // the map does offer; the operation itself then answers the same.
+  // The operations a map may not offer. Both maps offer all of them now (a cluster node since
+  // corrections became log entries, issue 30). Offers() is OK, or Unimplemented naming the call
+  // and what the map does offer; the operation itself then answers the same.
   enum class Operation { kExportMap, kCorrectPoses, kRemoveScans, kRetireRobot };
   virtual Status Offers(Operation operation) const = 0;
 

@@ -165,10 +165,10 @@ TEST(ClusterTest, RetriesAndDuplicatesChangeNothing) {
   EXPECT_TRUE(SameAnswers(b.client(), ref));
 }
 
-// The calls a shard does not take yet answer UNIMPLEMENTED naming themselves and the calls it
-// does take, before the request is looked at (a bad request too); Info on a shard names it and
-// sees the scans its own acks reported. (Through the map port: MapWrites::Offers, ReadVersion.)
-TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
+// Info on a shard names it and sees the scans its own acks reported. (Through the map port:
+// ReadVersion.) Every call is taken on a shard: CorrectPoses and RemoveScans are tested in
+// cluster_correction_test.cc.
+TEST(ClusterTest, InfoOnAShardNamesIt) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
   ASSERT_TRUE(nats.started());
@@ -187,18 +187,6 @@ TEST(ClusterTest, ShardAnswersUnimplementedForWhatIsNotDistributedYet) {
   EXPECT_EQ(info->cluster->node, "a");
   EXPECT_EQ(info->cluster->partition_tiles, kPartitionTiles);
   EXPECT_GE(info->map_version, acked);
-
-  const std::string not_yet =
-      " is not available on a cluster node yet (cluster.nats is set); ingest, QueryRegion, "
-      "QueryPoints, CheckPath, Watch, ClearRegion, ImportMap, ExportMap, RetireRobot and Info are";
-  auto expect_unimplemented = [&](const RpcStatus& status, const std::string& call) {
-    EXPECT_EQ(status.code(), RpcCode::kUnimplemented) << call << ": " << status.message();
-    EXPECT_EQ(status.message(), call + not_yet);
-  };
-  expect_unimplemented(a.client().CorrectPoses("r1", {{1, scans[0].pose}}).status(),
-                       "CorrectPoses");
-  expect_unimplemented(a.client().RemoveScans("r1", 2, 1).status(),  // first > last: still
-                       "RemoveScans");
 }
 
 // Mutations: ReadCheckpoint returning nothing (the takeover replays the log: "no partition was
@@ -249,7 +237,8 @@ TEST(ClusterTest, KilledShardsPartitionsAreServedAgain) {
 
 // The log trimmed below the partitions' checkpoints (cluster.trim_lag_entries): a shard killed
 // afterwards has its partitions restored from checkpoints and the log's rest, and a shard that
-// joins afterwards too; the answers stay the single server's. Mutations: the floor taken as the
+// joins afterwards too; the answers stay the single server's. CorrectPoses and RemoveScans are
+// refused (FAILED_PRECONDITION: they need the whole log). Mutations: the floor taken as the
 // log's end, ignoring the checkpoints (scans after the first trim are in no checkpoint yet: the
 // takeover misses them and the answers differ); no checkpoint by lag (nothing is trimmed).
 TEST(ClusterTest, TrimmedLogLosesNothing) {
@@ -285,6 +274,14 @@ TEST(ClusterTest, TrimmedLogLosesNothing) {
   // The rest, and time for more trims (every 4 leases): entries no checkpoint holds yet stay.
   InsertAll(to_a, scans, half, scans.size());
   std::this_thread::sleep_for(std::chrono::seconds(5));
+  // Corrections replay the log from its start: refused on a log that is trimmed, naming the
+  // setting that keeps it (the map unchanged: the answers below).
+  for (const RpcStatus& refused : {to_a.CorrectPoses("r1", {{2, scans[0].pose}}).status(),
+                                   to_a.RemoveScans("r2", 1, 3).status()}) {
+    EXPECT_EQ(refused.code(), RpcCode::kFailedPrecondition) << refused.message();
+    EXPECT_NE(refused.message().find("cluster.trim_lag_entries"), std::string::npos)
+        << refused.message();
+  }
   EXPECT_TRUE(SameAnswers(to_a, ref));
 
   b.Signal(SIGKILL);

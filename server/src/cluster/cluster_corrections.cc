@@ -1,0 +1,228 @@
+// Pose corrections and scan removals on a shard (docs/scale-out.md, "Corrections are log
+// entries"). The log holds every scan as sent, so it is the cluster's retained scans: a
+// correction is resolved against it as a single server resolves one against its retained log,
+// appended as one entry naming the revised scans by their log sequences, and each replica whose
+// partition (with its halo) a revised scan meets, before or after the revision, rebuilds it when
+// it reads the entry: the log's entries before it replayed with every revision in force, so the
+// partition is what a single server's re-integration makes of it, bit for bit.
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <set>
+
+#include "cluster/cluster_node.h"
+
+namespace bgkmap::cluster {
+namespace {
+
+std::string Robot(const std::string& id) { return "robot '" + id + "'"; }
+
+// The scans a correction names that the log holds (admitted, not removed), by robot sequence;
+// and the robot's oldest and newest of those.
+struct Named {
+  std::map<uint64_t, LoggedScan> scans;
+  uint64_t oldest = UINT64_MAX;
+  uint64_t newest = 0;
+};
+
+Named FindNamed(const LogIndex& index, const Revisions& in_force, const CorrectionSpec& spec) {
+  Named out;
+  for (const auto& [sequence, scan] : index.scans) {
+    auto r = in_force.find(scan.log_sequence);
+    if (r != in_force.end() && r->second.removed) continue;  // gone, as on a single server
+    out.oldest = std::min(out.oldest, sequence);
+    out.newest = std::max(out.newest, sequence);
+    const bool named = spec.remove
+                           ? sequence >= spec.remove->first && sequence <= spec.remove->second
+                           : spec.poses.contains(sequence);
+    if (named) out.scans.emplace(sequence, scan);
+  }
+  return out;
+}
+
+// The single server's refusals (store_corrections.cc, CheckRetained), with the cluster's
+// reason a scan is not kept (a trimmed log).
+Status CheckNamed(const Named& found, const CorrectionSpec& spec) {
+  const std::string kept =
+      found.oldest == UINT64_MAX
+          ? "none of its scans is in the cluster's log"
+          : "its oldest scan in the cluster's log is sequence " + std::to_string(found.oldest);
+  if (spec.remove) {
+    if (spec.remove->first < found.oldest) {
+      return Status::FailedPrecondition("cannot remove " + Robot(spec.robot_id) + "'s scans from " +
+                                        std::to_string(spec.remove->first) + ": " + kept +
+                                        " (cluster.trim_lag_entries)");
+    }
+    if (found.scans.empty()) {
+      return Status::InvalidArgument(Robot(spec.robot_id) + " has no scan with sequence in [" +
+                                     std::to_string(spec.remove->first) + ", " +
+                                     std::to_string(spec.remove->second) + "]");
+    }
+  }
+  for (const auto& [sequence, pose] : spec.poses) {
+    if (found.scans.contains(sequence)) continue;
+    if (sequence < found.oldest) {
+      return Status::FailedPrecondition("cannot correct sequence " + std::to_string(sequence) +
+                                        " of " + Robot(spec.robot_id) + ": " + kept +
+                                        " (cluster.trim_lag_entries)");
+    }
+    return Status::InvalidArgument(
+        "sequence " + std::to_string(sequence) + " of " + Robot(spec.robot_id) +
+        " was never ingested (or was removed); its last is " + std::to_string(found.newest));
+  }
+  return Status::Ok();
+}
+
+// Corrections need every entry from the log's start (a partition is rebuilt from it).
+Status WholeLogKept(const NatsClient& nats, uint32_t trim_lag_entries) {
+  if (trim_lag_entries > 0) {
+    return Status::FailedPrecondition(
+        "pose corrections and scan removals on a cluster replay the log from its start, and "
+        "cluster.trim_lag_entries = " +
+        std::to_string(trim_lag_entries) + " trims it: set it to 0 to keep every entry");
+  }
+  Result<uint64_t> first = FirstSequence(nats);
+  if (!first.ok()) return Status::IoError(first.status().message());
+  if (*first > 1) {
+    return Status::FailedPrecondition(
+        "the cluster's log was trimmed to entry " + std::to_string(*first) +
+        ": the scans before it cannot be replayed (cluster.trim_lag_entries: 0 keeps every "
+        "entry)");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+Result<PreparedScan> ClusterNode::PrepareLogged(uint64_t log_sequence, const Pose* pose) const {
+  Result<NatsPtr<natsMsg>> msg = GetEntry(*nats_, *trust_, log_sequence);
+  if (!msg.ok()) return Status::IoError(msg.status().message());
+  v1::Scan scan;
+  if (!scan.ParseFromArray(natsMsg_GetData(msg->get()), natsMsg_GetDataLength(msg->get()))) {
+    return Status::DataLoss("log entry " + std::to_string(log_sequence) + " does not decode");
+  }
+  PreparedScan prepared;
+  if (Status s = prepare_(scan, pose, &prepared); !s.ok()) return s;
+  return prepared;
+}
+
+Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
+  const auto start = std::chrono::steady_clock::now();
+  if (Status s = WholeLogKept(*nats_, config_.trim_lag_entries); !s.ok()) return s;
+  Result<uint64_t> last = LastSequence(*nats_);
+  if (!last.ok()) return Status::IoError(last.status().message());
+  Result<LogIndex> index = IndexLog(*nats_, *trust_, rule_, spec.robot_id, *last);
+  if (!index.ok()) return Status::IoError(index.status().message());
+  Result<Revisions> in_force = ReadRevisions(*nats_, *trust_, index->corrections);
+  if (!in_force.ok()) return Status::IoError(in_force.status().message());
+  const Named found = FindNamed(*index, *in_force, spec);
+  if (Status s = CheckNamed(found, spec); !s.ok()) return s;
+  if (spec.is_cancelled()) {
+    return Status::FailedPrecondition("cancelled by its client before it was applied");
+  }
+  // The partitions whose halos the scans meet as first sent, as revised so far, and as revised
+  // now: all of them are rebuilt.
+  Revisions revisions;
+  std::set<PartitionKey> touched;
+  CellBox changes;
+  auto reaching = [&](const PreparedScan& prepared) {
+    const CellBox reach = layout_.Reach(prepared);
+    changes.Extend(reach.min);
+    changes.Extend(reach.max);
+    for (PartitionKey p : layout_.Covering(reach)) touched.insert(p);
+  };
+  for (const auto& [sequence, scan] : found.scans) {
+    touched.insert(scan.touched.begin(), scan.touched.end());
+    if (!scan.changes.empty()) {
+      changes.Extend(scan.changes.min);
+      changes.Extend(scan.changes.max);
+    }
+    if (auto r = in_force->find(scan.log_sequence); r != in_force->end()) {
+      Result<PreparedScan> current = PrepareLogged(scan.log_sequence, &r->second.pose);
+      if (!current.ok()) return current.status();
+      reaching(*current);
+    }
+    if (spec.remove) {
+      revisions[scan.log_sequence] = Revision{true, {}};
+      continue;
+    }
+    const Pose& pose = spec.poses.at(sequence);
+    Result<PreparedScan> revised = PrepareLogged(scan.log_sequence, &pose);
+    if (!revised.ok()) {
+      if (revised.status().code() != Status::Code::kInvalidArgument) return revised.status();
+      return Status::InvalidArgument("pose of sequence " + std::to_string(sequence) + ": " +
+                                     revised.status().message());
+    }
+    reaching(*revised);
+    revisions[scan.log_sequence] = Revision{false, pose};
+  }
+  // Partitions a revised scan now reaches get owners before the entry is read.
+  for (PartitionKey p : touched) {
+    if (Status s = members_->AddPartition(p); !s.ok()) return Status::IoError(s.message());
+  }
+  Result<uint64_t> at =
+      AppendCorrection(*nats_, *trust_, spec.robot_id, EncodeCorrection(revisions),
+                       {touched.begin(), touched.end()}, changes);
+  if (!at.ok()) return Status::IoError(at.status().message());
+  CorrectionOutcome outcome;
+  outcome.version = *at;
+  outcome.scans_revised = revisions.size();
+  outcome.records_in_history = *at - 1;  // every partition it touches replays them all
+  outcome.records_replayed = *at - 1;
+  outcome.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return outcome;
+}
+
+void ClusterNode::ApplyCorrection(uint64_t sequence, const LogEntryHeader& header,
+                                  const std::vector<std::shared_ptr<PartitionReplica>>& to) {
+  std::vector<std::shared_ptr<PartitionReplica>> rebuilt;
+  for (const auto& r : to) {
+    if (std::binary_search(header.touched.begin(), header.touched.end(), r->key())) {
+      rebuilt.push_back(r);
+    } else {
+      r->Apply(sequence, nullptr);
+    }
+  }
+  if (rebuilt.empty()) return;
+  if (Status s = RebuildAt(sequence, rebuilt); !s.ok()) {
+    // The partitions keep their tiles without the correction: said loudly, since they now
+    // differ from a single server's map (a trimmed log, or a log that cannot be read).
+    spdlog::error("event=correction_not_applied sequence={} partitions={} reason=\"{}\"", sequence,
+                  rebuilt.size(), s.message());
+    for (const auto& r : rebuilt) r->Apply(sequence, nullptr);
+  }
+}
+
+Status ClusterNode::RebuildAt(uint64_t sequence,
+                              const std::vector<std::shared_ptr<PartitionReplica>>& replicas) {
+  const auto start = std::chrono::steady_clock::now();
+  // The revisions in force at the entry: its own and every earlier correction's.
+  Result<LogIndex> index = IndexLog(*nats_, *trust_, rule_, "", sequence);
+  if (!index.ok()) return index.status();
+  Result<Revisions> revisions = ReadRevisions(*nats_, *trust_, index->corrections);
+  if (!revisions.ok()) return revisions.status();
+  // Fresh copies that never serve, fed the log's entries before it with the revisions.
+  std::vector<std::shared_ptr<PartitionReplica>> copies;
+  for (const auto& r : replicas) {
+    Result<std::unique_ptr<TerrainMap>> map = TerrainMap::Create(params_);
+    if (!map.ok()) return map.status();
+    copies.push_back(std::make_shared<PartitionReplica>(*nats_, *trust_, layout_, r->key(),
+                                                        std::move(map).value(), UINT64_MAX, rule_));
+  }
+  if (sequence > 1) {
+    Status read = ReadLogRange(
+        *nats_, 1, sequence - 1, /*headers_only=*/false,
+        [&](uint64_t entry, natsMsg* msg) { Dispatch(entry, msg, copies, &*revisions); });
+    if (!read.ok()) return read;
+  }
+  for (size_t i = 0; i < replicas.size(); ++i) replicas[i]->AdoptRebuilt(*copies[i], sequence);
+  spdlog::info(
+      "event=partitions_rebuilt sequence={} partitions={} revisions={} entries_replayed={} "
+      "seconds={:.3f}",
+      sequence, replicas.size(), revisions->size(), sequence - 1,
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  return Status::Ok();
+}
+
+}  // namespace bgkmap::cluster

@@ -1,0 +1,175 @@
+// CorrectPoses and RemoveScans on a bgkmap cluster (real nats-server processes) against a single
+// server with a store (retained scans) fed the same calls in the same order: after each
+// correction, removal, second correction of scans already corrected, and scans sent after them,
+// the regions and points through either shard are the single server's bit for bit; also when a
+// shard is killed with -9 just before the corrections (its partitions are taken over from their
+// checkpoints, replayed and rebuilt at the corrections' entries).
+//
+// Mutations checked by hand (each makes a test below fail):
+//   - the rebuild replaying the scans with the poses they were sent with (revisions ignored);
+//   - a removed scan integrated anyway in the rebuild;
+//   - the correction entry naming only the partitions of the scans as first sent (not the
+//     partitions their corrected poses reach): the scans moved 25 m are missing.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bgkmap/client/client.h"
+#include "bgkmap/server/map_server.h"
+#include "bgkmapd_process.h"
+#include "cluster_support.h"
+#include "nats_cluster.h"
+#include "test_support.h"
+
+namespace bgkmap::testing {
+namespace {
+
+// A single server whose store retains the scans (storage.retention_mb's default), with
+// checkpoints within the drive, as tests/server/rpc/pose_correction_test.cc runs it.
+ServerConfig StoreConfig(const TempDir& dir) {
+  ServerConfig c = TestConfig();
+  c.storage.data_dir = dir.Sub("single");
+  c.storage.durability = "periodic";
+  c.storage.checkpoint_interval_s = 0.2;
+  return c;
+}
+
+// The two robots' scans with r1's odometry drifting (6 cm and 3 cm more per scan).
+std::vector<OwnedScan> Drifted() {
+  std::vector<OwnedScan> out = TwoRobots();
+  for (OwnedScan& s : out) {
+    if (s.robot_id != "r1") continue;
+    s.pose.tx += 0.06 * static_cast<double>(s.sequence);
+    s.pose.ty += 0.03 * static_cast<double>(s.sequence);
+  }
+  return out;
+}
+
+// r1's true poses (shifted by `dx` metres) for sequences first..last.
+std::vector<std::pair<uint64_t, ScanPose>> R1Poses(uint64_t first, uint64_t last, double dx = 0) {
+  std::vector<std::pair<uint64_t, ScanPose>> out;
+  for (const OwnedScan& s : TwoRobots()) {
+    if (s.robot_id != "r1" || s.sequence < first || s.sequence > last) continue;
+    ScanPose p = s.pose;
+    p.tx += dx;
+    out.emplace_back(s.sequence, p);
+  }
+  return out;
+}
+
+void Insert(Client& a, Client& b, const std::vector<OwnedScan>& scans, size_t from, size_t to) {
+  for (size_t i = from; i < to; ++i) {
+    Client& via = scans[i].robot_id == "r1" ? a : b;
+    RpcResult<ScanAck> ack = via.Insert(scans[i].Data());
+    ASSERT_TRUE(ack.ok()) << ack.status().message();
+    ASSERT_EQ(ack->status, AckStatus::kApplied) << i;
+  }
+}
+
+// The same call's answers: both OK with the same count of scans revised, or the same refusal.
+::testing::AssertionResult SameOutcome(const RpcResult<CorrectionResult>& shard,
+                                       const RpcResult<CorrectionResult>& single) {
+  if (shard.ok() != single.ok()) {
+    return ::testing::AssertionFailure()
+           << "shard: " << (shard.ok() ? "OK" : shard.status().message())
+           << ", single: " << (single.ok() ? "OK" : single.status().message());
+  }
+  if (!shard.ok()) {
+    if (shard.status().code() != single.status().code() ||
+        shard.status().message() != single.status().message()) {
+      return ::testing::AssertionFailure()
+             << "shard: " << shard.status().message() << ", single: " << single.status().message();
+    }
+    return ::testing::AssertionSuccess() << "both refused: " << shard.status().message();
+  }
+  if (shard->scans_revised != single->scans_revised) {
+    return ::testing::AssertionFailure()
+           << shard->scans_revised << " scans revised, single " << single->scans_revised;
+  }
+  return ::testing::AssertionSuccess();
+}
+
+TEST(ClusterCorrectionTest, CorrectionsAndRemovalsAsOneServer) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = Drifted();
+  const size_t most = scans.size() - 4;  // the last two of each robot come after the corrections
+  const std::vector<OwnedScan> first(scans.begin(), scans.begin() + static_cast<long>(most));
+  Reference ref(first, StoreConfig(dir));
+  ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
+  Client& single = ref.single.client();
+  Insert(a.client(), b.client(), scans, 0, most);
+  ASSERT_TRUE(SameAnswers(a.client(), ref));
+  const Raster drifted = ref.Region(ref.box, 1);
+
+  // r1's scans 3..8 corrected to their true poses, through b (r1 sent through a).
+  EXPECT_TRUE(SameOutcome(b.client().CorrectPoses("r1", R1Poses(3, 8)),
+                          single.CorrectPoses("r1", R1Poses(3, 8))));
+  EXPECT_FALSE(SameBits(drifted, ref.Region(ref.box, 1))) << "the correction changed nothing";
+  EXPECT_TRUE(SameAnswers(a.client(), ref));
+  EXPECT_TRUE(SameAnswers(b.client(), ref));
+
+  // r2's scans 4..6 removed, through a.
+  EXPECT_TRUE(SameOutcome(a.client().RemoveScans("r2", 4, 6), single.RemoveScans("r2", 4, 6)));
+  EXPECT_TRUE(SameAnswers(a.client(), ref));
+  EXPECT_TRUE(SameAnswers(b.client(), ref));
+
+  // r1's scans 5..10 corrected again, 25 m further (5..8 were corrected already): into
+  // partitions no scan reached before.
+  EXPECT_TRUE(SameOutcome(a.client().CorrectPoses("r1", R1Poses(5, 10, 25.0)),
+                          single.CorrectPoses("r1", R1Poses(5, 10, 25.0))));
+  ref.box = KnownBox(*ref.single.server().SnapshotMap());
+  EXPECT_TRUE(SameAnswers(a.client(), ref));
+  EXPECT_TRUE(SameAnswers(b.client(), ref));
+
+  // Refused as by one server: a removed scan, a range without scans, an unknown sequence.
+  EXPECT_TRUE(SameOutcome(b.client().CorrectPoses("r2", {{5, scans[0].pose}}),
+                          single.CorrectPoses("r2", {{5, scans[0].pose}})));
+  EXPECT_TRUE(SameOutcome(b.client().RemoveScans("r1", 50, 60), single.RemoveScans("r1", 50, 60)));
+  EXPECT_TRUE(SameOutcome(a.client().CorrectPoses("r1", {{99, scans[0].pose}}),
+                          single.CorrectPoses("r1", {{99, scans[0].pose}})));
+
+  // Scans after the corrections, onto the corrected map.
+  Insert(a.client(), b.client(), scans, most, scans.size());
+  InsertAll(single, scans, most, scans.size());
+  ref.box = KnownBox(*ref.single.server().SnapshotMap());
+  EXPECT_TRUE(SameAnswers(a.client(), ref));
+  EXPECT_TRUE(SameAnswers(b.client(), ref));
+}
+
+// Two bgkmapd shards; b killed with -9 just before a correction and a removal through a: the
+// partitions b owned are taken over (from checkpoints), replay the log and are rebuilt at the
+// entries; every answer is the single server's.
+TEST(ClusterCorrectionTest, CorrectionsDuringATakeover) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  const std::vector<OwnedScan> scans = Drifted();
+  Reference ref(scans, StoreConfig(dir));
+  BgkmapdProcess a(NodeArgs(nats.urls(), "a")), b(NodeArgs(nats.urls(), "b"));
+  ASSERT_TRUE(a.started() && b.started());
+  Client to_a(a.target());
+  InsertAll(to_a, scans, 0, scans.size());
+  ASSERT_FALSE(b.WaitForLine("event=partition_checkpointed", 20).empty()) << "b wrote none";
+  b.Signal(SIGKILL);
+  Client& single = ref.single.client();
+  EXPECT_TRUE(SameOutcome(to_a.CorrectPoses("r1", R1Poses(2, 9)),
+                          single.CorrectPoses("r1", R1Poses(2, 9))));
+  EXPECT_TRUE(SameOutcome(to_a.RemoveScans("r2", 3, 7), single.RemoveScans("r2", 3, 7)));
+  EXPECT_TRUE(SameAnswers(to_a, ref));
+  bool restored = false, rebuilt = false;
+  for (const std::string& line : a.Log()) {
+    restored = restored || (line.find("event=partition_taken") != std::string::npos &&
+                            line.find("restored_from=0 ") == std::string::npos);
+    rebuilt = rebuilt || line.find("event=partitions_rebuilt") != std::string::npos;
+  }
+  EXPECT_TRUE(restored) << "no partition was restored from a checkpoint";
+  EXPECT_TRUE(rebuilt) << "no partition was rebuilt";
+}
+
+}  // namespace
+}  // namespace bgkmap::testing
