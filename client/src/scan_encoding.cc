@@ -1,6 +1,7 @@
 #include "scan_encoding.h"
 
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "bgkmap/core/point_filter.h"
@@ -87,7 +88,7 @@ ScanPointCounts EncodeScan(const ScanData& scan, const ScanEncoding& encoding, v
     if (FilterQuantized(scan, encoding.step, params, encoding.drop_height, pose, &kept, &here)) {
       Result<CompactPoints> compact = EncodeQuantizedPoints(kept, encoding.step);
       if (compact.ok()) {
-        bgkmap::ToProto(*compact, out->mutable_compact_points());
+        bgkmap::ToProto(std::move(*compact), out->mutable_compact_points());
         return here;
       }
     }
