@@ -8,6 +8,7 @@
 #include <grpcpp/security/credentials.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -28,6 +29,7 @@ namespace bgkmap {
 
 using client_codec::AddDroppedHere;
 using client_codec::EncodedScan;
+using client_codec::EncodeHinted;
 using client_codec::EncodePipeline;
 using client_codec::EncodeScan;
 using client_codec::FromGrpc;
@@ -97,7 +99,7 @@ class GrpcIngestStream final : public IngestStream {
   bool Send(const ScanData& scan) override {
     if (pipeline_) return pipeline_->Submit(scan);
     EncodedScan encoded{scan.robot_id, scan.sequence, {}, {}};
-    encoded.here = EncodeScan(scan, encoding_, &encoded.message);
+    encoded.here = EncodeHinted(scan, sent_++, encoding_, &order_hint_, &encoded.message);
     return Write(encoded);
   }
 
@@ -155,6 +157,8 @@ class GrpcIngestStream final : public IngestStream {
   std::mutex write_mu_;
   bool send_closed_ = false;
   bool finished_ = false;
+  client_codec::OrderHint order_hint_;  // without the pipeline, which has its own
+  std::atomic<uint64_t> sent_{0};
   std::unique_ptr<EncodePipeline> pipeline_;  // last: stopped before the rest goes
 };
 

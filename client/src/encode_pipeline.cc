@@ -32,6 +32,7 @@ bool EncodePipeline::Submit(const ScanData& scan) {
   std::unique_lock lock(mu_);
   changed_.wait(lock, [&] { return failed_ || closed_ || jobs_.size() < ahead_; });
   if (failed_ || closed_) return false;
+  job->index = submitted_++;
   to_encode_.push_back(job.get());
   jobs_.push_back(std::move(job));
   lock.unlock();
@@ -60,7 +61,8 @@ void EncodePipeline::EncodeLoop() {
     to_encode_.pop_front();
     if (!failed_) {  // after a failed write the scan is dropped unencoded
       lock.unlock();
-      job->out.here = EncodeScan(job->header, encoding_, &job->out.message);
+      job->out.here =
+          EncodeHinted(job->header, job->index, encoding_, &order_hint_, &job->out.message);
       job->points = {};
       job->header.points = {};
       lock.lock();

@@ -54,7 +54,8 @@ class EncodePipeline {
  private:
   struct Job {
     EncodedScan out;
-    ScanData header;  // points point into `points`
+    uint64_t index = 0;  // in the stream, from 0
+    ScanData header;     // points point into `points`
     std::vector<Point3f> points;
     bool encoded = false;
   };
@@ -70,6 +71,8 @@ class EncodePipeline {
   std::deque<std::unique_ptr<Job>> jobs_;  // submitted, not yet written, in order
   std::deque<Job*> to_encode_;             // of jobs_, not yet taken by an encoder
   bool closed_ = false, failed_ = false, stopping_ = false;
+  OrderHint order_hint_;
+  uint64_t submitted_ = 0;
   std::vector<std::thread> threads_;
 };
 

@@ -1,6 +1,7 @@
 // The ingest stream's encode pipeline (client/src/encode_pipeline.h) without a server: scans are
 // written in the order submitted whatever the encoders' timing, never more than `ahead` are
-// waiting, and after a failed write nothing more is written and Submit() says so.
+// waiting, and after a failed write nothing more is written and Submit() says so; a stream's
+// order hint tries both orders on its first scan and every 16th, and keeps the winner between.
 #include "encode_pipeline.h"
 
 #include <gtest/gtest.h>
@@ -123,6 +124,32 @@ TEST(EncodePipelineTest, Float32ScansKeepTheirBytes) {
     ASSERT_EQ(bytes[i - 1].size(), points.size() * sizeof(Point3f));
     EXPECT_EQ(std::memcmp(bytes[i - 1].data(), points.data(), bytes[i - 1].size()), 0);
   }
+}
+
+TEST(OrderHintTest, ProbesTheFirstScanAndEverySixteenthAndOtherwiseKeepsTheWinner) {
+  OrderHint hint;
+  EXPECT_FALSE(hint.For(0).has_value());
+  EXPECT_FALSE(hint.For(1).has_value()) << "nothing learnt yet: try both";
+  hint.Learn(PointOrder::kSpatialSort);
+  EXPECT_EQ(hint.For(1), PointOrder::kSpatialSort);
+  EXPECT_EQ(hint.For(15), PointOrder::kSpatialSort);
+  EXPECT_FALSE(hint.For(OrderHint::kProbeEvery).has_value());
+  hint.Learn(PointOrder::kScanRay);
+  EXPECT_EQ(hint.For(OrderHint::kProbeEvery + 1), PointOrder::kScanRay);
+}
+
+TEST(OrderHintTest, AHintedScanDecodesToTheSamePointsAsOneThatTriedBoth) {
+  const std::vector<Point3f> points = PointsOf(3);
+  ScanData scan;
+  scan.points = points;
+  OrderHint hint;
+  v1::Scan probed, hinted;
+  EncodeHinted(scan, 0, Compact(), &hint, &probed);
+  ASSERT_TRUE(hint.For(1).has_value());
+  EXPECT_EQ(FromProto(probed.compact_points()).order, *hint.For(1));
+  EncodeHinted(scan, 1, Compact(), &hint, &hinted);
+  EXPECT_EQ(hinted.compact_points().SerializeAsString(),
+            probed.compact_points().SerializeAsString());
 }
 
 }  // namespace
