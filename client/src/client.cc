@@ -8,6 +8,7 @@
 #include <grpcpp/security/credentials.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +20,7 @@
 #include <thread>
 
 #include "bgkmap/v1/map_service.grpc.pb.h"
+#include "encode_pipeline.h"
 #include "proto_codec.h"
 #include "region_answer.h"
 #include "scan_encoding.h"
@@ -26,6 +28,9 @@
 namespace bgkmap {
 
 using client_codec::AddDroppedHere;
+using client_codec::EncodedScan;
+using client_codec::EncodeHinted;
+using client_codec::EncodePipeline;
 using client_codec::EncodeScan;
 using client_codec::FromGrpc;
 using client_codec::FromProto;
@@ -73,28 +78,29 @@ RpcResult<RegionDelta> ReadRegionAnswer(v1::MapService::Stub& stub, grpc::Client
 
 class GrpcIngestStream final : public IngestStream {
  public:
-  GrpcIngestStream(v1::MapService::Stub& stub, const std::string& token, ScanEncoding encoding)
+  // `threads` > 0: scans are encoded on that many threads, up to `ahead` scans ahead of the one
+  // being written (client_codec::EncodePipeline); 0: each in Send().
+  GrpcIngestStream(v1::MapService::Stub& stub, const std::string& token, ScanEncoding encoding,
+                   int threads, int ahead)
       : encoding_(std::move(encoding)) {
     AddToken(&context_, token);
     stream_ = stub.Ingest(&context_);
+    if (threads > 0) {
+      pipeline_ = std::make_unique<EncodePipeline>(encoding_, threads, ahead,
+                                                   [this](EncodedScan& s) { return Write(s); });
+    }
   }
   ~GrpcIngestStream() override {
-    if (!finished_) {
-      context_.TryCancel();
-      grpc::Status ignored = stream_->Finish();
-    }
+    if (!finished_) context_.TryCancel();  // a write blocked under flow control returns
+    pipeline_.reset();
+    if (!finished_) grpc::Status ignored = stream_->Finish();
   }
 
   bool Send(const ScanData& scan) override {
-    v1::Scan message;
-    const ScanPointCounts here = EncodeScan(scan, encoding_, &message);
-    {
-      std::lock_guard lock(dropped_mu_);
-      dropped_here_[{scan.robot_id, scan.sequence}] = here;
-    }
-    std::lock_guard lock(write_mu_);
-    if (send_closed_) return false;
-    return stream_->Write(message);
+    if (pipeline_) return pipeline_->Submit(scan);
+    EncodedScan encoded{scan.robot_id, scan.sequence, {}, {}};
+    encoded.here = EncodeHinted(scan, sent_++, encoding_, &order_hint_, &encoded.message);
+    return Write(encoded);
   }
 
   bool ReadAck(ScanAck* ack) override {
@@ -111,6 +117,7 @@ class GrpcIngestStream final : public IngestStream {
   }
 
   void CloseSend() override {
+    if (pipeline_) pipeline_->Close();  // every scan sent before WritesDone
     std::lock_guard lock(write_mu_);
     if (send_closed_) return;
     send_closed_ = true;
@@ -130,6 +137,17 @@ class GrpcIngestStream final : public IngestStream {
   void Cancel() override { context_.TryCancel(); }
 
  private:
+  // Puts one encoded scan on the wire (the pipeline's writer thread, or Send()).
+  bool Write(EncodedScan& scan) {
+    {
+      std::lock_guard lock(dropped_mu_);
+      dropped_here_[{scan.robot_id, scan.sequence}] = scan.here;
+    }
+    std::lock_guard lock(write_mu_);
+    if (send_closed_) return false;
+    return stream_->Write(scan.message);
+  }
+
   grpc::ClientContext context_;
   std::unique_ptr<grpc::ClientReaderWriter<v1::Scan, v1::ScanAck>> stream_;
   const ScanEncoding encoding_;
@@ -139,6 +157,9 @@ class GrpcIngestStream final : public IngestStream {
   std::mutex write_mu_;
   bool send_closed_ = false;
   bool finished_ = false;
+  client_codec::OrderHint order_hint_;  // without the pipeline, which has its own
+  std::atomic<uint64_t> sent_{0};
+  std::unique_ptr<EncodePipeline> pipeline_;  // last: stopped before the rest goes
 };
 
 class GrpcWatch final : public WatchSubscription {
@@ -255,8 +276,9 @@ RpcResult<ScanAck> Client::Insert(const ScanData& scan) {
 }
 
 std::unique_ptr<IngestStream> Client::OpenIngest() {
-  return std::make_unique<GrpcIngestStream>(*impl_->stub, impl_->options.token,
-                                            impl_->Encoding(*this));
+  return std::make_unique<GrpcIngestStream>(
+      *impl_->stub, impl_->options.token, impl_->Encoding(*this),
+      impl_->options.ingest_encode_threads, impl_->options.ingest_encode_ahead);
 }
 
 RpcResult<std::vector<ScanAck>> Client::IngestAll(

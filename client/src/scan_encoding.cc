@@ -1,6 +1,7 @@
 #include "scan_encoding.h"
 
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "bgkmap/core/point_filter.h"
@@ -74,7 +75,18 @@ bool FilterQuantized(const ScanData& scan, double step, const MapParams* params,
 
 }  // namespace
 
-ScanPointCounts EncodeScan(const ScanData& scan, const ScanEncoding& encoding, v1::Scan* out) {
+std::optional<PointOrder> OrderHint::For(uint64_t index) const {
+  const int order = order_.load(std::memory_order_relaxed);
+  if (index % kProbeEvery == 0 || order < 0) return std::nullopt;
+  return static_cast<PointOrder>(order);
+}
+
+void OrderHint::Learn(PointOrder chosen) {
+  order_.store(static_cast<int>(chosen), std::memory_order_relaxed);
+}
+
+ScanPointCounts EncodeScan(const ScanData& scan, const ScanEncoding& encoding, v1::Scan* out,
+                           std::optional<PointOrder> order, PointOrder* chosen) {
   ScanData header = scan;
   header.points = {};
   ToProto(header, out);
@@ -85,9 +97,10 @@ ScanPointCounts EncodeScan(const ScanData& scan, const ScanEncoding& encoding, v
   if (encoding.step > 0) {
     std::vector<QuantizedPoint> kept;
     if (FilterQuantized(scan, encoding.step, params, encoding.drop_height, pose, &kept, &here)) {
-      Result<CompactPoints> compact = EncodeQuantizedPoints(kept, encoding.step);
+      Result<CompactPoints> compact = EncodeQuantizedPoints(kept, encoding.step, order);
       if (compact.ok()) {
-        bgkmap::ToProto(*compact, out->mutable_compact_points());
+        if (chosen != nullptr) *chosen = compact->order;
+        bgkmap::ToProto(std::move(*compact), out->mutable_compact_points());
         return here;
       }
     }
@@ -97,6 +110,15 @@ ScanPointCounts EncodeScan(const ScanData& scan, const ScanEncoding& encoding, v
   const std::vector<Point3f> kept = FilterRaw(scan, params, encoding.drop_height, pose, &here);
   out->mutable_points()->assign(reinterpret_cast<const char*>(kept.data()),
                                 kept.size() * sizeof(Point3f));
+  return here;
+}
+
+ScanPointCounts EncodeHinted(const ScanData& scan, uint64_t index, const ScanEncoding& encoding,
+                             OrderHint* hint, v1::Scan* out) {
+  const std::optional<PointOrder> order = hint->For(index);
+  PointOrder chosen = PointOrder::kScanOrder;
+  const ScanPointCounts here = EncodeScan(scan, encoding, out, order, &chosen);
+  if (!order && out->has_compact_points()) hint->Learn(chosen);
   return here;
 }
 

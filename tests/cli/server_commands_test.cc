@@ -144,6 +144,34 @@ TEST_F(ServerCommandsTest, ErrorsAreOneLineAndNonZero) {
   }
 }
 
+// `bgkmap insert` reads scans ahead of the one it sends: a scan file that cannot be read still ends
+// the insert with its own message, after the scans before it were applied, and nothing after it.
+TEST_F(ServerCommandsTest, AnUnreadableScanEndsTheInsertAfterTheScansBeforeIt) {
+  const fs::path seq = dir_ / "broken_street";
+  fs::create_directories(seq / "velodyne");
+  fs::copy_file(fs::path(kStreet) / "poses.txt", seq / "poses.txt");
+  for (const char* scan : {"000000.bin", "000001.bin", "000002.bin"}) {
+    fs::copy_file(fs::path(kStreet) / "velodyne" / scan, seq / "velodyne" / scan);
+  }
+  fs::resize_file(seq / "velodyne" / "000001.bin", 10);  // not whole x,y,z,i records
+  const testing::CliRun run =
+      testing::RunCli("insert " + seq.string() + " --robot broken" + S(), "2>&1 >/dev/null");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  EXPECT_NE(run.output.find("000001.bin: size 10 bytes is not a multiple of 16"), std::string::npos)
+      << run.output;
+  const testing::CliRun info = Cli("info" + S());
+  ASSERT_EQ(info.exit_code, 0);
+  const nlohmann::json robots = nlohmann::json::parse(info.output)["robots"];
+  bool found = false;
+  for (const nlohmann::json& r : robots) {
+    if (r["robot_id"] != "broken") continue;
+    found = true;
+    EXPECT_EQ(r["last_sequence"], 1) << r.dump();
+    EXPECT_EQ(r["scans_applied"], 1) << r.dump();
+  }
+  EXPECT_TRUE(found) << info.output;
+}
+
 // A server tied to a CRS: `bgkmap query` writes its GeoTIFF in that CRS, shifted by the origin
 // (heights too), while the cells and other bands are the map's own.
 TEST(GeoreferencedQueryTest, QueryWritesTheServersCrsAndOrigin) {

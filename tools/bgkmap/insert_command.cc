@@ -8,10 +8,14 @@
 #include "bgkmap/io/progress_bar.h"
 #include "client_options.h"
 #include "commands.h"
+#include "scan_read_ahead.h"
 #include "scan_source.h"
 
 namespace bgkmap::cli {
 namespace {
+
+// Scans read ahead of the one being sent.
+constexpr size_t kReadAhead = 2;
 
 struct InsertOptions {
   ServerTarget server;
@@ -77,8 +81,11 @@ int RunInsert(const InsertOptions& o) {
   std::string read_error;
   int64_t start_ns = 0;
   double first_time = std::nan("");
+  // The next scans are read while this one is encoded and sent (the client's stream encodes on
+  // threads of its own, ClientOptions::ingest_encode_threads).
+  ScanReadAhead reader(**source, first, kReadAhead);
   for (size_t k = first; k < (*source)->size(); ++k) {
-    Result<SourceScan> scan = (*source)->Read(k);
+    Result<SourceScan> scan = reader.Next();
     if (!scan.ok()) {
       read_error = scan.status().message();
       break;

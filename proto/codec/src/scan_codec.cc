@@ -1,5 +1,7 @@
 #include "bgkmap/proto/scan_codec.h"
 
+#include <utility>
+
 namespace bgkmap {
 
 void ToProto(const ScanPointCounts& c, v1::PointCounts* out) {
@@ -22,7 +24,7 @@ ScanPointCounts FromProto(const v1::PointCounts& c) {
   return counts;
 }
 
-void ToProto(const CompactPoints& compact, v1::CompactPoints* out) {
+void ToProto(CompactPoints compact, v1::CompactPoints* out) {
   out->set_step(compact.step);
   out->set_count(compact.count);
   switch (compact.order) {
@@ -35,7 +37,7 @@ void ToProto(const CompactPoints& compact, v1::CompactPoints* out) {
     default:
       out->set_order(v1::POINT_ORDER_SCAN);
   }
-  out->set_data(compact.data);
+  out->set_data(std::move(compact.data));
 }
 
 CompactPoints FromProto(const v1::CompactPoints& compact) {

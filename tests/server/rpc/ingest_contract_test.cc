@@ -1,8 +1,10 @@
 // Ingest contract: duplicates are acked and not applied, a reconnecting robot continues, the
-// unary form behaves like the stream, and shutdown answers every scan read.
+// unary form behaves like the stream, shutdown answers every scan read, and a stream that encodes
+// on threads of its own (ClientOptions::ingest_encode_threads) acks exactly as one that does not.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <map>
 #include <thread>
 
@@ -135,6 +137,45 @@ TEST(IngestContractTest, WhenIngestFallsBehindFlowControlSlowsTheRobot) {
     EXPECT_EQ(acks[i].sequence, i + 1);
     EXPECT_EQ(acks[i].status, AckStatus::kApplied);
   }
+}
+
+TEST(IngestContractTest, AnEncodePipelineKeepsTheOrderAndReportsARejectedScanAsBefore) {
+  // Scan 5 has a non-finite pose: rejected on its own, the stream goes on.
+  std::vector<OwnedScan> scans = SubScans("pipe", 4, 12);
+  scans[4].pose.tx = std::nan("");
+  struct Run {
+    std::vector<ScanAck> acks;
+    std::unique_ptr<TerrainMap> map;
+  };
+  auto run = [&](int threads) {
+    ServerFixture fixture;
+    ClientOptions options;
+    options.ingest_encode_threads = threads;
+    options.ingest_encode_ahead = 3;
+    Client client(fixture.target(), options);
+    RpcResult<std::vector<ScanAck>> acks = client.IngestAll(DataOf(scans, 0, scans.size()));
+    EXPECT_TRUE(acks.ok()) << acks.status().ToString();
+    return Run{acks.ok() ? *acks : std::vector<ScanAck>(), fixture.server().SnapshotMap()};
+  };
+  const Run pipelined = run(3);
+  const Run one_at_a_time = run(0);
+  ASSERT_EQ(pipelined.acks.size(), scans.size());
+  ASSERT_EQ(one_at_a_time.acks.size(), scans.size());
+  for (size_t i = 0; i < scans.size(); ++i) {
+    const ScanAck& a = pipelined.acks[i];
+    const ScanAck& b = one_at_a_time.acks[i];
+    EXPECT_EQ(a.sequence, i + 1);
+    EXPECT_EQ(a.status, i == 4 ? AckStatus::kRejected : AckStatus::kApplied) << "scan " << i + 1;
+    EXPECT_EQ(a.status, b.status);
+    EXPECT_EQ(a.error.code(), b.error.code());
+    EXPECT_EQ(a.error.message(), b.error.message());
+    EXPECT_EQ(a.counts.input, b.counts.input);
+    EXPECT_EQ(a.counts.kept, b.counts.kept);
+  }
+  EXPECT_EQ(pipelined.acks[4].error.code(), RpcCode::kInvalidArgument);
+  EXPECT_NE(pipelined.acks[4].error.message().find("pose"), std::string::npos)
+      << pipelined.acks[4].error.ToString();
+  EXPECT_TRUE(MapsEqual(*pipelined.map, *one_at_a_time.map));
 }
 
 TEST(IngestContractTest, ShutdownAcksEveryScanReadAndTheMapHoldsExactlyTheAckedOnes) {

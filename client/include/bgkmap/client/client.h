@@ -59,6 +59,12 @@ struct ClientOptions {
   // later pose correction re-prepares the retained points with the new pose, and may keep some
   // of these (docs/server.md "Compact scans").
   bool drop_points_above_sensor = false;
+  // An ingest stream encodes its scans on this many threads of its own, while earlier scans are
+  // on the wire, and writes them in the order sent (Send() copies the points and returns once the
+  // scan is queued). 0: each scan is encoded in Send(), on the caller's thread, then written.
+  int ingest_encode_threads = 2;
+  // ... with at most this many scans queued or being written; Send() blocks while they are.
+  int ingest_encode_ahead = 4;
 };
 
 // A rectangle in the map frame, metres; regions cover the cells meeting [min, max).
@@ -99,6 +105,9 @@ class IngestStream {
  public:
   virtual ~IngestStream() = default;
   // Sends one scan; blocks under flow control. False once the stream is broken (see Finish()).
+  // With ClientOptions::ingest_encode_threads the scan is queued to be encoded and written
+  // (`scan.points` is copied): a break is seen by a later Send(), and the queued scans get no
+  // ack, like any scan the server did not answer before the stream ended.
   virtual bool Send(const ScanData& scan) = 0;
   // The next ack, in send order. False when the server ended the stream.
   virtual bool ReadAck(ScanAck* ack) = 0;

@@ -11,7 +11,8 @@ namespace bgkmap {
 void ToProto(const ScanPointCounts& counts, v1::PointCounts* out);
 ScanPointCounts FromProto(const v1::PointCounts& counts);
 
-void ToProto(const CompactPoints& compact, v1::CompactPoints* out);
+// By value: an encoder that is done with `compact` moves its data (a few hundred kB) in.
+void ToProto(CompactPoints compact, v1::CompactPoints* out);
 // An order the codec does not know stays unknown (DecodeCompactPoints refuses it).
 CompactPoints FromProto(const v1::CompactPoints& compact);
 
