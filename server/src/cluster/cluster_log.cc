@@ -219,8 +219,7 @@ Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust)
   return a->sequence;
 }
 
-Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
-                                                bool headers_only) {
+Result<LiveSubscription> OpenLogReader(const NatsClient& nats, uint64_t start, bool headers_only) {
   jsSubOptions so;
   jsSubOptions_Init(&so);
   so.Ordered = true;
@@ -230,7 +229,7 @@ Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t
   natsSubscription* raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
   const natsStatus st = js_SubscribeSync(&raw, nats.jetstream(), kLogSubjects, nullptr, &so, &jerr);
-  NatsPtr<natsSubscription> sub(raw);
+  LiveSubscription sub(raw, QuiescingDeleter{nats.connection()});
   if (st != NATS_OK) {
     return Status::Unavailable(
         NatsStatus(st, headers_only ? "read the log's headers" : "read the log", jerr).message());
@@ -242,10 +241,10 @@ void FollowLogHeaders(const NatsClient& nats, uint64_t start, const std::atomic<
                       std::string_view event,
                       const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry) {
   uint64_t next = start;
-  NatsPtr<natsSubscription> sub;
+  LiveSubscription sub;
   while (!stop) {
     if (!sub) {
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats, next, true);
+      Result<LiveSubscription> opened = OpenLogReader(nats, next, true);
       if (!opened.ok()) {
         spdlog::warn("event={} reason=\"{}\"", event, opened.status().message());
         std::this_thread::sleep_for(std::chrono::milliseconds(250));

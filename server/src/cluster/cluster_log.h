@@ -89,8 +89,7 @@ Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust)
 
 // An ordered reader of the log from entry `start` (whole entries, or their headers only),
 // recreated by nats.c after a failure. Unavailable if the log cannot be read.
-Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
-                                                bool headers_only);
+Result<LiveSubscription> OpenLogReader(const NatsClient& nats, uint64_t start, bool headers_only);
 // The log sequence of an entry an OpenLogReader delivered (nullopt: no JetStream metadata).
 std::optional<uint64_t> EntrySequence(natsMsg* msg);
 

@@ -417,7 +417,7 @@ std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
 }
 
 void ClusterNode::ReadLog() {
-  NatsPtr<natsSubscription> sub;
+  LiveSubscription sub;
   uint64_t passed = 0;  // the last entry the current reader delivered (its start - 1 at first)
   auto stopping = [this] {
     std::lock_guard lock(stop_mu_);
@@ -436,7 +436,7 @@ void ClusterNode::ReadLog() {
     // there; the others skip what they have.
     if (!sub || need <= passed) {
       sub.reset();
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(*nats_, need, false);
+      Result<LiveSubscription> opened = OpenLogReader(*nats_, need, false);
       if (!opened.ok()) {
         spdlog::warn("event=cluster_log_open_failed reason=\"{}\"", opened.status().message());
         std::this_thread::sleep_for(std::chrono::milliseconds(250));

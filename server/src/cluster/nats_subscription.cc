@@ -32,13 +32,16 @@ Result<std::unique_ptr<AsyncSubscription>> AsyncSubscription::Start(
 AsyncSubscription::~AsyncSubscription() {
   BeginStop();
   std::unique_lock lock(mu_);
-  // A handler returns within seconds (a tile fetch waits at most 2 s for the log); the drain
-  // itself is bounded by nats.c's drain timeout. Said if it takes longer, never given up.
+  // A handler returns within seconds (a tile fetch waits at most 2 s for the log, less once its
+  // replica stops); the drain is bounded by kDrainMs. Said if it takes longer, never given up.
   while (!completed_cv_.wait_for(lock, std::chrono::seconds(10), [this] { return completed_; })) {
     spdlog::warn("event=nats_subscription_stop_waiting subject=\"{}\"",
                  sub_ ? natsSubscription_GetSubject(sub_.get()) : "");
   }
   lock.unlock();
+  // A drain that completed removed the interest and had its PONG back: nats.c's read loop is
+  // past every message for it (QuiesceSubscription's reason, nats_client.h). One that could not
+  // reach the server is not flushed again: a silent server sends nothing to race with.
   sub_.reset();
 }
 
@@ -50,7 +53,9 @@ void AsyncSubscription::BeginStop() {
   }
   // Not under mu_: nats.c's threads take their own locks, then call OnComplete (which takes mu_).
   // A drain that cannot start (the connection is closed or closing) closes the subscription.
-  if (natsSubscription_Drain(sub_.get()) != NATS_OK) natsSubscription_Unsubscribe(sub_.get());
+  if (natsSubscription_DrainTimeout(sub_.get(), kDrainMs) != NATS_OK) {
+    natsSubscription_Unsubscribe(sub_.get());
+  }
 }
 
 void AsyncSubscription::OnMessage(natsConnection*, natsSubscription*, natsMsg* msg, void* self) {

@@ -34,9 +34,11 @@ class AsyncSubscription {
   AsyncSubscription(const AsyncSubscription&) = delete;
   AsyncSubscription& operator=(const AsyncSubscription&) = delete;
 
-  // Stops taking messages without waiting (the ones already received are still handled): many
-  // subscriptions stop in parallel. Idempotent.
+  // Stops taking messages without waiting (the ones already received are still handled, for up
+  // to kDrainMs; then nats.c closes the subscription): many subscriptions stop in parallel.
+  // Idempotent.
   void BeginStop();
+  static constexpr int64_t kDrainMs = 5000;
 
  private:
   explicit AsyncSubscription(std::function<void(natsMsg*)> handler)

@@ -13,14 +13,17 @@
 // yet: before the fix the node was freed under it.
 #include <gtest/gtest.h>
 #include <nats/nats.h>
+#include <signal.h>
 
 #include <chrono>
+#include <cstdio>
 #include <deque>
 #include <functional>
 #include <future>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "bgkmap/v1/cluster.pb.h"
 #include "cluster/cluster_node.h"
@@ -127,6 +130,33 @@ TEST(ClusterShutdownTest, ANodeOutlivesTheTasksItPosted) {
   task = nullptr;  // the executor is done with it
   EXPECT_EQ(version.get_future().get(), 0u);  // an empty log
   destroyed.get();
+}
+
+// A shard leaves while its NATS server holds the connection but answers nothing (stopped, as
+// an overloaded server looks): every wait of its shutdown is bounded (drains, joins, the
+// connection's close), so the process can exit.
+TEST(ClusterShutdownTest, ANodeLeavesWhileNatsDoesNotAnswer) {
+  TempDir dir("bgkmap_cluster_shutdown");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  auto a = std::make_unique<testing::ServerFixture>(testing::NodeConfig(nats.url(0), "a"));
+  const std::vector<testing::OwnedScan> scans = testing::TwoRobots();
+  testing::InsertAll(a->client(), scans, 0, 4);
+  // Its partitions served (a query gathers them from their owner, this node).
+  const auto asked = std::chrono::steady_clock::now();
+  RpcResult<Raster> region = a->client().QueryRegion({{-20, -20, 20, 20}, {}, 1});
+  while (!region.ok() && std::chrono::steady_clock::now() - asked < testing::kRecoveryBound) {
+    region = a->client().QueryRegion({{-20, -20, 20, 20}, {}, 1});
+  }
+  ASSERT_TRUE(region.ok()) << region.status().message();
+  nats.Signal(0, SIGSTOP);
+  const auto t0 = std::chrono::steady_clock::now();
+  a.reset();
+  const double leave_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  nats.Signal(0, SIGCONT);
+  std::fprintf(stderr, "left in %.1f s with NATS stopped\n", leave_s);
+  EXPECT_LT(leave_s, 60.0);
 }
 
 }  // namespace
