@@ -8,8 +8,10 @@
 #            build-asan/.
 #   asan-ci  The same build directory and options, for CI's time budget: only the GoogleTest
 #            suites of core, proto and storage (the engine, the codecs, the store and its
-#            recovery) are built and run; the server, tools, sim, eval, cli and python suites run
-#            under ASan in `asan` only. docs/testing.md has the times that decided it.
+#            recovery) are built and run; the server (the cluster's included: it needs bgkmapd
+#            and gRPC built with ASan, ~29 CPU-minutes of compiling measured), tools, sim, eval,
+#            cli and python suites run under ASan in `asan` only. docs/testing.md has the times
+#            that decided it.
 #   tsan  TSan over the server's map-serving and durability layers without gRPC or RocksDB
 #         (ServedMap, ChangeScheduler, TileResidency, TileLockTable, MapSummary, WatchHub: the
 #         threaded core, tests/server/serving/), in build-tsan/. Not the gRPC or RocksDB suites: Debian's gRPC,

@@ -101,6 +101,8 @@ void NatsCluster::Kill(int i) {
   servers_[i]->Wait(10);
 }
 
+void NatsCluster::Signal(int i, int signal) { servers_[i]->Signal(signal); }
+
 bool NatsCluster::Restart(int i) { return Launch(i); }
 
 namespace {

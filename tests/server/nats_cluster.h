@@ -29,7 +29,8 @@ class NatsCluster {
   std::string urls() const;
   std::string url(int i) const;
   void Kill(int i);
-  bool Restart(int i);  // true once the server is up again
+  void Signal(int i, int signal);  // e.g. SIGSTOP: a server that holds its connections, silent
+  bool Restart(int i);             // true once the server is up again
   // Waits until server i holds every stream it replicates up to date (the stream's leader, or a
   // replica JetStream reports current with no lag), asking the cluster through the other
   // servers; false after `seconds`. A restarted server is needed for a quorum only once this holds.

@@ -257,7 +257,7 @@ Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool 
                     const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry,
                     int64_t stall_ms) {
   uint64_t next = first;
-  NatsPtr<natsSubscription> sub;
+  LiveSubscription sub;
   auto progress = std::chrono::steady_clock::now();
   while (next <= last) {
     if (std::chrono::steady_clock::now() - progress > std::chrono::milliseconds(stall_ms)) {
@@ -265,7 +265,7 @@ Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool 
                                  " for " + std::to_string(stall_ms) + " ms");
     }
     if (!sub) {
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats, next, headers_only);
+      Result<LiveSubscription> opened = OpenLogReader(nats, next, headers_only);
       if (!opened.ok()) {
         std::this_thread::sleep_for(std::chrono::milliseconds(250));
         continue;
@@ -295,8 +295,7 @@ Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool 
   return Status::Ok();
 }
 
-Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
-                                                bool headers_only) {
+Result<LiveSubscription> OpenLogReader(const NatsClient& nats, uint64_t start, bool headers_only) {
   jsSubOptions so;
   jsSubOptions_Init(&so);
   so.Ordered = true;
@@ -306,7 +305,7 @@ Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t
   natsSubscription* raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
   const natsStatus st = js_SubscribeSync(&raw, nats.jetstream(), kLogSubjects, nullptr, &so, &jerr);
-  NatsPtr<natsSubscription> sub(raw);
+  LiveSubscription sub(raw, QuiescingDeleter{nats.connection()});
   if (st != NATS_OK) {
     return Status::Unavailable(
         NatsStatus(st, headers_only ? "read the log's headers" : "read the log", jerr).message());
@@ -318,10 +317,10 @@ void FollowLogHeaders(const NatsClient& nats, uint64_t start, const std::atomic<
                       std::string_view event,
                       const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry) {
   uint64_t next = start;
-  NatsPtr<natsSubscription> sub;
+  LiveSubscription sub;
   while (!stop) {
     if (!sub) {
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(nats, next, true);
+      Result<LiveSubscription> opened = OpenLogReader(nats, next, true);
       if (!opened.ok()) {
         spdlog::warn("event={} reason=\"{}\"", event, opened.status().message());
         std::this_thread::sleep_for(std::chrono::milliseconds(250));

@@ -112,8 +112,7 @@ Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool 
 
 // An ordered reader of the log from entry `start` (whole entries, or their headers only),
 // recreated by nats.c after a failure. Unavailable if the log cannot be read.
-Result<NatsPtr<natsSubscription>> OpenLogReader(const NatsClient& nats, uint64_t start,
-                                                bool headers_only);
+Result<LiveSubscription> OpenLogReader(const NatsClient& nats, uint64_t start, bool headers_only);
 // The log sequence of an entry an OpenLogReader delivered (nullopt: no JetStream metadata).
 std::optional<uint64_t> EntrySequence(natsMsg* msg);
 

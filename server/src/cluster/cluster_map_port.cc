@@ -143,7 +143,7 @@ Status ClusterNode::CheckImportSums(std::span<const TileKey> keys,
 void ClusterNode::SubmitExport(const std::optional<CellBox>& box,
                                std::function<void(Result<std::unique_ptr<ArchiveChunks>>)> done) {
   // Round trips to the log and to every owner: on a worker, not the caller's (gRPC's) thread.
-  executor_([this, box, done = std::move(done)] { done(Export(box)); });
+  Post([this, box, done = std::move(done)] { done(Export(box)); });
 }
 
 Result<std::unique_ptr<ArchiveChunks>> ClusterNode::Export(const std::optional<CellBox>& box) {
@@ -174,8 +174,9 @@ Result<std::unique_ptr<ArchiveChunks>> ClusterNode::Export(const std::optional<C
   // archive's, and each tile's (stamped with the log sequence of its last change here). Robots'
   // sequences are not written, as a single server without a store writes none.
   metadata.map_version = metadata.checkpoint_version = ledger_->ChangesAt(*at);
+  // The archive is streamed after this returns: it keeps its own copy of the count, not this node.
   return ClusterArchive::Start(std::move(tiles).value(), metadata, box, *at,
-                               [this](uint64_t s) { return ledger_->ChangesAt(s); });
+                               ledger_->ChangesUpTo(*at));
 }
 
 void ClusterNode::SubmitCorrection(CorrectionSpec spec,
@@ -260,7 +261,7 @@ MapState ClusterNode::State(bool /*with_disk_usage*/) {
 void ClusterNode::ReadVersion(std::function<void(uint64_t)> done) {
   // A round trip to the log, then one to each partition's owner for its counts (what Info
   // reports with the version): not on the caller's (gRPC's) thread.
-  executor_([this, done = std::move(done)] {
+  Post([this, done = std::move(done)] {
     const uint64_t version = applied_version();
     Result<MapSummary> summary = reads_->Summarize(version);
     if (summary.ok()) {

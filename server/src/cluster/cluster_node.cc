@@ -144,8 +144,9 @@ void ClusterNode::FollowChanges(LogChangeFeed::OnChange on_change) {
 }
 
 ClusterNode::~ClusterNode() {
+  // The order the header promises.
+  WaitForPostedTasks();
   feed_.reset();
-  ledger_.reset();
   {
     std::lock_guard lock(stop_mu_);
     stop_ = true;
@@ -155,9 +156,41 @@ ClusterNode::~ClusterNode() {
   if (reader_.joinable()) reader_.join();
   checkpoint_cv_.notify_all();
   if (checkpoint_writer_.joinable()) checkpoint_writer_.join();
-  std::lock_guard lock(mu_);
-  for (auto& [p, r] : replicas_) r->BeginStop();
-  replicas_.clear();
+  std::map<PartitionKey, std::shared_ptr<PartitionReplica>> replicas;
+  {
+    std::lock_guard lock(mu_);
+    replicas.swap(replicas_);
+  }
+  for (auto& [p, r] : replicas) r->BeginStop();
+  replicas.clear();  // each waits for its fetch handler's last return
+}
+
+void ClusterNode::Post(std::function<void()> task) {
+  {
+    std::lock_guard lock(tasks_mu_);
+    ++tasks_;
+  }
+  // Counted down when the executor destroys the task, whether it ran it or dropped it unrun.
+  struct Done {
+    explicit Done(ClusterNode* n) : node(n) {}
+    Done(const Done&) = delete;
+    Done& operator=(const Done&) = delete;
+    ClusterNode* node;
+    ~Done() {
+      std::lock_guard lock(node->tasks_mu_);
+      --node->tasks_;
+      node->tasks_cv_.notify_all();
+    }
+  };
+  executor_([task = std::move(task), done = std::make_shared<Done>(this)] {
+    task();
+    static_cast<void>(done);
+  });
+}
+
+void ClusterNode::WaitForPostedTasks() {
+  std::unique_lock lock(tasks_mu_);
+  tasks_cv_.wait(lock, [this] { return tasks_ == 0; });
 }
 
 Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const std::string& encoded,
@@ -384,7 +417,7 @@ std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
 }
 
 void ClusterNode::ReadLog() {
-  NatsPtr<natsSubscription> sub;
+  LiveSubscription sub;
   uint64_t passed = 0;  // the last entry the current reader delivered (its start - 1 at first)
   auto stopping = [this] {
     std::lock_guard lock(stop_mu_);
@@ -403,7 +436,7 @@ void ClusterNode::ReadLog() {
     // there; the others skip what they have.
     if (!sub || need <= passed) {
       sub.reset();
-      Result<NatsPtr<natsSubscription>> opened = OpenLogReader(*nats_, need, false);
+      Result<LiveSubscription> opened = OpenLogReader(*nats_, need, false);
       if (!opened.ok()) {
         spdlog::warn("event=cluster_log_open_failed reason=\"{}\"", opened.status().message());
         std::this_thread::sleep_for(std::chrono::milliseconds(250));

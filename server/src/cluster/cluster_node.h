@@ -57,7 +57,23 @@ class ClusterNode final : public MapPort {
                                                     const std::string& params_yaml,
                                                     ScanPreparer prepare, Georeference georeference,
                                                     Executor executor, RobotSequenceRule rule);
-  ~ClusterNode();  // leaves: stops the heartbeat (its partitions move when the lease expires)
+  // Leaves: stops the heartbeat (its partitions move when the lease expires). Safe by
+  // construction: whatever can touch a member stops before the member dies, in this order:
+  //   1. the executor's tasks this node posted (Export, ReadVersion): waited for until each has
+  //      run or been dropped by the executor;
+  //   2. the change feed (its callback reaches the caller's OnChange): stopped and joined;
+  //   3. the membership loop (its partition starts joined inside it), the log reader and the
+  //      checkpoint writer: told to stop and joined;
+  //   4. the replicas: all begin to stop at once (fetches waiting for the log are refused), then
+  //      each is freed once nats.c will not run its fetch handler again (AsyncSubscription);
+  //   5. the members, in reverse order of declaration (each uses only those declared before it):
+  //      the ledger (its reader joined), the reads (their replies' handler waited for), the
+  //      membership (its watchers joined), the NATS connection, the cluster key.
+  // The caller's part: no MapPort call, and no call of an object a MapPort call returned (an
+  // upload, an archive's chunks are the caller's and keep what they need), begins or is still
+  // running once the destructor starts. MapServer stops gRPC, the HTTP and Foxglove ports and
+  // joins its pools first.
+  ~ClusterNode();
 
   // Reports every later log entry's changed cells to `on_change` (Watch on this node); once.
   void FollowChanges(LogChangeFeed::OnChange on_change);
@@ -198,6 +214,10 @@ class ClusterNode final : public MapPort {
   // Copies the owned partitions of `to` that are due (cluster.checkpoint_scans) for the writer.
   void QueueCheckpoints(const std::vector<std::shared_ptr<PartitionReplica>>& to);
   void WriteCheckpoints();  // the checkpoint writer's loop
+  // Runs `task` on the executor, counted until it has run or the executor dropped it: the
+  // destructor waits for the count to be 0 (step 1 above).
+  void Post(std::function<void()> task);
+  void WaitForPostedTasks();
 
   const ClusterConfig config_;
   const MapParams params_;
@@ -233,10 +253,13 @@ class ClusterNode final : public MapPort {
   std::condition_variable checkpoint_cv_;
   std::map<PartitionKey, PartitionCheckpoint> pending_checkpoints_;  // newest per partition
   std::thread checkpoint_writer_;
-  std::atomic<uint64_t> imports_{0};  // names this node's imports' chunks
-  std::unique_ptr<LogChangeFeed> feed_;
-  std::chrono::steady_clock::time_point
-      next_trim_{};  // the membership loop's thread only  // stopped first when the node leaves
+  std::atomic<uint64_t> imports_{0};                   // names this node's imports' chunks
+  std::chrono::steady_clock::time_point next_trim_{};  // the membership loop's thread only
+
+  std::mutex tasks_mu_;
+  std::condition_variable tasks_cv_;
+  size_t tasks_ = 0;  // posted to the executor, not yet run or dropped; guarded by tasks_mu_
+  std::unique_ptr<LogChangeFeed> feed_;  // uses nats_, trust_ and layout_
 };
 
 }  // namespace bgkmap::cluster

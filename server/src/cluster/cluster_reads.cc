@@ -14,6 +14,7 @@
 #include "bgkmap/storage/tile_codec.h"
 #include "bgkmap/v1/cluster.pb.h"
 #include "cluster/cluster_log.h"
+#include "cluster/nats_subscription.h"
 #include "cluster/partition_replica.h"
 #include "serving/tile_table.h"
 
@@ -36,37 +37,33 @@ struct InboxDeleter {
 // replies, short-lived inbox subscriptions crashed nats.c 3.4 in this process.)
 struct ClusterReads::Replies {
   std::string prefix;
-  NatsPtr<natsSubscription> sub;
   std::mutex mu;
   std::condition_variable cv;
   std::map<uint64_t, std::deque<NatsPtr<natsMsg>>> waiting;  // by token
   uint64_t next = 0;                                         // guarded by mu
+  // Last: its handler (OnReply) uses the members above; its destruction waits for the handler.
+  std::unique_ptr<AsyncSubscription> sub;
 
-  static void OnReply(natsConnection*, natsSubscription*, natsMsg* msg, void* self) {
+  void OnReply(natsMsg* msg) {
     NatsPtr<natsMsg> owned(msg);
-    auto* r = static_cast<Replies*>(self);
     const std::string_view subject = natsMsg_GetSubject(msg);
-    if (subject.size() <= r->prefix.size()) return;
-    const std::string_view tail = subject.substr(r->prefix.size());
+    if (subject.size() <= prefix.size()) return;
+    const std::string_view tail = subject.substr(prefix.size());
     uint64_t token = 0;
     if (auto [end, ec] = std::from_chars(tail.data(), tail.data() + tail.size(), token);
         ec != std::errc() || end != tail.data() + tail.size()) {
       return;
     }
-    std::lock_guard lock(r->mu);
-    auto it = r->waiting.find(token);
-    if (it == r->waiting.end() || it->second.size() >= 64) return;
+    std::lock_guard lock(mu);
+    auto it = waiting.find(token);
+    if (it == waiting.end() || it->second.size() >= 64) return;
     it->second.push_back(std::move(owned));
-    r->cv.notify_all();
+    cv.notify_all();
   }
 };
 
-ClusterReads::~ClusterReads() {
-  if (replies_->sub && natsSubscription_Drain(replies_->sub.get()) == NATS_OK) {
-    natsSubscription_WaitForDrainCompletion(replies_->sub.get(), 5000);
-  }
-  replies_->sub.reset();
-}
+// The replies' subscription first (Replies' member order): its handler's last return is waited for.
+ClusterReads::~ClusterReads() = default;
 
 natsStatus ClusterReads::RequestTrusted(const std::string& subject, const std::string& request,
                                         NatsPtr<natsMsg>* reply) const {
@@ -124,14 +121,13 @@ ClusterReads::ClusterReads(const NatsClient& nats, const ClusterTrust& trust,
       fetch_timeout_ms_(fetch_timeout_ms),
       replies_(std::make_unique<Replies>()) {
   natsInbox* raw_inbox = nullptr;
-  natsSubscription* sub = nullptr;
   if (natsInbox_Create(&raw_inbox) == NATS_OK) {
     const std::unique_ptr<natsInbox, InboxDeleter> inbox(raw_inbox);
     replies_->prefix = std::string(inbox.get()) + ".";
-    if (natsConnection_Subscribe(&sub, nats_.connection(), (replies_->prefix + "*").c_str(),
-                                 &Replies::OnReply, replies_.get()) == NATS_OK) {
-      replies_->sub.reset(sub);
-    }
+    Result<std::unique_ptr<AsyncSubscription>> sub =
+        AsyncSubscription::Start(nats_.connection(), replies_->prefix + "*", "",
+                                 [r = replies_.get()](natsMsg* msg) { r->OnReply(msg); });
+    if (sub.ok()) replies_->sub = std::move(sub).value();
   }
   if (!replies_->sub) spdlog::error("event=cluster_reads_no_inbox reason=\"cannot subscribe\"");
 }

@@ -26,7 +26,7 @@ class ClusterReads final : public MapReads {
   // the read is Unavailable.
   ClusterReads(const NatsClient& nats, const ClusterTrust& trust, const PartitionLayout& layout,
                const Membership& members, const MapParams& params, int64_t fetch_timeout_ms);
-  ~ClusterReads();  // stops the replies' subscription (waits for its callback)
+  ~ClusterReads();  // stops the replies' subscription (waits for its handler's last return)
 
   // The log's last sequence, asked of the log (a round trip).
   uint64_t applied_version() const override;

@@ -112,7 +112,8 @@ Result<std::unique_ptr<Membership>> Membership::Open(const NatsClient& nats,
   if (!nodes.ok()) return nodes.status();
   Result<NatsPtr<kvStore>> partitions = OpenBucket(nats, "bgkmap_partitions", options.replicas, 0);
   if (!partitions.ok()) return partitions.status();
-  std::unique_ptr<Membership> m(new Membership(options, trust, std::move(nodes).value().release(),
+  std::unique_ptr<Membership> m(new Membership(options, trust, nats.connection(),
+                                               std::move(nodes).value().release(),
                                                std::move(partitions).value().release()));
   if (Status s = m->StartWatching(); !s.ok()) return s;
   return m;
@@ -170,7 +171,8 @@ void Membership::Watch(kvStore* bucket, bool nodes) {
     }
   }
   if (watcher != nullptr) {
-    kvWatcher_Stop(watcher);
+    kvWatcher_Stop(watcher);                 // its subscription's interest removed
+    natsConnection_FlushTimeout(nc_, 2000);  // then freed: QuiesceSubscription's reason
     kvWatcher_Destroy(watcher);
   }
 }

@@ -73,9 +73,9 @@ class Membership {
   static std::string OwnerOf(PartitionKey p, const std::vector<std::string>& live);
 
  private:
-  Membership(const MembershipOptions& options, const ClusterTrust& trust, kvStore* nodes,
-             kvStore* partitions)
-      : options_(options), trust_(trust), nodes_(nodes), partitions_(partitions) {}
+  Membership(const MembershipOptions& options, const ClusterTrust& trust, natsConnection* nc,
+             kvStore* nodes, kvStore* partitions)
+      : options_(options), trust_(trust), nc_(nc), nodes_(nodes), partitions_(partitions) {}
   Status StartWatching();
   void Watch(kvStore* bucket, bool nodes);
   // Whether `entry` of the nodes' bucket is a heartbeat a shard made, within a lease.
@@ -86,6 +86,7 @@ class Membership {
 
   const MembershipOptions options_;
   const ClusterTrust& trust_;
+  natsConnection* const nc_;  // the watchers' (for QuiesceSubscription)
   NatsPtr<kvStore> nodes_;
   NatsPtr<kvStore> partitions_;
   mutable std::mutex mu_;

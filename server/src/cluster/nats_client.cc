@@ -17,6 +17,16 @@ Status NatsStatus(natsStatus s, const std::string& what, jsErrCode js_error) {
   return Status::IoError(text);
 }
 
+void QuiesceSubscription(natsConnection* nc, natsSubscription* sub, int64_t timeout_ms) {
+  natsSubscription_Unsubscribe(sub);
+  if (nc != nullptr) natsConnection_FlushTimeout(nc, timeout_ms);
+}
+
+void QuiescingDeleter::operator()(natsSubscription* s) const {
+  QuiesceSubscription(nc, s);
+  natsSubscription_Destroy(s);
+}
+
 Result<std::unique_ptr<NatsClient>> NatsClient::Connect(const std::vector<std::string>& servers,
                                                         const std::string& name,
                                                         const NatsSecurity& security,

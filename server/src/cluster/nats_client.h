@@ -28,6 +28,23 @@ struct NatsDeleter {
 template <typename T>
 using NatsPtr = std::unique_ptr<T, NatsDeleter>;
 
+// Removes interest in `sub`, then waits (up to `timeout_ms`) for a round trip to the server on
+// `nc`. nats.c 3.4's read loop looks a message's subscription up, lets go of the table's lock and
+// only then locks the subscription, without holding a reference (fixed in nats.c 3.6.1, Debian
+// ships 3.4.1): a subscription freed in that window is locked after its free (a crash, or a
+// lock that never comes: the one hang seen in the cluster tests). The read loop handles the
+// server's PONG after every message read before it, and none arrives for `sub` once its
+// interest is gone, so after the round trip no message for it is half handled.
+void QuiesceSubscription(natsConnection* nc, natsSubscription* sub, int64_t timeout_ms = 2000);
+
+// A subscription that messages may be reaching when it is released (a log reader): quiesced
+// first (QuiesceSubscription), then destroyed.
+struct QuiescingDeleter {
+  natsConnection* nc = nullptr;
+  void operator()(natsSubscription* s) const;
+};
+using LiveSubscription = std::unique_ptr<natsSubscription, QuiescingDeleter>;
+
 // `what`: what failed, then nats.c's text for `s` and JetStream's error code if any.
 Status NatsStatus(natsStatus s, const std::string& what,
                   jsErrCode js_error = static_cast<jsErrCode>(0));

@@ -32,6 +32,7 @@
 #include "cluster/cluster_log.h"
 #include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
+#include "cluster/nats_subscription.h"
 #include "cluster/partition_checkpoint.h"
 #include "cluster/partition_layout.h"
 #include "serving/robot_sequence.h"
@@ -69,7 +70,9 @@ class PartitionReplica {
                    PartitionKey key, std::unique_ptr<TerrainMap> map, uint64_t serve_from,
                    RobotSequenceRule rule,
                    std::optional<PartitionCheckpoint> restored = std::nullopt);
-  ~PartitionReplica();  // BeginStop, then waits for running fetches
+  // BeginStop, then waits until the fetch handler has returned for the last time (nats.c's
+  // word, AsyncSubscription): no fetch runs on a freed replica, however long the drain takes.
+  ~PartitionReplica();
   PartitionReplica(const PartitionReplica&) = delete;
   PartitionReplica& operator=(const PartitionReplica&) = delete;
 
@@ -100,7 +103,9 @@ class PartitionReplica {
   // partition's halo (a merge, as a single server's import: caps applied after the sum).
   void ApplyImport(uint64_t sequence,
                    const std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& tiles);
-  // Stops taking fetches without waiting: many replicas stop in parallel.
+  // Stops taking fetches without waiting: many replicas stop in parallel. Fetches already
+  // received are answered at once, those still waiting for log entries with a refusal (the
+  // asker tries the partition's next owner): the replica will not read the log again.
   void BeginStop();
   // On the log reader's thread, between entries: a copy of the partition's state when
   // `every_scans` scans were integrated since the last one, or (lag_entries > 0) when the last
@@ -109,14 +114,14 @@ class PartitionReplica {
                                                      uint32_t lag_entries = 0);
 
   ReplicaStats Stats() const;
-  // Blocks until every entry up to `sequence` is applied, or `timeout_ms` passed (false).
+  // Blocks until every entry up to `sequence` is applied (true), or `timeout_ms` passed or the
+  // replica began to stop (false).
   bool WaitFor(uint64_t sequence, int64_t timeout_ms) const;
   // Copies of the partition's own tiles (not the halo's), for tests and reports.
   std::unique_ptr<TerrainMap> Snapshot() const;
 
  private:
   void StartServing();
-  static void OnFetch(natsConnection* nc, natsSubscription* sub, natsMsg* msg, void* self);
   void ServeFetch(natsMsg* msg);
   // Fills `reply` from the snapshot at request.at_log_sequence(): tiles in [lo, hi] from
   // request.skip(), at most `budget` bytes.
@@ -142,6 +147,7 @@ class PartitionReplica {
 
   mutable std::mutex progress_mu_;
   mutable std::condition_variable progress_cv_;
+  bool stopping_ = false;  // BeginStop was called: WaitFor waits no longer
   uint64_t applied_ = 0;
   uint64_t scans_integrated_ = 0;
   double catch_up_seconds_ = 0;
@@ -151,10 +157,11 @@ class PartitionReplica {
   uint64_t checkpointed_scans_ = 0;     // scans_integrated_ at the last checkpoint
   uint64_t checkpointed_sequence_ = 0;  // the log sequence of the last checkpoint (or restore)
 
-  std::mutex serve_mu_;  // guards fetch_sub_ and stopping
+  std::mutex serve_mu_;  // guards fetch_sub_ and stopped_
   bool stopped_ = false;
   std::atomic<bool> serving_{false};
-  NatsPtr<natsSubscription> fetch_sub_;
+  // Last: its handler uses every member above, and its destruction waits for the handler.
+  std::unique_ptr<AsyncSubscription> fetch_sub_;
 };
 
 }  // namespace bgkmap::cluster

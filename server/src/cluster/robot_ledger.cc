@@ -143,6 +143,17 @@ uint64_t RobotLedger::ChangesAt(uint64_t sequence) const {
   return sequence - first_ + 1 - static_cast<uint64_t>(unchanged - unchanged_.begin());
 }
 
+std::function<uint64_t(uint64_t)> RobotLedger::ChangesUpTo(uint64_t sequence) const {
+  std::lock_guard lock(mu_);
+  std::vector<uint64_t> unchanged(unchanged_.begin(),
+                                  std::upper_bound(unchanged_.begin(), unchanged_.end(), sequence));
+  return [first = first_, unchanged = std::move(unchanged)](uint64_t s) -> uint64_t {
+    if (s < first) return 0;
+    const auto before = std::upper_bound(unchanged.begin(), unchanged.end(), s);
+    return s - first + 1 - static_cast<uint64_t>(before - unchanged.begin());
+  };
+}
+
 uint64_t RobotLedger::scans_admitted() const {
   std::lock_guard lock(mu_);
   return scans_admitted_;

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -69,6 +70,9 @@ class RobotLedger {
   // server fed the same changes calls the version of the map after them (ExportMap writes it;
   // counted from the ledger's start).
   uint64_t ChangesAt(uint64_t sequence) const;
+  // ChangesAt for the entries up to `sequence` (read already), as a copy that outlives the
+  // ledger: an export's archive is streamed after the call that made it (a node may be leaving).
+  std::function<uint64_t(uint64_t)> ChangesUpTo(uint64_t sequence) const;
   // Scans admitted since the ledger started (its log's start or checkpoint): the cluster's
   // scans applied, as a single server counts them since its start.
   uint64_t scans_admitted() const;
