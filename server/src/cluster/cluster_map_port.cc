@@ -184,7 +184,7 @@ void ClusterNode::SubmitCorrection(CorrectionSpec spec,
   // Reads the log (its headers, the named scans) and appends one entry (cluster_corrections.cc):
   // on a worker. Answered once the log stores the entry, as a clear is; queries then read the
   // rebuilt partitions (an owner answers once it has applied the entry).
-  executor_([this, spec = std::move(spec), done = std::move(done)] {
+  Post([this, spec = std::move(spec), done = std::move(done)] {
     Result<CorrectionOutcome> outcome = Correct(spec);
     if (outcome.ok()) {
       ledger_->WaitRead(outcome->version, kVerdictWaitMs);
