@@ -108,7 +108,9 @@ TEST(ClusterShutdownTest, ANodeOutlivesTheTasksItPosted) {
     std::lock_guard lock(mu);
     queued.push_back(std::move(task));
   };
-  auto no_scans = [](const v1::Scan&, PreparedScan*) { return Status::InvalidArgument("none"); };
+  auto no_scans = [](const v1::Scan&, const Pose*, PreparedScan*) {
+    return Status::InvalidArgument("none");
+  };
   const MapParams params = testing::TestConfig().map;
   Result<std::unique_ptr<ClusterNode>> node = ClusterNode::Start(
       config, params, "params", no_scans, Georeference{}, executor, RobotSequenceRule{});
