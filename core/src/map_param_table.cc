@@ -220,46 +220,61 @@ MapParamInfo Legacy(MapParamInfo info, std::string_view legacy_text) {
 
 using P = MapParams;
 
+// Beyond the paper: dynamics, the footprint, forgetting (docs/semantics.md), after the rest.
+std::vector<MapParamInfo> ChangingWorldEntries();
+
 const std::vector<MapParamInfo>& Table() {
-  static const std::vector<MapParamInfo> table = {
-      Real("resolution", &P::resolution, kStats, Resolution, "cell edge, metres"),
-      Real("kernel_length", &P::kernel_length, kStats, KernelLength,
-           "sparse kernel support l, metres"),
-      // The elevation a scan's v is computed from depends on the prior too.
-      Real("lambda", &P::lambda, kStats, FiniteNonNegative,
-           "prior confidence in prior_mean (0 = none, as the paper)"),
-      Real("prior_mean", &P::prior_mean, kStats, Finite, "prior elevation mu0, metres"),
-      Real("sigma2", &P::sigma2, kDerived, Positive, "observation noise variance, m^2"),
-      Real("alpha0", &P::alpha0, kDerived, Positive,
-           "Beta prior pseudo-count for \"non-traversable\""),
-      Real("beta0", &P::beta0, kDerived, Positive, "Beta prior pseudo-count for \"traversable\""),
-      Real("robot_radius", &P::robot_radius, kStats, RobotRadius,
-           "neighbourhood for step, slope and roughness, metres"),
-      Real("step_crit", &P::step_crit, kStats, Positive, "critical step height, metres"),
-      Real("slope_crit_deg", &P::slope_crit_deg, kStats, SlopeCrit, "critical slope, degrees"),
-      Real("roughness_crit", &P::roughness_crit, kStats, Positive, "critical roughness, metres"),
-      // Maps from before it discounted nothing (0).
-      Legacy(Real("pose_sigma_z", &P::pose_sigma_z, kStats, PoseSigmaZ,
-                  "the poses' vertical error per scan (1 sigma), metres; step and roughness "
-                  "discount it; 0: off"),
-             "0"),
-      Triple("weights", &P::weights, kStats, Weights,
-             "[w_step, w_slope, w_rough] of v (Eq. 5), summing to 1"),
-      Real("trav_threshold", &P::trav_threshold, kDerived, TravThreshold, "v_th of Eq. 6"),
-      Real("variance_threshold", &P::variance_threshold, kDerived, Positive, "sigma_th^2 of Eq. 6"),
-      Legacy(Real("thin_evidence_weight", &P::thin_evidence_weight, kDerived, ThinWeight,
-                  "a thin cell seen less (full-kernel observations) is unknown; 0: off"),
-             "0.5"),
-      Real("min_range", &P::min_range, kStats, FiniteNonNegative,
-           "drop closer points (the robot's own body), metres"),
-      Real("max_range", &P::max_range, kStats, MaxRange, "drop farther points, metres"),
-      Real("max_height_above_sensor", &P::max_height_above_sensor, kStats, NotNaN,
-           "drop points higher above the sensor (overhangs), metres"),
-      Enum<&P::observation, ObservationName, ParseObservation>(
-          "observation", kStats, "max | mean of a scan's points in a cell, its training value"),
-      Integer("tile_size", &P::tile_size, kStats, TileSize, "cells per tile edge"),
-      Enum<&P::method, MethodName, ParseMethod>(
-          "method", kStats, "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle | bgk-ll"),
+  static const std::vector<MapParamInfo> table = [] {
+    std::vector<MapParamInfo> t = {
+        Real("resolution", &P::resolution, kStats, Resolution, "cell edge, metres"),
+        Real("kernel_length", &P::kernel_length, kStats, KernelLength,
+             "sparse kernel support l, metres"),
+        // The elevation a scan's v is computed from depends on the prior too.
+        Real("lambda", &P::lambda, kStats, FiniteNonNegative,
+             "prior confidence in prior_mean (0 = none, as the paper)"),
+        Real("prior_mean", &P::prior_mean, kStats, Finite, "prior elevation mu0, metres"),
+        Real("sigma2", &P::sigma2, kDerived, Positive, "observation noise variance, m^2"),
+        Real("alpha0", &P::alpha0, kDerived, Positive,
+             "Beta prior pseudo-count for \"non-traversable\""),
+        Real("beta0", &P::beta0, kDerived, Positive, "Beta prior pseudo-count for \"traversable\""),
+        Real("robot_radius", &P::robot_radius, kStats, RobotRadius,
+             "neighbourhood for step, slope and roughness, metres"),
+        Real("step_crit", &P::step_crit, kStats, Positive, "critical step height, metres"),
+        Real("slope_crit_deg", &P::slope_crit_deg, kStats, SlopeCrit, "critical slope, degrees"),
+        Real("roughness_crit", &P::roughness_crit, kStats, Positive, "critical roughness, metres"),
+        // Maps from before it discounted nothing (0).
+        Legacy(Real("pose_sigma_z", &P::pose_sigma_z, kStats, PoseSigmaZ,
+                    "the poses' vertical error per scan (1 sigma), metres; step and roughness "
+                    "discount it; 0: off"),
+               "0"),
+        Triple("weights", &P::weights, kStats, Weights,
+               "[w_step, w_slope, w_rough] of v (Eq. 5), summing to 1"),
+        Real("trav_threshold", &P::trav_threshold, kDerived, TravThreshold, "v_th of Eq. 6"),
+        Real("variance_threshold", &P::variance_threshold, kDerived, Positive,
+             "sigma_th^2 of Eq. 6"),
+        Legacy(Real("thin_evidence_weight", &P::thin_evidence_weight, kDerived, ThinWeight,
+                    "a thin cell seen less (full-kernel observations) is unknown; 0: off"),
+               "0.5"),
+        Real("min_range", &P::min_range, kStats, FiniteNonNegative,
+             "drop closer points (the robot's own body), metres"),
+        Real("max_range", &P::max_range, kStats, MaxRange, "drop farther points, metres"),
+        Real("max_height_above_sensor", &P::max_height_above_sensor, kStats, NotNaN,
+             "drop points higher above the sensor (overhangs), metres"),
+        Enum<&P::observation, ObservationName, ParseObservation>(
+            "observation", kStats, "max | mean of a scan's points in a cell, its training value"),
+        Integer("tile_size", &P::tile_size, kStats, TileSize, "cells per tile edge"),
+        Enum<&P::method, MethodName, ParseMethod>(
+            "method", kStats, "bgk+ | bgk-trav | baseline | one-step | bgk-obstacle | bgk-ll"),
+    };
+    std::vector<MapParamInfo> more = ChangingWorldEntries();
+    t.insert(t.end(), more.begin(), more.end());
+    return t;
+  }();
+  return table;
+}
+
+std::vector<MapParamInfo> ChangingWorldEntries() {
+  return {
       // Dynamics (docs/semantics.md); stores and archives from before them were built "off".
       Legacy(Enum<&P::dynamics, DynamicsName, ParseDynamics>(
                  "dynamics", kStats, "on | off: follow a changing world, or accumulate (paper)"),
@@ -303,7 +318,6 @@ const std::vector<MapParamInfo>& Table() {
                   "(dynamics on); 0: no forgetting"),
              "0"),
   };
-  return table;
 }
 
 }  // namespace
