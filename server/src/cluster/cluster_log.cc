@@ -253,6 +253,39 @@ Result<NatsPtr<natsMsg>> GetEntry(const NatsClient& nats, const ClusterTrust& tr
   return msg;
 }
 
+namespace {
+
+// The next entry of the log from entry `next` on, read through `*sub` (opened again from `next`
+// when it is null or has failed), with its sequence in `*sequence`; null after 100 ms without
+// one, after a read failure, or when the reader cannot be opened (then `*open_failure`, after a
+// 250 ms pause). A reopened reader's repeats of entries before `next` are skipped.
+NatsPtr<natsMsg> NextEntry(const NatsClient& nats, bool headers_only, uint64_t next,
+                           LiveSubscription* sub, Status* open_failure, uint64_t* sequence) {
+  if (!*sub) {
+    Result<LiveSubscription> opened = OpenLogReader(nats, next, headers_only);
+    if (!opened.ok()) {
+      *open_failure = opened.status();
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+      return nullptr;
+    }
+    *sub = std::move(opened).value();
+  }
+  natsMsg* raw = nullptr;
+  const natsStatus st = natsSubscription_NextMsg(&raw, sub->get(), 100);
+  if (st == NATS_TIMEOUT) return nullptr;
+  if (st != NATS_OK) {
+    sub->reset();
+    return nullptr;
+  }
+  NatsPtr<natsMsg> msg(raw);
+  const std::optional<uint64_t> entry = EntrySequence(msg.get());
+  if (!entry || *entry < next) return nullptr;
+  *sequence = *entry;
+  return msg;
+}
+
+}  // namespace
+
 Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool headers_only,
                     const std::function<void(uint64_t sequence, natsMsg* msg)>& on_entry,
                     int64_t stall_ms) {
@@ -264,33 +297,19 @@ Status ReadLogRange(const NatsClient& nats, uint64_t first, uint64_t last, bool 
       return Status::Unavailable("the cluster log gave no entry after " + std::to_string(next - 1) +
                                  " for " + std::to_string(stall_ms) + " ms");
     }
-    if (!sub) {
-      Result<LiveSubscription> opened = OpenLogReader(nats, next, headers_only);
-      if (!opened.ok()) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(250));
-        continue;
-      }
-      sub = std::move(opened).value();
-    }
-    natsMsg* raw = nullptr;
-    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
-    if (st == NATS_TIMEOUT) continue;
-    if (st != NATS_OK) {
-      sub.reset();
-      continue;
-    }
-    NatsPtr<natsMsg> msg(raw);
-    const std::optional<uint64_t> entry = EntrySequence(msg.get());
-    if (!entry || *entry < next) continue;
-    if (*entry > next && next == first) {
+    Status open_failure;
+    uint64_t entry = 0;
+    NatsPtr<natsMsg> msg = NextEntry(nats, headers_only, next, &sub, &open_failure, &entry);
+    if (!msg) continue;
+    if (entry > next && next == first) {
       return Status::FailedPrecondition("the cluster log no longer holds entry " +
                                         std::to_string(first) + " (it was trimmed to " +
-                                        std::to_string(*entry) + ")");
+                                        std::to_string(entry) + ")");
     }
-    if (*entry > last) break;
+    if (entry > last) break;
     progress = std::chrono::steady_clock::now();
-    next = *entry + 1;
-    on_entry(*entry, msg.get());
+    next = entry + 1;
+    on_entry(entry, msg.get());
   }
   return Status::Ok();
 }
@@ -319,27 +338,15 @@ void FollowLogHeaders(const NatsClient& nats, uint64_t start, const std::atomic<
   uint64_t next = start;
   LiveSubscription sub;
   while (!stop) {
-    if (!sub) {
-      Result<LiveSubscription> opened = OpenLogReader(nats, next, true);
-      if (!opened.ok()) {
-        spdlog::warn("event={} reason=\"{}\"", event, opened.status().message());
-        std::this_thread::sleep_for(std::chrono::milliseconds(250));
-        continue;
-      }
-      sub = std::move(opened).value();
+    Status open_failure;
+    uint64_t entry = 0;
+    NatsPtr<natsMsg> msg = NextEntry(nats, true, next, &sub, &open_failure, &entry);
+    if (!open_failure.ok()) {
+      spdlog::warn("event={} reason=\"{}\"", event, open_failure.message());
     }
-    natsMsg* raw = nullptr;
-    const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
-    if (st == NATS_TIMEOUT) continue;
-    if (st != NATS_OK) {
-      sub.reset();
-      continue;
-    }
-    NatsPtr<natsMsg> msg(raw);
-    const std::optional<uint64_t> entry = EntrySequence(msg.get());
-    if (!entry || *entry < next) continue;
-    next = *entry + 1;
-    on_entry(*entry, msg.get());
+    if (!msg) continue;
+    next = entry + 1;
+    on_entry(entry, msg.get());
   }
 }
 
