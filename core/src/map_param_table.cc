@@ -168,6 +168,20 @@ Status FootprintEdge(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
+// How far the self-filter box reaches below the sensor: 0 (off) up to 20 m.
+Status SelfFilterBelow(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 20) return Bad(key, v, "must lie in [0, 20] metres (0: off)");
+  return Status::Ok();
+}
+
+// The self-filter box's margin about the footprint box (mirrors, racks): 0 up to 5 m.
+Status SelfFilterMargin(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 5) return Bad(key, v, "must lie in [0, 5] metres");
+  return Status::Ok();
+}
+
 // The sensor's offset from the footprint box's centre, within 20 m.
 Status FootprintOffset(std::string_view key, double v, const MapParams& p) {
   if (Status s = Finite(key, v, p); !s.ok()) return s;
@@ -311,6 +325,14 @@ std::vector<MapParamInfo> ChangingWorldEntries() {
              "0"),
       Legacy(Real("footprint_sensor_y", &P::footprint_sensor_y, kStats, FootprintOffset,
                   "the sensor's position left of the footprint box's centre, metres"),
+             "0"),
+      // The self-filter; maps from before it dropped no return for it (0).
+      Legacy(Real("self_filter_below", &P::self_filter_below, kStats, SelfFilterBelow,
+                  "> 0: returns inside the footprint box (grown by self_filter_margin) higher "
+                  "than this many metres under the sensor are the robot's body, dropped; 0: off"),
+             "0"),
+      Legacy(Real("self_filter_margin", &P::self_filter_margin, kStats, SelfFilterMargin,
+                  "metres the self-filter box reaches beyond the footprint box on each side"),
              "0"),
       // Forgetting; maps from before it were built without (0).
       Legacy(Real("half_life_s", &P::half_life_s, kStats, FiniteNonNegative,

@@ -14,6 +14,7 @@ PointFilter FilterSensorPoint(const MapParams& params, const Pose& T, const Poin
   const Eigen::Vector3d ps(p.x, p.y, p.z);
   const double r2 = ps.squaredNorm();
   if (r2 < min_r2 || r2 > max_r2) return PointFilter::kRange;
+  if (SelfFilterOn(params) && InSelfFilterBox(params, ps)) return PointFilter::kRange;
   const double z_limit = T.translation.z() + params.max_height_above_sensor;
   const Eigen::Matrix3d& R = T.rotation;
   const Eigen::Vector3d& t = T.translation;

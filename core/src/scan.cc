@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "bgkmap/core/cell_shapes.h"
+#include "bgkmap/core/point_filter.h"
 #include "radix_sort.h"
 #include "scan_reach.h"
 
@@ -95,6 +96,7 @@ std::vector<BinnedPoint> TransformAndBin(const MapParams& params, std::span<cons
   const double max_r2 = params.max_range * params.max_range;
   const double inv_res = 1.0 / params.resolution;
   const double z_limit = T.translation.z() + params.max_height_above_sensor;
+  const bool self_filter = !frame_is_map && SelfFilterOn(params);
   std::vector<BinnedPoint> binned;
   binned.reserve(points.size());
   for (const Point3f& p : points) {
@@ -105,7 +107,7 @@ std::vector<BinnedPoint> TransformAndBin(const MapParams& params, std::span<cons
     const Eigen::Vector3d ps(p.x, p.y, p.z);
     if (!frame_is_map) {
       const double r2 = ps.squaredNorm();
-      if (r2 < min_r2 || r2 > max_r2) {
+      if (r2 < min_r2 || r2 > max_r2 || (self_filter && InSelfFilterBox(params, ps))) {
         ++c.dropped_range;
         continue;
       }

@@ -67,6 +67,11 @@ TEST(ScanPreparationTest, DropsAndCountsEveryKindOfBadPoint) {
 // rotation.
 TEST(ScanPreparationTest, FilterSensorPointDecidesAsPrepareScan) {
   MapParams p;
+  p.footprint_length = 2.2;  // a self-filter box whose faces cut the spheres below
+  p.footprint_width = 1.6;
+  p.footprint_sensor_x = -0.3;
+  p.self_filter_below = 0.2;
+  p.self_filter_margin = 0.05;
   const Pose pose = Pose::FromQuaternion(0.995, 0.05, -0.08, 0.02, 3, -4, 1.7);
   std::vector<Point3f> pts = {{kNaN, 0, 0}, {0, 0, kInf}};
   for (float r : {0.999999f, 1.0f, 1.000001f, 99.99999f, 100.0f, 100.00001f}) {
@@ -109,6 +114,44 @@ TEST(ScanPreparationTest, FilterSensorPointDecidesAsPrepareScan) {
     EXPECT_EQ(all->cells[i].cell, some->cells[i].cell);
     EXPECT_EQ(all->cells[i].y, some->cells[i].y);  // bitwise
   }
+}
+
+// The self-filter drops what lies in the robot's own box (the footprint box grown by the margin,
+// in the sensor's frame, above self_filter_below under the sensor) and nothing else; off without
+// the footprint box or with self_filter_below 0; in the map frame never.
+TEST(ScanPreparationTest, SelfFilterDropsTheBodyBoxOnly) {
+  MapParams p;
+  p.min_range = 0.5;
+  p.footprint_length = 4.0;
+  p.footprint_width = 2.0;
+  p.footprint_sensor_x = 0.5;  // the box's centre 0.5 m behind the sensor: x in [-2.6, 1.6]
+  p.self_filter_below = 1.5;
+  p.self_filter_margin = 0.1;  // y in [-1.1, 1.1]
+  const std::vector<Point3f> body = {{1.5f, 0.5f, -1.0f}, {-2.5f, -1.05f, -1.45f}, {0, 1.0f, 0.3f}};
+  const std::vector<Point3f> world = {{1.7f, 0.5f, -1.0f},  {-2.7f, 0.0f, -1.0f},
+                                      {0.8f, 1.2f, -1.0f},  {0.8f, 0.0f, -1.6f},
+                                      {10.0f, 0.0f, -1.7f}, {0.0f, -3.0f, -1.7f}};
+  std::vector<Point3f> pts = body;
+  pts.insert(pts.end(), world.begin(), world.end());
+  Result<PreparedScan> s = PrepareScan(p, pts, Pose{});
+  ASSERT_TRUE(s.ok());
+  EXPECT_EQ(s->counts.dropped_range, body.size());
+  EXPECT_EQ(s->counts.kept, world.size());
+  for (const Point3f& q : body) EXPECT_EQ(FilterSensorPoint(p, Pose{}, q), PointFilter::kRange);
+  for (const Point3f& q : world) EXPECT_EQ(FilterSensorPoint(p, Pose{}, q), PointFilter::kKept);
+
+  MapParams no_box = p;
+  no_box.footprint_width = 0;  // no footprint box: the self-filter is off
+  MapParams off = p;
+  off.self_filter_below = 0;
+  for (const MapParams& q : {no_box, off}) {
+    Result<PreparedScan> t = PrepareScan(q, pts, Pose{});
+    ASSERT_TRUE(t.ok());
+    EXPECT_EQ(t->counts.dropped_range, 0u);
+  }
+  Result<PreparedScan> in_map = PrepareScan(p, pts, Pose{}, /*frame_is_map=*/true);
+  ASSERT_TRUE(in_map.ok());
+  EXPECT_EQ(in_map->counts.kept, pts.size());
 }
 
 TEST(ScanPreparationTest, FrameIsMapSkipsSensorFilters) {

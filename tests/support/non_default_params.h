@@ -45,6 +45,8 @@ inline MapParams NonDefaultParams() {
   p.footprint_width = 1.8;
   p.footprint_sensor_x = -0.4;
   p.footprint_sensor_y = 0.1;
+  p.self_filter_below = 0.7;
+  p.self_filter_margin = 0.15;
   return p;
 }
 

@@ -98,6 +98,13 @@ struct MapParams {
   double footprint_width = 0.0;
   double footprint_sensor_x = 0.0;
   double footprint_sensor_y = 0.0;
+  // The self-filter (issue 24, P7): > 0 drops, as min_range does, every return of a sensor scan
+  // inside the vehicle's own box: the footprint box (needs footprint_length and
+  // footprint_width > 0; else off) grown by self_filter_margin on each side, in the sensor's
+  // frame (x forward, the sensor at footprint_sensor_x/y from the box's centre), and higher than
+  // self_filter_below under the sensor (docs/semantics.md, "Self-filter"). 0: off.
+  double self_filter_below = 0.0;
+  double self_filter_margin = 0.0;
   // Forgetting (dynamics on): > 0 halves every statistic's weight per half_life_s seconds of map
   // time (scan stamps), docs/semantics.md "Forgetting"; 0: off.
   double half_life_s = 0.0;

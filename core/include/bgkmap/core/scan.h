@@ -39,7 +39,7 @@ struct ScanPointCounts {
   uint64_t input = 0;
   uint64_t kept = 0;
   uint64_t dropped_nonfinite = 0;      // NaN or Inf coordinate
-  uint64_t dropped_range = 0;          // |p| outside [min_range, max_range]
+  uint64_t dropped_range = 0;          // |p| outside [min_range, max_range], or self-filtered
   uint64_t dropped_height = 0;         // q.z - t.z > max_height_above_sensor
   uint64_t dropped_out_of_bounds = 0;  // cell index beyond +-kMaxCellIndex
 };
