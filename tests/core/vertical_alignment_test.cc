@@ -123,6 +123,42 @@ TEST(VerticalAlignmentTest, AnOffsetBeyondTheBoundOrNoSensorGivesNone) {
   EXPECT_EQ(AlignScanVertically(p, cloud, FlatMap(p)).outcome, AlignmentOutcome::kNoSensor);
 }
 
+// Experimental (max_tilt_deg > 0): a scan tilted against a flat map is levelled about its sensor.
+TEST(VerticalAlignmentTest, ATiltedScanIsLevelledAboutTheSensor) {
+  const MapParams p;  // 0.1 m cells
+  const double gx = std::tan(0.2 * M_PI / 180), gy = -std::tan(0.1 * M_PI / 180);
+  PreparedScan s;
+  s.has_sensor = true;
+  s.sensor_x = 0.05;
+  s.sensor_y = 0.05;
+  for (int x = -150; x < 150; x += 3) {
+    for (int y = -150; y < 150; y += 3) {
+      const double dx = (x + 0.5) * 0.1 - s.sensor_x, dy = (y + 0.5) * 0.1 - s.sensor_y;
+      s.cells.push_back({{x, y}, 0.05 + gx * dx + gy * dy});
+    }
+  }
+  VerticalAlignment a = AlignScanVertically(p, s, FlatMap(p));  // the offset alone
+  EXPECT_EQ(a.slope_x, 0.0);
+  VerticalAlignmentOptions tilt;
+  tilt.max_tilt_deg = 1.0;
+  a = AlignScanVertically(p, s, FlatMap(p), tilt);
+  ASSERT_EQ(a.outcome, AlignmentOutcome::kAligned);
+  EXPECT_NEAR(a.slope_x, gx, 1e-9);
+  EXPECT_NEAR(a.slope_y, gy, 1e-9);
+  EXPECT_NEAR(a.dz, 0.05, 1e-9);
+  // The aligned pose puts a point 10 m out in x and 5 m in y back on the map's ground.
+  Pose pose;
+  pose.translation = Eigen::Vector3d(s.sensor_x, s.sensor_y, 1.5);
+  const Eigen::Vector3d seen(10.0, 5.0, 0.05 + gx * 10.0 + gy * 5.0 - 1.5);  // sensor frame
+  const Pose level = AlignedPose(pose, a);
+  EXPECT_NEAR((level.rotation * seen + level.translation).z(), 0.0, 1e-4);
+  // A slope beyond the bound is not taken: the offset alone.
+  tilt.max_tilt_deg = 0.15;
+  a = AlignScanVertically(p, s, FlatMap(p), tilt);
+  EXPECT_EQ(a.slope_x, 0.0);
+  EXPECT_EQ(a.outcome, AlignmentOutcome::kAligned);
+}
+
 // Through the engine: a scan whose pose is 7 cm too high against a map of the same ground,
 // aligned, integrates as the scan without the error.
 TEST(VerticalAlignmentTest, ARealScanWithAZErrorAlignsToTheMap) {

@@ -587,6 +587,10 @@ void RegisterEvalCommand(CLI::App& app, int& exit_code) {
                 "Align each scan's z to the map built so far before integrating it, as a robot's "
                 "localization would (core/vertical_alignment.h; docs/mapping-your-robot.md, "
                 "\"Vertical alignment\"): the odd, even and real-time maps each to their own");
+  cmd->add_option("--align-tilt", o->align.max_tilt_deg,
+                  "With --align-z, experimental: also level each scan's tilt against the map, up "
+                  "to this many degrees (default 0: off)")
+      ->group("");
   cmd->add_option("--align-z-radius", o->align.radius_m,
                   "With --align-z: compare the cells within this distance of the sensor (m, "
                   "default 20)");

@@ -45,6 +45,11 @@ struct VerticalAlignmentOptions {
   // this says the scan and the map do not see the same surfaces (a wrong x-y pose, another
   // floor, a changed world), and moving the scan by it would do more harm than leaving it.
   double max_offset_m = 1.0;
+  // Experimental, off (0): also the residuals' tilt about the sensor, a least-squares plane
+  // through the cells within tilt_inlier_m of the median offset, if its slope is at most this
+  // (deg) in x and y; the scan is then turned about the sensor to level it (AlignedPose).
+  double max_tilt_deg = 0.0;
+  double tilt_inlier_m = 0.1;
 };
 
 // The map's elevation at a cell, its elevation weight and whether its state is traversable;
@@ -69,6 +74,9 @@ struct VerticalAlignment {
   double dz = 0.0;
   size_t cells = 0;     // the cells compared
   double median = 0.0;  // their median offset, also when it was not applied (0 if no cells)
+  // With max_tilt_deg > 0: the residuals' slope along the map's x and y (dz/dx), taken out by
+  // AlignedPose's turn about the sensor; dz is then the median offset once it is taken out.
+  double slope_x = 0.0, slope_y = 0.0;
   AlignmentOutcome outcome = AlignmentOutcome::kTooFewCells;
 };
 
@@ -84,7 +92,7 @@ VerticalAlignment AlignScanVertically(const MapParams& p, const PreparedScan& sc
 // The map's heights from a TerrainMap (its Estimate): for the offline tools.
 MapHeightLookup MapHeightsOf(const TerrainMap& map);
 
-// `pose` with dz subtracted from its z.
+// `pose` with dz subtracted from its z (and with a tilt, turned about the sensor to level it).
 Pose AlignedPose(const Pose& pose, const VerticalAlignment& alignment);
 
 }  // namespace bgkmap
