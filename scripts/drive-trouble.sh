@@ -12,12 +12,16 @@
 #                 (experiments/robots/car_sim_pose_error.yaml: pose_sigma_z)
 #   static_on_traffic_cells  the reference map judged on the traffic run's trail cells (what
 #                 the map calls those cells when no vehicle ever drove there)
+#   *_aligned     the same, each scan's z aligned to the map built so far before it is
+#                 integrated (--align-z: the robot's step of core/vertical_alignment.h,
+#                 docs/mapping-your-robot.md "Vertical alignment"); static_aligned checks that
+#                 it does not hurt perfect poses
 # Scores: AUC against the ground truth (the world at the last scan), the driven cells (final
 # map, and on arrival: the map just before the robot drives onto them) with their causes, stale
 # trails (cells a vehicle left that are still non-traversable 5 scans later) and missed new
 # obstacles (cells a vehicle arrived at not shown on the map after that scan).
-#   scripts/drive-trouble.sh [build-dir] [out-dir]    (3.5 minutes on 2 vCPUs, mostly the ray
-#                                                      casting of the two simulations)
+#   scripts/drive-trouble.sh [build-dir] [out-dir]    (6 minutes on 2 vCPUs, half of it the
+#                                                      ray casting of the two simulations)
 # Writes $OUT/<run>/{eval.json,table.md,drive_bgk+.png,...} and $OUT/table.md. METHODS (default
 # bgk+) is passed to --methods; the simulations are kept and reused if $OUT/sim exists.
 set -euo pipefail
@@ -56,6 +60,14 @@ RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
   evaluate static_noise_stated static --pose-noise 1 --no-figures
 RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
   evaluate traffic_noise_stated traffic --pose-noise 1 --no-figures
+# Each scan aligned vertically to the map before it (the robot's step, not a map rule).
+evaluate static_aligned static --align-z --no-figures
+evaluate static_noise_aligned static --pose-noise 1 --align-z --no-figures
+evaluate traffic_noise_aligned traffic --pose-noise 1 --align-z --no-figures
+RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
+  evaluate static_noise_stated_aligned static --pose-noise 1 --align-z --no-figures
+RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
+  evaluate traffic_noise_stated_aligned traffic --pose-noise 1 --align-z --no-figures
 evaluate static_on_traffic_cells static --traffic "$OUT/sim/traffic/traffic.json" --no-odd-even \
   --no-figures
 
@@ -63,7 +75,8 @@ python3 - "$OUT" > "$OUT/table.md" <<'PY'
 import json, sys, os
 out = sys.argv[1]
 runs = ["static", "traffic", "static_noise", "traffic_noise", "static_noise_stated",
-        "traffic_noise_stated", "static_on_traffic_cells"]
+        "traffic_noise_stated", "static_aligned", "static_noise_aligned", "traffic_noise_aligned",
+        "static_noise_stated_aligned", "traffic_noise_stated_aligned", "static_on_traffic_cells"]
 pct = lambda v: "n/a" if v is None else "%.2f" % (100 * v)
 ref = {m["method"]: m for m in json.load(open(os.path.join(out, "static", "eval.json")))["methods"]}
 print("| Run | Method | AUC | AUC - reference | Driven: traversable, final (%) | On arrival: known / "

@@ -8,7 +8,10 @@
 # sequence's own poses, and with realistic SLAM-like pose error added (--pose-noise 1: 3 cm and
 # 0.1 deg per scan plus a slow drift of 5 cm and 0.2 deg; sim/pose_noise.h), and a third time
 # with that error stated by the robot (pose_sigma_z: 0.03, docs/semantics.md "Pose noise").
-#   scripts/real-drives.sh [build-dir] [out-dir]       (about a minute on 2 vCPUs)
+# Then each of the three again with every scan's z aligned to the map built so far before it is
+# integrated (--align-z, the robot's step of core/vertical_alignment.h; docs/mapping-your-robot.md
+# "Vertical alignment"), and twice the error (--pose-noise 2) without and with the alignment.
+#   scripts/real-drives.sh [build-dir] [out-dir]       (about three minutes on 2 vCPUs)
 # Writes $OUT/<sequence>[_noise]/{eval.json,table.md,drive_<method>.png} and $OUT/table.md.
 # METHODS (default bgk+) is passed to --methods.
 set -euo pipefail
@@ -34,15 +37,20 @@ for run in "${RUNS[@]}"; do
   # 1s: the same added error, stated by the robot (pose_sigma_z: its 3 cm of z jitter).
   cat "$ROBOTS/$robot.yaml" > "$OUT/$robot-stated.yaml"
   echo "pose_sigma_z: 0.03" >> "$OUT/$robot-stated.yaml"
-  for noise in 0 1 1s; do
+  # a: aligned (--align-z).
+  for noise in 0 1 1s 0a 1a 1sa 2 2a; do
     name="$seq"
     args=()
     config="$ROBOTS/$robot.yaml"
-    if [[ "$noise" != 0 ]]; then
+    level="${noise%%[sa]*}"
+    if [[ "$level" != 0 ]]; then
       name="${seq}_noise$noise"
-      args=(--pose-noise "${noise%s}")
+      args=(--pose-noise "$level")
+    elif [[ "$noise" != 0 ]]; then
+      name="${seq}_$noise"
     fi
-    [[ "$noise" == 1s ]] && config="$OUT/$robot-stated.yaml"
+    [[ "$noise" == *s* ]] && config="$OUT/$robot-stated.yaml"
+    [[ "$noise" == *a ]] && args+=(--align-z)
     echo "real-drives: $name ($SECONDS s so far)"
     "$BGKMAP" eval "$DATA/$seq" --config "$config" --footprint-radius "$radius" \
       --methods "$METHODS" --name "$name" --out "$OUT/$name" "${args[@]}" > /dev/null
@@ -60,14 +68,18 @@ print("| Sequence | Robot | Footprint | Pose error | Method | Scans | Driven cel
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for run in runs:
     seq, robot, radius = run.split("|")
-    for noise in ("0", "1", "1s"):
-        name = seq if noise == "0" else seq + "_noise" + noise
+    for noise in ("0", "1", "1s", "0a", "1a", "1sa", "2", "2a"):
+        level = noise.rstrip("sa")
+        name = seq if noise == "0" else seq + "_" + noise if level == "0" else seq + "_noise" + noise
+        error = "none" if level == "0" else "x" + level
+        error += ", stated" if "s" in noise else ""
+        error += ", aligned" if noise.endswith("a") else ""
         j = json.load(open(os.path.join(out, name, "eval.json")))
         for m in j["methods"]:
             d, a, b = m["drive"], m["drive_on_arrival"], m["drive"]["blocked_by"]
             oe, oed = m["odd_even"], m["odd_even_driven"]
             print("| %s | %s | disc %s m | %s | %s | %d | %d | %s | %s | %s / %s | %d / %d / %d / %d | %s | %s | %s |" % (
-                seq, robot, radius, "none" if noise == "0" else "x1, stated" if noise == "1s" else "x" + noise, m["method"], m["scans"],
+                seq, robot, radius, error, m["method"], m["scans"],
                 d["driven_cells"], pct(d["known_share"]), pct(d["traversable_share"]),
                 pct(a["known_share"]), pct(a["traversable_share"]),
                 b["no_value"], b["high_mean"], b["high_variance"], b["disagreement"],

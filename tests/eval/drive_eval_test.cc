@@ -99,6 +99,31 @@ TEST_F(DriveEvalTest, PoseErrorChangesTheScores) {
             clean["odd_even"]["dz_rms_m"].get<double>());
 }
 
+// --align-z (core/vertical_alignment.h): each scan's z aligned to the map before it, a robot's
+// step that takes per-scan z error out and leaves good poses as they are.
+TEST_F(DriveEvalTest, AligningZTakesTheZErrorOut) {
+  const std::string args = "--footprint-radius 0.8 --no-figures ";
+  const nlohmann::json clean = Eval("drive", args, "clean_z");
+  const nlohmann::json clean_aligned = Eval("drive", args + "--align-z", "clean_aligned");
+  // 6 cm of z jitter per scan (with 9 cm the map's ground is blocked before there is enough of
+  // it to align to: the alignment compares traversable cells only).
+  const std::string z_error = "--pose-noise 2 --pose-noise-parts z ";
+  const nlohmann::json noisy = Eval("drive", args + z_error, "noisy_z");
+  const nlohmann::json aligned = Eval("drive", args + z_error + "--align-z", "aligned_z");
+  ASSERT_TRUE(aligned.contains("alignment"));
+  EXPECT_FALSE(noisy.contains("alignment"));
+  // Of 12: the first scans meet too little map (measured 7).
+  EXPECT_GE(aligned["alignment"]["aligned_scans"].get<int>(), 6);
+  EXPECT_LT(clean_aligned["alignment"]["max_abs_dz_m"].get<double>(), 0.01);
+  const auto share = [](const nlohmann::json& m) {
+    return m["drive"]["traversable_share"].get<double>();
+  };
+  std::printf("traversable: clean %.4f, aligned %.4f; z error %.4f, aligned %.4f\n", share(clean),
+              share(clean_aligned), share(noisy), share(aligned));
+  EXPECT_NEAR(share(clean_aligned), share(clean), 0.01);
+  EXPECT_GT(share(aligned), share(noisy) + 0.1);  // measured 0.676 -> 0.876
+}
+
 TEST_F(DriveEvalTest, TrafficLeavesTrailsAndIsScored) {
   const nlohmann::json m =
       Eval("traffic", "--footprint-radius 0.8 --no-odd-even --no-figures", "traffic_eval");
@@ -127,6 +152,9 @@ TEST_F(DriveEvalTest, BadCommandLinesAreRefused) {
                "--pose-noise-parts z,wobble");
   EXPECT_EQ(run.exit_code, 2) << run.output;
   std::ofstream(*dir_ / "short_poses.txt") << "1 0 0 0 0 1 0 0 0 0 1 0\n";
+  run = RunCli("eval " + seq + " --out " + out + " --footprint-radius 1 --align-z-radius 0");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("--align-z-radius"), std::string::npos) << run.output;
   run = RunCli("eval " + seq + " --out " + out + " --footprint-radius 1 --poses " +
                (*dir_ / "short_poses.txt").string());
   EXPECT_EQ(run.exit_code, 1) << run.output;

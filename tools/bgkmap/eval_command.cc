@@ -16,6 +16,7 @@
 #include "bgkmap/config/map_params_yaml.h"
 #include "bgkmap/core/raster.h"
 #include "bgkmap/core/terrain_map.h"
+#include "bgkmap/core/vertical_alignment.h"
 #include "bgkmap/eval/change_score.h"
 #include "bgkmap/eval/drive_score.h"
 #include "bgkmap/eval/map_score.h"
@@ -62,6 +63,10 @@ struct EvalOptions {
   double pose_noise = 0;  // > 0: the mapping poses perturbed (sim/pose_noise.h) at this scale
   uint32_t pose_noise_seed = 1;
   std::vector<std::string> pose_noise_parts;  // keep only these components (default: all)
+  // Align each scan's z to the map built so far before integrating it, as a robot's
+  // localization would (core/vertical_alignment.h): a robot-side step, off by default.
+  bool align_z = false;
+  VerticalAlignmentOptions align;
 };
 
 // The pose error of --pose-noise with only the components named kept (xy, z, tilt, yaw, drift).
@@ -157,12 +162,40 @@ struct Run {
   std::vector<eval::ScanTiming> timings;
   StageTimes sum;
   double prepare = 0, max_scan = 0;
+  AlignmentStats alignment;
 };
 
+// The pose scan k is integrated with: its own, or with `align` its z aligned to the map as it
+// stands (the robot's step, core/vertical_alignment.h; timed apart from the map's stages).
+Result<Pose> PoseToIntegrate(const MapParams& params, const SourceScan& scan, const TerrainMap& map,
+                             const VerticalAlignmentOptions* align, AlignmentStats* stats) {
+  if (align == nullptr || scan.frame_is_map) return scan.pose;
+  const auto t0 = Clock::now();
+  Result<PreparedScan> prepared = PrepareScan(params, scan.points, scan.pose);
+  if (!prepared.ok()) return prepared.status();
+  const VerticalAlignment a = AlignScanVertically(params, *prepared, MapHeightsOf(map), *align);
+  stats->seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+  switch (a.outcome) {
+    case AlignmentOutcome::kAligned:
+      ++stats->aligned;
+      stats->sum_abs_dz += std::abs(a.dz);
+      stats->max_abs_dz = std::max(stats->max_abs_dz, std::abs(a.dz));
+      break;
+    case AlignmentOutcome::kBeyondBound:
+      ++stats->beyond_bound;
+      break;
+    default:
+      ++stats->too_few_cells;
+  }
+  return AlignedPose(scan.pose, a);
+}
+
 // Integrates the scans with admitted[k] (all if empty), timing each one; after_scan(k, map), if
-// given, looks at the map after scan k (outside the timings).
+// given, looks at the map after scan k (outside the timings). With `align`, each scan's z is
+// first aligned to the map as it stands.
 Result<Run> MapScans(const MapParams& params, const std::vector<SourceScan>& scans,
                      const std::vector<bool>& admitted, const std::string& label,
+                     const VerticalAlignmentOptions* align,
                      const std::function<void(size_t, const TerrainMap&)>& after_scan = {}) {
   Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params);
   if (!created.ok()) return created.status();
@@ -172,9 +205,10 @@ Result<Run> MapScans(const MapParams& params, const std::vector<SourceScan>& sca
   for (size_t k = 0; k < scans.size(); ++k) {
     progress.Add();
     if (!admitted.empty() && !admitted[k]) continue;
+    Result<Pose> pose = PoseToIntegrate(params, scans[k], *run.map, align, &run.alignment);
+    if (!pose.ok()) return pose.status();
     const auto t0 = Clock::now();
-    Result<ScanReport> r =
-        run.map->IntegrateScan(scans[k].points, scans[k].pose, scans[k].frame_is_map);
+    Result<ScanReport> r = run.map->IntegrateScan(scans[k].points, *pose, scans[k].frame_is_map);
     const double total = std::chrono::duration<double>(Clock::now() - t0).count();
     if (!r.ok()) return Status(r.status());
     const StageTimes& t = r->times;
@@ -308,6 +342,7 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   if (o.trail_scans < 1 || o.new_scans < 1)
     return Usage("--trail-scans and --new-obstacle-scans must be at least 1");
   if (!(o.pose_noise >= 0)) return Usage("--pose-noise must be >= 0");
+  if (!(o.align.radius_m > 0)) return Usage("--align-z-radius must be > 0");
   Result<sim::PoseNoiseOptions> noise = PoseNoiseOf(o);
   if (!noise.ok()) return Usage(noise.status().message());
   for (const std::string& name : o.methods) {
@@ -359,10 +394,10 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
 // driven cells.
 Status ScoreOddEven(const MapParams& p, const std::vector<SourceScan>& scans,
                     const std::vector<eval::DrivenCell>& driven, const std::string& name,
-                    MethodResult* m) {
-  Result<Run> odd = MapScans(p, scans, EveryOther(scans.size(), 1), name + " (odd scans)");
+                    const VerticalAlignmentOptions* align, MethodResult* m) {
+  Result<Run> odd = MapScans(p, scans, EveryOther(scans.size(), 1), name + " (odd scans)", align);
   if (!odd.ok()) return odd.status();
-  Result<Run> even = MapScans(p, scans, EveryOther(scans.size(), 0), name + " (even scans)");
+  Result<Run> even = MapScans(p, scans, EveryOther(scans.size(), 0), name + " (even scans)", align);
   if (!even.ok()) return even.status();
   std::vector<CellIndex> cells;
   for (const eval::DrivenCell& d : driven) cells.push_back(d.cell);
@@ -397,7 +432,8 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
     }
   };
   const std::vector<SourceScan>& scans = in.scans;
-  Result<Run> offline = MapScans(p, scans, {}, name + " (all scans)", after_scan);
+  const VerticalAlignmentOptions* align = o.align_z ? &o.align : nullptr;
+  Result<Run> offline = MapScans(p, scans, {}, name + " (all scans)", align, after_scan);
   if (!offline.ok()) return offline.status();
   m.method = method;
   m.scans = scans.size();
@@ -407,9 +443,10 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
   m.features_s = offline->sum.features / n;
   m.traversability_s = offline->sum.traversability / n;
   m.max_scan_s = offline->max_scan;
+  m.alignment = offline->alignment;
   if (Status s = drive.Finish(*offline->map, &m); !s.ok()) return s;
   if (in.drive.footprint && o.odd_even) {
-    if (Status s = ScoreOddEven(p, scans, in.drive.driven, name, &m); !s.ok()) return s;
+    if (Status s = ScoreOddEven(p, scans, in.drive.driven, name, align, &m); !s.ok()) return s;
   }
   if (!in.truth) return m;
   m.offline = eval::ScoreMap(*offline->map, *in.truth);
@@ -421,7 +458,7 @@ Result<MethodResult> EvaluateMethod(const EvalOptions& o, const EvalInputs& in, 
     m.realtime = m.offline;
     m.maps = FigureLayers(*offline->map, *in.truth);
   } else {
-    Result<Run> realtime = MapScans(p, scans, admitted, name + " (real time)");
+    Result<Run> realtime = MapScans(p, scans, admitted, name + " (real time)", align);
     if (!realtime.ok()) return realtime.status();
     m.realtime = eval::ScoreMap(*realtime->map, *in.truth);
     m.maps = FigureLayers(*realtime->map, *in.truth);
@@ -454,6 +491,8 @@ int RunEval(const EvalOptions& o) {
   report.poses = o.poses;
   report.pose_noise = o.pose_noise;
   report.pose_noise_seed = o.pose_noise_seed;
+  report.align_z = o.align_z;
+  report.align_radius_m = o.align.radius_m;
   for (Method method : in.methods) {
     Result<MethodResult> m = EvaluateMethod(o, in, method);
     if (!m.ok()) return Fail(std::string(MethodName(method)) + ": " + m.status().message());
@@ -544,6 +583,17 @@ void RegisterEvalCommand(CLI::App& app, int& exit_code) {
                   "Keep only these components of --pose-noise: xy, z, tilt (roll and pitch), yaw, "
                   "drift (default: all)")
       ->delimiter(',');
+  cmd->add_flag("--align-z", o->align_z,
+                "Align each scan's z to the map built so far before integrating it, as a robot's "
+                "localization would (core/vertical_alignment.h; docs/mapping-your-robot.md, "
+                "\"Vertical alignment\"): the odd, even and real-time maps each to their own");
+  cmd->add_option("--align-tilt", o->align.max_tilt_deg,
+                  "With --align-z, experimental: also level each scan's tilt against the map, up "
+                  "to this many degrees (default 0: off)")
+      ->group("");
+  cmd->add_option("--align-z-radius", o->align.radius_m,
+                  "With --align-z: compare the cells within this distance of the sensor (m, "
+                  "default 20)");
   cmd->add_flag("!--no-odd-even", o->odd_even,
                 "With a footprint, skip the odd scans' map against the even scans' map");
   cmd->callback([o, &exit_code] { exit_code = RunEval(*o); });

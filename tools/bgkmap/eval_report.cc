@@ -233,6 +233,17 @@ std::string ToJson(const EvalReport& r) {
       methods.back()["causes"] = {{"final", CausesJson(m.causes_final)},
                                   {"on_arrival", CausesJson(m.causes_on_arrival)}};
     }
+    if (r.align_z) {
+      const AlignmentStats& a = m.alignment;
+      const double n = static_cast<double>(a.aligned);
+      methods.back()["alignment"] = {
+          {"aligned_scans", a.aligned},
+          {"too_few_cells_scans", a.too_few_cells},
+          {"beyond_bound_scans", a.beyond_bound},
+          {"mean_abs_dz_m", JsonNumber<Json>(a.aligned > 0 ? a.sum_abs_dz / n : 0.0)},
+          {"max_abs_dz_m", JsonNumber<Json>(a.max_abs_dz)},
+          {"mean_align_s", JsonNumber<Json>(m.scans > 0 ? a.seconds / m.scans : 0.0)}};
+    }
     if (r.has_odd_even) {
       methods.back()["odd_even"] = AgreementJson(m.odd_even);
       methods.back()["odd_even_driven"] = AgreementJson(m.odd_even_driven);
@@ -250,6 +261,7 @@ std::string ToJson(const EvalReport& r) {
     j["pose_noise"] = JsonNumber<Json>(r.pose_noise);
     j["pose_noise_seed"] = r.pose_noise_seed;
   }
+  if (r.align_z) j["align_z_radius_m"] = JsonNumber<Json>(r.align_radius_m);
   j["methods"] = std::move(methods);
   return JsonText(j);
 }

@@ -16,6 +16,14 @@
 
 namespace bgkmap::cli {
 
+// With --align-z: what the vertical alignment of each scan to the map before it did (offline
+// pass; core/vertical_alignment.h).
+struct AlignmentStats {
+  size_t aligned = 0, too_few_cells = 0, beyond_bound = 0;
+  double sum_abs_dz = 0, max_abs_dz = 0;  // m, over the aligned scans
+  double seconds = 0;                     // preparing and comparing, outside the stage times
+};
+
 struct MethodResult {
   Method method = Method::kBgkPlus;
   size_t scans = 0;
@@ -41,6 +49,7 @@ struct MethodResult {
   eval::CauseCounts causes_final, causes_on_arrival;
   eval::MapAgreement odd_even, odd_even_driven;
   eval::TrafficCounts traffic;  // with a traffic.json (EvalReport::has_traffic), offline map
+  AlignmentStats alignment;     // with EvalReport::align_z
 };
 
 struct EvalReport {
@@ -58,6 +67,8 @@ struct EvalReport {
   std::string poses;      // the poses the maps were built with, if not the sequence's
   double pose_noise = 0;  // the scale of the pose error added to them (0: none)
   uint32_t pose_noise_seed = 1;
+  bool align_z = false;  // each scan aligned vertically to the map before it (--align-z)
+  double align_radius_m = 0;
   std::vector<MethodResult> methods;
 };
 

@@ -2,7 +2,9 @@
 // record of that robot ends (sequence number k+1 is scan k).
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
+#include <mutex>
 #include <thread>
 
 #include "bgkmap/io/progress_bar.h"
@@ -10,6 +12,7 @@
 #include "commands.h"
 #include "scan_read_ahead.h"
 #include "scan_source.h"
+#include "served_map_alignment.h"
 
 namespace bgkmap::cli {
 namespace {
@@ -23,10 +26,54 @@ struct InsertOptions {
   SourceOptions source;
   double rate_hz = 0;  // 0: as fast as flow control allows
   bool restart = false;
+  // Align each scan's z to the served map before sending it (served_map_alignment.h).
+  bool align_z = false;
+  ServedAlignmentOptions align;
 };
+
+// Counts the acks read, so a sender can wait until the server has answered every scan sent
+// (--align-z aligns each scan against a map that holds the ones before it).
+class AckCounter {
+ public:
+  void Add() {
+    std::lock_guard lock(mu_);
+    ++count_;
+    cv_.notify_all();
+  }
+  // Returns once n acks were read, or the stream ended.
+  void WaitFor(uint64_t n) {
+    std::unique_lock lock(mu_);
+    cv_.wait(lock, [&] { return count_ >= n || ended_; });
+  }
+  void End() {
+    std::lock_guard lock(mu_);
+    ended_ = true;
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  uint64_t count_ = 0;
+  bool ended_ = false;
+};
+
+void PrintAlignment(const ServedAlignmentStats& a) {
+  const double scans = static_cast<double>(a.aligned + a.not_aligned);
+  if (scans == 0) return;
+  std::printf(
+      "bgkmap insert: --align-z: %llu scans aligned (mean |dz| %.3f m, max %.3f m), %llu not "
+      "(too few cells in common or beyond the bound); per scan %.0f kB of region, %.1f ms\n",
+      static_cast<unsigned long long>(a.aligned),
+      a.aligned > 0 ? a.sum_abs_dz / static_cast<double>(a.aligned) : 0.0, a.max_abs_dz,
+      static_cast<unsigned long long>(a.not_aligned),
+      static_cast<double>(a.region_bytes) / scans / 1000.0, 1000.0 * a.seconds / scans);
+}
 
 int RunInsert(const InsertOptions& o) {
   if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
+  if (!(o.align.align.radius_m > 0) || o.align.stride < 1)
+    return Usage("insert", "--align-z-radius must be > 0 and --align-z-stride >= 1");
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, o.source);
   if (!source.ok()) return Fail("insert", source.status().message());
   ReportSkipped("insert", **source, o.source);
@@ -47,6 +94,14 @@ int RunInsert(const InsertOptions& o) {
     std::fprintf(stderr, "bgkmap insert: robot %s resumes after sequence %llu\n", o.robot.c_str(),
                  static_cast<unsigned long long>(first));
   }
+  MapParams map_params;  // the served map's, to prepare scans as it does (--align-z)
+  if (o.align_z) {
+    RpcResult<MapInfo> info = client.Info();
+    if (!info.ok()) return Fail("insert", "--align-z needs Info: " + info.status().ToString());
+    map_params = info->params;
+  }
+  AckCounter acked;
+  ServedAlignmentStats alignment;
 
   std::unique_ptr<IngestStream> stream = client.OpenIngest();
   uint64_t applied = 0, duplicate = 0, rejected = 0, kept = 0, dropped = 0;
@@ -73,7 +128,9 @@ int RunInsert(const InsertOptions& o) {
       kept += ack.counts.kept;
       dropped += ack.counts.input - ack.counts.kept;
       progress.Add();
+      acked.Add();
     }
+    acked.End();
   });
   const auto start = std::chrono::steady_clock::now();
   const auto period = o.rate_hz > 0 ? std::chrono::duration<double>(1.0 / o.rate_hz)
@@ -115,7 +172,18 @@ int RunInsert(const InsertOptions& o) {
     data.stamp_ns = std::isfinite(scan->time_s) && std::isfinite(first_time)
                         ? start_ns + std::llround((scan->time_s - first_time) * 1e9)
                         : now_ns;
-    data.pose = ScanPose::FromPose(scan->pose);
+    Pose pose = scan->pose;
+    if (o.align_z) {
+      acked.WaitFor(k - first);  // the map holds every scan sent before this one
+      Result<VerticalAlignment> a =
+          AlignToServedMap(client, map_params, scan->points, pose, o.align, &alignment);
+      if (!a.ok()) {
+        read_error = a.status().message();
+        break;
+      }
+      pose = AlignedPose(pose, *a);
+    }
+    data.pose = ScanPose::FromPose(pose);
     data.points = scan->points;
     if (!stream->Send(data)) break;
   }
@@ -135,6 +203,7 @@ int RunInsert(const InsertOptions& o) {
       static_cast<unsigned long long>(duplicate), static_cast<unsigned long long>(rejected),
       static_cast<unsigned long long>(kept), static_cast<unsigned long long>(dropped), seconds,
       seconds > 0 ? static_cast<double>(applied + duplicate) / seconds : 0.0);
+  if (o.align_z) PrintAlignment(alignment);
   if (rejected > 0) return Fail("insert", first_rejection);
   return 0;
 }
@@ -160,6 +229,16 @@ void RegisterInsertCommand(CLI::App& app, int& exit_code) {
   cmd->add_flag("--float32", o->server.float32_points,
                 "Send the points as packed float32 (12 bytes each), not compact (quantized to "
                 "2 mm, zstd; docs/server.md \"Compact scans\")");
+  cmd->add_flag("--align-z", o->align_z,
+                "Align each scan's z to the served map before sending it, as a localization "
+                "with vertical drift would (docs/mapping-your-robot.md, \"Vertical alignment\"): "
+                "waits for each scan's ack, then one region query per scan");
+  cmd->add_option("--align-z-radius", o->align.align.radius_m,
+                  "With --align-z: compare the cells within this distance of the sensor (m)")
+      ->capture_default_str();
+  cmd->add_option("--align-z-stride", o->align.stride,
+                  "With --align-z: map cells per pixel edge of the region query")
+      ->capture_default_str();
   cmd->callback([o, &exit_code] { exit_code = RunInsert(*o); });
 }
 
