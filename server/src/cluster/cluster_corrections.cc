@@ -177,7 +177,8 @@ Result<std::unique_ptr<ClusterNode::Resolved>> ClusterNode::Resolve(const Correc
 }
 
 Status ClusterNode::GrowAffected(uint64_t first, uint64_t last, const Admitted& admitted,
-                                 Resolved* resolved, bool* corrected) const {
+                                 Resolved* resolved, const std::string& own_payload,
+                                 Interleaved* seen) const {
   if (first > last) return Status::Ok();
   Status read =
       ReadLogRange(*nats_, first, last, /*headers_only=*/false, [&](uint64_t entry, natsMsg* msg) {
@@ -185,7 +186,15 @@ Status ClusterNode::GrowAffected(uint64_t first, uint64_t last, const Admitted& 
         if (!VerifyEntry(*trust_, msg, /*headers_only=*/false).ok()) return;
         Result<LogEntryHeader> h = ReadEntryHeader(msg);
         if (!h.ok()) return;
-        if (h->kind == LogEntryHeader::Kind::kCorrect && corrected != nullptr) *corrected = true;
+        if (h->kind == LogEntryHeader::Kind::kCorrect && seen != nullptr) {
+          const std::string_view payload(natsMsg_GetData(msg),
+                                         static_cast<size_t>(natsMsg_GetDataLength(msg)));
+          if (payload == own_payload && seen->own == 0) {
+            seen->own = entry;
+          } else {
+            seen->other = true;
+          }
+        }
         if (!admitted(entry, *h)) return;
         auto r = resolved->all.find(entry);
         if (r != resolved->all.end() && r->second.removed) return;  // no record any more
@@ -215,36 +224,41 @@ Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
         [&](uint64_t entry, const LogEntryHeader&) {
           return std::binary_search(admitted.begin(), admitted.end(), entry);
         },
-        &r, nullptr);
+        &r, "", nullptr);
     if (!grown.ok()) return grown;
     // Partitions a revised scan now reaches get owners before the entry is read.
     for (PartitionKey p : r.touched) {
       if (Status s = members_->AddPartition(p); !s.ok()) return Status::IoError(s.message());
     }
-    for (bool corrected = false; !corrected;) {
-      Result<std::optional<uint64_t>> at = AppendCorrection(
-          *nats_, *trust_, spec.robot_id, EncodeCorrection(r.own, r.affected.tiles()),
-          {r.touched.begin(), r.touched.end()}, r.changes, r.last);
+    for (Interleaved seen; !seen.other;) {
+      const std::string payload = EncodeCorrection(r.own, r.affected.tiles());
+      Result<std::optional<uint64_t>> at =
+          AppendCorrection(*nats_, *trust_, spec.robot_id, payload,
+                           {r.touched.begin(), r.touched.end()}, r.changes, r.last);
       if (!at.ok()) return Status::IoError(at.status().message());
-      if (at->has_value()) {
+      std::optional<uint64_t> stored = *at;
+      if (!stored) {
+        // Entries were appended since: the affected tiles grow over them, in the log's order.
+        Result<uint64_t> last = LastSequence(*nats_);
+        if (!last.ok()) return Status::IoError(last.status().message());
+        grown = GrowAffected(
+            r.last + 1, *last,
+            [&](uint64_t, const LogEntryHeader& h) { return r.index.judge.Admits(h); }, &r, payload,
+            &seen);
+        if (!grown.ok()) return grown;
+        r.last = *last;
+        if (seen.own != 0) stored = seen.own;  // in the log already: applied as it is
+      }
+      if (stored) {
         CorrectionOutcome outcome;
-        outcome.version = **at;
+        outcome.version = *stored;
         outcome.scans_revised = r.own.size();
-        outcome.records_in_history = **at - 1;  // every partition it touches replays them all
-        outcome.records_replayed = **at - 1;
+        outcome.records_in_history = *stored - 1;  // every partition it touches replays them all
+        outcome.records_replayed = *stored - 1;
         outcome.seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return outcome;
       }
-      // Entries were appended since: the affected tiles grow over them, in the log's order.
-      Result<uint64_t> last = LastSequence(*nats_);
-      if (!last.ok()) return Status::IoError(last.status().message());
-      grown = GrowAffected(
-          r.last + 1, *last,
-          [&](uint64_t, const LogEntryHeader& h) { return r.index.judge.Admits(h); }, &r,
-          &corrected);
-      if (!grown.ok()) return grown;
-      r.last = *last;
     }
   }
   return Status::Unavailable(

@@ -235,8 +235,9 @@ Result<std::optional<uint64_t>> AppendCorrection(const NatsClient& nats, const C
   Result<std::string> id = RandomMessageId("correct/");
   if (!id.ok()) return id.status();
   const RobotHeaders robot{robot_id, std::nullopt};
-  // (A retry of the publish through an election is answered by its message id as a duplicate,
-  // which JetStream checks before the expected sequence.)
+  // (A publish nats.c retries through an election after the first try was stored is answered
+  // as a duplicate by its message id where JetStream checks that first, else refused for the
+  // sequence: the caller then finds its own payload among the new entries.)
   Result<Appended> a =
       Append(nats, trust, kCorrectSubject, payload, touched, changes, &robot, *id, after);
   if (!a.ok() && a.status().message() == kLogGrew) return std::optional<uint64_t>();

@@ -211,10 +211,17 @@ class ClusterNode final : public MapPort {
   // Whether entry `sequence` (its verified header) is a scan the robot rule admits, asked in
   // the log's order.
   using Admitted = std::function<bool(uint64_t sequence, const LogEntryHeader& header)>;
-  // Grows `resolved`'s affected tiles over the log's entries first..last; sets `*corrected`
-  // (if not null) when one of them is a correction.
+  // Correction entries among those GrowAffected read.
+  struct Interleaved {
+    // This call's own entry (the payload it appends), stored by a publish that nats.c retried
+    // through an election and that was then refused for the sequence it expected.
+    uint64_t own = 0;
+    bool other = false;  // another correction
+  };
+  // Grows `resolved`'s affected tiles over the log's entries first..last; fills `*seen` (if not
+  // null) with the correction entries among them, `own_payload` telling this call's own.
   Status GrowAffected(uint64_t first, uint64_t last, const Admitted& admitted, Resolved* resolved,
-                      bool* corrected) const;
+                      const std::string& own_payload, Interleaved* seen) const;
   static constexpr int kCorrectionAttempts = 4;
   // Entry `log_sequence`, a scan, prepared again (with `pose` instead of its own, if not null).
   Result<PreparedScan> PrepareLogged(uint64_t log_sequence, const Pose* pose) const;
