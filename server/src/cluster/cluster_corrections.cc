@@ -246,6 +246,7 @@ Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
             [&](uint64_t, const LogEntryHeader& h) { return r.index.judge.Admits(h); }, &r, payload,
             &seen);
         if (!grown.ok()) return grown;
+        spdlog::info("event=correction_log_grew from={} to={}", r.last, *last);
         r.last = *last;
         if (seen.own != 0) stored = seen.own;  // in the log already: applied as it is
       }
