@@ -115,6 +115,13 @@ Status Replay(const TileStore& store, uint64_t base_version,
 
 }  // namespace
 
+void AffectedTiles::Add(const PreparedScan& scan, bool revised) {
+  std::vector<TileKey> inputs = scan.ChangeableTiles();
+  if (revised || AnyIn(inputs, tiles_) || AnyIn(scan.read_tiles, tiles_)) {
+    tiles_.insert(inputs.begin(), inputs.end());
+  }
+}
+
 Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationRequest& request) {
   const auto start = std::chrono::steady_clock::now();
   const std::vector<uint64_t> bases = store.Bases();
@@ -131,21 +138,19 @@ Result<Reintegration> Reintegrate(const TileStore& store, const ReintegrationReq
   uint64_t first_revised = UINT64_MAX;
   if (!request.replacements.empty()) first_revised = request.replacements.begin()->first;
   for (uint64_t v : request.revised_in_log) first_revised = std::min(first_revised, v);
-  std::set<TileKey> affected;
+  AffectedTiles region;
   bool seeded = false;
   auto seed = [&] {
-    if (!seeded) affected.insert(request.seed_tiles.begin(), request.seed_tiles.end());
+    if (!seeded) region.Seed(request.seed_tiles);
     seeded = true;
   };
   for (const HistoryEntry& e : history) {
     if (e.version >= first_revised) seed();
     if (e.scan == nullptr) continue;  // a clear makes its tiles equal in both histories
-    std::vector<TileKey> inputs = e.scan->ChangeableTiles();
-    if (e.revised || AnyIn(inputs, affected) || AnyIn(e.scan->read_tiles, affected)) {
-      affected.insert(inputs.begin(), inputs.end());
-    }
+    region.Add(*e.scan, e.revised);
   }
   seed();  // (every revised scan was removed)
+  const std::set<TileKey>& affected = region.tiles();
   // Backward: what the rebuild of `affected` reads.
   std::set<TileKey> needed = affected;
   for (auto it = history.rbegin(); it != history.rend(); ++it) {

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <set>
 
+#include "bgkmap/storage/reintegration.h"
 #include "cluster/cluster_node.h"
 
 namespace bgkmap::cluster {
@@ -107,8 +108,19 @@ Result<PreparedScan> ClusterNode::PrepareLogged(uint64_t log_sequence, const Pos
   return prepared;
 }
 
-Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
-  const auto start = std::chrono::steady_clock::now();
+// A correction resolved against the log's entries up to `last`.
+struct ClusterNode::Resolved {
+  explicit Resolved(LogIndex log) : index(std::move(log)) {}
+  LogIndex index;
+  uint64_t last = 0;
+  Revisions own;  // the entry's own revisions
+  Revisions all;  // in force once it is applied: earlier corrections' and its own
+  std::set<PartitionKey> touched;
+  CellBox changes;
+  storage::AffectedTiles affected;
+};
+
+Result<std::unique_ptr<ClusterNode::Resolved>> ClusterNode::Resolve(const CorrectionSpec& spec) {
   if (Status s = WholeLogKept(*nats_, config_.trim_lag_entries); !s.ok()) return s;
   Result<uint64_t> last = LastSequence(*nats_);
   if (!last.ok()) return Status::IoError(last.status().message());
@@ -121,30 +133,33 @@ Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
   if (spec.is_cancelled()) {
     return Status::FailedPrecondition("cancelled by its client before it was applied");
   }
+  auto out = std::make_unique<Resolved>(std::move(*index));
+  out->last = *last;
+  out->all = *in_force;
   // The partitions whose halos the scans meet as first sent, as revised so far, and as revised
   // now: all of them are rebuilt.
-  Revisions revisions;
-  std::set<PartitionKey> touched;
-  CellBox changes;
   auto reaching = [&](const PreparedScan& prepared) {
     const CellBox reach = layout_.Reach(prepared);
-    changes.Extend(reach.min);
-    changes.Extend(reach.max);
-    for (PartitionKey p : layout_.Covering(reach)) touched.insert(p);
+    out->changes.Extend(reach.min);
+    out->changes.Extend(reach.max);
+    for (PartitionKey p : layout_.Covering(reach)) out->touched.insert(p);
   };
   for (const auto& [sequence, scan] : found.scans) {
-    touched.insert(scan.touched.begin(), scan.touched.end());
+    out->touched.insert(scan.touched.begin(), scan.touched.end());
     if (!scan.changes.empty()) {
-      changes.Extend(scan.changes.min);
-      changes.Extend(scan.changes.max);
+      out->changes.Extend(scan.changes.min);
+      out->changes.Extend(scan.changes.max);
     }
-    if (auto r = in_force->find(scan.log_sequence); r != in_force->end()) {
-      Result<PreparedScan> current = PrepareLogged(scan.log_sequence, &r->second.pose);
-      if (!current.ok()) return current.status();
-      reaching(*current);
-    }
+    // The scan as the log holds it now (as sent, or as revised so far): the single server's
+    // seed of the affected tiles.
+    auto r = in_force->find(scan.log_sequence);
+    Result<PreparedScan> current =
+        PrepareLogged(scan.log_sequence, r != in_force->end() ? &r->second.pose : nullptr);
+    if (!current.ok()) return current.status();
+    if (r != in_force->end()) reaching(*current);
+    out->affected.Seed(current->ChangeableTiles());
     if (spec.remove) {
-      revisions[scan.log_sequence] = Revision{true, {}};
+      out->own[scan.log_sequence] = Revision{true, {}};
       continue;
     }
     const Pose& pose = spec.poses.at(sequence);
@@ -155,47 +170,128 @@ Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
                                      revised.status().message());
     }
     reaching(*revised);
-    revisions[scan.log_sequence] = Revision{false, pose};
+    out->own[scan.log_sequence] = Revision{false, pose};
   }
-  // Partitions a revised scan now reaches get owners before the entry is read.
-  for (PartitionKey p : touched) {
-    if (Status s = members_->AddPartition(p); !s.ok()) return Status::IoError(s.message());
+  for (const auto& [entry, revision] : out->own) out->all.insert_or_assign(entry, revision);
+  return out;
+}
+
+Status ClusterNode::GrowAffected(uint64_t first, uint64_t last, const Admitted& admitted,
+                                 Resolved* resolved, const std::string& own_payload,
+                                 Interleaved* seen) const {
+  if (first > last) return Status::Ok();
+  Status read =
+      ReadLogRange(*nats_, first, last, /*headers_only=*/false, [&](uint64_t entry, natsMsg* msg) {
+        // The entries the replicas integrate, judged as they judge them (Dispatch).
+        if (!VerifyEntry(*trust_, msg, /*headers_only=*/false).ok()) return;
+        Result<LogEntryHeader> h = ReadEntryHeader(msg);
+        if (!h.ok()) return;
+        if (h->kind == LogEntryHeader::Kind::kCorrect && seen != nullptr) {
+          const std::string_view payload(natsMsg_GetData(msg),
+                                         static_cast<size_t>(natsMsg_GetDataLength(msg)));
+          if (payload == own_payload && seen->own == 0) {
+            seen->own = entry;
+          } else {
+            seen->other = true;
+          }
+        }
+        if (!admitted(entry, *h)) return;
+        auto r = resolved->all.find(entry);
+        if (r != resolved->all.end() && r->second.removed) return;  // no record any more
+        v1::Scan scan;
+        PreparedScan prepared;
+        if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg)) ||
+            !prepare_(scan, r != resolved->all.end() ? &r->second.pose : nullptr, &prepared).ok()) {
+          return;  // skipped by every replica too
+        }
+        resolved->affected.Add(prepared, resolved->own.contains(entry));
+      });
+  if (!read.ok()) return Status::IoError(read.message());
+  return Status::Ok();
+}
+
+Result<CorrectionOutcome> ClusterNode::Correct(const CorrectionSpec& spec) {
+  const auto start = std::chrono::steady_clock::now();
+  // Resolved again from the start when another correction is appended meanwhile.
+  for (int attempt = 0; attempt < kCorrectionAttempts; ++attempt) {
+    Result<std::unique_ptr<Resolved>> resolved = Resolve(spec);
+    if (!resolved.ok()) return resolved.status();
+    Resolved& r = **resolved;
+    // The single server's affected tiles: its re-integration's, from the first revised scan on.
+    const std::vector<uint64_t>& admitted = r.index.admitted;
+    Status grown = GrowAffected(
+        r.own.begin()->first, r.last,
+        [&](uint64_t entry, const LogEntryHeader&) {
+          return std::binary_search(admitted.begin(), admitted.end(), entry);
+        },
+        &r, "", nullptr);
+    if (!grown.ok()) return grown;
+    // Partitions a revised scan now reaches get owners before the entry is read.
+    for (PartitionKey p : r.touched) {
+      if (Status s = members_->AddPartition(p); !s.ok()) return Status::IoError(s.message());
+    }
+    for (Interleaved seen; !seen.other;) {
+      const std::string payload = EncodeCorrection(r.own, r.affected.tiles());
+      Result<std::optional<uint64_t>> at =
+          AppendCorrection(*nats_, *trust_, spec.robot_id, payload,
+                           {r.touched.begin(), r.touched.end()}, r.changes, r.last);
+      if (!at.ok()) return Status::IoError(at.status().message());
+      std::optional<uint64_t> stored = *at;
+      if (!stored) {
+        // Entries were appended since: the affected tiles grow over them, in the log's order.
+        Result<uint64_t> last = LastSequence(*nats_);
+        if (!last.ok()) return Status::IoError(last.status().message());
+        grown = GrowAffected(
+            r.last + 1, *last,
+            [&](uint64_t, const LogEntryHeader& h) { return r.index.judge.Admits(h); }, &r, payload,
+            &seen);
+        if (!grown.ok()) return grown;
+        spdlog::info("event=correction_log_grew from={} to={}", r.last, *last);
+        r.last = *last;
+        if (seen.own != 0) stored = seen.own;  // in the log already: applied as it is
+      }
+      if (stored) {
+        CorrectionOutcome outcome;
+        outcome.version = *stored;
+        outcome.scans_revised = r.own.size();
+        outcome.records_in_history = *stored - 1;  // every partition it touches replays them all
+        outcome.records_replayed = *stored - 1;
+        outcome.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return outcome;
+      }
+    }
   }
-  Result<uint64_t> at =
-      AppendCorrection(*nats_, *trust_, spec.robot_id, EncodeCorrection(revisions),
-                       {touched.begin(), touched.end()}, changes);
-  if (!at.ok()) return Status::IoError(at.status().message());
-  CorrectionOutcome outcome;
-  outcome.version = *at;
-  outcome.scans_revised = revisions.size();
-  outcome.records_in_history = *at - 1;  // every partition it touches replays them all
-  outcome.records_replayed = *at - 1;
-  outcome.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return outcome;
+  return Status::Unavailable(
+      "other corrections kept being appended while this one was resolved; "
+      "send it again");
 }
 
 void ClusterNode::ApplyCorrection(uint64_t sequence, const LogEntryHeader& header,
+                                  const std::vector<TileKey>& affected,
                                   const std::vector<std::shared_ptr<PartitionReplica>>& to) {
   std::vector<std::shared_ptr<PartitionReplica>> rebuilt;
   for (const auto& r : to) {
     if (std::binary_search(header.touched.begin(), header.touched.end(), r->key())) {
       rebuilt.push_back(r);
     } else {
-      r->Apply(sequence, nullptr);
+      // Its cells do not change, but a single server stamps the affected tiles it holds.
+      r->ApplyStamp(sequence, affected);
     }
   }
   if (rebuilt.empty()) return;
-  if (Status s = RebuildAt(sequence, rebuilt); !s.ok()) {
+  if (Status s = RebuildAt(sequence, rebuilt, affected); !s.ok()) {
     // The partitions keep their tiles without the correction: said loudly, since they now
     // differ from a single server's map (a trimmed log, or a log that cannot be read).
     spdlog::error("event=correction_not_applied sequence={} partitions={} reason=\"{}\"", sequence,
                   rebuilt.size(), s.message());
-    for (const auto& r : rebuilt) r->Apply(sequence, nullptr);
+    for (const auto& r : rebuilt) r->ApplyStamp(sequence, affected);
   }
 }
 
 Status ClusterNode::RebuildAt(uint64_t sequence,
-                              const std::vector<std::shared_ptr<PartitionReplica>>& replicas) {
+                              const std::vector<std::shared_ptr<PartitionReplica>>& replicas,
+                              const std::vector<TileKey>& affected) {
   const auto start = std::chrono::steady_clock::now();
   // The revisions in force at the entry: its own and every earlier correction's.
   Result<LogIndex> index = IndexLog(*nats_, *trust_, rule_, "", sequence);
@@ -216,7 +312,9 @@ Status ClusterNode::RebuildAt(uint64_t sequence,
         [&](uint64_t entry, natsMsg* msg) { Dispatch(entry, msg, copies, &*revisions); });
     if (!read.ok()) return read;
   }
-  for (size_t i = 0; i < replicas.size(); ++i) replicas[i]->AdoptRebuilt(*copies[i], sequence);
+  for (size_t i = 0; i < replicas.size(); ++i) {
+    replicas[i]->AdoptRebuilt(*copies[i], sequence, affected);
+  }
   spdlog::info(
       "event=partitions_rebuilt sequence={} partitions={} revisions={} entries_replayed={} "
       "seconds={:.3f}",

@@ -24,6 +24,8 @@ constexpr const char* kTimeHeader = "Bgkmap-Time";
 constexpr const char* kDigestHeader = "Bgkmap-Digest";
 constexpr const char* kMacHeader = "Bgkmap-Mac";
 constexpr const char* kMsgIdHeader = "Nats-Msg-Id";  // set by nats.c from jsPubOptions.MsgId
+// Append's refusal when the log is past the expected last sequence.
+constexpr const char* kLogGrew = "the log grew past the expected entry";
 // How long an append or a read of the log's end waits out a stream leader's election.
 constexpr int64_t kElectionMs = 10000;
 
@@ -93,10 +95,11 @@ std::string EntryMac(const ClusterTrust& trust, std::string_view subject, std::s
       {"bgkmap-log-1", subject, msg_id, time, robot, sequence, partitions, cells, digest});
 }
 
+// `after` (not 0): stored only as entry `after` + 1, else FailedPrecondition kLogGrew.
 Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const char* subject,
                         const std::string& payload, const std::vector<PartitionKey>& touched,
                         const CellBox& changes, const RobotHeaders* robot,
-                        const std::string& msg_id) {
+                        const std::string& msg_id, uint64_t after = 0) {
   natsMsg* raw = nullptr;
   natsStatus st =
       natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
@@ -141,15 +144,20 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
   jsPubOptions_Init(&po);
   if (!msg_id.empty()) po.MsgId = msg_id.c_str();
   po.ExpectStream = kLogStream;
+  po.ExpectLastSeq = after;  // 0: no expectation
   jsPubAck* ack_raw = nullptr;
   jsErrCode jerr = static_cast<jsErrCode>(0);
+  bool grew = false;
   st = RetryWhileElecting(
       [&] {
         jerr = static_cast<jsErrCode>(0);
-        return js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
+        const natsStatus s = js_PublishMsg(&ack_raw, nats.jetstream(), msg.get(), &po, &jerr);
+        grew = after != 0 && jerr == JSStreamWrongLastSequenceErr;
+        return grew ? NATS_NOT_FOUND : s;  // an answer, not a failure to get one: no retry
       },
       kElectionMs);
   NatsPtr<jsPubAck> ack(ack_raw);
+  if (grew) return Status::FailedPrecondition(kLogGrew);
   if (st != NATS_OK) {
     // Whatever the cause, the client may send it again.
     return Status::Unavailable(
@@ -219,14 +227,30 @@ Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust)
   return a->sequence;
 }
 
-Result<uint64_t> AppendCorrection(const NatsClient& nats, const ClusterTrust& trust,
-                                  const std::string& robot_id, const std::string& payload,
-                                  const std::vector<PartitionKey>& touched,
-                                  const CellBox& changes) {
+Result<std::optional<uint64_t>> AppendCorrection(const NatsClient& nats, const ClusterTrust& trust,
+                                                 const std::string& robot_id,
+                                                 const std::string& payload,
+                                                 const std::vector<PartitionKey>& touched,
+                                                 const CellBox& changes, uint64_t after) {
   Result<std::string> id = RandomMessageId("correct/");
   if (!id.ok()) return id.status();
   const RobotHeaders robot{robot_id, std::nullopt};
-  Result<Appended> a = Append(nats, trust, kCorrectSubject, payload, touched, changes, &robot, *id);
+  // (A publish nats.c retries through an election after the first try was stored is answered
+  // as a duplicate by its message id where JetStream checks that first, else refused for the
+  // sequence: the caller then finds its own payload among the new entries.)
+  Result<Appended> a =
+      Append(nats, trust, kCorrectSubject, payload, touched, changes, &robot, *id, after);
+  if (!a.ok() && a.status().message() == kLogGrew) return std::optional<uint64_t>();
+  if (!a.ok()) return a.status();
+  return std::optional<uint64_t>(a->sequence);
+}
+
+Result<uint64_t> AppendRefusal(const NatsClient& nats, const ClusterTrust& trust,
+                               const std::string& robot_id) {
+  Result<std::string> id = RandomMessageId("refused/");
+  if (!id.ok()) return id.status();
+  const RobotHeaders robot{robot_id, std::nullopt};
+  Result<Appended> a = Append(nats, trust, kRefusedSubject, "", {}, CellBox{}, &robot, *id);
   if (!a.ok()) return a.status();
   return a->sequence;
 }
@@ -411,12 +435,15 @@ Result<LogEntryHeader> ReadEntryHeader(natsMsg* msg) {
            : subject == kRetireSubject  ? LogEntryHeader::Kind::kRetire
            : subject == kExportSubject  ? LogEntryHeader::Kind::kExport
            : subject == kCorrectSubject ? LogEntryHeader::Kind::kCorrect
+           : subject == kRefusedSubject ? LogEntryHeader::Kind::kRefused
                                         : LogEntryHeader::Kind::kScan;
   const bool scan = h.kind == LogEntryHeader::Kind::kScan;
-  const bool robot_entry =
-      scan || h.kind == LogEntryHeader::Kind::kRetire || h.kind == LogEntryHeader::Kind::kCorrect;
-  const bool no_partition =
-      h.kind == LogEntryHeader::Kind::kRetire || h.kind == LogEntryHeader::Kind::kExport;
+  const bool robot_entry = scan || h.kind == LogEntryHeader::Kind::kRetire ||
+                           h.kind == LogEntryHeader::Kind::kCorrect ||
+                           h.kind == LogEntryHeader::Kind::kRefused;
+  const bool no_partition = h.kind == LogEntryHeader::Kind::kRetire ||
+                            h.kind == LogEntryHeader::Kind::kExport ||
+                            h.kind == LogEntryHeader::Kind::kRefused;
   if ((natsMsgHeader_Get(msg, kTouchedHeader, &touched) != NATS_OK && !no_partition) ||
       (robot_entry && natsMsgHeader_Get(msg, kRobotHeader, &robot) != NATS_OK) ||
       (scan && natsMsgHeader_Get(msg, kSequenceHeader, &sequence) != NATS_OK)) {

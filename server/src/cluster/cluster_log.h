@@ -49,6 +49,10 @@ inline constexpr const char* kExportSubject = "bgkmap.log.export";
 // revised scans by their log sequences; the robot in its headers, the partitions whose halos
 // the scans meet before or after the revision (cluster_corrections.cc).
 inline constexpr const char* kCorrectSubject = "bgkmap.log.correct";
+// A pose correction or a removal a shard refused (the call answered with an error): no payload,
+// the robot in its headers; it changes nothing, and every node's robot ledger counts it, as a
+// single server counts the corrections it refuses (Info's corrections.failed).
+inline constexpr const char* kRefusedSubject = "bgkmap.log.refused";
 
 struct LogStreamOptions {
   int replicas = 1;               // cluster.replicas: JetStream copies of the log (3 in production)
@@ -91,10 +95,19 @@ Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
 // Appends an export's snapshot point (kExportSubject).
 Result<uint64_t> AppendExport(const NatsClient& nats, const ClusterTrust& trust);
 
-// Appends a correction of `robot_id`'s scans (kCorrectSubject; `payload` a v1::LogCorrection).
-Result<uint64_t> AppendCorrection(const NatsClient& nats, const ClusterTrust& trust,
-                                  const std::string& robot_id, const std::string& payload,
-                                  const std::vector<PartitionKey>& touched, const CellBox& changes);
+// Appends a correction of `robot_id`'s scans (kCorrectSubject; `payload` a v1::LogCorrection)
+// as entry `after` + 1 only (JetStream's expected last sequence): its payload was computed from
+// the entries up to `after`. nullopt, nothing stored, when the log has grown past `after`
+// meanwhile (the caller reads the new entries and tries again).
+Result<std::optional<uint64_t>> AppendCorrection(const NatsClient& nats, const ClusterTrust& trust,
+                                                 const std::string& robot_id,
+                                                 const std::string& payload,
+                                                 const std::vector<PartitionKey>& touched,
+                                                 const CellBox& changes, uint64_t after);
+
+// Appends the refusal of a correction of `robot_id`'s scans (kRefusedSubject).
+Result<uint64_t> AppendRefusal(const NatsClient& nats, const ClusterTrust& trust,
+                               const std::string& robot_id);
 
 // Entry `sequence` of the log, whole, read by its sequence (not through a reader), verified as
 // VerifyEntry verifies: FailedPrecondition if it was not appended by a shard with the key,
@@ -132,8 +145,9 @@ Result<uint64_t> FirstSequence(const NatsClient& nats);
 Status TrimLog(const NatsClient& nats, uint64_t keep_from);
 
 struct LogEntryHeader {
-  enum class Kind { kScan, kClear, kImport, kRetire, kExport, kCorrect };
-  // Clears and imports have no robot; a retirement and a correction no robot_sequence.
+  enum class Kind { kScan, kClear, kImport, kRetire, kExport, kCorrect, kRefused };
+  // Clears and imports have no robot; a retirement, a correction and a refusal no
+  // robot_sequence.
   Kind kind = Kind::kScan;
   std::string robot_id;
   uint64_t robot_sequence = 0;

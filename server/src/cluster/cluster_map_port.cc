@@ -17,6 +17,9 @@ namespace {
 // server's death the ledger's reader waits too (16-21 s measured on 2 loaded cores); the robot
 // would otherwise hear UNAVAILABLE for a scan the log has stored.
 constexpr int64_t kVerdictWaitMs = 60000;
+// How long Info waits for the ledger to read the log's last entry before it answers with the
+// ledger's counts as they are (a ledger behind an election).
+constexpr int64_t kLedgerWaitMs = 5000;
 
 }  // namespace
 
@@ -184,12 +187,23 @@ void ClusterNode::SubmitCorrection(CorrectionSpec spec,
   // Reads the log (its headers, the named scans) and appends one entry (cluster_corrections.cc):
   // on a worker. Answered once the log stores the entry, as a clear is; queries then read the
   // rebuilt partitions (an owner answers once it has applied the entry).
+  ++corrections_in_progress_;
   Post([this, spec = std::move(spec), done = std::move(done)] {
     Result<CorrectionOutcome> outcome = Correct(spec);
+    --corrections_in_progress_;
     if (outcome.ok()) {
       ledger_->WaitRead(outcome->version, kVerdictWaitMs);
+      last_correction_seconds_ = outcome->seconds;
       done(std::move(outcome).value());
       return;
+    }
+    // Counted by every shard's ledger, as a single server counts the corrections it refuses.
+    Result<uint64_t> recorded = AppendRefusal(*nats_, *trust_, spec.robot_id);
+    if (recorded.ok()) {
+      ledger_->WaitRead(*recorded, kVerdictWaitMs);
+    } else {
+      spdlog::warn("event=correction_refusal_not_recorded reason=\"{}\"",
+                   recorded.status().message());
     }
     CorrectionOutcome refused;
     refused.status = outcome.status();
@@ -236,6 +250,10 @@ MapState ClusterNode::State(bool /*with_disk_usage*/) {
   state.version = known_version();
   state.robots = Robots();
   state.scans_applied = ledger_->scans_admitted();
+  // The cluster's corrections from the log; those running and the last one's time this shard's.
+  state.corrections = ledger_->corrections();
+  state.corrections.in_progress = corrections_in_progress_.load();
+  state.corrections.last_seconds = last_correction_seconds_.load();
   {
     std::lock_guard lock(summary_mu_);
     state.summary = summary_;
@@ -263,6 +281,8 @@ void ClusterNode::ReadVersion(std::function<void(uint64_t)> done) {
   // reports with the version): not on the caller's (gRPC's) thread.
   Post([this, done = std::move(done)] {
     const uint64_t version = applied_version();
+    // The ledger's counts (robots, scans, corrections) as of at least the same entry.
+    ledger_->WaitRead(version, kLedgerWaitMs);
     Result<MapSummary> summary = reads_->Summarize(version);
     if (summary.ok()) {
       std::lock_guard lock(summary_mu_);

@@ -607,14 +607,23 @@ void ClusterNode::DispatchChange(uint64_t sequence, natsMsg* msg, const LogEntry
       box = {{cells.min_x(), cells.min_y()}, {cells.max_x(), cells.max_y()}};
     }
     for (const auto& r : to) r->ApplyClear(sequence, box);
+  } else if (header.kind == Kind::kCorrect) {
+    const std::vector<TileKey> affected = CorrectionAffected(
+        std::string_view(natsMsg_GetData(msg), static_cast<size_t>(natsMsg_GetDataLength(msg))));
+    if (revisions != nullptr) {
+      // A rebuild's replay: an earlier correction's revisions are in `revisions` already; its
+      // stamps are given again.
+      for (const auto& r : to) r->ApplyStamp(sequence, affected);
+    } else {
+      ApplyCorrection(sequence, header, affected, to);
+    }
   } else if (revisions != nullptr) {
-    // A rebuild's replay: an earlier correction is in `revisions` already, and an export's
-    // copies were taken when it was first read.
+    // A rebuild's replay: an export's copies were taken when it was first read.
     for (const auto& r : to) r->Apply(sequence, nullptr);
   } else if (header.kind == Kind::kExport) {
     for (const auto& r : to) r->ApplyExport(sequence);
-  } else if (header.kind == Kind::kCorrect) {
-    ApplyCorrection(sequence, header, to);
+  } else {
+    for (const auto& r : to) r->Apply(sequence, nullptr);  // a refusal: nothing changes
   }
 }
 

@@ -199,18 +199,43 @@ class ClusterNode final : public MapPort {
                       const Revisions* revisions);
   // ---- Corrections (cluster_corrections.cc).
   // CorrectPoses / RemoveScans: resolves the robot's scans against the log as a single server
-  // resolves them against its retained log (the same refusals), and appends one entry.
+  // resolves them against its retained log (the same refusals), and appends one entry naming
+  // them and the tiles a single server's re-integration affects (storage::AffectedTiles): the
+  // entry is appended right after the last entry those tiles were grown over (JetStream's
+  // expected last sequence), or they grow over the new entries and it is tried again.
   Result<CorrectionOutcome> Correct(const CorrectionSpec& spec);
+  struct Resolved;
+  // The named scans, their revisions, partitions and the affected tiles' seed, as of the log's
+  // last entry now.
+  Result<std::unique_ptr<Resolved>> Resolve(const CorrectionSpec& spec);
+  // Whether entry `sequence` (its verified header) is a scan the robot rule admits, asked in
+  // the log's order.
+  using Admitted = std::function<bool(uint64_t sequence, const LogEntryHeader& header)>;
+  // Correction entries among those GrowAffected read.
+  struct Interleaved {
+    // This call's own entry (the payload it appends), stored by a publish that nats.c retried
+    // through an election and that was then refused for the sequence it expected.
+    uint64_t own = 0;
+    bool other = false;  // another correction
+  };
+  // Grows `resolved`'s affected tiles over the log's entries first..last; fills `*seen` (if not
+  // null) with the correction entries among them, `own_payload` telling this call's own.
+  Status GrowAffected(uint64_t first, uint64_t last, const Admitted& admitted, Resolved* resolved,
+                      const std::string& own_payload, Interleaved* seen) const;
+  static constexpr int kCorrectionAttempts = 4;
   // Entry `log_sequence`, a scan, prepared again (with `pose` instead of its own, if not null).
   Result<PreparedScan> PrepareLogged(uint64_t log_sequence, const Pose* pose) const;
   // Correction entry `sequence`: the replicas of `to` whose partition it touches are rebuilt
-  // (RebuildAt); the others pass it.
+  // (RebuildAt); the others stamp the `affected` tiles they hold.
   void ApplyCorrection(uint64_t sequence, const LogEntryHeader& header,
+                       const std::vector<TileKey>& affected,
                        const std::vector<std::shared_ptr<PartitionReplica>>& to);
   // Replays the log's entries before `sequence` into fresh copies of `replicas` with the
-  // revisions in force at `sequence`, then switches each replica to its copy at `sequence`.
+  // revisions in force at `sequence`, then switches each replica to its copy at `sequence`,
+  // the `affected` tiles stamped with it.
   Status RebuildAt(uint64_t sequence,
-                   const std::vector<std::shared_ptr<PartitionReplica>>& replicas);
+                   const std::vector<std::shared_ptr<PartitionReplica>>& replicas,
+                   const std::vector<TileKey>& affected);
   // Copies the owned partitions of `to` that are due (cluster.checkpoint_scans) for the writer.
   void QueueCheckpoints(const std::vector<std::shared_ptr<PartitionReplica>>& to);
   void WriteCheckpoints();  // the checkpoint writer's loop
@@ -259,6 +284,9 @@ class ClusterNode final : public MapPort {
   std::mutex tasks_mu_;
   std::condition_variable tasks_cv_;
   size_t tasks_ = 0;  // posted to the executor, not yet run or dropped; guarded by tasks_mu_
+  // Corrections this shard is resolving now, and the time of the last one it answered (Info).
+  std::atomic<uint64_t> corrections_in_progress_{0};
+  std::atomic<double> last_correction_seconds_{0};
   std::unique_ptr<LogChangeFeed> feed_;  // uses nats_, trust_ and layout_
 };
 

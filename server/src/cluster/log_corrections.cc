@@ -2,12 +2,19 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "bgkmap/v1/cluster.pb.h"
 
 namespace bgkmap::cluster {
 
-std::string EncodeCorrection(const Revisions& revisions) {
+std::string EncodeCorrection(const Revisions& revisions, const std::set<TileKey>& affected) {
   v1::LogCorrection out;
+  for (TileKey k : affected) {
+    v1::TileKey* key = out.add_affected();
+    key->set_x(k.x);
+    key->set_y(k.y);
+  }
   for (const auto& [sequence, r] : revisions) {
     if (r.removed) {
       out.add_removed(sequence);
@@ -21,6 +28,29 @@ std::string EncodeCorrection(const Revisions& revisions) {
     for (int i = 0; i < 3; ++i) revised->add_pose(r.pose.translation(i));
   }
   return out.SerializeAsString();
+}
+
+std::vector<TileKey> CorrectionAffected(std::string_view payload) {
+  v1::LogCorrection in;
+  std::vector<TileKey> out;
+  if (!in.ParseFromArray(payload.data(), static_cast<int>(payload.size()))) return out;
+  out.reserve(static_cast<size_t>(in.affected_size()));
+  for (const v1::TileKey& k : in.affected()) out.push_back({k.x(), k.y()});
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+bool LogJudge::Admits(const LogEntryHeader& h) {
+  if (h.kind == LogEntryHeader::Kind::kRetire) robots_.erase(h.robot_id);
+  if (h.kind != LogEntryHeader::Kind::kScan) return false;
+  auto it = robots_.find(h.robot_id);
+  const std::optional<uint64_t> previous =
+      it == robots_.end() ? std::nullopt : std::optional<uint64_t>(it->second);
+  if (rule_.Judge(previous, h.robot_sequence, robots_.size()) != RobotAdmission::kAdmitted) {
+    return false;
+  }
+  robots_[h.robot_id] = h.robot_sequence;
+  return true;
 }
 
 Status MergeCorrection(const std::string& payload, Revisions* into) {
@@ -45,29 +75,18 @@ Status MergeCorrection(const std::string& payload, Revisions* into) {
 
 Result<LogIndex> IndexLog(const NatsClient& nats, const ClusterTrust& trust, RobotSequenceRule rule,
                           const std::string& robot_id, uint64_t last) {
-  LogIndex index;
-  std::map<std::string, uint64_t> robots;  // last admitted sequence, as the replicas keep it
+  LogIndex index(rule);
   Status read =
       ReadLogRange(nats, 1, last, /*headers_only=*/true, [&](uint64_t entry, natsMsg* msg) {
         if (!VerifyEntry(trust, msg, /*headers_only=*/true).ok()) return;
         Result<LogEntryHeader> h = ReadEntryHeader(msg);
         if (!h.ok()) return;
-        if (h->kind == LogEntryHeader::Kind::kCorrect) {
-          index.corrections.push_back(entry);
-        } else if (h->kind == LogEntryHeader::Kind::kRetire) {
-          robots.erase(h->robot_id);
-        } else if (h->kind == LogEntryHeader::Kind::kScan) {
-          auto it = robots.find(h->robot_id);
-          const std::optional<uint64_t> previous =
-              it == robots.end() ? std::nullopt : std::optional<uint64_t>(it->second);
-          if (rule.Judge(previous, h->robot_sequence, robots.size()) != RobotAdmission::kAdmitted) {
-            return;
-          }
-          robots[h->robot_id] = h->robot_sequence;
-          if (h->robot_id == robot_id) {
-            index.scans.emplace(h->robot_sequence,
-                                LoggedScan{h->robot_sequence, entry, h->touched, h->changes});
-          }
+        if (h->kind == LogEntryHeader::Kind::kCorrect) index.corrections.push_back(entry);
+        if (!index.judge.Admits(*h)) return;
+        index.admitted.push_back(entry);
+        if (h->robot_id == robot_id) {
+          index.scans.emplace(h->robot_sequence,
+                              LoggedScan{h->robot_sequence, entry, h->touched, h->changes});
         }
       });
   if (!read.ok()) return read;

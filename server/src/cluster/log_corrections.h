@@ -11,7 +11,9 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bgkmap/core/scan.h"
@@ -30,8 +32,11 @@ struct Revision {
 // By the revised scan's log sequence.
 using Revisions = std::map<uint64_t, Revision>;
 
-// A v1::LogCorrection of `revisions` (bit for bit: poses as doubles).
-std::string EncodeCorrection(const Revisions& revisions);
+// A v1::LogCorrection of `revisions` (bit for bit: poses as doubles) and the tiles it affects
+// (`affected`, sorted: storage::AffectedTiles).
+std::string EncodeCorrection(const Revisions& revisions, const std::set<TileKey>& affected);
+// The tiles correction entry `payload` affects, sorted (none if it does not decode).
+std::vector<TileKey> CorrectionAffected(std::string_view payload);
 // Merges correction entry `payload` into `into` (a removal is kept over a later pose).
 // DataLoss if it does not decode.
 Status MergeCorrection(const std::string& payload, Revisions* into);
@@ -44,13 +49,29 @@ struct LoggedScan {
   CellBox changes;
 };
 
+// The robot-sequence rule over the log's entries in order, as every replica and the ledger
+// apply it (serving/robot_sequence.h): scans judged, retirements forgetting their robot.
+class LogJudge {
+ public:
+  explicit LogJudge(RobotSequenceRule rule) : rule_(rule) {}
+  // The next entry's verified header: whether it is a scan the rule admits.
+  bool Admits(const LogEntryHeader& header);
+
+ private:
+  RobotSequenceRule rule_;
+  std::map<std::string, uint64_t> robots_;  // last admitted sequence, as the replicas keep it
+};
+
 // What a headers-only pass over the log's entries 1..last finds.
 struct LogIndex {
+  explicit LogIndex(RobotSequenceRule rule) : judge(rule) {}
   std::vector<uint64_t> corrections;  // the correction entries' sequences, ascending
   // `robot_id`'s admitted scans (judged as every replica judges them: RobotSequenceRule,
   // retirements), by robot sequence; the first one of a sequence number (after a retirement the
   // robot's numbers start again).
   std::map<uint64_t, LoggedScan> scans;
+  std::vector<uint64_t> admitted;  // every robot's admitted scan entries, ascending
+  LogJudge judge;                  // as of entry `last`: judges the entries after it
 };
 
 // The headers-only pass (entries that fail their HMAC are passed, as the replicas pass them).

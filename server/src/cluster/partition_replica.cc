@@ -116,7 +116,8 @@ bool PartitionReplica::Admit(uint64_t /*sequence*/, const LogEntryHeader& header
   return revised || std::binary_search(header.touched.begin(), header.touched.end(), key_);
 }
 
-void PartitionReplica::AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence) {
+void PartitionReplica::AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence,
+                                    const std::vector<TileKey>& affected) {
   std::unique_ptr<TerrainMap> map;
   {
     std::unique_lock theirs(rebuilt.map_mu_);
@@ -124,8 +125,35 @@ void PartitionReplica::AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence
   }
   std::unique_lock map_lock(map_mu_);
   map_ = std::move(map);
+  StampLocked(sequence, affected);
   {
     // Under the map's lock: a reader sees the rebuilt tiles with the correction's sequence.
+    std::lock_guard progress(progress_mu_);
+    applied_ = sequence;
+    progress_cv_.notify_all();
+  }
+  map_lock.unlock();
+  if (!serving_ && sequence >= serve_from_) StartServing();
+}
+
+void PartitionReplica::StampLocked(uint64_t sequence, const std::vector<TileKey>& affected) {
+  const GridGeometry& g = layout_.geometry();
+  const TileKey lo = g.TileOf(halo_.min), hi = g.TileOf(halo_.max);
+  for (int x = lo.x; x <= hi.x; ++x) {
+    for (int y = lo.y; y <= hi.y; ++y) {
+      Tile* tile = map_->FindMutableTile({x, y});
+      if (tile != nullptr && std::binary_search(affected.begin(), affected.end(), TileKey{x, y})) {
+        tile->set_version(sequence);
+      }
+    }
+  }
+}
+
+void PartitionReplica::ApplyStamp(uint64_t sequence, const std::vector<TileKey>& affected) {
+  std::unique_lock map_lock(map_mu_);
+  StampLocked(sequence, affected);
+  {
+    // Under the map's lock: a reader sees the stamps with the entry's sequence.
     std::lock_guard progress(progress_mu_);
     applied_ = sequence;
     progress_cv_.notify_all();

@@ -84,9 +84,17 @@ class PartitionReplica {
   // Apply cuts it to the halo).
   bool Admit(uint64_t sequence, const LogEntryHeader& header, bool revised = false);
   // Switches to `rebuilt`'s tiles (a replay of the log before entry `sequence` with a
-  // correction's revisions, ClusterNode::RebuildAt) and applies entry `sequence`. The robots'
-  // sequences stay: a correction changes no admission.
-  void AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence);
+  // correction's revisions, ClusterNode::RebuildAt) and applies entry `sequence`, stamping the
+  // tiles of `affected` as ApplyStamp does. The robots' sequences stay: a correction changes no
+  // admission.
+  void AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence,
+                    const std::vector<TileKey>& affected);
+  // Applies entry `sequence`, a correction: the tiles of `affected` (sorted) this replica holds
+  // get `sequence` as their version, as a single server gives every tile its re-integration
+  // affects the correction's version. (A single server also makes an empty tile of an affected
+  // one the re-integration leaves without data; no replica does: an export skips empty tiles
+  // and Info counts tiles with data, so neither shows it.)
+  void ApplyStamp(uint64_t sequence, const std::vector<TileKey>& affected);
   // Applies entry `sequence`: integrates `prepared` (the whole scan; null: nothing here) cut to
   // the halo. Then serves, once caught up.
   void Apply(uint64_t sequence, const PreparedScan* prepared);
@@ -127,6 +135,8 @@ class PartitionReplica {
   // request.skip(), at most `budget` bytes.
   void ServeSnapshot(const v1::TileFetchRequest& request, TileKey lo, TileKey hi, int64_t budget,
                      v1::TileFetchReply* reply) const;
+  // ApplyStamp's stamps (map_mu_ held, exclusive).
+  void StampLocked(uint64_t sequence, const std::vector<TileKey>& affected);
   // Counts the partition's tiles with lo <= key <= hi into `out` (map_mu_ held, shared).
   void SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const;
 

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 
+#include "bgkmap/v1/cluster.pb.h"
+
 namespace bgkmap::cluster {
 
 RobotLedger::RobotLedger(const NatsClient& nats, const ClusterTrust& trust,
@@ -62,7 +64,17 @@ void RobotLedger::Read(uint64_t sequence, natsMsg* msg) {
   Result<LogEntryHeader> header = VerifyEntry(trust_, msg, /*headers_only=*/true).ok()
                                       ? ReadEntryHeader(msg)
                                       : Result<LogEntryHeader>(Status::FailedPrecondition(""));
+  // A correction's count of scans is in its payload (this reader reads headers only).
+  const uint64_t scans_revised =
+      header.ok() && header->kind == LogEntryHeader::Kind::kCorrect ? CorrectionScans(sequence) : 0;
   std::lock_guard lock(mu_);
+  if (header.ok() && header->kind == LogEntryHeader::Kind::kCorrect) {
+    ++corrections_.applied;
+    corrections_.scans_revised += scans_revised;
+    corrections_.records_replayed += sequence - 1;  // every partition it rebuilds replays them
+  } else if (header.ok() && header->kind == LogEntryHeader::Kind::kRefused) {
+    ++corrections_.failed;
+  }
   if (header.ok() && !header->robot_id.empty()) {
     auto epoch = retirements_.find(header->robot_id);
     verdict.epoch = epoch == retirements_.end() ? 0 : epoch->second;
@@ -101,6 +113,23 @@ void RobotLedger::Read(uint64_t sequence, natsMsg* msg) {
   while (verdicts_.size() > kKeptVerdicts) verdicts_.erase(verdicts_.begin());
   last_ = sequence;
   read_cv_.notify_all();
+}
+
+uint64_t RobotLedger::CorrectionScans(uint64_t sequence) const {
+  Result<NatsPtr<natsMsg>> msg = GetEntry(nats_, trust_, sequence);
+  v1::LogCorrection correction;
+  if (msg.ok() &&
+      correction.ParseFromArray(natsMsg_GetData(msg->get()), natsMsg_GetDataLength(msg->get()))) {
+    return static_cast<uint64_t>(correction.revised_size() + correction.removed_size());
+  }
+  spdlog::warn("event=robot_ledger_correction_unread sequence={} reason=\"{}\"", sequence,
+               msg.ok() ? "it does not decode" : msg.status().message());
+  return 0;
+}
+
+CorrectionStats RobotLedger::corrections() const {
+  std::lock_guard lock(mu_);
+  return corrections_;
 }
 
 Result<std::optional<LedgerVerdict>> RobotLedger::WaitVerdict(uint64_t sequence,

@@ -29,6 +29,7 @@
 #include "cluster/membership.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_checkpoint.h"
+#include "serving/correction_stats.h"
 #include "serving/robot_sequence.h"
 
 namespace bgkmap::cluster {
@@ -76,6 +77,12 @@ class RobotLedger {
   // Scans admitted since the ledger started (its log's start or checkpoint): the cluster's
   // scans applied, as a single server counts them since its start.
   uint64_t scans_admitted() const;
+  // The cluster's corrections as the log holds them (since the ledger's start, as a single
+  // server counts them since its start): correction entries (applied), the scans they name
+  // (scans_revised), the entries before each that its rebuilds replay (records_replayed) and
+  // the refusals shards recorded (failed, kRefusedSubject). No in_progress or last_seconds: a
+  // shard's own.
+  CorrectionStats corrections() const;
 
   static constexpr size_t kKeptVerdicts = 65536;
 
@@ -84,6 +91,8 @@ class RobotLedger {
   // Where to start: the log's first entry, or after a checkpoint's robot table when trimmed.
   uint64_t Seed();
   void Read(uint64_t sequence, natsMsg* msg);
+  // The scans correction entry `sequence` names (0, with a warning, if it cannot be read).
+  uint64_t CorrectionScans(uint64_t sequence) const;
 
   const NatsClient& nats_;
   const ClusterTrust& trust_;
@@ -95,6 +104,7 @@ class RobotLedger {
   mutable std::condition_variable read_cv_;
   uint64_t last_ = 0;
   uint64_t scans_admitted_ = 0;
+  CorrectionStats corrections_;
   std::vector<uint64_t> unchanged_;  // the entries that changed nothing, ascending
   uint64_t first_ = 1;               // the first entry the ledger reads
   std::map<std::string, RobotStats> robots_;

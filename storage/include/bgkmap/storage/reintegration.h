@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include "bgkmap/core/grid.h"
@@ -49,6 +50,23 @@ struct Reintegration {
   uint64_t records_in_history = 0;
   uint64_t records_replayed = 0;
   double seconds = 0;
+};
+
+// The forward half of the rule above: the affected tiles A, grown record by record in version
+// order from the first revised scan on. Shared with the cluster (docs/scale-out.md,
+// "Corrections are log entries"), whose shards stamp exactly these tiles with a correction's
+// version, as a single server's re-integration does.
+class AffectedTiles {
+ public:
+  // The revised scans' tiles as the log held them before the revision (`seed_tiles`).
+  void Seed(const std::vector<TileKey>& tiles) { tiles_.insert(tiles.begin(), tiles.end()); }
+  // The next scan record of the history (as the revisions make it; a removed scan is no record).
+  // `revised`: one of the correction's own revised scans.
+  void Add(const PreparedScan& scan, bool revised);
+  const std::set<TileKey>& tiles() const { return tiles_; }
+
+ private:
+  std::set<TileKey> tiles_;
 };
 
 // InvalidArgument if `base` is not retained or a replacement's version is not a scan record
