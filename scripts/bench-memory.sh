@@ -7,7 +7,8 @@
 # with the insert's wall rate. Each set runs with storage.dense_tiles_mb = 0 (every tile dense)
 # and with each DENSE_MB given, ROUNDS times alternating, on the same binary.
 #   scripts/bench-memory.sh [BUILD_DIR=build] [ROUNDS=1] [DENSE_MB...=64]
-# METHOD=bgk-ll runs the local-linear method instead of the robots' bgk+.
+# METHOD=bgk-ll runs the local-linear method instead of the robots' bgk+; SETS picks sequences
+# (default "kitti_raw_0048:car_kitti ouster_os1_128_street:car_ouster balm_hall:handheld_hall").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD="${1:-build}"
@@ -24,7 +25,8 @@ rss_kb() { awk '/^VmRSS:/ {print $2}' "/proc/$1/status"; }
 hwm_kb() { awk '/^VmHWM:/ {print $2}' "/proc/$1/status"; }
 metric() { curl -s "http://127.0.0.1:$HTTP/metrics" | awk -v k="$1" '$1 == k {print $2}'; }
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg); method $METHOD"
-for set in kitti_raw_0048:car_kitti ouster_os1_128_street:car_ouster balm_hall:handheld_hall; do
+SETS="${SETS:-kitti_raw_0048:car_kitti ouster_os1_128_street:car_ouster balm_hall:handheld_hall}"
+for set in $SETS; do
   input="$DATA/${set%%:*}"
   config="experiments/robots/${set##*:}.yaml"
   n=$(ls "$input/velodyne" | wc -l)
@@ -39,15 +41,19 @@ for set in kitti_raw_0048:car_kitti ouster_os1_128_street:car_ouster balm_hall:h
       for _ in $(seq 100); do (echo >"/dev/tcp/127.0.0.1/$HTTP") 2>/dev/null && break; sleep 0.1; done
       r0=$(rss_kb "$SERVER")
       t0=$(date +%s%N)
-      "$BUILD/tools/bgkmap/bgkmap" insert --server "127.0.0.1:$PORT" --robot r "$input" >/dev/null
+      "$BUILD/tools/bgkmap/bgkmap" insert --server "127.0.0.1:$PORT" --robot r "$input" \
+        >/dev/null 2>&1
       t1=$(date +%s%N)
-      # Packing runs on the eviction thread: wait until the tile memory stops changing.
+      # Packing runs on the eviction thread (at the latest every second): wait until the tile
+      # memory has not changed for 2 s.
       prev=-1
-      for _ in $(seq 100); do
+      same=0
+      for _ in $(seq 200); do
         b=$(metric bgkmap_map_tile_memory_bytes)
-        [ "$b" = "$prev" ] && break
+        if [ "$b" = "$prev" ]; then same=$((same + 1)); else same=0; fi
+        [ "$same" -ge 4 ] && break
         prev=$b
-        sleep 0.3
+        sleep 0.5
       done
       r1=$(rss_kb "$SERVER")
       hwm=$(hwm_kb "$SERVER")
