@@ -132,10 +132,17 @@ void MapMaintenance::EvictionLoop() {
     // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
     // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
     const ResidencyStats after = map_.Residency();
-    if (after.tiles_evicted != before.tiles_evicted || after.tiles_packed != before.tiles_packed) {
-      malloc_trim(0);
-    }
+    const bool freed =
+        after.tiles_evicted != before.tiles_evicted || after.tiles_packed != before.tiles_packed;
+    if (freed) malloc_trim(0);
     lock.lock();
+    // Over the dense budget with only tiles in use (or used within the last second) dense: a
+    // pass walks every tile under the residency's lock, which each pin waits for; requests
+    // that come every scan are served at most every kIdlePassGap, not after every scan.
+    if (!freed) {
+      constexpr auto kIdlePassGap = std::chrono::milliseconds(250);
+      cv_.wait_for(lock, kIdlePassGap, [this] { return stopping_; });
+    }
     if (held > limit && !eviction_requested_) {
       // Still over (tiles in use or the checkpoint gap): look again soon.
       lock.unlock();

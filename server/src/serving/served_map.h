@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <boost/asio/thread_pool.hpp>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -55,6 +56,8 @@ struct ServedMapOptions {
   // Dense tiles beyond this are packed, least recently used first (storage.dense_tiles_mb;
   // 0: never packed).
   uint64_t dense_tile_limit_bytes = 0;
+  // Tiles used more recently than this are not packed (TileResidency).
+  std::chrono::milliseconds pack_after_idle = std::chrono::seconds(1);
   // Called (from a worker, without locks held) when tiles in memory exceed the limit, or the
   // dense ones theirs.
   std::function<void()> on_over_memory;

@@ -35,11 +35,12 @@ void TileResidency::Pins::Release() {
 
 TileResidency::TileResidency(TileTable& table, const StoredTiles& backing, bool persists,
                              uint64_t memory_limit_bytes, std::function<void()> on_over_limit,
-                             uint64_t dense_limit_bytes)
+                             uint64_t dense_limit_bytes, std::chrono::milliseconds pack_after_idle)
     : table_(table),
       backing_(backing),
       persists_(persists),
       dense_limit_bytes_(dense_limit_bytes),
+      pack_after_idle_(pack_after_idle),
       tracks_(persists || dense_limit_bytes > 0),
       memory_limit_bytes_(persists ? memory_limit_bytes : 0),
       on_over_limit_(std::move(on_over_limit)) {}
@@ -62,12 +63,14 @@ Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool s
   Pins pins;
   if (!tracks_) return pins;  // everything is in memory and dense
   {
+    const auto at = std::chrono::steady_clock::now();
     std::lock_guard lock(mu_);
     const uint64_t now = ++use_clock_;
     for (TileKey k : keys) {
       Use& u = uses_[k];
       ++u.pins;
       u.last_use = now;
+      u.used_at = at;
     }
   }
   pins.owner_ = this;
@@ -121,6 +124,7 @@ void TileResidency::Unpin(const std::vector<TileKey>& keys) {
 
 TileResidency::Candidates TileResidency::CollectLocked() {
   const uint64_t durable = persists_ ? backing_.durable_version() : 0;
+  const auto idle_since = std::chrono::steady_clock::now() - pack_after_idle_;
   Candidates out;
   std::unordered_map<TileKey, Use, TileKeyHash> kept;
   table_.ForEachResident([&](const TileTable::ResidentTile& t) {
@@ -129,7 +133,8 @@ TileResidency::Candidates TileResidency::CollectLocked() {
     if (it != uses_.end()) kept.emplace(t.key, it->second);
     if (pinned) return;  // in use
     const uint64_t last_use = it == uses_.end() ? 0 : it->second.last_use;
-    if (!t.packed) out.dense.emplace_back(last_use, t.key);
+    const bool idle = it == uses_.end() || it->second.used_at <= idle_since;
+    if (!t.packed && idle) out.dense.emplace_back(last_use, t.key);
     // Changed since the last checkpoint: not evictable.
     if (persists_ && t.version <= durable) out.clean.emplace_back(last_use, t.key, t.bytes);
   });

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <mutex>
@@ -43,13 +44,16 @@ class TileResidency {
     std::vector<TileKey> keys_;
   };
 
-  // `persists`: the backing holds tiles (else nothing is evicted). When the tiles in memory
-  // exceed `memory_limit_bytes` (0: never; only when persisting), or the dense ones
+  // `pack_after_idle`: a tile used more recently than this is not packed even over the dense
+  // budget (the tiles the robots are working in: packing them would only have the next scan
+  // unpack them again). `persists`: the backing holds tiles (else nothing is evicted). When the
+  // tiles in memory exceed `memory_limit_bytes` (0: never; only when persisting), or the dense ones
   // `dense_limit_bytes` (0: tiles are never packed), `on_over_limit` is called (from the thread
   // that crossed it, without locks held) so that someone calls Evict().
   TileResidency(TileTable& table, const StoredTiles& backing, bool persists,
                 uint64_t memory_limit_bytes, std::function<void()> on_over_limit,
-                uint64_t dense_limit_bytes = 0);
+                uint64_t dense_limit_bytes = 0,
+                std::chrono::milliseconds pack_after_idle = std::chrono::seconds(1));
 
   // Pins `keys` (sorted, unique) and loads the stored ones not in memory: IoError if the store
   // cannot be read. `strict`: a stored tile failing its checksum is DataLoss naming it (readers);
@@ -62,7 +66,8 @@ class TileResidency {
   // The keys in [min, max] in memory or stored (sorted, unique).
   std::vector<TileKey> KeysIn(TileKey min, TileKey max) const;
 
-  // Packs unpinned dense tiles, least recently used first, until the dense ones take at most
+  // Packs unpinned dense tiles idle for `pack_after_idle`, least recently used first, until the
+  // dense ones take at most
   // 80% of the dense budget (in batches, not after every scan) if they exceed it; then drops
   // clean, unpinned tiles, least recently used first, until the tiles in memory take at most
   // `target_bytes` (a map that persists). Returns the bytes still held. Tiles changed since the
@@ -76,6 +81,7 @@ class TileResidency {
   struct Use {
     uint32_t pins = 0;
     uint64_t last_use = 0;
+    std::chrono::steady_clock::time_point used_at;
   };
   void Unpin(const std::vector<TileKey>& keys);
   // With mu_ held: uses_ kept to the tiles in memory or pinned; the unpinned tiles in memory,
@@ -93,6 +99,7 @@ class TileResidency {
   const StoredTiles& backing_;
   const bool persists_;
   const uint64_t dense_limit_bytes_;
+  const std::chrono::milliseconds pack_after_idle_;
   const bool tracks_;  // pins are counted: the map persists or packs
   const uint64_t memory_limit_bytes_;
   const std::function<void()> on_over_limit_;

@@ -27,6 +27,7 @@ struct Served {
     ServedMapOptions o;
     o.max_robots = 16;
     o.dense_tile_limit_bytes = dense_limit;
+    o.pack_after_idle = std::chrono::milliseconds(0);  // pack right after use
     return o;
   }
   void Scan(uint64_t sequence, float cx, float cy, float z) {
@@ -137,7 +138,8 @@ TEST(TilePackingServedTest, PinnedTilesStayDense) {
   MapParams params;
   FakeDurability store(params);
   TileTable table(TerrainMap::Create(params).value(), /*keep_cleared=*/true);
-  TileResidency residency(table, store, /*persists=*/true, 0, {}, /*dense_limit_bytes=*/1);
+  TileResidency residency(table, store, /*persists=*/true, 0, {}, /*dense_limit_bytes=*/1,
+                          std::chrono::milliseconds(0));
   const std::vector<TileKey> keys = {{0, 0}, {1, 0}};
   std::vector<std::unique_ptr<Tile>> tiles;
   for (size_t i = 0; i < keys.size(); ++i) {
