@@ -67,8 +67,8 @@ class TileResidency {
   std::vector<TileKey> KeysIn(TileKey min, TileKey max) const;
 
   // Packs unpinned dense tiles idle for `pack_after_idle`, least recently used first, until the
-  // dense ones take at most
-  // 80% of the dense budget (in batches, not after every scan) if they exceed it; then drops
+  // dense ones take at most 80% of the dense budget (in batches, not after every scan) if they
+  // exceed it; then drops
   // clean, unpinned tiles, least recently used first, until the tiles in memory take at most
   // `target_bytes` (a map that persists). Returns the bytes still held. Tiles changed since the
   // backing's last checkpoint stay: a checkpoint makes them clean.
