@@ -125,7 +125,9 @@ Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vecto
       for (int y = part.min.y; y <= part.max.y; ++y) {
         for (int x = part.min.x; x <= part.max.x; ++x) {
           const int i = (y - o.y) * T + (x - o.x);
-          if (!tile->IsKnown(i)) continue;
+          // Per-cell reads: a tile in either form (tile.h).
+          const Tile::CellStats c = tile->CellAt(i);
+          if (!(c.w > 0.0 || (c.a + c.b) > 0.0f)) continue;  // Tile::IsKnown
           double moments[Tile::kPlaneMoments];
           const double* plane = nullptr;
           if (tile->has_plane()) {
@@ -133,11 +135,9 @@ Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vecto
             plane = moments;
           }
           if (stride == 1) {
-            write(pixel_of(x, y), EstimateCell(p, tile->w()[i], tile->s()[i], tile->q()[i],
-                                               tile->a()[i], tile->b()[i], plane));
+            write(pixel_of(x, y), EstimateCell(p, c.w, c.s, c.q, c.a, c.b, plane));
           } else {
-            agg[pixel_of(x, y)].Add(p, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i],
-                                    tile->b()[i], plane);
+            agg[pixel_of(x, y)].Add(p, c.w, c.s, c.q, c.a, c.b, plane);
           }
         }
       }

@@ -31,9 +31,14 @@ TileWindow TerrainMap::MakeWindow(const PreparedScan& scan) {
   std::merge(changeable.begin(), changeable.end(), scan.read_tiles.begin(), scan.read_tiles.end(),
              std::back_inserter(keys));
   TileWindow window(keys);
-  for (const TileKey& k : scan.write_tiles) window.set(k, &GetOrCreateTile(k));
-  for (const TileKey& k : scan.clear_tiles) window.set(k, FindMutableTile(k));
-  for (const TileKey& k : scan.read_tiles) window.set(k, FindMutableTile(k));
+  // The kernels work on dense tiles (a no-op on tiles already dense).
+  auto dense = [](Tile* t) {
+    if (t != nullptr) t->Unpack();
+    return t;
+  };
+  for (const TileKey& k : scan.write_tiles) window.set(k, dense(&GetOrCreateTile(k)));
+  for (const TileKey& k : scan.clear_tiles) window.set(k, dense(FindMutableTile(k)));
+  for (const TileKey& k : scan.read_tiles) window.set(k, dense(FindMutableTile(k)));
   return window;
 }
 
@@ -66,6 +71,7 @@ void TerrainMap::ForEachTile(const std::function<void(TileKey, const Tile&)>& fn
 
 void TerrainMap::AddTile(TileKey key, const Tile& tile) {
   Tile& dst = GetOrCreateTile(key);
+  dst.Unpack();
   // Forgetting: both brought to the later stamp, then added (docs/semantics.md "Forgetting").
   if (integrator_.forgetting() && tile.stamp_ns() != dst.stamp_ns()) {
     integrator_.Advance(dst, tile.stamp_ns());
@@ -85,6 +91,16 @@ void TerrainMap::AddTile(TileKey key, const Tile& tile) {
 
 void TerrainMap::SetTile(TileKey key, const Tile& tile) {
   Tile& dst = GetOrCreateTile(key);
+  if (tile.has_plane() == dst.has_plane()) {
+    dst.Assign(tile);  // in the source's form: a packed tile stays packed
+    return;
+  }
+  if (tile.is_packed()) {
+    Tile dense(tile);
+    dense.Unpack();
+    return SetTile(key, dense);
+  }
+  dst.Unpack();
   std::copy(tile.w().begin(), tile.w().end(), dst.w().begin());
   std::copy(tile.s().begin(), tile.s().end(), dst.s().begin());
   std::copy(tile.q().begin(), tile.q().end(), dst.q().begin());
@@ -109,8 +125,8 @@ CellEstimate TerrainMap::Estimate(CellIndex cell) const {
   const int i = geometry_.LocalIndex(cell);
   double plane[Tile::kPlaneMoments];
   if (tile->has_plane()) tile->PlaneOf(i, plane);
-  return EstimateCell(params_, tile->w()[i], tile->s()[i], tile->q()[i], tile->a()[i], tile->b()[i],
-                      tile->has_plane() ? plane : nullptr);
+  const Tile::CellStats c = tile->CellAt(i);
+  return EstimateCell(params_, c.w, c.s, c.q, c.a, c.b, tile->has_plane() ? plane : nullptr);
 }
 
 int64_t TerrainMap::CountKnownCells() const {
@@ -144,6 +160,7 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version, 
     const CellBox part = geometry_.TileBox(key).Intersect(box);
     const CellIndex o = geometry_.TileOrigin(key);
     Tile& tile = *it->second;
+    tile.Unpack();
     for (int y = part.min.y; y <= part.max.y; ++y) {
       for (int x = part.min.x; x <= part.max.x; ++x) {
         const int i = (y - o.y) * T + (x - o.x);
@@ -159,10 +176,9 @@ std::vector<TileKey> TerrainMap::ClearBox(const CellBox& box, uint64_t version, 
 }
 
 size_t TerrainMap::TileMemoryBytes() const {
-  const size_t per_cell =
-      Tile::kBytesPerCell + (KeepsPlaneMoments(params_.method) ? Tile::kPlaneBytesPerCell : 0);
-  return tiles_.size() *
-         (sizeof(Tile) + static_cast<size_t>(params_.tile_size) * params_.tile_size * per_cell);
+  size_t bytes = 0;
+  for (const auto& entry : tiles_) bytes += entry.second->MemoryBytes();
+  return bytes;
 }
 
 }  // namespace bgkmap

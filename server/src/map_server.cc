@@ -181,6 +181,7 @@ struct MapServer::Impl {
     o.max_robots = cfg.limits.max_robots;
     o.max_sequence_jump = cfg.limits.max_sequence_jump;
     o.tile_memory_limit_bytes = TileMemoryLimit(cfg.storage);
+    o.dense_tile_limit_bytes = cfg.storage.dense_tiles_mb << 20;
     o.on_over_memory = [this] { maintenance->RequestEviction(); };
     o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
     return o;

@@ -223,6 +223,9 @@ const std::vector<ServerKey>& StorageKeys() {
       Key<uint64_t>(
           "max_memory_mb", [](ServerConfig & c) -> auto& { return c.storage.max_memory_mb; },
           "storage"),
+      Key<uint64_t>(
+          "dense_tiles_mb", [](ServerConfig & c) -> auto& { return c.storage.dense_tiles_mb; },
+          "storage"),
       Key<bool>(
           "verify_on_start", [](ServerConfig & c) -> auto& { return c.storage.verify_on_start; },
           "storage"),
@@ -574,6 +577,9 @@ Status ValidateStorage(const StorageConfig& st) {
   }
   if (st.max_memory_mb > (uint64_t{1} << 30)) {
     return bad_storage("max_memory_mb", "must be at most 2^30 (1 PiB)");
+  }
+  if (st.dense_tiles_mb > (uint64_t{1} << 30)) {
+    return bad_storage("dense_tiles_mb", "must be at most 2^30 (1 PiB)");
   }
   if (st.min_free_space_mb > (uint64_t{1} << 30)) {
     return bad_storage("min_free_space_mb", "must be at most 2^30 (1 PiB)");

@@ -247,6 +247,7 @@ bool CropTileToBox(const GridGeometry& geometry, TileKey key, const CellBox& box
   const bool inside = origin.x >= box.min.x && origin.y >= box.min.y &&
                       origin.x + n - 1 <= box.max.x && origin.y + n - 1 <= box.max.y;
   if (inside) return true;
+  tile.Unpack();  // ClearCell needs the dense form (a copy of a packed tile is packed)
   for (int y = 0; y < n; ++y) {
     for (int x = 0; x < n; ++x) {
       const CellIndex cell{origin.x + x, origin.y + y};

@@ -76,6 +76,11 @@ Status Malformed(std::string_view what) {
 }  // namespace
 
 bool IsZeroTile(const Tile& tile) {
+  if (tile.is_packed()) {
+    Tile dense(tile);
+    dense.Unpack();
+    return IsZeroTile(dense);
+  }
   for (int i = 0; i < tile.cell_count(); ++i) {
     if (!CellIsZero(tile, i)) return false;
   }
@@ -83,6 +88,11 @@ bool IsZeroTile(const Tile& tile) {
 }
 
 std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
+  if (tile.is_packed()) {  // the coding reads the dense arrays (the same bits either way)
+    Tile dense(tile);
+    dense.Unpack();
+    return EncodeTile(dense, options);
+  }
   const int cell_count = tile.cell_count();
   std::vector<int> present;
   for (int i = 0; i < cell_count; ++i) {

@@ -106,6 +106,12 @@ TEST(ServerConfigTest, StorageSection) {
   EXPECT_EQ(error("storage: {min_free_space_mb: 2000000000}").rfind("storage.min_free_space_mb", 0),
             0u);
   EXPECT_EQ(ServerConfig{}.storage.min_free_space_mb, 64u);
+  EXPECT_EQ(ServerConfig{}.storage.dense_tiles_mb, 64u);
+  EXPECT_EQ(error("storage: {dense_tiles_mb: -1}").rfind("storage.dense_tiles_mb", 0), 0u);
+  EXPECT_EQ(error("storage: {dense_tiles_mb: 2000000000}").rfind("storage.dense_tiles_mb", 0), 0u);
+  Result<ServerConfig> unpacked = ServerConfigFromYaml(YAML::Load("storage: {dense_tiles_mb: 0}"));
+  ASSERT_TRUE(unpacked.ok()) << unpacked.status().ToString();  // a map in memory may pack
+  EXPECT_EQ(unpacked->storage.dense_tiles_mb, 0u);
   EXPECT_EQ(error("server: {worker_nice: 20}").rfind("server.worker_nice", 0), 0u);
   Result<ServerConfig> bounded = ServerConfigFromYaml(
       YAML::Load("server: {worker_nice: 0}\n"

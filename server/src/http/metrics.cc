@@ -131,6 +131,7 @@ ServerMetrics CollectMetrics(MapPort& map, const ServiceCounts& service,
   m.watchers = service.watchers;
   m.robots = std::move(state.robots);
   m.store = std::move(state.storage);
+  m.tiles = state.tiles;
   m.memory_limit_bytes = memory_limit_bytes;
   m.process_resident_bytes = ProcessResidentBytes();
   m.corrections = state.corrections;
@@ -149,6 +150,16 @@ std::string FormatMetrics(const ServerMetrics& m) {
             m.scans_applied);
   w.Gauge("bgkmap_map_tiles", "Tiles of the map (in memory or in the store).", m.tile_count);
   w.Gauge("bgkmap_map_known_cells", "Cells of the map with an observation.", m.known_cells);
+  if (m.tiles) {
+    w.Gauge("bgkmap_map_tile_memory_bytes",
+            "Memory of the tiles in memory, each in its form (dense, or packed beyond "
+            "storage.dense_tiles_mb).",
+            m.tiles->resident_bytes);
+    w.Gauge("bgkmap_map_packed_tiles", "Tiles in memory held packed (storage.dense_tiles_mb).",
+            m.tiles->packed_tiles);
+    w.Counter("bgkmap_map_tiles_packed_total",
+              "Tiles packed under storage.dense_tiles_mb since start.", m.tiles->tiles_packed);
+  }
   w.Gauge("bgkmap_ingest_streams", "Open Ingest streams.", m.ingest_streams);
   w.Gauge("bgkmap_watchers", "Open Watch streams.", m.watchers);
   w.Gauge("bgkmap_robots", "Robots the server has seen (or recovered from the store).",

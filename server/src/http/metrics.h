@@ -31,9 +31,10 @@ struct ServerMetrics {
   uint64_t known_cells = 0;
   uint64_t ingest_streams = 0;
   uint64_t watchers = 0;
-  std::vector<RobotStats> robots;     // sorted by id
-  std::optional<StorageState> store;  // with storage.data_dir
-  uint64_t memory_limit_bytes = 0;    // storage.max_memory_mb in bytes; 0 = unbounded
+  std::vector<RobotStats> robots;       // sorted by id
+  std::optional<StorageState> store;    // with storage.data_dir
+  std::optional<ResidencyStats> tiles;  // a single server's map
+  uint64_t memory_limit_bytes = 0;      // storage.max_memory_mb in bytes; 0 = unbounded
   std::optional<uint64_t> process_resident_bytes;
   CorrectionStats corrections;
   // A shard of a cluster: records from NATS refused since start, by kind (ShardState::refused).

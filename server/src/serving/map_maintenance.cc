@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 
 namespace bgkmap {
 
@@ -19,12 +20,18 @@ MapMaintenance::MapMaintenance(ServedMap& map, const Durability& durability,
 MapMaintenance::~MapMaintenance() { Stop(); }
 
 void MapMaintenance::Start() {
-  if (!durability_.persists()) return;
+  // Packing tiles beyond the dense budget needs the eviction thread, a map in memory too.
+  if (!durability_.persists()) {
+    if (config_.dense_tiles_mb > 0) evictor_ = std::thread([this] { EvictionLoop(); });
+    return;
+  }
   checkpointer_ = std::thread([this] { CheckpointLoop(); });
   if (config_.max_memory_mb > 0) {
     map_.checkpointer().SetDirtyLimit(
         std::max<uint64_t>(1, TileMemoryLimit(config_) / 4 / map_.TileBytes()),
         [this] { RequestEviction(); });
+  }
+  if (config_.max_memory_mb > 0 || config_.dense_tiles_mb > 0) {
     evictor_ = std::thread([this] { EvictionLoop(); });
   }
   if (config_.verify_on_start) {
@@ -97,7 +104,10 @@ void MapMaintenance::CheckpointLoop() {
 }
 
 void MapMaintenance::EvictionLoop() {
-  const uint64_t limit = TileMemoryLimit(config_);
+  // No bound (only a dense budget, or a map in memory): Evict() packs, and drops nothing.
+  const uint64_t limit = durability_.persists() && config_.max_memory_mb > 0
+                             ? TileMemoryLimit(config_)
+                             : std::numeric_limits<uint64_t>::max();
   // Evict to below the bound, so that eviction runs in batches rather than after every scan.
   const uint64_t target = limit / 10 * 8;
   // A checkpoint makes changed tiles evictable, but it writes every changed tile: when the
@@ -111,7 +121,7 @@ void MapMaintenance::EvictionLoop() {
     if (stopping_) break;
     eviction_requested_ = false;
     lock.unlock();
-    const uint64_t evicted_before = map_.Residency().tiles_evicted;
+    const ResidencyStats before = map_.Residency();
     uint64_t held = map_.Evict(target);
     if ((held > limit || map_.checkpointer().dirty_over_limit()) &&
         std::chrono::steady_clock::now() - last_checkpoint >= kMinCheckpointGap) {
@@ -121,8 +131,18 @@ void MapMaintenance::EvictionLoop() {
     }
     // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
     // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
-    if (map_.Residency().tiles_evicted != evicted_before) malloc_trim(0);
+    const ResidencyStats after = map_.Residency();
+    const bool freed =
+        after.tiles_evicted != before.tiles_evicted || after.tiles_packed != before.tiles_packed;
+    if (freed) malloc_trim(0);
     lock.lock();
+    // Over the dense budget with only tiles in use (or used within the last second) dense: a
+    // pass walks every tile under the residency's lock, which each pin waits for; requests
+    // that come every scan are served at most every kIdlePassGap, not after every scan.
+    if (!freed) {
+      constexpr auto kIdlePassGap = std::chrono::milliseconds(250);
+      cv_.wait_for(lock, kIdlePassGap, [this] { return stopping_; });
+    }
     if (held > limit && !eviction_requested_) {
       // Still over (tiles in use or the checkpoint gap): look again soon.
       lock.unlock();

@@ -1,4 +1,5 @@
-// The served map's background upkeep when it persists: periodic checkpoints, eviction under
+// The served map's background upkeep: the packing of tiles beyond storage.dense_tiles_mb and,
+// when it persists, periodic checkpoints, eviction under
 // storage.max_memory_mb, and the verification of every stored tile after start. Threads of its
 // own, so no RPC and no scan waits for them except at the barriers they take.
 #pragma once

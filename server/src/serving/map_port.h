@@ -93,6 +93,7 @@ struct MapState {
   CorrectionStats corrections;
   Georeference georeference;            // where the map frame sits (empty: a local frame)
   std::optional<StorageState> storage;  // a map on a store
+  std::optional<ResidencyStats> tiles;  // a single server's map (in memory or on a store)
   std::optional<ShardState> shard;      // a shard of a cluster
 };
 

@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <boost/asio/thread_pool.hpp>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -52,7 +53,13 @@ struct ServedMapOptions {
   uint32_t max_robots = 0;
   uint64_t max_sequence_jump = 0;        // 0: no limit (RobotSequenceRule)
   uint64_t tile_memory_limit_bytes = 0;  // 0: unbounded
-  // Called (from a worker, without locks held) when tiles in memory exceed the limit.
+  // Dense tiles beyond this are packed, least recently used first (storage.dense_tiles_mb;
+  // 0: never packed).
+  uint64_t dense_tile_limit_bytes = 0;
+  // Tiles used more recently than this are not packed (TileResidency).
+  std::chrono::milliseconds pack_after_idle = std::chrono::seconds(1);
+  // Called (from a worker, without locks held) when tiles in memory exceed the limit, or the
+  // dense ones theirs.
   std::function<void()> on_over_memory;
   // Called on a worker after each change with the tiles it changed (watchers).
   ChangeScheduler::TilesChanged on_tiles_changed;

@@ -37,6 +37,7 @@ MapState ServedMap::State(bool with_disk_usage) {
   state.robots = Robots();
   state.corrections = corrections();
   state.georeference = durability_.georeference();
+  state.tiles = residency_.Stats();
   if (std::optional<StoreStatus> store = durability_.store_status(with_disk_usage)) {
     StorageState& s = state.storage.emplace(ToStorageState(*store));
     s.dirty_tiles = checkpointer_.dirty_tiles();

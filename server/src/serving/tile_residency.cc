@@ -34,16 +34,22 @@ void TileResidency::Pins::Release() {
 }
 
 TileResidency::TileResidency(TileTable& table, const StoredTiles& backing, bool persists,
-                             uint64_t memory_limit_bytes, std::function<void()> on_over_limit)
+                             uint64_t memory_limit_bytes, std::function<void()> on_over_limit,
+                             uint64_t dense_limit_bytes, std::chrono::milliseconds pack_after_idle)
     : table_(table),
       backing_(backing),
       persists_(persists),
+      dense_limit_bytes_(dense_limit_bytes),
+      pack_after_idle_(pack_after_idle),
+      tracks_(persists || dense_limit_bytes > 0),
       memory_limit_bytes_(persists ? memory_limit_bytes : 0),
       on_over_limit_(std::move(on_over_limit)) {}
 
 void TileResidency::SignalIfOverLimit() const {
-  if (memory_limit_bytes_ == 0 || !on_over_limit_) return;
-  if (table_.resident_tiles() * table_.TileBytes() > memory_limit_bytes_) on_over_limit_();
+  if (!on_over_limit_) return;
+  const bool over_memory = memory_limit_bytes_ != 0 && table_.ResidentBytes() > memory_limit_bytes_;
+  const bool over_dense = dense_limit_bytes_ != 0 && table_.DenseBytes() > dense_limit_bytes_;
+  if (over_memory || over_dense) on_over_limit_();
 }
 
 std::vector<TileKey> TileResidency::KeysIn(TileKey min, TileKey max) const {
@@ -55,18 +61,26 @@ std::vector<TileKey> TileResidency::KeysIn(TileKey min, TileKey max) const {
 
 Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool strict) {
   Pins pins;
-  if (!persists_) return pins;  // everything is in memory, nothing is evicted
+  if (!tracks_) return pins;  // everything is in memory and dense
   {
+    const auto at = std::chrono::steady_clock::now();
     std::lock_guard lock(mu_);
     const uint64_t now = ++use_clock_;
     for (TileKey k : keys) {
       Use& u = uses_[k];
       ++u.pins;
       u.last_use = now;
+      u.used_at = at;
     }
   }
   pins.owner_ = this;
   pins.keys_ = std::move(keys);
+  // Pinned, so Evict() packs none of them from here on: dense until the pins go.
+  table_.Unpack(pins.keys_);
+  if (!persists_) {
+    SignalIfOverLimit();  // (the dense tiles grew)
+    return pins;
+  }
 
   // Pinned tiles in memory stay there; load the stored ones that are not.
   std::vector<std::pair<TileKey, std::unique_ptr<Tile>>> loaded;
@@ -79,15 +93,16 @@ Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool s
     }
     if (*tile != nullptr) loaded.emplace_back(k, std::move(tile).value());
   }
-  if (loaded.empty()) return pins;
-  table_.InsertLoaded(loaded);
-  tiles_loaded_.fetch_add(loaded.size());
+  if (!loaded.empty()) {
+    table_.InsertLoaded(loaded);
+    tiles_loaded_.fetch_add(loaded.size());
+  }
   SignalIfOverLimit();
   return pins;
 }
 
 Result<TileResidency::Pins> TileResidency::PinScan(const PreparedScan& scan) {
-  if (!persists_) return Pins();  // (the merged key list costs a sort per scan)
+  if (!tracks_) return Pins();  // (the merged key list costs a sort per scan)
   std::vector<TileKey> keys = scan.ChangeableTiles();
   keys.insert(keys.end(), scan.read_tiles.begin(), scan.read_tiles.end());
   SortUnique(&keys);
@@ -95,7 +110,7 @@ Result<TileResidency::Pins> TileResidency::PinScan(const PreparedScan& scan) {
 }
 
 Result<TileResidency::Pins> TileResidency::PinRange(TileKey min, TileKey max, bool strict) {
-  if (!persists_) return Pins();
+  if (!tracks_) return Pins();
   return Pin(KeysIn(min, max), strict);
 }
 
@@ -107,48 +122,82 @@ void TileResidency::Unpin(const std::vector<TileKey>& keys) {
   }
 }
 
-uint64_t TileResidency::Evict(uint64_t target_bytes) {
-  const uint64_t per_tile = table_.TileBytes();
-  if (!persists_) return table_.resident_tiles() * per_tile;
-  const uint64_t durable = backing_.durable_version();
-  // Held throughout: no tile can be pinned (and so changed) between choosing and erasing it.
-  std::lock_guard lock(mu_);
-  std::vector<std::pair<uint64_t, TileKey>> victims;  // (last use, key)
+TileResidency::Candidates TileResidency::CollectLocked() {
+  const uint64_t durable = persists_ ? backing_.durable_version() : 0;
+  const auto idle_since = std::chrono::steady_clock::now() - pack_after_idle_;
+  Candidates out;
   std::unordered_map<TileKey, Use, TileKeyHash> kept;
-  table_.ForEachResident([&](TileKey k, uint64_t version) {
-    auto it = uses_.find(k);
+  table_.ForEachResident([&](const TileTable::ResidentTile& t) {
+    auto it = uses_.find(t.key);
     const bool pinned = it != uses_.end() && it->second.pins > 0;
-    if (it != uses_.end()) kept.emplace(k, it->second);
-    if (pinned || version > durable) return;  // in use, or changed since the last checkpoint
-    victims.emplace_back(it == uses_.end() ? 0 : it->second.last_use, k);
+    if (it != uses_.end()) kept.emplace(t.key, it->second);
+    if (pinned) return;  // in use
+    const uint64_t last_use = it == uses_.end() ? 0 : it->second.last_use;
+    const bool idle = it == uses_.end() || it->second.used_at <= idle_since;
+    if (!t.packed && idle) out.dense.emplace_back(last_use, t.key);
+    // Changed since the last checkpoint: not evictable.
+    if (persists_ && t.version <= durable) out.clean.emplace_back(last_use, t.key, t.bytes);
   });
   // Forget the recency of tiles no longer in memory, unless pinned (a load in progress).
   for (const auto& [k, u] : uses_) {
     if (u.pins > 0) kept.emplace(k, u);
   }
   uses_ = std::move(kept);
-  const uint64_t count = table_.resident_tiles();
-  if (count * per_tile <= target_bytes) return count * per_tile;
-  std::sort(victims.begin(), victims.end());
-  const uint64_t target_tiles = target_bytes / per_tile;
-  const size_t n = static_cast<size_t>(std::min<uint64_t>(victims.size(), count - target_tiles));
+  return out;
+}
+
+bool TileResidency::PackLocked(std::vector<std::pair<uint64_t, TileKey>>& dense) {
+  const uint64_t held = table_.DenseBytes();
+  if (dense_limit_bytes_ == 0 || held <= dense_limit_bytes_) return false;
+  // Down to 80% of the budget, so that packing runs in batches rather than after every scan.
+  const uint64_t per_tile = table_.TileBytes();
+  const uint64_t excess = held - dense_limit_bytes_ / 10 * 8;
+  const size_t n =
+      static_cast<size_t>(std::min<uint64_t>(dense.size(), (excess + per_tile - 1) / per_tile));
+  std::partial_sort(dense.begin(), dense.begin() + static_cast<std::ptrdiff_t>(n), dense.end());
+  // In small batches: each holds the table lock exclusively while it packs.
+  constexpr size_t kBatch = 16;
+  std::vector<TileKey> batch;
+  for (size_t i = 0; i < n; i += kBatch) {
+    batch.clear();
+    for (size_t j = i; j < std::min(n, i + kBatch); ++j) batch.push_back(dense[j].second);
+    table_.Pack(batch);
+  }
+  tiles_packed_.fetch_add(n);
+  return n > 0;
+}
+
+uint64_t TileResidency::Evict(uint64_t target_bytes) {
+  if (!tracks_) return table_.ResidentBytes();
+  // Held throughout: no tile can be pinned (and so changed, or unpacked) between choosing and
+  // packing or erasing it.
+  std::lock_guard lock(mu_);
+  Candidates c = CollectLocked();
+  if (PackLocked(c.dense) && persists_) c = CollectLocked();  // the packed tiles' new sizes
+  if (!persists_) return table_.ResidentBytes();
+  uint64_t held = table_.ResidentBytes();
+  if (held <= target_bytes) return held;
+  std::sort(c.clean.begin(), c.clean.end());
   std::vector<TileKey> evicted;
-  evicted.reserve(n);
-  for (size_t i = 0; i < n; ++i) {
-    evicted.push_back(victims[i].second);
-    uses_.erase(victims[i].second);
+  for (const auto& [last_use, key, bytes] : c.clean) {
+    if (held <= target_bytes) break;
+    held -= std::min(held, bytes);
+    evicted.push_back(key);
+    uses_.erase(key);
   }
   table_.Erase(evicted);
   tiles_evicted_.fetch_add(evicted.size());
-  return table_.resident_tiles() * per_tile;
+  return table_.ResidentBytes();
 }
 
 ResidencyStats TileResidency::Stats() const {
   ResidencyStats r;
   r.resident_tiles = table_.resident_tiles();
-  r.resident_bytes = r.resident_tiles * table_.TileBytes();
+  r.resident_bytes = table_.ResidentBytes();
+  r.packed_tiles = table_.packed_tiles();
   r.tiles_loaded = tiles_loaded_.load();
   r.tiles_evicted = tiles_evicted_.load();
+  r.tiles_packed = tiles_packed_.load();
   return r;
 }
 

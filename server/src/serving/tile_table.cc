@@ -32,6 +32,11 @@ ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version) {
   TileWindow window;
   {
     std::unique_lock table(table_mu_);
+    // (The scan's pins unpacked these; a tile packed anyway is unpacked here, counted.)
+    if (packed_tiles_.load() > 0) {
+      for (TileKey k : scan.ChangeableTiles()) UnpackLocked(k);
+      for (TileKey k : scan.read_tiles) UnpackLocked(k);
+    }
     window = map_->MakeWindow(scan);
     NoteTileCount();
   }
@@ -51,6 +56,7 @@ std::vector<TileKey> TileTable::ClearBox(const CellBox& box, uint64_t version) {
   const std::vector<TileKey> existing = ListTiles(g.TileOf(box.min), g.TileOf(box.max));
   TileLockTable::Guard tiles = tile_locks_.Lock(existing, {});
   std::unique_lock table(table_mu_);
+  for (TileKey k : existing) UnpackLocked(k);
   std::vector<TileKey> keys = map_->ClearBox(box, version, keep_cleared_);
   NoteTileCount();
   return keys;
@@ -96,6 +102,7 @@ void TileTable::AddTiles(std::span<const TileKey> keys, std::span<const Tile* co
   TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
   std::unique_lock table(table_mu_);
   for (size_t i = 0; i < keys.size(); ++i) {
+    UnpackLocked(keys[i]);
     map_->AddTile(keys[i], *tiles[i]);
     map_->FindMutableTile(keys[i])->set_version(version);
   }
@@ -108,10 +115,12 @@ void TileTable::ReplaceTiles(std::span<const TileKey> keys,
   TileLockTable::Guard locked = tile_locks_.Lock(keys, {});
   std::unique_lock table(table_mu_);
   for (size_t i = 0; i < keys.size(); ++i) {
+    ForgetPackedLocked(keys[i]);
     if (tiles[i] == nullptr) {
       map_->EraseTile(keys[i]);
     } else {
       map_->SetTile(keys[i], *tiles[i]);
+      CountPackedLocked(keys[i]);
     }
   }
   NoteTileCount();
@@ -239,20 +248,74 @@ std::vector<std::optional<TileSummary>> TileTable::SummarizeIfResident(
 void TileTable::InsertLoaded(std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& loaded) {
   std::unique_lock table(table_mu_);
   for (auto& [k, tile] : loaded) {
-    if (map_->FindTile(k) == nullptr) map_->SetTile(k, *tile);
+    if (map_->FindTile(k) != nullptr) continue;
+    map_->SetTile(k, *tile);
+    CountPackedLocked(k);
   }
   NoteTileCount();
 }
 
-void TileTable::ForEachResident(const std::function<void(TileKey, uint64_t)>& fn) const {
+void TileTable::ForEachResident(const std::function<void(const ResidentTile&)>& fn) const {
   std::shared_lock table(table_mu_);
-  map_->ForEachTile([&](TileKey k, const Tile& t) { fn(k, t.version()); });
+  map_->ForEachTile([&](TileKey k, const Tile& t) {
+    fn({k, t.version(), t.is_packed(), t.is_packed() ? t.MemoryBytes() : TileBytes()});
+  });
 }
 
 void TileTable::Erase(std::span<const TileKey> keys) {
   std::unique_lock table(table_mu_);
-  for (TileKey k : keys) map_->EraseTile(k);
+  for (TileKey k : keys) {
+    ForgetPackedLocked(k);
+    map_->EraseTile(k);
+  }
   NoteTileCount();
+}
+
+void TileTable::Pack(std::span<const TileKey> keys) {
+  std::unique_lock table(table_mu_);
+  for (TileKey k : keys) {
+    Tile* t = map_->FindMutableTile(k);
+    if (t == nullptr || t->is_packed()) continue;
+    t->Pack();
+    CountPackedLocked(k);
+  }
+}
+
+void TileTable::Unpack(std::span<const TileKey> keys) {
+  if (packed_tiles_.load() == 0) return;
+  {
+    // Most pins find their tiles dense: look under the shared lock first.
+    std::shared_lock table(table_mu_);
+    bool any = false;
+    for (TileKey k : keys) {
+      const Tile* t = map_->FindTile(k);
+      if ((any = t != nullptr && t->is_packed())) break;
+    }
+    if (!any) return;
+  }
+  std::unique_lock table(table_mu_);
+  for (TileKey k : keys) UnpackLocked(k);
+}
+
+void TileTable::UnpackLocked(TileKey key) {
+  Tile* t = map_->FindMutableTile(key);
+  if (t == nullptr || !t->is_packed()) return;
+  ForgetPackedLocked(key);
+  t->Unpack();
+}
+
+void TileTable::ForgetPackedLocked(TileKey key) {
+  const Tile* t = map_->FindTile(key);
+  if (t == nullptr || !t->is_packed()) return;
+  packed_tiles_.fetch_sub(1);
+  packed_bytes_.fetch_sub(t->MemoryBytes());
+}
+
+void TileTable::CountPackedLocked(TileKey key) {
+  const Tile* t = map_->FindTile(key);
+  if (t == nullptr || !t->is_packed()) return;
+  packed_tiles_.fetch_add(1);
+  packed_bytes_.fetch_add(t->MemoryBytes());
 }
 
 std::unique_ptr<TerrainMap> TileTable::CopyResident(uint64_t version,

@@ -42,9 +42,17 @@ class TileTable final {
 
   const MapParams& params() const { return map_->params(); }
   const GridGeometry& geometry() const { return map_->geometry(); }
-  // Memory of one tile in the table (what the memory bound counts).
+  // Memory of one dense tile (Tile::MemoryBytes of a dense tile of this map).
   uint64_t TileBytes() const;
   uint64_t resident_tiles() const { return resident_.load(); }
+  uint64_t packed_tiles() const { return packed_tiles_.load(); }
+  // Real bytes of the tiles in memory (what the memory bound counts): TileBytes() for each dense
+  // tile, Tile::MemoryBytes() for each packed one; and those of the dense tiles alone.
+  uint64_t ResidentBytes() const { return DenseBytes() + packed_bytes_.load(); }
+  uint64_t DenseBytes() const {
+    const uint64_t all = resident_.load(), packed = packed_tiles_.load();
+    return (all > packed ? all - packed : 0) * TileBytes();  // (read apart: never below 0)
+  }
 
   // Changes, with their tiles pinned. A scan holds its write tiles exclusively; the others hold
   // the whole map exclusively (call them at a scheduler barrier).
@@ -86,8 +94,21 @@ class TileTable final {
   // For TileResidency: inserts loaded tiles not in memory yet (another operation may have
   // loaded, even changed, one meanwhile: that one stays); erases tiles.
   void InsertLoaded(std::vector<std::pair<TileKey, std::unique_ptr<Tile>>>& loaded);
-  void ForEachResident(const std::function<void(TileKey, uint64_t version)>& fn) const;
+  struct ResidentTile {
+    TileKey key;
+    uint64_t version = 0;
+    bool packed = false;
+    uint64_t bytes = 0;  // Tile::MemoryBytes()
+  };
+  void ForEachResident(const std::function<void(const ResidentTile&)>& fn) const;
   void Erase(std::span<const TileKey> keys);
+  // For TileResidency: packs the tiles at `keys` that are dense (only tiles no operation has
+  // pinned: nothing changes them, and the readers that do not pin read either form), and makes
+  // dense again the ones that are packed (for an operation that has just pinned them: the engine
+  // and the pinned readers work on dense tiles). Both under the table lock held exclusively, so
+  // no reader sees a tile change form; the statistics stay bit for bit.
+  void Pack(std::span<const TileKey> keys);
+  void Unpack(std::span<const TileKey> keys);
 
   // A consistent copy of every tile in memory (non-empty ones), with the map's version, and
   // the keys of all tiles in memory.
@@ -99,10 +120,18 @@ class TileTable final {
  private:
   // Call with table_mu_ held after the tile table changed size.
   void NoteTileCount() { resident_.store(map_->tile_count()); }
+  // With table_mu_ held exclusively: the tile at `key`, if packed, made dense (a change is about
+  // to touch it); its packed bytes forgotten before it is replaced or erased, counted after.
+  void UnpackLocked(TileKey key);
+  void ForgetPackedLocked(TileKey key);
+  void CountPackedLocked(TileKey key);
 
   std::unique_ptr<TerrainMap> map_;
   const bool keep_cleared_;
   std::atomic<uint64_t> resident_{0};
+  // Written under table_mu_ held exclusively.
+  std::atomic<uint64_t> packed_tiles_{0};
+  std::atomic<uint64_t> packed_bytes_{0};
   mutable WriterPriorityMutex gate_;
   TileLockTable tile_locks_;
   mutable std::shared_mutex table_mu_;

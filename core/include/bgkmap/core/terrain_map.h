@@ -55,7 +55,7 @@ class TerrainMap {
   // forgetting, both are first brought to the later of their stamps.
   void AddTile(TileKey key, const Tile& tile);
   // Makes the tile at `key` a bitwise copy of `tile`, version and stamp included (AddTile onto an
-  // empty tile would not be: 0 + -0 is +0).
+  // empty tile would not be: 0 + -0 is +0), in `tile`'s form (packed or dense).
   void SetTile(TileKey key, const Tile& tile);
 
   // Cells.
@@ -71,7 +71,7 @@ class TerrainMap {
   // The same as the next change of this map: ClearBox(box, version() + 1), version() advanced.
   std::vector<TileKey> ClearBox(const CellBox& box) { return ClearBox(box, ++version_); }
 
-  // Bytes held by tile storage (what "bytes per known cell" divides).
+  // Bytes held by tile storage, each tile in its form (what "bytes per known cell" divides).
   size_t TileMemoryBytes() const;
 
  private:

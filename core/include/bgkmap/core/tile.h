@@ -1,6 +1,8 @@
 // A square block of cells holding the map's additive sufficient statistics.
 #pragma once
 
+#include <bit>
+#include <cassert>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -23,6 +25,16 @@ namespace bgkmap {
 // observations apart (72 more bytes per cell, double: y can be an absolute altitude):
 //   sum k*u, k*v, k*u^2, k*u*v, k*v^2, k*u*y, k*v*y, own weight sum 1, own sum y  (Plane enum)
 // Everything is additive: the statistics of two maps of the same parameters merge by summation.
+//
+// Two forms, the same statistics bit for bit. Dense (the default, what the engine's kernels work
+// on): every statistic an array over all cells. Packed (Pack(), for tiles nobody is changing): an
+// occupancy bitmask of the cells and, in cell order, the values of only the cells with any
+// nonzero bit (-0.0 is a nonzero bit pattern), so that a mostly empty tile holds little more
+// than its known cells. The span accessors (w(), s(), q(), a(), b(), plane()) and every mutator
+// except Clear() need a dense tile (asserted in debug builds): Unpack() first. Everything a
+// reader does works on either form: the copy constructor (which keeps the form), CellAt(),
+// PlaneOf(), IsKnown(), Known(), operator==, MemoryBytes(); a bulk reader takes a dense copy
+// (copy, then Unpack()).
 class Tile {
  public:
   enum Plane { kSu = 0, kSv, kSuu, kSuv, kSvv, kSuy, kSvy, kOwnW, kOwnS };
@@ -31,33 +43,64 @@ class Tile {
   explicit Tile(int tile_size, bool plane_moments = false);
   Tile(const Tile& other);
   Tile& operator=(const Tile&) = delete;
+  // Becomes a copy of `other` in its form (version and stamp included); same size required.
+  void Assign(const Tile& other);
+
+  // The form (see above). Pack() and Unpack() keep the statistics bit for bit; each is a no-op
+  // on a tile already in that form.
+  bool is_packed() const { return w_ == nullptr; }
+  void Pack();
+  void Unpack();
+  // Bytes this tile holds in its current form (its arrays and the Tile itself).
+  size_t MemoryBytes() const;
+
+  // One cell's statistics, in either form.
+  struct CellStats {
+    double w = 0.0, s = 0.0, q = 0.0;
+    float a = 0.0f, b = 0.0f;
+  };
+  CellStats CellAt(int local) const {
+    if (is_packed()) return PackedCellAt(local);
+    return {w_[local], s_[local], q_[local], a_[local], b_[local]};
+  }
 
   int tile_size() const { return size_; }
   int cell_count() const { return size_ * size_; }
 
-  std::span<double> w() { return {w_.get(), n()}; }
-  std::span<double> s() { return {s_.get(), n()}; }
-  std::span<double> q() { return {q_.get(), n()}; }
-  std::span<float> a() { return {a_.get(), n()}; }
-  std::span<float> b() { return {b_.get(), n()}; }
-  std::span<const double> w() const { return {w_.get(), n()}; }
-  std::span<const double> s() const { return {s_.get(), n()}; }
-  std::span<const double> q() const { return {q_.get(), n()}; }
-  std::span<const float> a() const { return {a_.get(), n()}; }
-  std::span<const float> b() const { return {b_.get(), n()}; }
-  // Copies cell `local`'s plane moments to out[0..kPlaneMoments) (the tile must keep them).
+  // Dense tiles only.
+  std::span<double> w() { return {DenseOnly(w_.get()), n()}; }
+  std::span<double> s() { return {DenseOnly(s_.get()), n()}; }
+  std::span<double> q() { return {DenseOnly(q_.get()), n()}; }
+  std::span<float> a() { return {DenseOnly(a_.get()), n()}; }
+  std::span<float> b() { return {DenseOnly(b_.get()), n()}; }
+  std::span<const double> w() const { return {DenseOnly(w_.get()), n()}; }
+  std::span<const double> s() const { return {DenseOnly(s_.get()), n()}; }
+  std::span<const double> q() const { return {DenseOnly(q_.get()), n()}; }
+  std::span<const float> a() const { return {DenseOnly(a_.get()), n()}; }
+  std::span<const float> b() const { return {DenseOnly(b_.get()), n()}; }
+  // Copies cell `local`'s plane moments to out[0..kPlaneMoments) (the tile must keep them); in
+  // either form.
   void PlaneOf(int local, double* out) const {
+    if (is_packed()) return PackedPlaneOf(local, out);
     for (int m = 0; m < kPlaneMoments; ++m) out[m] = p_[m * n() + local];
   }
-  // The plane moments (null spans when the tile keeps none).
-  bool has_plane() const { return p_ != nullptr; }
-  std::span<double> plane(int m) { return {p_ ? p_.get() + m * n() : nullptr, p_ ? n() : 0}; }
+  // The plane moments (null spans when the tile keeps none; dense tiles only).
+  bool has_plane() const { return plane_; }
+  std::span<double> plane(int m) {
+    return {plane_ ? DenseOnly(p_.get()) + m * n() : nullptr, plane_ ? n() : 0};
+  }
   std::span<const double> plane(int m) const {
-    return {p_ ? p_.get() + m * n() : nullptr, p_ ? n() : 0};
+    return {plane_ ? DenseOnly(p_.get()) + m * n() : nullptr, plane_ ? n() : 0};
   }
 
-  // A cell is known once it has elevation weight or traversability pseudo-counts.
-  bool IsKnown(int local) const { return w_[local] > 0.0 || (a_[local] + b_[local]) > 0.0f; }
+  // A cell is known once it has elevation weight or traversability pseudo-counts (either form).
+  bool IsKnown(int local) const {
+    if (is_packed()) {
+      const CellStats c = PackedCellAt(local);
+      return c.w > 0.0 || (c.a + c.b) > 0.0f;
+    }
+    return w_[local] > 0.0 || (a_[local] + b_[local]) > 0.0f;
+  }
   // The known cells' count and bounding box in tile-local cells (0..tile_size-1; empty if
   // none), in one pass: the served map summarises every tile a scan changes.
   struct KnownCells {
@@ -69,8 +112,9 @@ class Tile {
   CellBox KnownLocalBox() const { return Known().local_box; }
   bool Empty() const { return CountKnown() == 0; }
 
-  // Adds another tile's statistics cell by cell (same size required).
+  // Adds another tile's statistics cell by cell (same size required; `other` in either form).
   void Add(const Tile& other);
+  // Every statistic +0; a packed tile becomes dense.
   void Clear();
   // Statistics and stamp, bitwise (not the version).
   bool operator==(const Tile& other) const;
@@ -91,6 +135,7 @@ class Tile {
   // Multiplies every statistic of cell `local` by f: the mean and the disagreement stay, the
   // confidence scales (saturation and free-space evidence, docs/semantics.md).
   void ScaleCell(int local, double f) {
+    assert(!is_packed());
     w_[local] *= f;
     s_[local] *= f;
     q_[local] *= f;
@@ -104,6 +149,7 @@ class Tile {
   // Makes cell `local` unknown: every statistic +0 (not -0, which a scaling by 0 could leave and
   // which a merge would turn into +0).
   void ClearCell(int local) {
+    assert(!is_packed());
     w_[local] = s_[local] = q_[local] = 0.0;
     if (p_) {
       for (int m = 0; m < kPlaneMoments; ++m) p_[m * n() + local] = 0.0;
@@ -113,16 +159,49 @@ class Tile {
 
   static constexpr size_t kBytesPerCell = 3 * sizeof(double) + 2 * sizeof(float);
   static constexpr size_t kPlaneBytesPerCell = kPlaneMoments * sizeof(double);
-  size_t bytes_per_cell() const { return kBytesPerCell + (p_ ? kPlaneBytesPerCell : 0); }
+  size_t bytes_per_cell() const { return kBytesPerCell + (plane_ ? kPlaneBytesPerCell : 0); }
 
  private:
+  // The packed form: bit i of mask_ says whether cell i is stored; rank_[j] counts the stored
+  // cells before word j; a stored cell's values sit at its rank r: pd_[r] (W), pd_[c + r] (S),
+  // pd_[2c + r] (Q), pd_[(3 + m)c + r] (plane moment m), pf_[r] (A), pf_[c + r] (B), c being
+  // packed_count_.
+  static constexpr int kPackedDoubles = 3;
+  template <typename T>
+  T* DenseOnly(T* p) const {
+    assert(!is_packed());
+    return p;
+  }
   size_t n() const { return static_cast<size_t>(size_) * size_; }
+  size_t words() const { return (n() + 63) / 64; }
+  void AllocateDense();
+  void FreeDense();
+  void FreePacked();
+  // The stored rank of cell `local`, or -1 when the packed tile does not store it.
+  int PackedRank(int local) const {
+    const uint64_t word = mask_[local >> 6];
+    const uint64_t bit = uint64_t{1} << (local & 63);
+    if ((word & bit) == 0) return -1;
+    return static_cast<int>(rank_[local >> 6]) + std::popcount(word & (bit - 1));
+  }
+  CellStats PackedCellAt(int local) const;
+  void PackedPlaneOf(int local, double* out) const;
+  KnownCells PackedKnown() const;
+  bool PackedEqual(const Tile& other) const;
+
   int size_;
+  bool plane_;
   uint64_t version_ = 0;
   int64_t stamp_ns_ = 0;
   std::unique_ptr<double[]> w_, s_, q_;
   std::unique_ptr<float[]> a_, b_;
   std::unique_ptr<double[]> p_;  // kPlaneMoments arrays of n(), or null
+  // Packed form (all null, count 0, while dense).
+  int packed_count_ = 0;
+  std::unique_ptr<uint64_t[]> mask_;
+  std::unique_ptr<uint32_t[]> rank_;
+  std::unique_ptr<double[]> pd_;
+  std::unique_ptr<float[]> pf_;
 };
 
 }  // namespace bgkmap

@@ -76,6 +76,12 @@ struct StorageConfig {
   // used recently are dropped (the store has them) and loaded again on demand; changed tiles
   // are checkpointed first. Needs data_dir.
   uint64_t max_memory_mb = 0;
+  // dense_tiles_mb: budget of the tiles kept dense (0 = every tile dense). A tile's 64x64 cells
+  // take 128 KiB dense whatever number are known; beyond this budget the tiles used least
+  // recently are packed to their known cells (bit for bit, about 32 bytes per stored cell), and
+  // made dense again when an operation next touches them: less memory for a unpacking cost on
+  // the next scan or query there. With max_memory_mb, both count the real bytes.
+  uint64_t dense_tiles_mb = 64;
   // verify_on_start: read and check every stored tile in the background after start, so that
   // damage is reported before a query meets it (tiles are otherwise read only on demand).
   bool verify_on_start = true;
