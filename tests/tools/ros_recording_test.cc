@@ -191,6 +191,30 @@ TEST_F(RosRecordingTest, TruncatedPointCloud2NamesTheField) {
   ASSERT_TRUE(DecodePointCloud2({bytes, cloud->data.size()}).ok());
 }
 
+// A cloud of width 0 (or height 0) has no points, however many rows it declares: decoded at once
+// (found by the cdr_reader fuzzer: height 2^32 - 1 of width 0 spun over its empty rows).
+TEST_F(RosRecordingTest, EmptyRowsDecodeToNoPointsAtOnce) {
+  Result<std::vector<RecordedMessage>> m = ReadRecordedMessages(Rec("chain_lz4.mcap"));
+  ASSERT_TRUE(m.ok());
+  const auto cloud = std::find_if(m->begin(), m->end(),
+                                  [](const RecordedMessage& x) { return x.topic == "/points"; });
+  ASSERT_NE(cloud, m->end());
+  std::vector<uint8_t> bytes(cloud->data.begin(), cloud->data.end());
+  Result<PointCloud2> real = DecodePointCloud2(bytes);
+  ASSERT_TRUE(real.ok());
+  // height and width follow the header, 4-aligned: the first such pair after the encapsulation.
+  const uint32_t shape[2] = {real->height, real->width};
+  size_t at = 4;
+  while (at + 8 <= bytes.size() && std::memcmp(bytes.data() + at, shape, 8) != 0) at += 4;
+  ASSERT_LE(at + 8, bytes.size());
+  const uint32_t empty_rows[2] = {0xFFFFFFFFu, 0};
+  std::memcpy(bytes.data() + at, empty_rows, 8);
+  Result<PointCloud2> r = DecodePointCloud2(bytes);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_TRUE(r->points.empty());
+  EXPECT_EQ(r->height, 0xFFFFFFFFu);
+}
+
 // The map of a sequence of posed scans, stamped as `bgkmap build` stamps them.
 Raster BuildMap(const std::vector<std::pair<std::vector<Point3f>, Pose>>& scans,
                 const std::vector<double>& times) {

@@ -91,6 +91,8 @@ Result<PointCloud2> DecodePointCloud2(std::span<const uint8_t> cdr, RosEncoding 
         "{}: data of {} bytes is too short for {} x {} points of point_step {}, row_step {}",
         kPointCloud2Schema, data.size(), height, width, point_step, row_step));
   }
+  // No points (and no loop over a declared 2^32 empty rows): width or height 0.
+  if (height == 0 || width == 0) return cloud;
   cloud.points.resize(height * width);
   size_t k = 0;
   for (uint64_t row = 0; row < height; ++row) {
