@@ -125,15 +125,7 @@ void PartitionReplica::AdoptRebuilt(PartitionReplica& rebuilt, uint64_t sequence
   }
   std::unique_lock map_lock(map_mu_);
   map_ = std::move(map);
-  StampLocked(sequence, affected);
-  {
-    // Under the map's lock: a reader sees the rebuilt tiles with the correction's sequence.
-    std::lock_guard progress(progress_mu_);
-    applied_ = sequence;
-    progress_cv_.notify_all();
-  }
-  map_lock.unlock();
-  if (!serving_ && sequence >= serve_from_) StartServing();
+  StampAndAdvance(map_lock, sequence, affected);
 }
 
 void PartitionReplica::StampLocked(uint64_t sequence, const std::vector<TileKey>& affected) {
@@ -151,9 +143,14 @@ void PartitionReplica::StampLocked(uint64_t sequence, const std::vector<TileKey>
 
 void PartitionReplica::ApplyStamp(uint64_t sequence, const std::vector<TileKey>& affected) {
   std::unique_lock map_lock(map_mu_);
+  StampAndAdvance(map_lock, sequence, affected);
+}
+
+void PartitionReplica::StampAndAdvance(std::unique_lock<std::shared_mutex>& map_lock,
+                                       uint64_t sequence, const std::vector<TileKey>& affected) {
   StampLocked(sequence, affected);
   {
-    // Under the map's lock: a reader sees the stamps with the entry's sequence.
+    // Under the map's lock: a reader sees the tiles and stamps with the entry's sequence.
     std::lock_guard progress(progress_mu_);
     applied_ = sequence;
     progress_cv_.notify_all();

@@ -137,6 +137,10 @@ class PartitionReplica {
                      v1::TileFetchReply* reply) const;
   // ApplyStamp's stamps (map_mu_ held, exclusive).
   void StampLocked(uint64_t sequence, const std::vector<TileKey>& affected);
+  // StampLocked, then `sequence` applied (still under `map_lock`, which it then releases), and
+  // serving started if the partition has caught up: the end of a correction's stamp or swap.
+  void StampAndAdvance(std::unique_lock<std::shared_mutex>& map_lock, uint64_t sequence,
+                       const std::vector<TileKey>& affected);
   // Counts the partition's tiles with lo <= key <= hi into `out` (map_mu_ held, shared).
   void SummarizeInto(TileKey lo, TileKey hi, v1::PartitionSummary* out) const;
 
