@@ -198,15 +198,26 @@ Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, 
   return a->sequence;
 }
 
-Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
-                              const std::string& robot_id) {
-  Result<std::string> id = RandomMessageId("retire/");
+namespace {
+
+// An entry with no payload naming only a robot (a retirement, a refused correction), under a
+// fresh message id. Every replica reads every entry's robot headers, so no partition is named.
+Result<uint64_t> AppendRobotOnly(const NatsClient& nats, const ClusterTrust& trust,
+                                 const char* subject, const char* id_prefix,
+                                 const std::string& robot_id) {
+  Result<std::string> id = RandomMessageId(id_prefix);
   if (!id.ok()) return id.status();
-  // Every replica reads every entry's robot headers, so no partition is named.
   const RobotHeaders robot{robot_id, std::nullopt};
-  Result<Appended> a = Append(nats, trust, kRetireSubject, "", {}, CellBox{}, &robot, *id);
+  Result<Appended> a = Append(nats, trust, subject, "", {}, CellBox{}, &robot, *id);
   if (!a.ok()) return a.status();
   return a->sequence;
+}
+
+}  // namespace
+
+Result<uint64_t> AppendRetire(const NatsClient& nats, const ClusterTrust& trust,
+                              const std::string& robot_id) {
+  return AppendRobotOnly(nats, trust, kRetireSubject, "retire/", robot_id);
 }
 
 Result<uint64_t> AppendImport(const NatsClient& nats, const ClusterTrust& trust,
@@ -247,12 +258,7 @@ Result<std::optional<uint64_t>> AppendCorrection(const NatsClient& nats, const C
 
 Result<uint64_t> AppendRefusal(const NatsClient& nats, const ClusterTrust& trust,
                                const std::string& robot_id) {
-  Result<std::string> id = RandomMessageId("refused/");
-  if (!id.ok()) return id.status();
-  const RobotHeaders robot{robot_id, std::nullopt};
-  Result<Appended> a = Append(nats, trust, kRefusedSubject, "", {}, CellBox{}, &robot, *id);
-  if (!a.ok()) return a.status();
-  return a->sequence;
+  return AppendRobotOnly(nats, trust, kRefusedSubject, "refused/", robot_id);
 }
 
 Result<NatsPtr<natsMsg>> GetEntry(const NatsClient& nats, const ClusterTrust& trust,
