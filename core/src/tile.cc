@@ -83,14 +83,28 @@ void Tile::Assign(const Tile& o) {
 
 void Tile::Pack() {
   if (is_packed()) return;
+  PackFrom(*this);
+  FreeDense();
+}
+
+std::unique_ptr<Tile> Tile::PackedCopy(const Tile& o) {
+  if (o.is_packed()) return std::make_unique<Tile>(o);
+  std::unique_ptr<Tile> out(new Tile(NoArrays{}, o));
+  out->version_ = o.version_;
+  out->stamp_ns_ = o.stamp_ns_;
+  out->PackFrom(o);
+  return out;
+}
+
+void Tile::PackFrom(const Tile& d) {
   const size_t N = n();
   mask_.reset(new uint64_t[words()]());
   rank_.reset(new uint32_t[words()]);
   int count = 0;
   for (size_t i = 0; i < N; ++i) {
     // Stored iff any bit of any statistic is set: -0.0 and denormals survive the round trip.
-    uint64_t any = Bits(w_[i]) | Bits(s_[i]) | Bits(q_[i]) | Bits(a_[i]) | Bits(b_[i]);
-    for (int m = 0; plane_ && m < kPlaneMoments; ++m) any |= Bits(p_[m * N + i]);
+    uint64_t any = Bits(d.w_[i]) | Bits(d.s_[i]) | Bits(d.q_[i]) | Bits(d.a_[i]) | Bits(d.b_[i]);
+    for (int m = 0; plane_ && m < kPlaneMoments; ++m) any |= Bits(d.p_[m * N + i]);
     if (any == 0) continue;
     mask_[i >> 6] |= uint64_t{1} << (i & 63);
     ++count;
@@ -109,17 +123,16 @@ void Tile::Pack() {
   size_t r = 0;
   for (size_t i = 0; i < N && r < c; ++i) {
     if ((mask_[i >> 6] >> (i & 63) & 1) == 0) continue;
-    pd_[r] = w_[i];
-    pd_[c + r] = s_[i];
-    pd_[2 * c + r] = q_[i];
+    pd_[r] = d.w_[i];
+    pd_[c + r] = d.s_[i];
+    pd_[2 * c + r] = d.q_[i];
     for (int m = 0; plane_ && m < kPlaneMoments; ++m)
-      pd_[(kPackedDoubles + m) * c + r] = p_[m * N + i];
-    pf_[r] = a_[i];
-    pf_[c + r] = b_[i];
+      pd_[(kPackedDoubles + m) * c + r] = d.p_[m * N + i];
+    pf_[r] = d.a_[i];
+    pf_[c + r] = d.b_[i];
     ++r;
   }
   packed_count_ = count;
-  FreeDense();
 }
 
 void Tile::Unpack() {

@@ -7,6 +7,7 @@
 #include <charconv>
 #include <filesystem>
 #include <map>
+#include <optional>
 
 #include "bgkmap/storage/tile_codec.h"
 #include "byte_coding.h"
@@ -417,21 +418,27 @@ Status TileStore::WriteCheckpoint(uint64_t version, std::span<const TileUpdate> 
   uint64_t written = 0, deleted = 0;
   for (const TileUpdate& update : tiles) {
     const std::string key = TileKeyBytes(update.key);
-    if (update.tile == nullptr || IsZeroTile(*update.tile)) {
+    // The checks and the coding read dense arrays: unpack a packed copy once, not in each.
+    std::optional<Tile> unpacked;
+    if (update.tile != nullptr && update.tile->is_packed()) {
+      unpacked.emplace(*update.tile);
+      unpacked->Unpack();
+    }
+    const Tile* tile = unpacked ? &*unpacked : update.tile;
+    if (tile == nullptr || IsZeroTile(*tile)) {
       batch.Delete(db_->tiles, key);
       batch.Delete(db_->tile_index, key);
       ++deleted;
       continue;
     }
-    if (update.tile->tile_size() != params_.tile_size) {
+    if (tile->tile_size() != params_.tile_size) {
       return Status::InvalidArgument(
-          "tile " + TileKeyName(update.key) + " is " + std::to_string(update.tile->tile_size()) +
+          "tile " + TileKeyName(update.key) + " is " + std::to_string(tile->tile_size()) +
           " cells wide, the map's are " + std::to_string(params_.tile_size));
     }
-    const std::string value = EncodeTile(*update.tile, options_.tile_encoding);
+    const std::string value = EncodeTile(*tile, options_.tile_encoding);
     batch.Put(db_->tiles, key, value);
-    batch.Put(db_->tile_index, key,
-              EncodeTileInfo(*update.tile, static_cast<uint32_t>(value.size())));
+    batch.Put(db_->tile_index, key, EncodeTileInfo(*tile, static_cast<uint32_t>(value.size())));
     ++written;
   }
   batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));

@@ -120,6 +120,30 @@ TEST(TilePackingTest, RoundTripIsBitwiseAndReadsMatch) {
   }
 }
 
+// What a checkpoint holds: PackedCopy() of a dense tile equals the tile packed in place, bit for
+// bit, and leaves the source dense; of a packed tile, a copy.
+TEST(TilePackingTest, PackedCopyEqualsPackingInPlace) {
+  std::mt19937 rng(29);
+  for (int trial = 0; trial < 24; ++trial) {
+    const bool plane = trial % 2 == 1;
+    const int size = trial % 3 == 0 ? 7 : 64;
+    const Tile dense = RandomTile(rng, size, plane, 0.1 * (trial % 6));
+    const std::unique_ptr<Tile> copy = Tile::PackedCopy(dense);
+    ASSERT_TRUE(copy->is_packed());
+    EXPECT_FALSE(dense.is_packed());
+    Tile in_place(dense);
+    in_place.Pack();
+    EXPECT_EQ(copy->MemoryBytes(), in_place.MemoryBytes());
+    EXPECT_TRUE(*copy == in_place);
+    Tile back(*copy);
+    back.Unpack();
+    ExpectBitwiseEqualDense(back, dense);
+    const std::unique_ptr<Tile> again = Tile::PackedCopy(*copy);
+    EXPECT_TRUE(again->is_packed());
+    EXPECT_TRUE(*again == dense);
+  }
+}
+
 TEST(TilePackingTest, AMinusZeroIsADifference) {
   Tile a(8), b(8);
   b.s()[5] = -0.0;  // equal as numbers, not as bits

@@ -16,7 +16,8 @@ namespace bgkmap {
 // The tiles in memory, copied at a barrier (no change in flight): the served map's table.
 class ResidentTiles {
  public:
-  // Bitwise copies of the tiles at `keys` (null where the map has none in memory).
+  // Bitwise copies of the tiles at `keys` (null where the map has none in memory), in either
+  // form (tile.h).
   virtual std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const = 0;
   // Keys of the tiles in memory with min <= key <= max, sorted.
   virtual std::vector<TileKey> ListTiles(TileKey min, TileKey max) const = 0;

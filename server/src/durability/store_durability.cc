@@ -53,6 +53,14 @@ Result<std::unique_ptr<StoreDurability>> StoreDurability::Open(const StorageConf
   options.free_space.reserve_bytes = config.min_free_space_mb << 20;
   options.retention.max_bytes = config.retention_mb << 20;
   options.retention.max_age_ns = static_cast<int64_t>(config.retention_s * 1e9);
+  // Under a memory bound RocksDB's block cache and memory tables take a share of it (an eighth
+  // each, 8 to 32 MiB) rather than a fixed 32 MiB each: a small bound is a small machine.
+  if (config.max_memory_mb > 0) {
+    const uint64_t share = std::clamp<uint64_t>((config.max_memory_mb << 20) / 8, uint64_t{8} << 20,
+                                                uint64_t{32} << 20);
+    options.block_cache_bytes = share;
+    options.memtable_bytes = share;
+  }
   Result<std::unique_ptr<storage::TileStore>> store =
       storage::TileStore::Open(config.data_dir, options, params, georeference);
   if (!store.ok()) return store.status();

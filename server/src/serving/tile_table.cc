@@ -191,6 +191,17 @@ std::vector<std::unique_ptr<Tile>> TileTable::CopyTiles(std::span<const TileKey>
   return out;
 }
 
+std::vector<std::unique_ptr<Tile>> TileTable::CopyTilesPacked(std::span<const TileKey> keys) const {
+  std::shared_lock table(table_mu_);
+  std::vector<std::unique_ptr<Tile>> out;
+  out.reserve(keys.size());
+  for (TileKey k : keys) {
+    const Tile* t = map_->FindTile(k);
+    out.push_back(t == nullptr ? nullptr : Tile::PackedCopy(*t));
+  }
+  return out;
+}
+
 std::vector<TileKey> TileTable::ListTiles(TileKey min, TileKey max) const {
   std::vector<TileKey> keys;
   const uint64_t resident = resident_.load();

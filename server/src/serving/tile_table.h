@@ -83,6 +83,8 @@ class TileTable final {
   // At a barrier: bitwise copies of the tiles at `keys` (null where there is none in memory),
   // and the keys of the tiles in memory with min <= key <= max, sorted.
   std::vector<std::unique_ptr<Tile>> CopyTiles(std::span<const TileKey> keys) const;
+  // CopyTiles(), every copy packed (tile.h): costs the stored cells, not the tiles' area.
+  std::vector<std::unique_ptr<Tile>> CopyTilesPacked(std::span<const TileKey> keys) const;
   std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
   // The keys of `keys` not in memory.
   std::vector<TileKey> NotResident(std::span<const TileKey> keys) const;

@@ -45,6 +45,9 @@ class Tile {
   Tile& operator=(const Tile&) = delete;
   // Becomes a copy of `other` in its form (version and stamp included); same size required.
   void Assign(const Tile& other);
+  // A packed copy of `other`, of either form, without a dense copy in between (what a
+  // checkpoint holds until it is written: the stored cells, not the tile's area).
+  static std::unique_ptr<Tile> PackedCopy(const Tile& other);
 
   // The form (see above). Pack() and Unpack() keep the statistics bit for bit; each is a no-op
   // on a tile already in that form.
@@ -177,6 +180,11 @@ class Tile {
   void AllocateDense();
   void FreeDense();
   void FreePacked();
+  // Builds the packed arrays from the dense arrays of `dense` (this tile or another of its size
+  // and form); leaves this tile's dense arrays as they are.
+  void PackFrom(const Tile& dense);
+  struct NoArrays {};
+  Tile(NoArrays, const Tile& like) : size_(like.size_), plane_(like.plane_) {}
   // The stored rank of cell `local`, or -1 when the packed tile does not store it.
   int PackedRank(int local) const {
     const uint64_t word = mask_[local >> 6];
