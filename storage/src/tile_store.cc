@@ -169,6 +169,38 @@ Status ReconcileMeta(const std::string& dir, const MetaMap& meta, const MapParam
   return PutParams(batch, db, *effective);
 }
 
+// Puts each tile's coding and index entry into `batch`, and deletes those gone or all zero.
+Status AddTiles(const StoreDb& db, int tile_size, const TileEncodeOptions& encoding,
+                std::span<const TileUpdate> tiles, rocksdb::WriteBatch* batch, uint64_t* written,
+                uint64_t* deleted) {
+  for (const TileUpdate& update : tiles) {
+    const std::string key = TileKeyBytes(update.key);
+    // The checks and the coding read dense arrays: unpack a packed copy once, not in each.
+    std::optional<Tile> unpacked;
+    if (update.tile != nullptr && update.tile->is_packed()) {
+      unpacked.emplace(*update.tile);
+      unpacked->Unpack();
+    }
+    const Tile* tile = unpacked ? &*unpacked : update.tile;
+    if (tile == nullptr || IsZeroTile(*tile)) {
+      batch->Delete(db.tiles, key);
+      batch->Delete(db.tile_index, key);
+      ++*deleted;
+      continue;
+    }
+    if (tile->tile_size() != tile_size) {
+      return Status::InvalidArgument("tile " + TileKeyName(update.key) + " is " +
+                                     std::to_string(tile->tile_size()) +
+                                     " cells wide, the map's are " + std::to_string(tile_size));
+    }
+    const std::string value = EncodeTile(*tile, encoding);
+    batch->Put(db.tiles, key, value);
+    batch->Put(db.tile_index, key, EncodeTileInfo(*tile, static_cast<uint32_t>(value.size())));
+    ++*written;
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 TileStore::TileStore(std::string dir, const StoreOptions& options, const MapParams& params,
@@ -416,30 +448,10 @@ Status TileStore::WriteCheckpoint(uint64_t version, std::span<const TileUpdate> 
     return bases.status();
   }
   uint64_t written = 0, deleted = 0;
-  for (const TileUpdate& update : tiles) {
-    const std::string key = TileKeyBytes(update.key);
-    // The checks and the coding read dense arrays: unpack a packed copy once, not in each.
-    std::optional<Tile> unpacked;
-    if (update.tile != nullptr && update.tile->is_packed()) {
-      unpacked.emplace(*update.tile);
-      unpacked->Unpack();
-    }
-    const Tile* tile = unpacked ? &*unpacked : update.tile;
-    if (tile == nullptr || IsZeroTile(*tile)) {
-      batch.Delete(db_->tiles, key);
-      batch.Delete(db_->tile_index, key);
-      ++deleted;
-      continue;
-    }
-    if (tile->tile_size() != params_.tile_size) {
-      return Status::InvalidArgument(
-          "tile " + TileKeyName(update.key) + " is " + std::to_string(tile->tile_size()) +
-          " cells wide, the map's are " + std::to_string(params_.tile_size));
-    }
-    const std::string value = EncodeTile(*tile, options_.tile_encoding);
-    batch.Put(db_->tiles, key, value);
-    batch.Put(db_->tile_index, key, EncodeTileInfo(*tile, static_cast<uint32_t>(value.size())));
-    ++written;
+  if (Status s = AddTiles(*db_, params_.tile_size, options_.tile_encoding, tiles, &batch, &written,
+                          &deleted);
+      !s.ok()) {
+    return s;
   }
   batch.Put(db_->meta, kCheckpointVersionKey, U64Bytes(version));
   batch.Merge(db_->meta, kMapVersionKey, U64Bytes(version));
