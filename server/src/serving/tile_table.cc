@@ -11,6 +11,19 @@ namespace {
 // Cells read per hold of the table lock: small enough that tile creation never waits long.
 constexpr int64_t kCellsPerBand = 1 << 18;
 
+// `copy` of each tile at `keys` (null where the map has none).
+template <typename Copy>
+std::vector<std::unique_ptr<Tile>> CopyEach(const TerrainMap& map, std::span<const TileKey> keys,
+                                            Copy copy) {
+  std::vector<std::unique_ptr<Tile>> out;
+  out.reserve(keys.size());
+  for (TileKey k : keys) {
+    const Tile* t = map.FindTile(k);
+    out.push_back(t == nullptr ? nullptr : copy(*t));
+  }
+  return out;
+}
+
 }  // namespace
 
 TileTable::TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared)
@@ -182,24 +195,12 @@ std::pair<Raster, uint64_t> TileTable::ReadTile(TileKey key,
 
 std::vector<std::unique_ptr<Tile>> TileTable::CopyTiles(std::span<const TileKey> keys) const {
   std::shared_lock table(table_mu_);
-  std::vector<std::unique_ptr<Tile>> out;
-  out.reserve(keys.size());
-  for (TileKey k : keys) {
-    const Tile* t = map_->FindTile(k);
-    out.push_back(t == nullptr ? nullptr : std::make_unique<Tile>(*t));
-  }
-  return out;
+  return CopyEach(*map_, keys, [](const Tile& t) { return std::make_unique<Tile>(t); });
 }
 
 std::vector<std::unique_ptr<Tile>> TileTable::CopyTilesPacked(std::span<const TileKey> keys) const {
   std::shared_lock table(table_mu_);
-  std::vector<std::unique_ptr<Tile>> out;
-  out.reserve(keys.size());
-  for (TileKey k : keys) {
-    const Tile* t = map_->FindTile(k);
-    out.push_back(t == nullptr ? nullptr : Tile::PackedCopy(*t));
-  }
-  return out;
+  return CopyEach(*map_, keys, &Tile::PackedCopy);
 }
 
 std::vector<TileKey> TileTable::ListTiles(TileKey min, TileKey max) const {
