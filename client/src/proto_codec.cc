@@ -191,7 +191,9 @@ MapInfo FromProto(const v1::InfoResponse& r) {
                     {c.live_nodes().begin(), c.live_nodes().end()},
                     c.partitions(),
                     c.partition_tiles(),
-                    {}};
+                    {},
+                    c.region_partitions(),
+                    c.nats_received_bytes()};
     for (const v1::PartitionInfo& p : c.owned()) {
       out.owned.push_back({p.name(), p.log_sequence(), p.scans_integrated(), p.tiles(), p.serving(),
                            p.restored_from()});

@@ -141,13 +141,21 @@ struct MapServer::Impl {
   Status JoinCluster() {
     YAML::Emitter params_yaml;
     params_yaml << MapParamsToYaml(config.map);
+    // Shards must agree on who owns what: the regions are compared with the map's parameters
+    // (only when set, so a cluster started before they existed compares as it did).
+    std::string compared = params_yaml.c_str();
+    if (config.cluster.region_partitions > 0) {
+      compared +=
+          "\n# cluster.region_partitions: " + std::to_string(config.cluster.region_partitions) +
+          "\n";
+    }
     auto prepare = [params = config.map, limits = config.limits](
                        const v1::Scan& scan, const Pose* pose, PreparedScan* out) {
       const grpc::Status s = PrepareScanMessage(scan, params, limits, out, nullptr, pose);
       return s.ok() ? Status::Ok() : Status::InvalidArgument(s.error_message());
     };
     Result<std::unique_ptr<cluster::ClusterNode>> joined = cluster::ClusterNode::Start(
-        config.cluster, config.map, params_yaml.c_str(), prepare,
+        config.cluster, config.map, compared, prepare,
         Georeference{config.georeference.crs, config.georeference.origin},
         [this](std::function<void()> task) { boost::asio::post(query_pool, std::move(task)); },
         RobotSequenceRule{config.limits.max_robots, config.limits.max_sequence_jump});

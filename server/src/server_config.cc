@@ -297,6 +297,9 @@ const std::vector<ServerKey>& ClusterKeys() {
       Key<uint32_t>(
           "trim_lag_entries", [](ServerConfig & c) -> auto& { return c.cluster.trim_lag_entries; },
           "cluster"),
+      Key<uint32_t>(
+          "region_partitions",
+          [](ServerConfig & c) -> auto& { return c.cluster.region_partitions; }, "cluster"),
       Key<std::string>(
           "key_file", [](ServerConfig & c) -> auto& { return c.cluster.key_file; }, "cluster"),
       Key<bool>(
@@ -657,6 +660,14 @@ Status ValidateCluster(const ServerConfig& c) {
     return bad_cluster(
         c.cluster.nats_tls.cert_file.empty() ? "nats_tls.cert_file" : "nats_tls.key_file",
         "nats_tls.cert_file and nats_tls.key_file are set together");
+  }
+  if (c.cluster.region_partitions > 4096) {
+    return bad_cluster("region_partitions", "must be in [0, 4096] partitions");
+  }
+  if (c.cluster.region_partitions > 0 && c.cluster.trim_lag_entries > 0) {
+    return bad_cluster("region_partitions",
+                       "streams per region are not trimmed yet: set cluster.trim_lag_entries "
+                       "to 0 with cluster.region_partitions > 0");
   }
   if (c.cluster.trim_lag_entries > 0 && c.cluster.checkpoint_scans == 0) {
     return bad_cluster("trim_lag_entries",

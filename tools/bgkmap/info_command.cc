@@ -96,6 +96,8 @@ int RunInfo(const ServerTarget& server) {
                       {"live_nodes", c.live_nodes},
                       {"partitions", c.partitions},
                       {"partition_tiles", c.partition_tiles},
+                      {"region_partitions", c.region_partitions},
+                      {"nats_received_bytes", c.nats_received_bytes},
                       {"owned", owned}};
   }
   std::printf("%s\n", out.dump(2).c_str());

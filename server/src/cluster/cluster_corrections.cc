@@ -99,8 +99,10 @@ Status WholeLogKept(const NatsClient& nats, uint32_t trim_lag_entries) {
 Result<PreparedScan> ClusterNode::PrepareLogged(uint64_t log_sequence, const Pose* pose) const {
   Result<NatsPtr<natsMsg>> msg = GetEntry(*nats_, *trust_, log_sequence);
   if (!msg.ok()) return Status::IoError(msg.status().message());
+  Result<std::string> payload = EntryPayload(*nats_, msg->get());
+  if (!payload.ok()) return Status::IoError(payload.status().message());
   v1::Scan scan;
-  if (!scan.ParseFromArray(natsMsg_GetData(msg->get()), natsMsg_GetDataLength(msg->get()))) {
+  if (!scan.ParseFromString(*payload)) {
     return Status::DataLoss("log entry " + std::to_string(log_sequence) + " does not decode");
   }
   PreparedScan prepared;
@@ -180,10 +182,11 @@ Status ClusterNode::GrowAffected(uint64_t first, uint64_t last, const Admitted& 
                                  Resolved* resolved, const std::string& own_payload,
                                  Interleaved* seen) const {
   if (first > last) return Status::Ok();
+  Status unreadable = Status::Ok();  // a region copy out of reach: the replicas would wait
   Status read =
       ReadLogRange(*nats_, first, last, /*headers_only=*/false, [&](uint64_t entry, natsMsg* msg) {
         // The entries the replicas integrate, judged as they judge them (Dispatch).
-        if (!VerifyEntry(*trust_, msg, /*headers_only=*/false).ok()) return;
+        if (!unreadable.ok() || !VerifyEntry(*trust_, msg, /*headers_only=*/false).ok()) return;
         Result<LogEntryHeader> h = ReadEntryHeader(msg);
         if (!h.ok()) return;
         if (h->kind == LogEntryHeader::Kind::kCorrect && seen != nullptr) {
@@ -198,14 +201,20 @@ Status ClusterNode::GrowAffected(uint64_t first, uint64_t last, const Admitted& 
         if (!admitted(entry, *h)) return;
         auto r = resolved->all.find(entry);
         if (r != resolved->all.end() && r->second.removed) return;  // no record any more
+        Result<std::string> payload = EntryPayload(*nats_, msg);
+        if (!payload.ok() && payload.status().code() == Status::Code::kUnavailable) {
+          unreadable = payload.status();
+          return;
+        }
         v1::Scan scan;
         PreparedScan prepared;
-        if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg)) ||
+        if (!payload.ok() || !scan.ParseFromString(*payload) ||
             !prepare_(scan, r != resolved->all.end() ? &r->second.pose : nullptr, &prepared).ok()) {
           return;  // skipped by every replica too
         }
         resolved->affected.Add(prepared, resolved->own.contains(entry));
       });
+  if (!unreadable.ok()) return unreadable;
   if (!read.ok()) return Status::IoError(read.message());
   return Status::Ok();
 }

@@ -23,6 +23,9 @@ constexpr const char* kChangesHeader = "Bgkmap-Cells";  // "min_x min_y max_x ma
 constexpr const char* kTimeHeader = "Bgkmap-Time";
 constexpr const char* kDigestHeader = "Bgkmap-Digest";
 constexpr const char* kMacHeader = "Bgkmap-Mac";
+// A scan whose payload is stored per region (region_streams.h): where its copies are. Not in the
+// HMAC: the payload's digest is, and a copy is believed only with that digest.
+constexpr const char* kCopiesHeader = "Bgkmap-Copies";
 constexpr const char* kMsgIdHeader = "Nats-Msg-Id";  // set by nats.c from jsPubOptions.MsgId
 // Append's refusal when the log is past the expected last sequence.
 constexpr const char* kLogGrew = "the log grew past the expected entry";
@@ -99,10 +102,13 @@ std::string EntryMac(const ClusterTrust& trust, std::string_view subject, std::s
 Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const char* subject,
                         const std::string& payload, const std::vector<PartitionKey>& touched,
                         const CellBox& changes, const RobotHeaders* robot,
-                        const std::string& msg_id, uint64_t after = 0) {
+                        const std::string& msg_id, uint64_t after = 0,
+                        const std::string* copies = nullptr) {
   natsMsg* raw = nullptr;
+  // With copies elsewhere the entry holds no payload, only its digest.
+  const std::string_view stored = copies != nullptr ? std::string_view() : payload;
   natsStatus st =
-      natsMsg_Create(&raw, subject, nullptr, payload.data(), static_cast<int>(payload.size()));
+      natsMsg_Create(&raw, subject, nullptr, stored.data(), static_cast<int>(stored.size()));
   if (st != NATS_OK) return NatsStatus(st, "cluster: message");
   NatsPtr<natsMsg> msg(raw);
   std::string parts;
@@ -129,14 +135,21 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
       st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
     }
   }
+  const std::string digest =
+      trust.keyed() || copies != nullptr ? ClusterTrust::Digest(payload) : std::string();
+  if (copies != nullptr) {
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kCopiesHeader, copies->c_str());
+    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kDigestHeader, digest.c_str());
+  }
   if (trust.keyed()) {
     const std::string time = std::to_string(ClusterTrust::NowNs());
-    const std::string digest = ClusterTrust::Digest(payload);
     const std::string mac =
         EntryMac(trust, subject, msg_id, time, robot != nullptr ? robot->robot_id : "", sequence,
                  parts, cells, digest);
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kTimeHeader, time.c_str());
-    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kDigestHeader, digest.c_str());
+    if (st == NATS_OK && copies == nullptr) {
+      st = natsMsgHeader_Set(msg.get(), kDigestHeader, digest.c_str());
+    }
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kMacHeader, mac.c_str());
   }
   if (st != NATS_OK) return NatsStatus(st, "cluster: message headers");
@@ -169,9 +182,10 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
 }  // namespace
 
 Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
-                            const std::string& encoded, const std::string& robot_id,
-                            uint64_t sequence, const std::string& id_suffix,
-                            const std::vector<PartitionKey>& touched, const CellBox& changes) {
+                            RegionStreams& regions, const std::string& encoded,
+                            const std::string& robot_id, uint64_t sequence,
+                            const std::string& id_suffix, const std::vector<PartitionKey>& touched,
+                            const CellBox& changes) {
   if (static_cast<int64_t>(encoded.size()) + 1024 > nats.max_payload()) {
     return Status::OutOfRange("scan: " + std::to_string(encoded.size()) +
                               " bytes exceed the NATS servers' max_payload of " +
@@ -179,8 +193,14 @@ Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
   }
   // The robot's own id and sequence: a retry, through this node or another, is stored once.
   const RobotHeaders robot{robot_id, sequence};
-  return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot,
-                robot_id + "/" + std::to_string(sequence) + id_suffix);
+  const std::string msg_id = robot_id + "/" + std::to_string(sequence) + id_suffix;
+  if (!regions.enabled())
+    return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot, msg_id);
+  // The copies first: an entry is never read before the copies it names are stored.
+  Result<std::string> copies =
+      regions.Store(encoded, msg_id, ClusterTrust::Digest(encoded), touched);
+  if (!copies.ok()) return copies.status();
+  return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot, msg_id, 0, &*copies);
 }
 
 Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
@@ -519,12 +539,28 @@ Status VerifyEntryStoredAt(const ClusterTrust& trust, natsMsg* msg, bool headers
                                       std::to_string((stored_ns - signed_ns) / 1000000) +
                                       " ms after it was signed: a copy published again");
   }
-  if (!headers_only &&
+  // A payload stored per region is checked when it is read (EntryPayload).
+  if (!headers_only && header(kCopiesHeader).empty() &&
       ClusterTrust::Digest(std::string_view(
           natsMsg_GetData(msg), static_cast<size_t>(natsMsg_GetDataLength(msg)))) != digest) {
     return Status::FailedPrecondition("the payload is not the one signed");
   }
   return Status::Ok();
+}
+
+Result<std::string> EntryPayload(const NatsClient& nats, natsMsg* entry,
+                                 std::optional<RegionKey> prefer) {
+  const char* copies = nullptr;
+  if (natsMsgHeader_Get(entry, kCopiesHeader, &copies) != NATS_OK || copies == nullptr) {
+    return std::string(natsMsg_GetData(entry), static_cast<size_t>(natsMsg_GetDataLength(entry)));
+  }
+  const char* msg_id = nullptr;
+  const char* digest = nullptr;
+  if (natsMsgHeader_Get(entry, kMsgIdHeader, &msg_id) != NATS_OK || msg_id == nullptr ||
+      natsMsgHeader_Get(entry, kDigestHeader, &digest) != NATS_OK || digest == nullptr) {
+    return Status::DataLoss("the entry names payload copies without their message id and digest");
+  }
+  return ReadCopy(nats, copies, msg_id, digest, prefer);
 }
 
 }  // namespace bgkmap::cluster

@@ -12,7 +12,9 @@
 // reader believes an entry only if VerifyEntry accepts it. The message id is signed and
 // JetStream stores an id once within cluster.dedupe_window_s, and an entry stored longer after
 // its signature than kMaxEntryDelay (plus the clock skew) is refused, so a copy of a real entry
-// published again is never applied.
+// published again is never applied. A scan stored per region (region_streams.h) keeps its
+// payload's digest in the entry and its bytes in the regions' streams: EntryPayload believes a
+// copy only with that digest.
 #pragma once
 
 #include <atomic>
@@ -29,6 +31,7 @@
 #include "cluster/cluster_trust.h"
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
+#include "cluster/region_streams.h"
 
 namespace bgkmap::cluster {
 
@@ -72,11 +75,15 @@ struct Appended {
 // ack). Its message id, which the log stores once, is "robot/sequence" + `id_suffix` (what tells
 // a new scan from a retry: after a retirement the robot's sequence starts again, and a scan whose
 // entry the robot-sequence rule refused may be sent again and judged again). OutOfRange when it
-// exceeds the servers' max_payload; Unavailable when the log cannot be reached in time.
+// exceeds the servers' max_payload; Unavailable when the log cannot be reached in time. With
+// `regions` enabled the payload is stored in the streams of the regions `touched` meets first,
+// and the entry names those copies and holds the payload's digest, not the payload
+// (region_streams.h; read it back with EntryPayload).
 Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
-                            const std::string& encoded, const std::string& robot_id,
-                            uint64_t sequence, const std::string& id_suffix,
-                            const std::vector<PartitionKey>& touched, const CellBox& changes);
+                            RegionStreams& regions, const std::string& encoded,
+                            const std::string& robot_id, uint64_t sequence,
+                            const std::string& id_suffix, const std::vector<PartitionKey>& touched,
+                            const CellBox& changes);
 
 // Appends a clear of `box` (map cells), ordered with the scans like a single server's clear.
 Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
@@ -108,6 +115,13 @@ Result<std::optional<uint64_t>> AppendCorrection(const NatsClient& nats, const C
 // Appends the refusal of a correction of `robot_id`'s scans (kRefusedSubject).
 Result<uint64_t> AppendRefusal(const NatsClient& nats, const ClusterTrust& trust,
                                const std::string& robot_id);
+
+// The payload of `entry` (whole, as a log reader or GetEntry gave it): its own bytes, or, for a
+// scan stored per region, the copy ReadCopy finds (`prefer`'s region first), checked against
+// the entry's digest and message id. DataLoss when no copy holds it; Unavailable when the
+// region streams cannot be read now (try again: the entry must not be passed without it).
+Result<std::string> EntryPayload(const NatsClient& nats, natsMsg* entry,
+                                 std::optional<RegionKey> prefer = std::nullopt);
 
 // Entry `sequence` of the log, whole, read by its sequence (not through a reader), verified as
 // VerifyEntry verifies: FailedPrecondition if it was not appended by a shard with the key,

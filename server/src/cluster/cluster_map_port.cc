@@ -2,6 +2,7 @@
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
+#include <tuple>
 
 #include "bgkmap/storage/map_metadata.h"
 #include "cluster/cluster_export.h"
@@ -265,6 +266,8 @@ MapState ClusterNode::State(bool /*with_disk_usage*/) {
   shard.live_nodes = status.live_nodes;
   shard.partitions_known = status.partitions_known;
   shard.partition_tiles = static_cast<uint32_t>(layout_.partition_tiles());
+  shard.region_partitions = config_.region_partitions;
+  std::tie(shard.nats_received_bytes, shard.nats_received_messages) = NatsReceived();
   for (const ReplicaStats& r : status.replicas) {
     shard.owned.push_back({PartitionName(r.key), r.log_sequence, r.scans_integrated, r.tiles,
                            r.serving, r.restored_from});

@@ -69,6 +69,9 @@ ClusterNode::ClusterNode(const ClusterConfig& config, const MapParams& params, S
       layout_(params, static_cast<int>(config.partition_tiles)),
       trust_(std::move(trust)),
       nats_(std::move(nats)),
+      regions_(std::make_unique<RegionStreams>(
+          *nats_, RegionStreamOptions{static_cast<int>(config.region_partitions),
+                                      static_cast<int>(config.replicas), config.dedupe_window_s})),
       members_(std::move(members)) {
   // A takeover waits for the lease to expire, then for the new owner to read the log.
   reads_ = std::make_unique<ClusterReads>(*nats_, *trust_, layout_, *members_, params_,
@@ -209,8 +212,8 @@ Result<Appended> ClusterNode::Append(const ScanOrigin& origin, const std::string
   for (PartitionKey p : touched) {
     if (Status s = members_->AddPartition(p); !s.ok()) return Status::Unavailable(s.message());
   }
-  return AppendScan(*nats_, *trust_, encoded, origin.robot_id, origin.sequence, id_suffix, touched,
-                    reach);
+  return AppendScan(*nats_, *trust_, *regions_, encoded, origin.robot_id, origin.sequence,
+                    id_suffix, touched, reach);
 }
 
 Result<uint64_t> ClusterNode::AppendClear(const CellBox& box) {
@@ -326,7 +329,8 @@ void ClusterNode::Rebalance() {
     live_ = live;
     partitions_known_ = known.size();
     for (PartitionKey p : known) {
-      const bool mine = Membership::OwnerOf(p, live) == config_.node;
+      const bool mine =
+          Membership::OwnerOf(p, live, static_cast<int>(config_.region_partitions)) == config_.node;
       const bool running = replicas_.count(p) != 0;
       if (mine) {
         leaving_.erase(p);
@@ -561,11 +565,14 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
   PreparedScan prepared;
   bool ready = false;
   if (any) {
+    const size_t first = static_cast<size_t>(std::find(integrate.begin(), integrate.end(), true) -
+                                             integrate.begin());
+    Result<std::string> payload = ScanPayload(sequence, msg, to[first]->key());
     v1::Scan scan;
-    Status s = Status::Ok();
-    if (!scan.ParseFromArray(natsMsg_GetData(msg), natsMsg_GetDataLength(msg))) {
+    Status s = payload.status();
+    if (s.ok() && !scan.ParseFromString(*payload)) {
       s = Status::DataLoss("the scan does not decode");
-    } else {
+    } else if (s.ok()) {
       s = prepare_(scan, revision != nullptr ? &revision->pose : nullptr, &prepared);
     }
     ready = s.ok();
@@ -575,6 +582,23 @@ void ClusterNode::Dispatch(uint64_t sequence, natsMsg* msg,
   }
   for (size_t i = 0; i < to.size(); ++i) {
     to[i]->Apply(sequence, integrate[i] && ready ? &prepared : nullptr);
+  }
+}
+
+Result<std::string> ClusterNode::ScanPayload(uint64_t sequence, natsMsg* msg, PartitionKey p) {
+  const std::optional<RegionKey> region =
+      regions_->enabled() ? std::optional(RegionOf(p, regions_->region_partitions()))
+                          : std::nullopt;
+  for (int attempt = 1;; ++attempt) {
+    Result<std::string> payload = EntryPayload(*nats_, msg, region);
+    if (payload.ok() || payload.status().code() != Status::Code::kUnavailable) return payload;
+    // Passing the entry would leave the partitions without the scan for good: wait for it.
+    spdlog::warn("event=region_copy_unavailable sequence={} attempt={} reason=\"{}\"", sequence,
+                 attempt, payload.status().message());
+    std::unique_lock lock(stop_mu_);
+    if (stop_cv_.wait_for(lock, std::chrono::milliseconds(500), [this] { return stop_; })) {
+      return payload;
+    }
   }
 }
 
@@ -625,6 +649,17 @@ void ClusterNode::DispatchChange(uint64_t sequence, natsMsg* msg, const LogEntry
   } else {
     for (const auto& r : to) r->Apply(sequence, nullptr);  // a refusal: nothing changes
   }
+}
+
+std::pair<uint64_t, uint64_t> ClusterNode::NatsReceived() const {
+  natsStatistics* stats = nullptr;
+  uint64_t messages = 0, bytes = 0;
+  if (natsStatistics_Create(&stats) == NATS_OK &&
+      natsConnection_GetStats(nats_->connection(), stats) == NATS_OK) {
+    natsStatistics_GetCounts(stats, &messages, &bytes, nullptr, nullptr, nullptr);
+  }
+  natsStatistics_Destroy(stats);
+  return {bytes, messages};
 }
 
 ClusterStatus ClusterNode::Describe() const {

@@ -28,6 +28,7 @@
 #include "cluster/nats_client.h"
 #include "cluster/partition_layout.h"
 #include "cluster/partition_replica.h"
+#include "cluster/region_streams.h"
 #include "cluster/robot_ledger.h"
 #include "serving/map_port.h"
 
@@ -112,6 +113,9 @@ class ClusterNode final : public MapPort {
   void SubmitCorrection(CorrectionSpec spec, std::function<void(CorrectionOutcome)> done) override;
   void RetireRobot(const std::string& robot_id,
                    std::function<void(Result<RobotStats>)> done) override;
+  // Bytes and messages this node's NATS connection has received since start (what the log,
+  // the region streams, the tile fetches and the membership cost this shard).
+  std::pair<uint64_t, uint64_t> NatsReceived() const;
   // Reads gather tiles from the partitions' owners (ClusterReads).
   uint64_t applied_version() const override { return reads_->applied_version(); }
   Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
@@ -190,6 +194,9 @@ class ClusterNode final : public MapPort {
   // Decodes and prepares entry `msg` once for every replica that integrates it. `revisions`
   // (a rebuild's replay): scans prepared with their corrected poses or not integrated, and
   // correction and export entries passed.
+  // The payload of scan entry `msg` for partition `p` (its region's copy first, if stored per
+  // region), read again while the region streams are out of reach, until the node stops.
+  Result<std::string> ScanPayload(uint64_t sequence, natsMsg* msg, PartitionKey p);
   void Dispatch(uint64_t sequence, natsMsg* msg,
                 const std::vector<std::shared_ptr<PartitionReplica>>& to,
                 const Revisions* revisions = nullptr);
@@ -254,6 +261,7 @@ class ClusterNode final : public MapPort {
   const PartitionLayout layout_;
   const std::unique_ptr<ClusterTrust> trust_;  // the cluster key; outlives what uses it below
   std::unique_ptr<NatsClient> nats_;
+  std::unique_ptr<RegionStreams> regions_;  // cluster.region_partitions (may be disabled)
   std::unique_ptr<Membership> members_;
   std::unique_ptr<ClusterReads> reads_;
   std::unique_ptr<RobotLedger> ledger_;

@@ -8,6 +8,8 @@
 #include <sstream>
 #include <thread>
 
+#include "cluster/region_streams.h"
+
 namespace bgkmap::cluster {
 namespace {
 
@@ -300,10 +302,13 @@ Result<bool> Membership::HasPartition(PartitionKey p) const {
   return true;
 }
 
-std::string Membership::OwnerOf(PartitionKey p, const std::vector<std::string>& live) {
+std::string Membership::OwnerOf(PartitionKey p, const std::vector<std::string>& live,
+                                int region_partitions) {
   std::string best;
   uint64_t best_hash = 0;
-  const std::string name = PartitionName(p);
+  const std::string name = region_partitions > 0
+                               ? "region/" + RegionName(RegionOf(p, region_partitions))
+                               : PartitionName(p);
   for (const std::string& node : live) {
     const uint64_t h = Fnv1a(node + "/" + name);
     if (best.empty() || h > best_hash) {

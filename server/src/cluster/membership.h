@@ -69,8 +69,10 @@ class Membership {
   // which may lag another node's record).
   Result<std::vector<PartitionKey>> ListRecordedPartitions() const;
 
-  // The owner of `p` among `live` ("" if none).
-  static std::string OwnerOf(PartitionKey p, const std::vector<std::string>& live);
+  // The owner of `p` among `live` ("" if none). With `region_partitions` > 0 the owner of its
+  // region (region_streams.h): one shard owns all of a region's partitions.
+  static std::string OwnerOf(PartitionKey p, const std::vector<std::string>& live,
+                             int region_partitions = 0);
 
  private:
   Membership(const MembershipOptions& options, const ClusterTrust& trust, natsConnection* nc,

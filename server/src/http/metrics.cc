@@ -135,7 +135,11 @@ ServerMetrics CollectMetrics(MapPort& map, const ServiceCounts& service,
   m.memory_limit_bytes = memory_limit_bytes;
   m.process_resident_bytes = ProcessResidentBytes();
   m.corrections = state.corrections;
-  if (state.shard) m.cluster_refused = state.shard->refused;
+  if (state.shard) {
+    m.cluster_refused = state.shard->refused;
+    m.nats_received =
+        std::pair(state.shard->nats_received_bytes, state.shard->nats_received_messages);
+  }
   return m;
 }
 
@@ -183,6 +187,16 @@ std::string FormatMetrics(const ServerMetrics& m) {
              "Records read from NATS refused since start because their cluster-key HMAC does not "
              "verify (docs/scale-out.md, Trust), by kind.");
     for (const auto& [kind, count] : *m.cluster_refused) w.Sample(count, {{"kind", kind}});
+  }
+  if (m.nats_received) {
+    w.Counter("bgkmap_cluster_nats_received_bytes_total",
+              "Bytes this shard's NATS connection received since start: the log (with "
+              "cluster.region_partitions, its own regions' payloads only), tile fetches, "
+              "membership.",
+              m.nats_received->first);
+    w.Counter("bgkmap_cluster_nats_received_messages_total",
+              "Messages this shard's NATS connection received since start.",
+              m.nats_received->second);
   }
   if (m.process_resident_bytes) {
     w.Gauge("process_resident_memory_bytes", "Resident memory of the bgkmapd process (VmRSS).",

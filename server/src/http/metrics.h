@@ -39,6 +39,7 @@ struct ServerMetrics {
   CorrectionStats corrections;
   // A shard of a cluster: records from NATS refused since start, by kind (ShardState::refused).
   std::optional<std::vector<std::pair<std::string, uint64_t>>> cluster_refused;
+  std::optional<std::pair<uint64_t, uint64_t>> nats_received;  // bytes, messages (a shard)
 };
 
 // Reads every value from the map (MapPort::State) and `service`. Locks nothing map-wide (the

@@ -82,6 +82,11 @@ struct ShardState {
   // Records read from NATS and refused since start (no valid cluster-key HMAC), by kind
   // ("log_entry", "tile_reply", "membership", "checkpoint"): docs/scale-out.md, "Trust".
   std::vector<std::pair<std::string, uint64_t>> refused;
+  uint32_t region_partitions = 0;  // cluster.region_partitions (0: payloads in the log)
+  // What this shard's NATS connection received since start: the log (and, with regions, its
+  // regions' payloads), tile fetches and replies, membership.
+  uint64_t nats_received_bytes = 0;
+  uint64_t nats_received_messages = 0;
 };
 
 // What Info and /metrics report. Read field by field, not at one map version.

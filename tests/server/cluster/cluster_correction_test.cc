@@ -275,14 +275,17 @@ TEST(ClusterCorrectionTest, CorrectionWhileScansStreamIn) {
 
 // Two bgkmapd shards; b killed with -9 just before a correction and a removal through a: the
 // partitions b owned are taken over (from checkpoints), replay the log and are rebuilt at the
-// entries; every answer is the single server's.
-TEST(ClusterCorrectionTest, CorrectionsDuringATakeover) {
+// entries; every answer is the single server's. `extra`: more shard settings.
+void ExpectCorrectionsDuringATakeover(const std::vector<std::string>& extra) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
   ASSERT_TRUE(nats.started());
   const std::vector<OwnedScan> scans = Drifted();
   Reference ref(scans, StoreConfig(dir));
-  BgkmapdProcess a(NodeArgs(nats.urls(), "a")), b(NodeArgs(nats.urls(), "b"));
+  std::vector<std::string> args_a = NodeArgs(nats.urls(), "a"), args_b = NodeArgs(nats.urls(), "b");
+  args_a.insert(args_a.end(), extra.begin(), extra.end());
+  args_b.insert(args_b.end(), extra.begin(), extra.end());
+  BgkmapdProcess a(args_a), b(args_b);
   ASSERT_TRUE(a.started() && b.started());
   Client to_a(a.target());
   InsertAll(to_a, scans, 0, scans.size());
@@ -303,6 +306,15 @@ TEST(ClusterCorrectionTest, CorrectionsDuringATakeover) {
   }
   EXPECT_TRUE(restored) << "no partition was restored from a checkpoint";
   EXPECT_TRUE(rebuilt) << "no partition was rebuilt";
+}
+
+TEST(ClusterCorrectionTest, CorrectionsDuringATakeover) { ExpectCorrectionsDuringATakeover({}); }
+
+// The same with the scans' payloads in streams per region (docs/scale-out.md): the correction
+// reads and prepares the named scans from their region copies, the rebuilds replay them, and
+// the survivor takes the killed shard's whole regions.
+TEST(ClusterCorrectionTest, CorrectionsDuringATakeoverWithStreamsPerRegion) {
+  ExpectCorrectionsDuringATakeover({"--set", "cluster.region_partitions=2"});
 }
 
 }  // namespace

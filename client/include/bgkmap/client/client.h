@@ -262,6 +262,8 @@ struct ClusterInfo {
   uint64_t partitions = 0;  // with data, cluster-wide
   uint32_t partition_tiles = 0;
   std::vector<ClusterPartitionInfo> owned;
+  uint32_t region_partitions = 0;    // 0: every scan's payload in the one log
+  uint64_t nats_received_bytes = 0;  // this shard's NATS connection, since its start
 };
 
 struct MapInfo {

@@ -126,6 +126,12 @@ struct ClusterConfig {
   // log by this many entries is checkpointed even if idle, and the log is trimmed below the
   // oldest of the partitions' newest checkpoints (docs/scale-out.md, "Trimming the log").
   uint32_t trim_lag_entries = 0;
+  // region_partitions: 0 keeps every scan's payload in the log, which every shard reads. Else
+  // the site is cut into regions of this many partitions square, each owned by one shard, and a
+  // scan's payload is stored in a stream per region it touches: a shard reads every entry's
+  // headers but only its regions' payloads (docs/scale-out.md, "Streams per region"). Every
+  // shard must run the same value (the shards compare it at start).
+  uint32_t region_partitions = 0;
   // key_file: a file holding the cluster's secret (at least 32 bytes, readable by its owner
   // only). Every log entry, tile-fetch reply and membership record carries an HMAC-SHA256 with
   // it, and a shard believes nothing that fails it (docs/scale-out.md, "Trust"). Only the path

@@ -13,6 +13,8 @@ void ShardToProto(const ShardState& shard, v1::ClusterInfo* out) {
   for (const std::string& n : shard.live_nodes) out->add_live_nodes(n);
   out->set_partitions(shard.partitions_known);
   out->set_partition_tiles(shard.partition_tiles);
+  out->set_region_partitions(shard.region_partitions);
+  out->set_nats_received_bytes(shard.nats_received_bytes);
   for (const ShardState::Partition& r : shard.owned) {
     v1::PartitionInfo* p = out->add_owned();
     p->set_name(r.name);
