@@ -22,7 +22,10 @@ std::string StreamName(std::string_view region) { return kStreamPrefix + std::st
 }  // namespace
 
 RegionKey RegionOf(PartitionKey p, int region_partitions) {
-  return {FloorDiv(p.x, region_partitions), FloorDiv(p.y, region_partitions)};
+  // Centred on the map's origin, where a map frame usually starts (a robot's first pose): a
+  // drive from there does not begin on a border between four regions.
+  const int half = region_partitions / 2;
+  return {FloorDiv(p.x + half, region_partitions), FloorDiv(p.y + half, region_partitions)};
 }
 
 std::string RegionName(RegionKey r) { return std::to_string(r.x) + "_" + std::to_string(r.y); }

@@ -28,7 +28,8 @@ struct RegionKey {
   friend constexpr auto operator<=>(const RegionKey&, const RegionKey&) = default;
 };
 
-// The region of partition `p` (floor division: regions tile the plane).
+// The region of partition `p`: regions of region_partitions x region_partitions partitions tile
+// the plane, region (0, 0) centred on the map's origin.
 RegionKey RegionOf(PartitionKey p, int region_partitions);
 // "x_y" (e.g. "3_-2"): the region's name in its stream's name and subject.
 std::string RegionName(RegionKey r);

@@ -69,15 +69,14 @@ StreamBytes ReadStreamBytes(const std::string& url) {
   return out;
 }
 
-int FloorDiv(int a, int b) { return a / b - ((a % b != 0) && (a < 0) ? 1 : 0); }
-
 // The regions of the partitions `info`'s shard serves ("x.y" names).
 std::set<std::pair<int, int>> OwnedRegions(const MapInfo& info) {
   std::set<std::pair<int, int>> out;
   for (const ClusterPartitionInfo& p : info.cluster->owned) {
     int x = 0, y = 0;
     if (std::sscanf(p.name.c_str(), "%d.%d", &x, &y) != 2) continue;
-    out.insert({FloorDiv(x, kRegionPartitions), FloorDiv(y, kRegionPartitions)});
+    const cluster::RegionKey r = cluster::RegionOf({x, y}, kRegionPartitions);
+    out.insert({r.x, r.y});
   }
   return out;
 }
@@ -142,12 +141,12 @@ TEST(ClusterRegionTest, ACopyIsBelievedOnlyWithItsEntrysIdAndDigest) {
   ASSERT_TRUE(client.ok()) << client.status().message();
   cluster::RegionStreams regions(**client, {2, 1, 3600});
   const std::string payload = "the scan's bytes", digest = cluster::ClusterTrust::Digest(payload);
-  // Partitions in two regions ((0,0) and (-1,0)): a copy in each.
-  Result<std::string> copies = regions.Store(payload, "r1/1", digest, {{0, 0}, {1, 1}, {-1, 0}});
+  // Partitions in two regions (region (0,0) is partitions -1..0 in x and y): a copy in each.
+  Result<std::string> copies = regions.Store(payload, "r1/1", digest, {{0, 0}, {-1, -1}, {-2, 0}});
   ASSERT_TRUE(copies.ok()) << copies.status().message();
   EXPECT_EQ(*copies, "-1_0:1 0_0:1");
   // A retry stores nothing new and names the same copies.
-  EXPECT_EQ(regions.Store(payload, "r1/1", digest, {{0, 0}, {-1, 0}}).value(), *copies);
+  EXPECT_EQ(regions.Store(payload, "r1/1", digest, {{0, 0}, {-2, 0}}).value(), *copies);
   Result<std::string> read = cluster::ReadCopy(**client, *copies, "r1/1", digest, {{0, 0}});
   ASSERT_TRUE(read.ok()) << read.status().message();
   EXPECT_EQ(*read, payload);
