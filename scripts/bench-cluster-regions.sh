@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Streams per region against one shared stream (docs/benchmarks.md, "Cluster: streams per
-# region"; docs/scale-out.md). On a simulated VLP-16 drive (bgkmap simulate city, 840 m of road
-# along y from the origin; made once in out/bench/cluster-regions-drive), for 2 and 4 shards, each
-# way (cluster.region_partitions 0, and REGION_PARTITIONS, default 4: regions of 205 m):
-#   1. ingest: the drive appended through one shard by `bgkmap insert` (compact scans), scans/s;
+# region"; docs/scale-out.md). A fleet of ROBOTS (default 4) simulated VLP-16 robots, each
+# driving 840 m of road (bgkmap simulate city, made once in out/bench/cluster-regions-drive) in
+# its own part of the site, SPACING m (default 2000) apart in x; for 2 and 4 shards, each way
+# (cluster.region_partitions 0, and REGION_PARTITIONS, default 8: regions of 410 m):
+#   1. ingest: the robots' drives appended through one shard by `bgkmap insert` (compact scans,
+#      one robot after the other), scans/s;
 #   2. the shards build the map from the log: seconds until every partition serves, scans/s;
 #   3. the bytes each shard's NATS connection received (its Info: the log, or the log's headers
 #      and its regions' payloads, plus membership);
@@ -20,13 +22,24 @@ BIN=build/tools/bgkmap/bgkmap
 OUT=out/bench/cluster-regions
 DRIVE=out/bench/cluster-regions-drive
 PORT="${BGKMAP_BENCH_CLUSTER_PORT:-52700}"
-REGION="${REGION_PARTITIONS:-4}"
+REGION="${REGION_PARTITIONS:-8}"
 LENGTH="${DRIVE_LENGTH:-840}"
+ROBOTS="${ROBOTS:-4}"
+SPACING="${SPACING:-2000}"
 LEASE=1
 CORES=$(nproc)
 mkdir -p "$OUT"
 [ -f "$DRIVE/poses.txt" ] || "$BIN" simulate city --out "$DRIVE" --length "$LENGTH" --no-truth
-SCANS=$(wc -l <"$DRIVE/poses.txt")
+# Robot k's drive: the same scans, its poses moved k * SPACING m along x.
+for k in $(seq 0 $((ROBOTS - 1))); do
+  d="$DRIVE-r$k"
+  [ -f "$d/poses.txt" ] && continue
+  mkdir -p "$d"
+  ln -sfn "$(realpath "$DRIVE/velodyne")" "$d/velodyne"
+  cp "$DRIVE/times.txt" "$d/"
+  awk -v dx=$((k * SPACING)) '{ $4 = $4 + dx; print }' "$DRIVE/poses.txt" >"$d/poses.txt"
+done
+SCANS=$(($(wc -l <"$DRIVE/poses.txt") * ROBOTS))
 
 PIDS=()
 cleanup() {
@@ -38,6 +51,11 @@ wait_up() {
   for _ in $(seq 600); do "$BIN" info --server "$1" >/dev/null 2>&1 && return 0; sleep 0.05; done
   echo "bench-cluster-regions: $1 did not come up" >&2
   return 1
+}
+dir_bytes() {  # dir_bytes <glob>: the bytes of the files under every directory it matches
+  python3 -c 'import glob, os, sys
+print(sum(os.path.getsize(os.path.join(r, f)) for d in glob.glob(sys.argv[1])
+          for r, _, fs in os.walk(d) for f in fs))' "$1"
 }
 KEY="$OUT/cluster.key"
 (umask 077 && openssl rand -hex 32 >"$KEY")
@@ -66,7 +84,9 @@ run() {
   wait_up "127.0.0.1:$((PORT + 1))"
   local t0 t1
   t0=$(date +%s.%N)
-  "$BIN" insert --server "127.0.0.1:$((PORT + 1))" --robot r1 "$DRIVE" >"$dir/insert.txt" 2>&1
+  for k in $(seq 0 $((ROBOTS - 1))); do
+    "$BIN" insert --server "127.0.0.1:$((PORT + 1))" --robot "r$k" "$DRIVE-r$k" >>"$dir/insert.txt" 2>&1
+  done
   t1=$(date +%s.%N)
   kill -KILL "$loader"; wait "$loader" 2>/dev/null || true
   sleep $((LEASE * 3))
@@ -101,8 +121,8 @@ run() {
   done
   # 4. What JetStream stores (the streams' directories).
   local log_bytes region_bytes
-  log_bytes=$(du -sb "$dir"/js/jetstream/*/streams/BGKMAP_LOG 2>/dev/null | cut -f1 || echo 0)
-  region_bytes=$(du -scb "$dir"/js/jetstream/*/streams/BGKMAP_REGION_* 2>/dev/null | tail -1 | cut -f1 || echo 0)
+  log_bytes=$(dir_bytes "$dir/js/jetstream/*/streams/BGKMAP_LOG")
+  region_bytes=$(dir_bytes "$dir/js/jetstream/*/streams/BGKMAP_REGION_*")
   # 5. Query latency through shard s0, both ways on the same boxes: inside region (0, 0)
   # (x 1..24, y 52..102) and across its border with region (0, 1) at y = REGION / 2 partitions
   # of 51.2 m (102.4 m for 4).
@@ -135,7 +155,8 @@ PY
 
 {
   echo
-  echo "$(date -u +%F): $SCANS scans over $LENGTH m, region_partitions $REGION, $CORES cores"
+  echo "$(date -u +%F): $ROBOTS robots, $SCANS scans, $LENGTH m each, $SPACING m apart;" \
+    "region_partitions $REGION; $CORES cores"
   echo
   echo "| stream | shards | append scans/s | build from the log | MB each shard received | partitions each | stored MB (log + regions) | query in one region, median ms | across a border, median ms |"
   echo "|---|---|---|---|---|---|---|---|---|"
