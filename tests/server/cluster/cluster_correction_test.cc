@@ -78,15 +78,6 @@ std::vector<std::pair<uint64_t, ScanPose>> R1Poses(uint64_t first, uint64_t last
   return out;
 }
 
-void Insert(Client& a, Client& b, const std::vector<OwnedScan>& scans, size_t from, size_t to) {
-  for (size_t i = from; i < to; ++i) {
-    Client& via = scans[i].robot_id == "r1" ? a : b;
-    RpcResult<ScanAck> ack = via.Insert(scans[i].Data());
-    ASSERT_TRUE(ack.ok()) << ack.status().message();
-    ASSERT_EQ(ack->status, AckStatus::kApplied) << i;
-  }
-}
-
 // The same call's answers: both OK with the same count of scans revised, or the same refusal.
 ::testing::AssertionResult SameOutcome(const RpcResult<CorrectionResult>& shard,
                                        const RpcResult<CorrectionResult>& single) {
@@ -190,7 +181,7 @@ TEST(ClusterCorrectionTest, CorrectionsAndRemovalsAsOneServer) {
   Reference ref(first, StoreConfig(dir));
   ServerFixture a(NodeConfig(nats.urls(), "a")), b(NodeConfig(nats.urls(), "b"));
   Client& single = ref.single.client();
-  Insert(a.client(), b.client(), scans, 0, most);
+  InsertByRobot(a.client(), b.client(), scans, 0, most);
   ASSERT_TRUE(SameAnswers(a.client(), ref));
   const Raster drifted = ref.Region(ref.box, 1);
 
@@ -228,7 +219,7 @@ TEST(ClusterCorrectionTest, CorrectionsAndRemovalsAsOneServer) {
   EXPECT_TRUE(SameExport(b.client(), single, dir, "corrected"));
 
   // Scans after the corrections, onto the corrected map.
-  Insert(a.client(), b.client(), scans, most, scans.size());
+  InsertByRobot(a.client(), b.client(), scans, most, scans.size());
   InsertAll(single, scans, most, scans.size());
   ref.box = KnownBox(*ref.single.server().SnapshotMap());
   EXPECT_TRUE(SameAnswers(a.client(), ref));

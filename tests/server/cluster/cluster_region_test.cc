@@ -88,12 +88,7 @@ TEST(ClusterRegionTest, ShardsOwnWholeRegionsAndTheLogHoldsNoPayload) {
   const std::vector<OwnedScan> scans = TwoRobots();
   Reference ref(scans);
   ServerFixture a(RegionNodeConfig(nats.urls(), "a")), b(RegionNodeConfig(nats.urls(), "b"));
-  for (const OwnedScan& s : scans) {
-    Client& via = s.robot_id == "r1" ? a.client() : b.client();
-    RpcResult<ScanAck> ack = via.Insert(s.Data());
-    ASSERT_TRUE(ack.ok()) << ack.status().message();
-    ASSERT_EQ(ack->status, AckStatus::kApplied);
-  }
+  InsertByRobot(a.client(), b.client(), scans, 0, scans.size());
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
 

@@ -100,6 +100,17 @@ inline void InsertAll(Client& client, const std::vector<OwnedScan>& scans, size_
   }
 }
 
+// scans[from, to) in order, r1's through `a` and the other robots' through `b`: each applied.
+inline void InsertByRobot(Client& a, Client& b, const std::vector<OwnedScan>& scans, size_t from,
+                          size_t to) {
+  for (size_t i = from; i < to; ++i) {
+    Client& via = scans[i].robot_id == "r1" ? a : b;
+    RpcResult<ScanAck> ack = via.Insert(scans[i].Data());
+    ASSERT_TRUE(ack.ok()) << ack.status().message();
+    ASSERT_EQ(ack->status, AckStatus::kApplied) << i;
+  }
+}
+
 // The single server's answers, to compare with.
 struct Reference {
   ServerFixture single;

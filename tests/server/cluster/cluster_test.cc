@@ -49,12 +49,7 @@ void ExpectTwoShardsAnswerAsOne(Method method) {
   single.map.method = ca.map.method = cb.map.method = method;
   Reference ref(scans, single);
   ServerFixture a(ca), b(cb);
-  for (const OwnedScan& s : scans) {
-    Client& via = s.robot_id == "r1" ? a.client() : b.client();
-    RpcResult<ScanAck> ack = via.Insert(s.Data());
-    ASSERT_TRUE(ack.ok()) << ack.status().message();
-    ASSERT_EQ(ack->status, AckStatus::kApplied);
-  }
+  InsertByRobot(a.client(), b.client(), scans, 0, scans.size());
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
   // Info on either shard counts the whole cluster as the single server counts its map.
