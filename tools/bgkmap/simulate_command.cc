@@ -414,8 +414,8 @@ void RegisterSimulateCommand(CLI::App& app, int& exit_code) {
                   "Metres between ground-truth scans (default: city 0.1, aerial 2.5, flat 0.5)");
   CLI::Option* length = cmd->add_option(
       "--length", o->length,
-      "city: metres of road (default 210); flat: metres driven along +x (default 0: "
-      "standing still)");
+      "city: metres of road driven, the street as long (default 210); flat: metres driven "
+      "along +x (default 0: standing still)");
   cmd->add_option("--scans", o->scans, "flat: number of scans (default 20)");
   cmd->add_option("--change", o->change,
                   "YAML/JSON script of boxes that appear or disappear at given scans "

@@ -38,7 +38,7 @@ double CityWorld::KerbHeight(double y) { return 0.15 + 0.05 * std::sin(2 * kPi *
 double CityWorld::SurfaceHeight(double x, double y) const {
   const double base = RoadHeight(y);
   const double ax = std::abs(x);
-  if (y < -15.0 || y > kLength + 15.0 || ax > kHalfWidth) return base + 10.0;  // closing walls
+  if (y < -15.0 || y > length_ + 15.0 || ax > kHalfWidth) return base + 10.0;  // closing walls
 
   if (ax < kRoadHalf) {
     double z = base + 0.04 * (1.0 - (x / kRoadHalf) * (x / kRoadHalf));  // crown

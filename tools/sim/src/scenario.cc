@@ -31,7 +31,7 @@ std::vector<double> Stations(double length, double spacing) {
 Scenario MakeCityScenario(double length, double mapping_spacing, double truth_spacing) {
   Scenario s;
   s.name = "city";
-  s.world = std::make_shared<CityWorld>();
+  s.world = std::make_shared<CityWorld>(length);
   s.beams = Vlp16();
   const double heading = std::numbers::pi / 2;  // along +y
   for (double y : Stations(length, mapping_spacing)) {

@@ -24,7 +24,8 @@ struct Scenario {
 
 // City (Sec. 3.1.1): VLP-16 1.0 m above the road centre, heading along the road, a scan every
 // `mapping_spacing` metres over `length` metres (paper: 1 m over 210 m); ground-truth scans every
-// `truth_spacing` (paper: 0.1 m). Evaluated area: |x| <= 25 m, 0 <= y <= length.
+// `truth_spacing` (paper: 0.1 m). Evaluated area: |x| <= 25 m, 0 <= y <= length. The street is
+// 210 m long, or `length` if longer (CityWorld).
 Scenario MakeCityScenario(double length = 210.0, double mapping_spacing = 1.0,
                           double truth_spacing = 0.1);
 
