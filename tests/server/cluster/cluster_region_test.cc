@@ -165,6 +165,11 @@ TEST(ClusterRegionTest, ACopyIsBelievedOnlyWithItsEntrysIdAndDigest) {
   ASSERT_EQ(natsConnection_Flush(nc), NATS_OK);
   EXPECT_EQ(cluster::ReadCopy(**client, "0_0:3", "r1/9", digest, std::nullopt).status().code(),
             Status::Code::kDataLoss);
+  // A copy the stream does not hold (purged, or never stored): DataLoss at once, not a wait.
+  const auto asked = std::chrono::steady_clock::now();
+  EXPECT_EQ(cluster::ReadCopy(**client, "0_0:99", "r1/1", digest, std::nullopt).status().code(),
+            Status::Code::kDataLoss);
+  EXPECT_LT(std::chrono::steady_clock::now() - asked, std::chrono::seconds(5));
   EXPECT_EQ(cluster::ReadCopy(**client, "0_0:x", "r1/1", digest, std::nullopt).status().code(),
             Status::Code::kDataLoss);
 }
