@@ -348,20 +348,19 @@ class LatestTiles {
     std::lock_guard lock(mu_);
     return latest_;
   }
-  // Tiles whose latest update has a known cell. A shard also sends tiles of a change's box that
-  // hold nothing (all NaN): its log tells it the box a scan can change, not the tiles it did.
-  size_t KnownCount() const {
+  // Tiles whose latest update has a known elevation (layer 0). A shard also sends tiles of a
+  // change's box that hold nothing (its log tells it the box a scan can change, not the tiles it
+  // did); their state layer says "unknown" with a finite code, so only elevation tells them.
+  std::set<TileKey> KnownKeys() const {
     std::lock_guard lock(mu_);
-    size_t n = 0;
+    std::set<TileKey> out;
     for (const auto& [key, r] : latest_) {
-      bool known = false;
-      for (const std::vector<float>& layer : r.data) {
-        known = known ||
-                std::any_of(layer.begin(), layer.end(), [](float v) { return std::isfinite(v); });
+      if (!r.data.empty() && std::any_of(r.data[0].begin(), r.data[0].end(),
+                                         [](float v) { return std::isfinite(v); })) {
+        out.insert(key);
       }
-      n += known ? 1 : 0;
     }
-    return n;
+    return out;
   }
 
  private:
@@ -426,7 +425,9 @@ TEST(ClusterTest, WatchOnAnyShardSeesEveryChange) {
   const MetricBox cleared{-6.0, -6.0, 7.0, 7.0};
   ServerFixture single;
   InsertAll(single.client(), scans, 0, half);
-  const size_t tiles_at_half = single.server().SnapshotMap()->tile_count();
+  std::set<TileKey> tiles_at_half;
+  single.server().SnapshotMap()->ForEachTile(
+      [&](TileKey key, const Tile&) { tiles_at_half.insert(key); });
   ASSERT_TRUE(single.client().ClearRegion(cleared).ok());
   InsertAll(single.client(), scans, half, scans.size());
   const MetricBox street = KnownBox(*single.server().SnapshotMap());
@@ -446,13 +447,18 @@ TEST(ClusterTest, WatchOnAnyShardSeesEveryChange) {
       {street, {}, /*initial_snapshot=*/true}, [&](const TileUpdate& u) { latest.Add(u); });
   // The first snapshot has arrived before the map changes again: what follows must be told.
   const auto started = std::chrono::steady_clock::now();
-  // (Counted by known cells: found by CI, where shard a's change feed was still reading the
-  // first half's entries when the watch subscribed, and their boxes' empty tiles came too.)
-  while (latest.KnownCount() < tiles_at_half &&
-         std::chrono::steady_clock::now() - started < kRecoveryBound) {
+  // (Every tile of the map at half, by elevation: found by CI and again under load, where shard
+  // a's change feed was still reading the first half's entries when the watch subscribed and
+  // their boxes' empty tiles came too; counted by any finite layer, they made 154 of 152.)
+  auto snapshot_arrived = [&] {
+    const std::set<TileKey> known = latest.KnownKeys();
+    return std::includes(known.begin(), known.end(), tiles_at_half.begin(), tiles_at_half.end());
+  };
+  while (!snapshot_arrived() && std::chrono::steady_clock::now() - started < kRecoveryBound) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  ASSERT_EQ(latest.KnownCount(), tiles_at_half) << "the first snapshot";
+  ASSERT_TRUE(snapshot_arrived()) << "the first snapshot: " << latest.KnownKeys().size() << " of "
+                                  << tiles_at_half.size() << " tiles";
   RpcResult<ClearResult> clear = b.client().ClearRegion(cleared);
   ASSERT_TRUE(clear.ok()) << clear.status().message();
   InsertAll(b.client(), scans, half, scans.size());
