@@ -191,12 +191,13 @@ class ClusterNode final : public MapPort {
   // again from an earlier entry when a new partition needs the log from its start.
   void ReadLog();
   std::vector<std::shared_ptr<PartitionReplica>> Replicas() const;
+  // The payload of scan entry `msg` for partition `p` (its region's copy first, if stored per
+  // region), read again while the region streams are out of reach, until the node stops
+  // (then Unavailable).
+  Result<std::string> ScanPayload(uint64_t sequence, natsMsg* msg, PartitionKey p);
   // Decodes and prepares entry `msg` once for every replica that integrates it. `revisions`
   // (a rebuild's replay): scans prepared with their corrected poses or not integrated, and
   // correction and export entries passed.
-  // The payload of scan entry `msg` for partition `p` (its region's copy first, if stored per
-  // region), read again while the region streams are out of reach, until the node stops.
-  Result<std::string> ScanPayload(uint64_t sequence, natsMsg* msg, PartitionKey p);
   void Dispatch(uint64_t sequence, natsMsg* msg,
                 const std::vector<std::shared_ptr<PartitionReplica>>& to,
                 const Revisions* revisions = nullptr);
