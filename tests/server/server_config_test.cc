@@ -260,5 +260,24 @@ TEST(ServerConfigTest, AShardNeedsAClusterKeyOrInsecure) {
             std::string::npos);
 }
 
+// Streams per region: a bounded size, and not with a trimmed log (their copies are not trimmed).
+TEST(ServerConfigTest, RegionPartitionsAreBoundedAndNotTrimmedYet) {
+  Result<ServerConfig> c = ServerConfigFromYaml(
+      YAML::Load("cluster: {nats: \"nats://127.0.0.1:4222\", node: a, insecure: true, "
+                 "region_partitions: 8}"));
+  ASSERT_TRUE(c.ok()) << c.status().ToString();
+  EXPECT_EQ(c->cluster.region_partitions, 8u);
+  EXPECT_TRUE(ValidateCluster(*c).ok());
+  ServerConfig huge = *c;
+  ASSERT_TRUE(ApplyConfigOverride(huge, "cluster.region_partitions=5000").ok());
+  EXPECT_EQ(ValidateCluster(huge).message(),
+            "cluster.region_partitions: must be in [0, 4096] partitions");
+  ServerConfig trimmed = *c;
+  ASSERT_TRUE(ApplyConfigOverride(trimmed, "cluster.trim_lag_entries=1000").ok());
+  EXPECT_EQ(ValidateCluster(trimmed).message(),
+            "cluster.region_partitions: streams per region are not trimmed yet: set "
+            "cluster.trim_lag_entries to 0 with cluster.region_partitions > 0");
+}
+
 }  // namespace
 }  // namespace bgkmap

@@ -124,6 +124,23 @@ TEST(ClusterRegionTest, ShardsOwnWholeRegionsAndTheLogHoldsNoPayload) {
   std::printf("regions: a %zu, b %zu\n", ra.size(), rb.size());
 }
 
+// Shards must agree on the regions (who owns what): one with other regions, or none, refuses to
+// start with one line naming the setting (mutation: the setting not compared).
+TEST(ClusterRegionTest, AShardWithOtherRegionsRefusesToStart) {
+  TempDir dir("bgkmap_cluster");
+  NatsCluster nats(1, dir.str());
+  ASSERT_TRUE(nats.started());
+  ServerFixture a(RegionNodeConfig(nats.urls(), "a"));
+  for (uint32_t other : {0u, kRegionPartitions * 2}) {
+    ServerConfig b = RegionNodeConfig(nats.urls(), "b");
+    b.cluster.region_partitions = other;
+    Result<std::unique_ptr<MapServer>> started = MapServer::Start(b);
+    ASSERT_FALSE(started.ok()) << "region_partitions " << other;
+    EXPECT_NE(started.status().message().find("cluster.region_partitions"), std::string::npos)
+        << started.status().message();
+  }
+}
+
 // A copy is believed only under the message id and digest its log entry names: a message that
 // anyone else published on the region's subject, or the right message asked for with another
 // digest, is DataLoss, never a payload (mutation: ReadCopy not checking the digest).
