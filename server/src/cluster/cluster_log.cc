@@ -98,15 +98,21 @@ std::string EntryMac(const ClusterTrust& trust, std::string_view subject, std::s
       {"bgkmap-log-1", subject, msg_id, time, robot, sequence, partitions, cells, digest});
 }
 
+// A payload stored per region: where its copies are (region_streams.h) and its digest.
+struct StoredElsewhere {
+  std::string copies;
+  std::string digest;
+};
+
 // `after` (not 0): stored only as entry `after` + 1, else FailedPrecondition kLogGrew.
+// `elsewhere` (not null): the entry holds no payload, only the copies' places and its digest.
 Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const char* subject,
                         const std::string& payload, const std::vector<PartitionKey>& touched,
                         const CellBox& changes, const RobotHeaders* robot,
                         const std::string& msg_id, uint64_t after = 0,
-                        const std::string* copies = nullptr) {
+                        const StoredElsewhere* elsewhere = nullptr) {
   natsMsg* raw = nullptr;
-  // With copies elsewhere the entry holds no payload, only its digest.
-  const std::string_view stored = copies != nullptr ? std::string_view() : payload;
+  const std::string_view stored = elsewhere != nullptr ? std::string_view() : payload;
   natsStatus st =
       natsMsg_Create(&raw, subject, nullptr, stored.data(), static_cast<int>(stored.size()));
   if (st != NATS_OK) return NatsStatus(st, "cluster: message");
@@ -135,10 +141,11 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
       st = natsMsgHeader_Set(msg.get(), kSequenceHeader, sequence.c_str());
     }
   }
-  const std::string digest =
-      trust.keyed() || copies != nullptr ? ClusterTrust::Digest(payload) : std::string();
-  if (copies != nullptr) {
-    if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kCopiesHeader, copies->c_str());
+  const std::string digest = elsewhere != nullptr ? elsewhere->digest
+                             : trust.keyed()      ? ClusterTrust::Digest(payload)
+                                                  : std::string();
+  if (elsewhere != nullptr && st == NATS_OK) {
+    st = natsMsgHeader_Set(msg.get(), kCopiesHeader, elsewhere->copies.c_str());
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kDigestHeader, digest.c_str());
   }
   if (trust.keyed()) {
@@ -147,7 +154,7 @@ Result<Appended> Append(const NatsClient& nats, const ClusterTrust& trust, const
         EntryMac(trust, subject, msg_id, time, robot != nullptr ? robot->robot_id : "", sequence,
                  parts, cells, digest);
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kTimeHeader, time.c_str());
-    if (st == NATS_OK && copies == nullptr) {
+    if (st == NATS_OK && elsewhere == nullptr) {
       st = natsMsgHeader_Set(msg.get(), kDigestHeader, digest.c_str());
     }
     if (st == NATS_OK) st = natsMsgHeader_Set(msg.get(), kMacHeader, mac.c_str());
@@ -197,10 +204,12 @@ Result<Appended> AppendScan(const NatsClient& nats, const ClusterTrust& trust,
   if (!regions.enabled())
     return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot, msg_id);
   // The copies first: an entry is never read before the copies it names are stored.
-  Result<std::string> copies =
-      regions.Store(encoded, msg_id, ClusterTrust::Digest(encoded), touched);
+  StoredElsewhere elsewhere{"", ClusterTrust::Digest(encoded)};
+  Result<std::string> copies = regions.Store(encoded, msg_id, elsewhere.digest, touched);
   if (!copies.ok()) return copies.status();
-  return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot, msg_id, 0, &*copies);
+  elsewhere.copies = std::move(copies).value();
+  return Append(nats, trust, kScanSubject, encoded, touched, changes, &robot, msg_id, 0,
+                &elsewhere);
 }
 
 Result<uint64_t> AppendClear(const NatsClient& nats, const ClusterTrust& trust, const CellBox& box,
