@@ -15,8 +15,6 @@ constexpr const char* kMsgIdHeader = "Nats-Msg-Id";
 // How long a copy's append or read waits out a stream leader's election (as the log's).
 constexpr int64_t kElectionMs = 10000;
 
-int FloorDiv(int a, int b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0)) ? 1 : 0); }
-
 std::string StreamName(std::string_view region) { return kStreamPrefix + std::string(region); }
 
 }  // namespace
