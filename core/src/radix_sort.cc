@@ -7,10 +7,16 @@ namespace bgkmap::internal {
 
 std::vector<uint32_t> RadixSortOrder(const std::vector<uint64_t>& keys) {
   const std::size_t n = keys.size();
-  std::vector<uint32_t> order(n), order_tmp(n);
+  std::vector<uint32_t> order(n);
   for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
+  // The passes' buffers are kept per thread from scan to scan: a scan's megabytes of fresh
+  // pages each time cost more page faults than the sort itself.
+  thread_local std::vector<uint32_t> order_tmp;
+  thread_local std::vector<uint64_t> sorted, sorted_tmp;
+  order_tmp.resize(n);
+  sorted_tmp.resize(n);
   // The keys move with their indices (sequential reads per pass instead of a gather).
-  std::vector<uint64_t> sorted(keys), sorted_tmp(n);
+  sorted.assign(keys.begin(), keys.end());
   uint64_t all_bits = 0;
   for (uint64_t k : keys) all_bits |= k;
   // The counts of every byte some key has bits in, in one read of the keys.

@@ -86,18 +86,18 @@ std::vector<TileKey> PreparedScan::ChangeableTiles() const {
 
 namespace {
 
-// Filters and transforms the points, and bins the kept ones into cells (semantics 1-2); fills
+// Filters and transforms the points, and bins the kept ones into `binned` (semantics 1-2); fills
 // `counts` and the kept points' cell bounds.
-std::vector<BinnedPoint> TransformAndBin(const MapParams& params, std::span<const Point3f> points,
-                                         const Pose& T, bool frame_is_map, ScanPointCounts& c,
-                                         CellBox& bounds) {
+void TransformAndBin(const MapParams& params, std::span<const Point3f> points, const Pose& T,
+                     bool frame_is_map, ScanPointCounts& c, CellBox& bounds,
+                     std::vector<BinnedPoint>& binned) {
   c.input = points.size();
   const double min_r2 = params.min_range * params.min_range;
   const double max_r2 = params.max_range * params.max_range;
   const double inv_res = 1.0 / params.resolution;
   const double z_limit = T.translation.z() + params.max_height_above_sensor;
   const bool self_filter = !frame_is_map && SelfFilterOn(params);
-  std::vector<BinnedPoint> binned;
+  binned.clear();
   binned.reserve(points.size());
   for (const Point3f& p : points) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
@@ -129,7 +129,6 @@ std::vector<BinnedPoint> TransformAndBin(const MapParams& params, std::span<cons
     binned.push_back(b);
   }
   c.kept = binned.size();
-  return binned;
 }
 
 // The vehicle's box (footprint_length x footprint_width) under a sensor at `t`, turned to the
@@ -168,7 +167,8 @@ void AddRobotFootprint(const MapParams& params, const Pose& T, PreparedScan& sca
 // independent of how the map is cut into tiles (semantics 3).
 std::vector<ObservedCell> SortAndReduce(const std::vector<BinnedPoint>& binned,
                                         const CellBox& bounds, Observation mode) {
-  std::vector<uint64_t> keys(binned.size());
+  thread_local std::vector<uint64_t> keys;  // kept from scan to scan: no fresh pages each time
+  keys.resize(binned.size());
   for (size_t i = 0; i < binned.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(binned[i].ix - bounds.min.x) << 32) |
               static_cast<uint64_t>(binned[i].iy - bounds.min.y);
@@ -187,8 +187,8 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
   scan.sensor_x = T.translation.x();
   scan.sensor_y = T.translation.y();
   CellBox bounds;
-  const std::vector<BinnedPoint> binned =
-      TransformAndBin(params, points, T, frame_is_map, scan.counts, bounds);
+  thread_local std::vector<BinnedPoint> binned;  // kept from scan to scan: no fresh pages
+  TransformAndBin(params, points, T, frame_is_map, scan.counts, bounds, binned);
   AddRobotFootprint(params, T, scan);
   if (!binned.empty()) scan.cells = SortAndReduce(binned, bounds, params.observation);
   if (!binned.empty() || !scan.footprint_cells.empty()) internal::ComputeScanTiles(params, scan);

@@ -27,7 +27,8 @@ void SortCells(std::vector<CellIndex>& cells) {
   }
   CellBox box;
   for (const CellIndex& c : cells) box.Extend(c);
-  std::vector<uint64_t> keys(cells.size());
+  thread_local std::vector<uint64_t> keys;  // kept from scan to scan: no fresh pages each time
+  keys.resize(cells.size());
   for (size_t i = 0; i < cells.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(int64_t{cells[i].x} - box.min.x) << 32) |
               static_cast<uint64_t>(int64_t{cells[i].y} - box.min.y);

@@ -63,6 +63,18 @@ double TileSlabs::MaxIn(const CellBox& box) {
   const Scratch& s = Buffers();
   const int64_t row = int64_t{tiles_x_} * blocks_;
   double m = kNone;
+  if (T % kBlock == 0) {  // the blocks are one grid across the tiles: no division per block
+    for (int64_t by = y0 / kBlock; by <= y1 / kBlock; ++by) {
+      const double* blocks = s.block_max.data() + by * row;
+      for (int64_t bx = x0 / kBlock; bx <= x1 / kBlock; ++bx) {
+        if (std::isnan(blocks[bx])) {
+          Of({static_cast<int>(min_.x + bx / blocks_), static_cast<int>(min_.y + by / blocks_)});
+        }
+        m = std::max(m, blocks[bx]);
+      }
+    }
+    return m;
+  }
   // The start of the block after the one holding c (blocks do not cross tiles).
   const auto next = [&](int64_t c) {
     const int64_t t0 = c / T * T;
