@@ -31,7 +31,7 @@ two=$(awk '$1 == 2 {print $2}' "$out/times.$$" | median)
 cpu_one=$(awk '$1 == 1 {print $3}' "$out/times.$$" | median)
 cpu_two=$(awk '$1 == 2 {print $3}' "$out/times.$$" | median)
 rm -f "$out/times.$$" "$out/cpu.$$"
-cmp -s "$out/t1.tif" "$out/t2.tif" && same="the same bytes" || same="DIFFERENT"
+same=$(scripts/same-geotiff.sh "$out/t1.tif" "$out/t2.tif")
 awk -v src="$input" -v a="$one" -v b="$two" -v n="$rounds" -v s="$same" -v ca="$cpu_one" \
   -v cb="$cpu_two" -v l0="$load_before" -v l1="$load_after" 'BEGIN {
   printf "%s: 1 thread %.2f s, 2 threads %.2f s (medians of %d), speed-up %.2fx; GeoTIFFs %s\n",

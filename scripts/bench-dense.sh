@@ -4,7 +4,8 @@
 # each with its robot's settings, ROUNDS times alternating a BASE binary (e.g. main's) and this
 # checkout's, so both see the same load. Prints per dataset the medians per scan of the engine's
 # stages (in-process stopwatches), of the whole process's wall time and CPU (user + sys), their
-# ratios, whether the two GeoTIFFs are the same bytes, and the load average before and after.
+# ratios, whether the two GeoTIFFs are the same map (scripts/same-geotiff.sh), and the load average
+# before and after.
 #   scripts/bench-dense.sh BASE_BGKMAP [ROUNDS=5]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,7 +38,7 @@ for set in kitti_raw_0048:car_kitti ouster_os1_128_street:car_ouster balm_hall:h
     done
   done
   scans=$(awk 'NR == 1 {print $4}' "$out/times")
-  cmp -s "$out/base.tif" "$out/new.tif" && same="the same bytes" || same="DIFFERENT"
+  same=$(scripts/same-geotiff.sh "$out/base.tif" "$out/new.tif")
   printf '%s (%s scans, %s): per scan, medians of %s alternating runs\n' "${set%%:*}" "$scans" \
     "$config" "$rounds"
   printf '  %-6s %10s %10s %10s %10s %10s %10s\n' "" elevation features trav. engine wall CPU

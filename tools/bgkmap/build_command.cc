@@ -13,7 +13,9 @@
 #include "bgkmap/io/geotiff.h"
 #include "bgkmap/io/octomap_export.h"
 #include "bgkmap/io/png_preview.h"
+#include "bgkmap/io/qgis_style.h"
 #include "commands.h"
+#include "map_geotiff.h"
 #include "map_outputs.h"
 #include "output_file.h"
 #include "parallel_mapping.h"
@@ -163,8 +165,20 @@ int RunBuild(const BuildOptions& o) {
     return Fail("output of " + std::to_string(box.width()) + " x " + std::to_string(box.height()) +
                 " cells is too large; pass a smaller --bbox");
   }
-  const Raster raster = ExtractRaster(map, box, kBands);
-  if (std::optional<int> failed = WriteOutputs(o, raster, tiff)) return *failed;
+  // A GeoTIFF alone is written strip by strip on the threads; the other outputs take the raster.
+  const Result<OutputKind> kind = OutputKindOf(o.out, "--out");
+  const bool geotiff_only =
+      kind.ok() && *kind == OutputKind::kGeoTiff && o.png.empty() && o.ot.empty();
+  Raster raster;
+  if (geotiff_only) {
+    raster = RasterGeometry(map.params().resolution, box, kBands);
+    Status written = WriteMapGeoTiff(map, box, kBands, o.out, tiff, o.threads);
+    if (written.ok()) written = io::WriteQgisStyle(kBands, o.out);
+    if (!written.ok()) return Fail(written.message());
+  } else {
+    raster = ExtractRaster(map, box, kBands);
+    if (std::optional<int> failed = WriteOutputs(o, raster, tiff)) return *failed;
+  }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   PrintSummary(o, (*source)->size(), totals, map, raster, seconds);
