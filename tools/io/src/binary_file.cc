@@ -9,17 +9,17 @@
 
 namespace bgkmap::io::internal {
 
-Result<std::string> ReadWholeFile(const std::string& path) {
+Status ReadWholeFileInto(const std::string& path, std::string& bytes) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (f == nullptr) return Status::IoError(path + ": cannot open (" + std::strerror(errno) + ")");
   // One read of the size the file says it has (a scan is megabytes: no growing copies), then
   // whatever a growing file or a pipe still gives.
   struct stat st {};
-  std::string bytes;
+  bytes.clear();
   if (fstat(fileno(f), &st) == 0 && S_ISREG(st.st_mode)) {
     bytes.resize(static_cast<size_t>(st.st_size));
   }
-  size_t have = std::fread(bytes.data(), 1, bytes.size(), f);
+  const size_t have = std::fread(bytes.data(), 1, bytes.size(), f);
   bytes.resize(have);
   char chunk[65536];
   while (!std::ferror(f) && !std::feof(f)) {
@@ -29,6 +29,12 @@ Result<std::string> ReadWholeFile(const std::string& path) {
   const bool failed = std::ferror(f) != 0;
   std::fclose(f);
   if (failed) return Status::IoError(path + ": read failed");
+  return Status::Ok();
+}
+
+Result<std::string> ReadWholeFile(const std::string& path) {
+  std::string bytes;
+  if (Status s = ReadWholeFileInto(path, bytes); !s.ok()) return s;
   return bytes;
 }
 

@@ -10,6 +10,8 @@ namespace bgkmap::io::internal {
 
 // The file's bytes; IoError "<path>: cannot open (...)" if it cannot be read.
 Result<std::string> ReadWholeFile(const std::string& path);
+// The same into `bytes`, whose memory is reused (a reader of many scan files keeps one buffer).
+Status ReadWholeFileInto(const std::string& path, std::string& bytes);
 
 // Writes `bytes` to `path` (truncating, or appending if `append`); IoError naming the path.
 Status WriteWholeFile(const std::string& path, std::string_view bytes, bool append = false);

@@ -188,20 +188,20 @@ Result<Scan> KittiSequence::Read(size_t k) const {
   }
   const std::string& path = scan_paths_[k];
   if (fs::path(path).extension() == ".pcd") return ReadPcdScan(path, k);
-  Result<std::string> bytes = internal::ReadWholeFile(path);
-  if (!bytes.ok()) return bytes.status();
-  if (bytes->size() % kRecordBytes != 0) {
+  thread_local std::string file;  // kept per reading thread: no fresh megabytes per scan
+  if (Status s = internal::ReadWholeFileInto(path, file); !s.ok()) return s;
+  if (file.size() % kRecordBytes != 0) {
     return Status::DataLoss(
         fmt::format("{}: size {} bytes is not a multiple of {} (x,y,z,i float32)", path,
-                    bytes->size(), kRecordBytes));
+                    file.size(), kRecordBytes));
   }
   Scan scan;
   scan.pose = poses_[k];
   if (!times_.empty()) scan.time_s = times_[k];
-  const size_t n = bytes->size() / kRecordBytes;
+  const size_t n = file.size() / kRecordBytes;
   scan.points.resize(n);
   for (size_t i = 0; i < n; ++i) {
-    std::memcpy(&scan.points[i], bytes->data() + i * kRecordBytes, sizeof(Point3f));
+    std::memcpy(&scan.points[i], file.data() + i * kRecordBytes, sizeof(Point3f));
   }
   return scan;
 }
