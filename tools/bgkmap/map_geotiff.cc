@@ -24,11 +24,17 @@ Status WriteMapGeoTiff(const TerrainMap& map, const CellBox& box, const std::vec
     const int bottom = static_cast<int>(std::max<int64_t>(box.min.y, top - strip_rows + 1));
     return ExtractRaster(map, CellBox{{box.min.x, bottom}, {box.max.x, top}}, layers);
   };
-  // Up to `threads` strips extracted ahead of the one being written (the map is only read).
+  // Up to `threads` strips extracted ahead of the one being written (the map is only read), and
+  // no more than kAheadBytes of them: a strip of a raster 20,000 pixels wide is ~100 MB.
+  constexpr int64_t kAheadBytes = int64_t{256} << 20;
+  const int64_t strip_bytes =
+      strip_rows * geometry.cols * static_cast<int64_t>(layers.size() * sizeof(float));
+  const size_t most = static_cast<size_t>(std::clamp<int64_t>(
+      kAheadBytes / std::max<int64_t>(strip_bytes, 1), 1, std::max(1, threads)));
   std::deque<std::future<Raster>> ahead;
   int64_t next = 0;
   const auto fill = [&] {
-    while (next < strips && ahead.size() < static_cast<size_t>(std::max(1, threads))) {
+    while (next < strips && ahead.size() < most) {
       ahead.push_back(std::async(std::launch::async, extract, next++));
     }
   };
