@@ -3,14 +3,16 @@
 #include <array>
 #include <cstddef>
 
+#include "scratch_buffer.h"
+
 namespace bgkmap::internal {
 
 std::vector<uint32_t> RadixSortOrder(const std::vector<uint64_t>& keys) {
   const std::size_t n = keys.size();
   std::vector<uint32_t> order(n);
   for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
-  // The passes' buffers are kept per thread from scan to scan: a scan's megabytes of fresh
-  // pages each time cost more page faults than the sort itself.
+  // The passes' buffers are kept per thread from scan to scan (scratch_buffer.h): a scan's
+  // megabytes of fresh pages each time cost more page faults than the sort itself.
   thread_local std::vector<uint32_t> order_tmp;
   thread_local std::vector<uint64_t> sorted, sorted_tmp;
   order_tmp.resize(n);
@@ -46,6 +48,9 @@ std::vector<uint32_t> RadixSortOrder(const std::vector<uint64_t>& keys) {
     sorted.swap(sorted_tmp);
     order.swap(order_tmp);
   }
+  ReleaseIfLarge(order_tmp);
+  ReleaseIfLarge(sorted);
+  ReleaseIfLarge(sorted_tmp);
   return order;
 }
 

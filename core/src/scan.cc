@@ -9,6 +9,7 @@
 #include "bgkmap/core/point_filter.h"
 #include "radix_sort.h"
 #include "scan_reach.h"
+#include "scratch_buffer.h"
 
 namespace bgkmap {
 
@@ -167,13 +168,15 @@ void AddRobotFootprint(const MapParams& params, const Pose& T, PreparedScan& sca
 // independent of how the map is cut into tiles (semantics 3).
 std::vector<ObservedCell> SortAndReduce(const std::vector<BinnedPoint>& binned,
                                         const CellBox& bounds, Observation mode) {
-  thread_local std::vector<uint64_t> keys;  // kept from scan to scan: no fresh pages each time
+  thread_local std::vector<uint64_t> keys;  // kept per thread (scratch_buffer.h)
   keys.resize(binned.size());
   for (size_t i = 0; i < binned.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(binned[i].ix - bounds.min.x) << 32) |
               static_cast<uint64_t>(binned[i].iy - bounds.min.y);
   }
-  return ReduceCells(binned, internal::RadixSortOrder(keys), mode);
+  const std::vector<uint32_t> order = internal::RadixSortOrder(keys);
+  internal::ReleaseIfLarge(keys);
+  return ReduceCells(binned, order, mode);
 }
 
 }  // namespace
@@ -187,10 +190,11 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
   scan.sensor_x = T.translation.x();
   scan.sensor_y = T.translation.y();
   CellBox bounds;
-  thread_local std::vector<BinnedPoint> binned;  // kept from scan to scan: no fresh pages
+  thread_local std::vector<BinnedPoint> binned;  // kept per thread (scratch_buffer.h)
   TransformAndBin(params, points, T, frame_is_map, scan.counts, bounds, binned);
   AddRobotFootprint(params, T, scan);
   if (!binned.empty()) scan.cells = SortAndReduce(binned, bounds, params.observation);
+  internal::ReleaseIfLarge(binned);
   if (!binned.empty() || !scan.footprint_cells.empty()) internal::ComputeScanTiles(params, scan);
   return scan;
 }

@@ -9,6 +9,7 @@
 #include "radix_sort.h"
 #include "ray_walk.h"
 #include "scan_pass.h"
+#include "scratch_buffer.h"
 #include "tile_slabs.h"
 
 namespace bgkmap {
@@ -27,13 +28,14 @@ void SortCells(std::vector<CellIndex>& cells) {
   }
   CellBox box;
   for (const CellIndex& c : cells) box.Extend(c);
-  thread_local std::vector<uint64_t> keys;  // kept from scan to scan: no fresh pages each time
+  thread_local std::vector<uint64_t> keys;  // kept per thread (scratch_buffer.h)
   keys.resize(cells.size());
   for (size_t i = 0; i < cells.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(int64_t{cells[i].x} - box.min.x) << 32) |
               static_cast<uint64_t>(int64_t{cells[i].y} - box.min.y);
   }
   const std::vector<uint32_t> order = internal::RadixSortOrder(keys);
+  internal::ReleaseIfLarge(keys);
   std::vector<CellIndex> sorted(cells.size());
   for (size_t i = 0; i < order.size(); ++i) sorted[i] = cells[order[i]];
   cells.swap(sorted);
