@@ -5,10 +5,10 @@
 #include <limits>
 
 #include "bgkmap/core/sparse_kernel.h"
+#include "cell_estimate_inline.h"
 
 namespace bgkmap {
 namespace {
-constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr Layer kAllLayers[] = {Layer::kElevation,      Layer::kElevationVariance,
                                 Layer::kTraversability, Layer::kTraversabilityVariance,
                                 Layer::kState,          Layer::kElevationWeight,
@@ -45,28 +45,6 @@ Result<Layer> ParseLayer(std::string_view name) {
                                  "': must be one of elevation, elevation_variance, traversability, "
                                  "traversability_variance, state, elevation_weight, disagreement, "
                                  "block_reason");
-}
-
-float CellEstimate::Get(Layer layer) const {
-  switch (layer) {
-    case Layer::kElevation:
-      return elevation;
-    case Layer::kElevationVariance:
-      return elevation_variance;
-    case Layer::kTraversability:
-      return traversability;
-    case Layer::kTraversabilityVariance:
-      return traversability_variance;
-    case Layer::kState:
-      return static_cast<float>(state);
-    case Layer::kElevationWeight:
-      return elevation_weight;
-    case Layer::kDisagreement:
-      return disagreement;
-    case Layer::kBlockReason:
-      return std::isnan(elevation_weight) ? kNaN : static_cast<float>(block_reasons);
-  }
-  return kNaN;
 }
 
 double Disagreement(double w, double s, double q) {
@@ -140,81 +118,9 @@ double FullKernelWeight(const MapParams& p) {
   return full;
 }
 
-namespace {
-
-// The conditions of the state rule a known cell fails (BlockReason bits), on the estimate's own
-// float values so that 0 is exactly "traversable".
-uint8_t FailedConditions(const MapParams& p, const CellEstimate& e, double ab, double d) {
-  const bool no_value = InfersTraversability(p.method) ? ab == 0.0 : std::isnan(e.traversability);
-  // bgk-obstacle: an uncertain cell is not traversable; its Beta mean must clear the threshold
-  // by two standard deviations.
-  const double margin = p.method == Method::kBgkObstacle
-                            ? 2.0 * std::sqrt(static_cast<double>(e.traversability_variance))
-                            : 0.0;
-  // NaN comparisons are false: a known cell without a traversability value is non-traversable.
-  uint8_t r = 0;
-  if (!(e.traversability + margin < p.trav_threshold)) r |= kBlockedMean;
-  if (!(e.traversability_variance < p.variance_threshold)) r |= kBlockedVariance;
-  if (!(d <= p.step_crit * p.step_crit)) r |= kBlockedDisagreement;
-  // No evidence at all fails the mean and the variance through the prior alone: say so instead.
-  if (r != 0 && no_value) r = kBlockedNoValue | (r & kBlockedDisagreement);
-  return r;
-}
-
-// P3' (docs/semantics.md, "Seen too little"): with dynamics, a cell that fails only for want of
-// traversability evidence (no value, or the variance alone) and holds less elevation weight than
-// thin_evidence_weight full-kernel observations is unknown, not an obstacle: it was barely seen.
-// One seen more than that whose Beta evidence is still thin had it reset again and again (a
-// changing place: a new object's edge) and stays blocked. Without dynamics the paper's rule.
-CellState StateOf(const MapParams& p, uint8_t reasons, double w) {
-  if (reasons == 0) return CellState::kTraversable;
-  const bool thin = reasons == kBlockedNoValue || reasons == kBlockedVariance;
-  const bool seen_little = w < p.thin_evidence_weight * FullKernelWeight(p);
-  return thin && seen_little && p.dynamics == Dynamics::kOn ? CellState::kUnknown
-                                                            : CellState::kNonTraversable;
-}
-
-}  // namespace
-
 CellEstimate EstimateCell(const MapParams& p, double w, double s, double q, float a, float b,
                           const double* plane) {
-  CellEstimate e{kNaN, kNaN, kNaN, kNaN, CellState::kUnknown, static_cast<float>(w), kNaN, 0};
-  const double ab = static_cast<double>(a) + static_cast<double>(b);
-  const bool known = w > 0.0 || ab > 0.0;
-  if (!known) {
-    e.elevation_weight = kNaN;
-    return e;
-  }
-  const bool dynamic = p.dynamics == Dynamics::kOn;
-  double disagreement = 0.0;
-  if (w > 0.0) {
-    const double lw = p.lambda + w;
-    if (plane != nullptr) {
-      const LocalPlane fit = FitLocalPlane(p, w, s, dynamic ? q : 0.0, plane);
-      if (dynamic) disagreement = fit.residual;
-      e.elevation = static_cast<float>(fit.elevation);
-      e.elevation_variance =
-          static_cast<float>(p.sigma2 * (1.0 / lw + fit.leverage) + disagreement);
-    } else {
-      if (dynamic) disagreement = Disagreement(w, s, q);
-      e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
-      e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
-    }
-    if (dynamic) e.disagreement = static_cast<float>(std::sqrt(disagreement));
-  }
-  if (InfersTraversability(p.method)) {
-    const double alpha = p.alpha0 + a;
-    const double beta = p.beta0 + b;
-    const double sum = alpha + beta;
-    e.traversability = static_cast<float>(alpha / sum);
-    e.traversability_variance = static_cast<float>(alpha * beta / (sum * sum * (sum + 1.0)));
-  } else if (ab > 0.0) {
-    e.traversability = static_cast<float>(a / ab);
-    e.traversability_variance = 0.0f;
-  }
-  e.block_reasons = FailedConditions(p, e, ab, disagreement);
-  e.state = StateOf(p, e.block_reasons, w);
-  return e;
+  return internal::EstimateCellWith(p, internal::EstimateConstants::Of(p), w, s, q, a, b, plane);
 }
 
 }  // namespace bgkmap

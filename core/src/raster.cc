@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "cell_estimate_inline.h"
+
 namespace bgkmap {
 namespace {
 
@@ -20,9 +22,9 @@ struct PixelAggregate {
 
   // A coarse pixel's elevation is the kernel mean of its cells' sums (bgk-ll too: planes about
   // different centres do not add); each cell's state is its own estimate's.
-  void Add(const MapParams& p, double cw, double cs, double cq, float ca, float cb,
-           const double* plane) {
-    const CellEstimate e = EstimateCell(p, cw, cs, cq, ca, cb, plane);
+  void Add(const MapParams& p, const internal::EstimateConstants& k, double cw, double cs,
+           double cq, float ca, float cb, const double* plane) {
+    const CellEstimate e = internal::EstimateCellWith(p, k, cw, cs, cq, ca, cb, plane);
     if (std::isnan(e.elevation_weight)) return;  // no statistics
     known = true;
     any_unknown |= e.state == CellState::kUnknown;
@@ -51,6 +53,36 @@ struct PixelAggregate {
     e.disagreement = worst_disagreement >= 0 ? worst_disagreement : kNaN;
     e.block_reasons = block_reasons;
     return e;
+  }
+};
+
+// Where each layer's pixels go: null for a layer not asked for. Writing a pixel is then a loop
+// over the layer values the compiler unrolls, instead of a switch per requested layer.
+struct LayerSinks {
+  float* at[kLayerCount] = {};
+
+  // Points each requested layer at its array; a layer asked for twice is filled once and
+  // copied by CopyRepeats.
+  explicit LayerSinks(Raster& r) {
+    for (size_t li = 0; li < r.layers.size(); ++li) {
+      float*& sink = at[static_cast<int>(r.layers[li])];
+      if (sink == nullptr) sink = r.data[li].data();
+    }
+  }
+  void Write(size_t pixel, const CellEstimate& e) const {
+    for (int l = 0; l < kLayerCount; ++l) {
+      if (at[l] != nullptr) at[l][pixel] = e.Get(static_cast<Layer>(l));
+    }
+  }
+  static void CopyRepeats(Raster& r) {
+    for (size_t li = 0; li < r.layers.size(); ++li) {
+      for (size_t lj = 0; lj < li; ++lj) {
+        if (r.layers[lj] == r.layers[li]) {
+          r.data[li] = r.data[lj];
+          break;
+        }
+      }
+    }
   }
 };
 
@@ -106,9 +138,8 @@ Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vecto
   for (Layer l : layers) r.data.emplace_back(n, UnknownValue(l));
   if (box.empty()) return r;
 
-  auto write = [&](size_t pixel, const CellEstimate& e) {
-    for (size_t li = 0; li < layers.size(); ++li) r.data[li][pixel] = e.Get(layers[li]);
-  };
+  const LayerSinks sinks(r);
+  const internal::EstimateConstants k = internal::EstimateConstants::Of(p);
   auto pixel_of = [&](int x, int y) {
     return static_cast<size_t>((box.max.y - y) / stride) * r.cols + (x - box.min.x) / stride;
   };
@@ -135,17 +166,19 @@ Raster ExtractRaster(const TerrainMap& map, const CellBox& box, const std::vecto
             plane = moments;
           }
           if (stride == 1) {
-            write(pixel_of(x, y), EstimateCell(p, c.w, c.s, c.q, c.a, c.b, plane));
+            sinks.Write(pixel_of(x, y),
+                        internal::EstimateCellWith(p, k, c.w, c.s, c.q, c.a, c.b, plane));
           } else {
-            agg[pixel_of(x, y)].Add(p, c.w, c.s, c.q, c.a, c.b, plane);
+            agg[pixel_of(x, y)].Add(p, k, c.w, c.s, c.q, c.a, c.b, plane);
           }
         }
       }
     }
   }
   for (size_t i = 0; i < agg.size(); ++i) {
-    if (agg[i].known) write(i, agg[i].Estimate(p));
+    if (agg[i].known) sinks.Write(i, agg[i].Estimate(p));
   }
+  LayerSinks::CopyRepeats(r);
   return r;
 }
 

@@ -127,6 +127,52 @@ TEST(RasterTest, StrideKeepsTheWorstVarianceOfAnyCellAndItDecidesTheState) {
 // Mutations checked (core/src/raster.cc): `std::min` for `std::max` in worst_trav; the last
 // cell's variance instead of the maximum; dropping the variance threshold from the state; not
 // summing `s` (elevation of one cell) -- each fails here.
+// Stride 1 is each cell's own estimate, layer by layer and bit for bit, however the layers are
+// listed (a layer asked for twice too), with and without plane moments (bgk-ll).
+TEST(RasterTest, EachPixelIsItsCellsEstimateInEveryLayer) {
+  for (Method method : {Method::kBgkPlus, Method::kBgkLocalLinear, Method::kBaseline}) {
+    MapParams p;
+    p.method = method;
+    p.tile_size = 16;
+    auto map = std::move(TerrainMap::Create(p)).value();
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Vector3d origin(1.5 * k, 0.2 * k, 1.0);
+      ASSERT_TRUE(map->IntegrateScan(testing::SampleSurface(testing::RollingWithStep, origin, 3.0,
+                                                            2000, 3u + k),
+                                     testing::At(origin))
+                      .ok());
+    }
+    const CellBox known = map->KnownBounds();
+    const CellBox box{{known.min.x - 2, known.min.y - 1}, {known.max.x + 1, known.max.y + 3}};
+    const std::vector<Layer> layers = {Layer::kBlockReason,       Layer::kState,
+                                       Layer::kElevation,         Layer::kTraversability,
+                                       Layer::kDisagreement,      Layer::kElevationWeight,
+                                       Layer::kElevationVariance, Layer::kTraversabilityVariance,
+                                       Layer::kElevation};
+    const Raster r = ExtractRaster(*map, box, layers);
+    ASSERT_EQ(r.data.size(), layers.size());
+    int known_pixels = 0, mismatches = 0;
+    for (int y = box.min.y; y <= box.max.y; ++y) {
+      for (int x = box.min.x; x <= box.max.x; ++x) {
+        const CellEstimate e = map->Estimate({x, y});
+        const size_t pixel = static_cast<size_t>(box.max.y - y) * r.cols + (x - box.min.x);
+        known_pixels += !std::isnan(e.elevation_weight);
+        for (size_t l = 0; l < layers.size(); ++l) {
+          const float want =
+              std::isnan(e.elevation_weight) ? UnknownValue(layers[l]) : e.Get(layers[l]);
+          const float got = r.data[l][pixel];
+          if (std::memcmp(&got, &want, sizeof got) != 0 && mismatches++ < 5) {
+            ADD_FAILURE() << MethodName(method) << " cell (" << x << ", " << y << ") layer "
+                          << LayerName(layers[l]) << ": raster " << got << ", estimate " << want;
+          }
+        }
+      }
+    }
+    EXPECT_EQ(mismatches, 0) << MethodName(method);
+    EXPECT_GT(known_pixels, 500) << MethodName(method);
+  }
+}
+
 TEST(RasterTest, StrideEqualsBruteForceOracle) {
   MapParams p;
   p.tile_size = 16;  // blocks straddle tile borders

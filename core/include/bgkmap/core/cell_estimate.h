@@ -1,7 +1,9 @@
 // Derived layers: what a planner reads from a cell's statistics (paper Eqs. 2, 4, 6).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string_view>
 
 #include "bgkmap/core/map_params.h"
@@ -40,6 +42,8 @@ enum BlockReason : uint8_t {
 
 // NaN marks "unknown" in every float layer.
 struct CellEstimate {
+  static constexpr float kUnknownFloat = std::numeric_limits<float>::quiet_NaN();
+
   float elevation;
   float elevation_variance;
   float traversability;  // 0 = flat and smooth ... 1 = non-traversable
@@ -49,7 +53,28 @@ struct CellEstimate {
   float disagreement;     // sqrt of what the state rule judges; NaN without weight or dynamics
   uint8_t block_reasons;  // BlockReason bits: the conditions failed; 0 = traversable or none
 
-  float Get(Layer layer) const;
+  // Inline: a loop over the layers of many cells folds the switch away (raster.cc).
+  float Get(Layer layer) const {
+    switch (layer) {
+      case Layer::kElevation:
+        return elevation;
+      case Layer::kElevationVariance:
+        return elevation_variance;
+      case Layer::kTraversability:
+        return traversability;
+      case Layer::kTraversabilityVariance:
+        return traversability_variance;
+      case Layer::kState:
+        return static_cast<float>(state);
+      case Layer::kElevationWeight:
+        return elevation_weight;
+      case Layer::kDisagreement:
+        return disagreement;
+      case Layer::kBlockReason:
+        return std::isnan(elevation_weight) ? kUnknownFloat : static_cast<float>(block_reasons);
+    }
+    return kUnknownFloat;
+  }
 };
 
 // Computes the derived layers of one cell from its statistics.
