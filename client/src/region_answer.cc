@@ -56,8 +56,8 @@ Status RegionAnswerReader::Add(const v1::RegionChunk& chunk) {
     out_.resync_reason = h.resync_reason();
     out_.map_version = h.map_version();
     out_.history_id = h.history_id();
-    out_.raster = bgkmap::FromProto(h);
-    if (!out_.full) out_.raster.data.clear();  // a delta carries no rows
+    // A delta carries no rows: its geometry only, not a whole region's zeroed layers.
+    out_.raster = out_.full ? bgkmap::FromProto(h) : GeometryFromProto(h);
   }
   if (!have_header_) return Status::InvalidArgument("region chunk before the header");
   Raster& r = out_.raster;

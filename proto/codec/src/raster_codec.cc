@@ -64,7 +64,7 @@ void ToProto(const Raster& raster, v1::RasterHeader* out) {
   for (Layer l : raster.layers) out->add_layers(ToProto(l));
 }
 
-Raster FromProto(const v1::RasterHeader& h) {
+Raster GeometryFromProto(const v1::RasterHeader& h) {
   Raster raster;
   raster.box = FromProto(h.cells());
   raster.stride = static_cast<int>(h.stride());
@@ -74,6 +74,11 @@ Raster FromProto(const v1::RasterHeader& h) {
   raster.x0 = h.x0();
   raster.y1 = h.y1();
   for (int l : h.layers()) raster.layers.push_back(FromProto(static_cast<v1::Layer>(l)));
+  return raster;
+}
+
+Raster FromProto(const v1::RasterHeader& h) {
+  Raster raster = GeometryFromProto(h);
   raster.data.assign(raster.layers.size(),
                      std::vector<float>(static_cast<size_t>(raster.rows * raster.cols)));
   return raster;

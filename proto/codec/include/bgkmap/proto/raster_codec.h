@@ -31,6 +31,8 @@ bool CopyRows(const google::protobuf::RepeatedPtrField<v1::LayerValues>& in, int
 
 // The raster's geometry and layers (the caller sets map_version).
 void ToProto(const Raster& raster, v1::RasterHeader* out);
+// The geometry and layers a header describes, without pixels (no layer arrays): a delta's.
+Raster GeometryFromProto(const v1::RasterHeader& header);
 // The raster a header describes, every layer sized rows * cols and zeroed for CopyRows.
 Raster FromProto(const v1::RasterHeader& header);
 
