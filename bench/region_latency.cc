@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "bgkmap/client/client.h"
+#include "bgkmap/client/heap_policy.h"
 #include "percentile.h"
 
 int main(int argc, char** argv) {
@@ -20,7 +21,11 @@ int main(int argc, char** argv) {
   app.add_option("--bbox", box, "xmin ymin xmax ymax (metres)")->expected(4)->required();
   app.add_option("--repetitions", repetitions, "queries to time")->check(CLI::Range(1, 100000));
   app.add_option("--label", label, "row label");
+  bool default_malloc = false;
+  app.add_flag("--default-malloc", default_malloc,
+               "glibc's own policy instead of KeepFreedHeapMemoryForReuse() (heap_policy.h)");
   CLI11_PARSE(app, argc, argv);
+  if (!default_malloc) bgkmap::KeepFreedHeapMemoryForReuse();  // as a planner would
   bgkmap::Client client(server);
   if (!client.WaitForConnected(std::chrono::seconds(10))) {
     std::fprintf(stderr, "region_latency: cannot reach %s\n", server.c_str());

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "bgkmap/client/client.h"
+#include "bgkmap/client/heap_policy.h"
 #include "bgkmap/sim/ray_caster.h"
 #include "percentile.h"
 #include "street_world.h"
@@ -124,7 +125,11 @@ int main(int argc, char** argv) {
   app.add_option("--tls-ca", tls_ca, "Connect with TLS, trusting these CAs (PEM)");
   app.add_option("--tls-server-name", tls_server_name, "Name the server certificate carries");
   app.add_option("--token-file", token_file, "File holding a bearer token (admin or robot role)");
+  bool default_malloc = false;
+  app.add_flag("--default-malloc", default_malloc,
+               "glibc's own policy instead of KeepFreedHeapMemoryForReuse() (heap_policy.h)");
   CLI11_PARSE(app, argc, argv);
+  if (!default_malloc) bgkmap::KeepFreedHeapMemoryForReuse();  // as a planner would
 
   ClientOptions options;
   auto read = [](const std::string& path) {

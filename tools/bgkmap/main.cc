@@ -5,10 +5,12 @@
 #include <cstdio>
 #include <string>
 
+#include "bgkmap/client/heap_policy.h"
 #include "bgkmap/io/progress_bar.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
+  bgkmap::KeepFreedHeapMemoryForReuse();  // a build's per-scan buffers do not fault in again
   CLI::App app{"bgkmap: BGK terrain traversability maps for ground robots"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("bgkmap ") + BGKMAP_VERSION);
