@@ -47,11 +47,7 @@ Result<Layer> ParseLayer(std::string_view name) {
                                  "block_reason");
 }
 
-double Disagreement(double w, double s, double q) {
-  if (!(w > 0.0)) return 0.0;
-  const double mean = s / w;
-  return std::max(0.0, q / w - mean * mean);
-}
+double Disagreement(double w, double s, double q) { return internal::DisagreementOf(w, s, q); }
 
 LocalPlane FitLocalPlane(const MapParams& p, double w, double s, double q, const double* m) {
   const double W = p.lambda + w;

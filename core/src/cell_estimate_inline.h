@@ -23,6 +23,13 @@ struct EstimateConstants {
   }
 };
 
+// Disagreement() (cell_estimate.h), inline for the loops.
+inline double DisagreementOf(double w, double s, double q) {
+  if (!(w > 0.0)) return 0.0;
+  const double mean = s / w;
+  return std::max(0.0, q / w - mean * mean);
+}
+
 // The conditions of the state rule a known cell fails (BlockReason bits), on the estimate's own
 // float values so that 0 is exactly "traversable".
 inline uint8_t FailedConditions(const MapParams& p, bool infers_traversability,
@@ -76,10 +83,7 @@ inline CellEstimate EstimateCellWith(const MapParams& p, const EstimateConstants
       e.elevation_variance =
           static_cast<float>(p.sigma2 * (1.0 / lw + fit.leverage) + disagreement);
     } else {
-      if (k.dynamic) {  // Disagreement(w, s, q), w > 0
-        const double mean = s / w;
-        disagreement = std::max(0.0, q / w - mean * mean);
-      }
+      if (k.dynamic) disagreement = DisagreementOf(w, s, q);
       e.elevation = static_cast<float>((p.lambda * p.prior_mean + s) / lw);
       e.elevation_variance = static_cast<float>(p.sigma2 / lw + disagreement);
     }
