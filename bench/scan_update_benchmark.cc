@@ -145,7 +145,7 @@ void BM_ExtractRaster50m(benchmark::State& state) {
     benchmark::DoNotOptimize(r);
   }
   state.counters["cells"] = static_cast<double>(box.cell_count());
-  const std::vector<float>& weight = r.data[5];
+  const std::vector<float>& weight = *r.Find(Layer::kElevationWeight);
   state.counters["known"] = static_cast<double>(
       std::count_if(weight.begin(), weight.end(), [](float w) { return !std::isnan(w); }));
 }
