@@ -7,6 +7,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git clang-format
   universal-ctags  # scripts/check-function-length.sh (the House.function_length test)
   clang-14 libclang-rt-14-dev
+  lld  # links the ~170 executables in a sixth of GNU ld's time (CMakeLists.txt)
   libeigen3-dev
   libyaml-cpp-dev libspdlog-dev libfmt-dev libcli11-dev nlohmann-json3-dev
   libgdal-dev gdal-bin libpng-dev
