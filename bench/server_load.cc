@@ -127,8 +127,8 @@ int main(int argc, char** argv) {
   double region_x = 12.0;
   app.add_option("--region-x", region_x, "x (m) of the queried regions' centre")
       ->capture_default_str();
-  // The first 1-2 s after the loading robots connect are a transient (their first scans queue
-  // up); a longer settle measures the queries of a steady load (docs/benchmarks.md).
+  // Queries in the first 1-2 s after the loading robots connect answer much slower (why is not
+  // yet measured: docs/benchmarks.md); a longer settle measures the queries of a steady load.
   double settle_s = 0.5;
   app.add_option("--settle-seconds", settle_s, "Load time before the queries start")
       ->capture_default_str();
