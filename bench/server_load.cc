@@ -139,6 +139,9 @@ int main(int argc, char** argv) {
   bool default_malloc = false;
   app.add_flag("--default-malloc", default_malloc,
                "glibc's own policy instead of KeepFreedHeapMemoryForReuse() (heap_policy.h)");
+  bool skip_ingest = false;
+  app.add_flag("--skip-ingest", skip_ingest,
+               "Only the query measurements (no ingest throughput table)");
   CLI11_PARSE(app, argc, argv);
   if (!default_malloc) bgkmap::KeepFreedHeapMemoryForReuse();  // as a planner would
 
@@ -168,15 +171,17 @@ int main(int argc, char** argv) {
   const std::string run =
       std::to_string(std::chrono::system_clock::now().time_since_epoch().count());
 
-  std::printf("| robots | scans | scans/s | points/s | rejected |\n|---|---|---|---|---|\n");
-  for (int robots : {1, 4, 16}) {
-    const IngestResult r = Ingest(client, drive, "ingest" + std::to_string(robots) + "-" + run,
-                                  robots, scans_per_robot);
-    std::printf("| %d | %llu | %.0f | %.2fM | %llu |\n", robots,
-                static_cast<unsigned long long>(r.scans), static_cast<double>(r.scans) / r.seconds,
-                static_cast<double>(r.points) / r.seconds / 1e6,
-                static_cast<unsigned long long>(r.rejected));
-    std::fflush(stdout);
+  if (!skip_ingest) {
+    std::printf("| robots | scans | scans/s | points/s | rejected |\n|---|---|---|---|---|\n");
+    for (int robots : {1, 4, 16}) {
+      const IngestResult r = Ingest(client, drive, "ingest" + std::to_string(robots) + "-" + run,
+                                    robots, scans_per_robot);
+      std::printf(
+          "| %d | %llu | %.0f | %.2fM | %llu |\n", robots, static_cast<unsigned long long>(r.scans),
+          static_cast<double>(r.scans) / r.seconds, static_cast<double>(r.points) / r.seconds / 1e6,
+          static_cast<unsigned long long>(r.rejected));
+      std::fflush(stdout);
+    }
   }
 
   auto time_it = [](auto&& fn) {

@@ -306,7 +306,8 @@ Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
   }
   auto render = [this] {
     const ServiceCounts service{ctx->sessions.count(SessionRegistry::Kind::kIngest),
-                                ctx->sessions.count(SessionRegistry::Kind::kWatch)};
+                                ctx->sessions.count(SessionRegistry::Kind::kWatch),
+                                &ctx->latencies};
     return FormatMetrics(CollectMetrics(*map, service, config.storage.max_memory_mb << 20));
   };
   Result<std::unique_ptr<HttpServer>> listening =

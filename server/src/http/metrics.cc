@@ -1,5 +1,6 @@
 #include "http/metrics.h"
 
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 
@@ -135,6 +136,11 @@ ServerMetrics CollectMetrics(MapPort& map, const ServiceCounts& service,
   m.memory_limit_bytes = memory_limit_bytes;
   m.process_resident_bytes = ProcessResidentBytes();
   m.corrections = state.corrections;
+  if (service.latencies != nullptr) {
+    for (RequestPhase phase : kRequestPhases) {
+      m.latencies.emplace_back(phase, service.latencies->of(phase).Snapshot());
+    }
+  }
   if (state.shard) {
     m.cluster_refused = state.shard->refused;
     m.nats_received =
@@ -198,6 +204,16 @@ std::string FormatMetrics(const ServerMetrics& m) {
               "Messages this shard's NATS connection received since start.",
               m.nats_received->second);
   }
+  if (!m.latencies.empty()) {
+    w.Family("bgkmap_request_phase_seconds", Type::kHistogram,
+             "Time of requests' phases since start, by phase: region_read (a region query's "
+             "request to its raster: queue, tile locks, extraction), region_stream (its raster "
+             "to the last chunk the client took), points and check_path (request to answer, "
+             "without the transfer), scan (received to acknowledged).");
+    for (const auto& [phase, snapshot] : m.latencies) {
+      w.Histogram(snapshot, {{"phase", RequestPhaseName(phase)}});
+    }
+  }
   if (m.process_resident_bytes) {
     w.Gauge("process_resident_memory_bytes", "Resident memory of the bgkmapd process (VmRSS).",
             *m.process_resident_bytes);
@@ -235,11 +251,36 @@ void ExpositionWriter::Family(std::string_view name, Type type, std::string_view
   }
   out_ += "\n# TYPE ";
   out_ += name;
-  out_ += type == Type::kCounter ? " counter\n" : " gauge\n";
+  out_ += type == Type::kCounter ? " counter\n"
+          : type == Type::kGauge ? " gauge\n"
+                                 : " histogram\n";
 }
 
 void ExpositionWriter::Sample(uint64_t value, const Labels& labels) {
+  Line("", labels, std::to_string(value));
+}
+
+void ExpositionWriter::Histogram(const LatencySnapshot& snapshot, const Labels& labels) {
+  Labels with_le = labels;
+  with_le.emplace_back("le", "");
+  for (size_t i = 0; i < snapshot.cumulative.size(); ++i) {
+    // The bounds as the shortest decimal that reads back the same (0.0005, 1, 10); +Inf last.
+    char bound[32] = "+Inf";
+    if (i < kLatencyBucketBounds.size()) {
+      std::snprintf(bound, sizeof bound, "%g", kLatencyBucketBounds[i]);
+    }
+    with_le.back().second = bound;
+    Line("_bucket", with_le, std::to_string(snapshot.cumulative[i]));
+  }
+  char sum[32];
+  std::snprintf(sum, sizeof sum, "%.9f", snapshot.sum_seconds);
+  Line("_sum", labels, sum);
+  Line("_count", labels, std::to_string(snapshot.count));
+}
+
+void ExpositionWriter::Line(std::string_view suffix, const Labels& labels, std::string_view value) {
   out_ += family_;
+  out_ += suffix;
   if (!labels.empty()) {
     out_ += '{';
     for (size_t i = 0; i < labels.size(); ++i) {
@@ -252,7 +293,7 @@ void ExpositionWriter::Sample(uint64_t value, const Labels& labels) {
     out_ += '}';
   }
   out_ += ' ';
-  out_ += std::to_string(value);
+  out_ += value;
   out_ += '\n';
 }
 

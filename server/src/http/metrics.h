@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "bgkmap/server/latency_histogram.h"
 #include "bgkmap/server/robot_stats.h"
 #include "serving/map_port.h"
 
@@ -19,6 +20,7 @@ namespace bgkmap {
 struct ServiceCounts {
   uint64_t ingest_streams = 0;
   uint64_t watchers = 0;
+  const RequestLatencies* latencies = nullptr;  // the handlers' timings; null: none exported
 };
 
 // One scrape's values. Taken field by field, not at one map version: each value is current
@@ -39,7 +41,8 @@ struct ServerMetrics {
   CorrectionStats corrections;
   // A shard of a cluster: records from NATS refused since start, by kind (ShardState::refused).
   std::optional<std::vector<std::pair<std::string, uint64_t>>> cluster_refused;
-  std::optional<std::pair<uint64_t, uint64_t>> nats_received;  // bytes, messages (a shard)
+  std::optional<std::pair<uint64_t, uint64_t>> nats_received;       // bytes, messages (a shard)
+  std::vector<std::pair<RequestPhase, LatencySnapshot>> latencies;  // in kRequestPhases order
 };
 
 // Reads every value from the map (MapPort::State) and `service`. Locks nothing map-wide (the
@@ -57,7 +60,7 @@ std::optional<uint64_t> ProcessResidentBytes();
 // Writes metric families in the Prometheus text format 0.0.4.
 class ExpositionWriter {
  public:
-  enum class Type { kCounter, kGauge };
+  enum class Type { kCounter, kGauge, kHistogram };
   using Labels = std::vector<std::pair<std::string_view, std::string_view>>;
 
   // Starts a family: its "# HELP" and "# TYPE" lines. Samples that follow belong to it.
@@ -67,10 +70,15 @@ class ExpositionWriter {
   // A family with a single unlabelled sample.
   void Counter(std::string_view name, std::string_view help, uint64_t value);
   void Gauge(std::string_view name, std::string_view help, uint64_t value);
+  // The samples of one histogram of the current family (a kHistogram): its cumulative buckets
+  // (`le` appended to `labels`), _sum and _count.
+  void Histogram(const LatencySnapshot& snapshot, const Labels& labels);
 
   const std::string& text() const { return out_; }
 
  private:
+  void Line(std::string_view suffix, const Labels& labels, std::string_view value);
+
   std::string out_;
   std::string family_;
 };

@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include "auth/principal.h"
+#include "bgkmap/server/latency_histogram.h"
 #include "bgkmap/server/server_config.h"
 #include "serving/latest_scans.h"
 #include "serving/map_port.h"
@@ -167,6 +168,8 @@ struct ServiceContext {
   std::atomic<uint32_t> unary_scans{0};  // concurrent IngestScan calls
   std::atomic<uint32_t> imports{0};      // ImportMap calls (one at a time)
   ByteBudget region_bytes{limits.max_region_bytes_in_flight};
+  // How long requests' phases take (/metrics: bgkmap_request_phase_seconds).
+  RequestLatencies latencies;
   // Each robot's latest applied scan, for live views (the Foxglove port); null when none.
   LatestScans* latest_scans = nullptr;
 };

@@ -12,7 +12,9 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <array>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -107,12 +109,25 @@ HttpReply Get(int port, const std::string& path = "/metrics") {
 // A parsed exposition: samples by their series ("name" or "name{labels}" as written).
 struct Exposition {
   std::map<std::string, uint64_t> samples;
-  std::map<std::string, std::string> types;  // family -> counter|gauge
+  std::map<std::string, double> sums;        // histograms' _sum series (seconds)
+  std::map<std::string, std::string> types;  // family -> counter|gauge|histogram
 };
+
+// The family a sample belongs to: its name, or a histogram's name without _bucket, _sum, _count.
+std::string FamilyOf(const Exposition& e, const std::string& name) {
+  if (e.types.count(name)) return name;
+  for (const char* suffix : {"_bucket", "_sum", "_count"}) {
+    if (!name.ends_with(suffix)) continue;
+    const std::string family = name.substr(0, name.size() - std::strlen(suffix));
+    auto it = e.types.find(family);
+    if (it != e.types.end() && it->second == "histogram") return family;
+  }
+  return "";
+}
 
 // Parses the text format strictly enough to catch what a Prometheus server would refuse: every
 // sample's family has HELP and TYPE lines before it, counters end in _total, values are
-// integers, series are unique.
+// integers (a histogram's _sum a decimal), series are unique.
 ::testing::AssertionResult Parse(const std::string& text, Exposition* out) {
   std::set<std::string> helped;
   size_t at = 0;
@@ -126,8 +141,8 @@ struct Exposition {
       helped.insert(m[1]);
       continue;
     }
-    if (std::regex_match(line, m,
-                         std::regex("# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge)"))) {
+    if (std::regex_match(
+            line, m, std::regex("# TYPE ([a-zA-Z_:][a-zA-Z0-9_:]*) (counter|gauge|histogram)"))) {
       if (!helped.count(m[1])) return ::testing::AssertionFailure() << "TYPE before HELP: " << line;
       if (!out->types.emplace(m[1], m[2]).second) {
         return ::testing::AssertionFailure() << "family twice: " << line;
@@ -157,8 +172,16 @@ struct Exposition {
     }
     const std::string series = line.substr(0, i);
     const std::string value = line.substr(i + 1);
-    if (!out->types.count(name)) {
-      return ::testing::AssertionFailure() << "sample without TYPE: " << line;
+    const std::string family = FamilyOf(*out, name);
+    if (family.empty()) return ::testing::AssertionFailure() << "sample without TYPE: " << line;
+    if (family != name && name.ends_with("_sum")) {
+      if (!std::regex_match(value, std::regex("[0-9]+(\\.[0-9]+)?"))) {
+        return ::testing::AssertionFailure() << "not a decimal: " << line;
+      }
+      if (!out->sums.emplace(series, std::stod(value)).second) {
+        return ::testing::AssertionFailure() << "series twice: " << line;
+      }
+      continue;
     }
     if (!std::regex_match(value, std::regex("[0-9]+"))) {
       return ::testing::AssertionFailure() << "not an integer: " << line;
@@ -310,6 +333,59 @@ TEST(MetricsTest, ScrapeEqualsInfo) {
   RpcResult<ClearResult> cleared = fixture.client().ClearRegion({-1, -1, 1, 1});
   ASSERT_TRUE(cleared.ok());
   EXPECT_EQ(Value(Scrape(port), "bgkmap_map_version"), info->map_version + 1);
+}
+
+// The phases' histograms count exactly the requests answered (a refused query is not timed),
+// their buckets are cumulative up to +Inf = count, and their sums are real durations.
+TEST(MetricsTest, RequestPhasesAreTimed) {
+  ServerFixture fixture(MetricsConfig());
+  const int port = fixture.server().http_port();
+  const auto count = [](const Exposition& e, const std::string& phase) {
+    return Value(e, "bgkmap_request_phase_seconds_count{phase=\"" + phase + "\"}");
+  };
+  const Exposition before = Scrape(port);
+  EXPECT_EQ(before.types.at("bgkmap_request_phase_seconds"), "histogram");
+  for (const char* phase : {"region_read", "region_stream", "points", "check_path", "scan"}) {
+    EXPECT_EQ(count(before, phase), 0u) << phase;
+  }
+
+  const std::vector<OwnedScan> scans = SubScans("alpha", 3, 8);
+  Ingest(fixture.client(), scans);
+  ASSERT_TRUE(fixture.client().QueryRegion({{-5, -5, 5, 5}, {}, 1}).ok());
+  const std::vector<std::array<double, 2>> two = {{0.0, 0.0}, {1.0, 1.0}}, one = {{2.0, 0.0}};
+  RpcResult<PointValues> points = fixture.client().QueryPoints(two);
+  ASSERT_TRUE(points.ok()) << points.status().ToString();
+  ASSERT_TRUE(fixture.client().QueryPoints(one).ok());
+  PathQuery path;
+  path.poses = {{0.0, 0.0, 0.0}, {1.0, 0.0, 0.0}};
+  path.radius = 0.3;
+  path.max_unknown_fraction = 1.0;
+  ASSERT_TRUE(fixture.client().CheckPath(path).ok());
+  // Refused before any work: not timed.
+  EXPECT_FALSE(fixture.client().QueryRegion({{5, 5, -5, -5}, {}, 1}).ok());
+
+  // Every phase is recorded before its answer goes out, so the scrape sees them all.
+  const Exposition e = Scrape(port);
+  EXPECT_EQ(count(e, "scan"), scans.size());
+  EXPECT_EQ(count(e, "region_read"), 1u);
+  EXPECT_EQ(count(e, "region_stream"), 1u);
+  EXPECT_EQ(count(e, "points"), 2u);
+  EXPECT_EQ(count(e, "check_path"), 1u);
+  for (const char* phase : {"region_read", "region_stream", "points", "check_path", "scan"}) {
+    const std::string label = std::string("phase=\"") + phase + "\"";
+    uint64_t previous = 0;
+    for (const char* le : {"0.0005", "0.001", "0.002", "0.005", "0.01", "0.02", "0.05", "0.1",
+                           "0.2", "0.5", "1", "2", "5", "10", "+Inf"}) {
+      const uint64_t v =
+          Value(e, "bgkmap_request_phase_seconds_bucket{" + label + ",le=\"" + le + "\"}");
+      EXPECT_GE(v, previous) << phase << " le=" << le;
+      previous = v;
+    }
+    EXPECT_EQ(previous, count(e, phase)) << phase;
+    const double sum = e.sums.at("bgkmap_request_phase_seconds_sum{" + label + "}");
+    EXPECT_GT(sum, 0.0) << phase;
+    EXPECT_LT(sum, 60.0 * static_cast<double>(count(e, phase))) << phase;
+  }
 }
 
 TEST(MetricsTest, InMemoryMapHasNoStoreMetrics) {

@@ -189,7 +189,7 @@ grpc::Status CheckPath(ServiceContext& ctx, const QueryControl& control,
 grpc::ServerUnaryReactor* StartCheckPath(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                          PrincipalRef who, const v1::PathCheckRequest* request,
                                          v1::PathCheckResponse* response) {
-  return RunUnaryQuery(ctx, call, std::move(who),
+  return RunUnaryQuery(ctx, call, std::move(who), RequestPhase::kCheckPath,
                        [&ctx, request, response](const QueryControl& control) {
                          return CheckPath(ctx, control, *request, response);
                        });

@@ -80,8 +80,9 @@ class QueryControl {
 // Runs `work` on the query pool under the concurrent-query limit and finishes `reactor` with its
 // status (RESOURCE_EXHAUSTED without running it when the limit is reached; CANCELLED or
 // DEADLINE_EXCEEDED without running it when the call ended while it waited for a thread).
+// A query that ran OK is timed, request to answer, as `phase`.
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                        PrincipalRef who,
+                                        PrincipalRef who, RequestPhase phase,
                                         std::function<grpc::Status(const QueryControl&)> work);
 
 }  // namespace bgkmap

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cmath>
 #include <memory>
 
@@ -130,6 +131,7 @@ v1::ScanAck RejectedAck(ServiceContext& ctx, const v1::Scan& scan, const grpc::S
 
 void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan& scan,
                        AckCallback done) {
+  const auto received = std::chrono::steady_clock::now();
   if (grpc::Status s = CheckRobotId(scan.robot_id()); !s.ok()) {
     done(RejectedAck(ctx, scan, s), s);
     return;
@@ -167,11 +169,14 @@ void IngestScanMessage(ServiceContext& ctx, const Principal& who, const v1::Scan
   uint64_t last_sequence = 0;
   const RobotAdmission admission = ctx.map.SubmitScan(
       std::move(origin), prepared,
-      [&ctx, ack = BaseAck(scan), counts = prepared->counts, done, latest,
-       stamp](ScanOutcome outcome) {
-        if (latest != nullptr && outcome.status.ok() && !outcome.already_logged) {
-          ctx.latest_scans->Record(ack.robot_id(), ack.sequence(), stamp, latest->pose,
-                                   latest->points);
+      [&ctx, ack = BaseAck(scan), counts = prepared->counts, done, latest, stamp,
+       received](ScanOutcome outcome) {
+        if (outcome.status.ok() && !outcome.already_logged) {
+          ctx.latencies.of(RequestPhase::kScan).Record(std::chrono::steady_clock::now() - received);
+          if (latest != nullptr) {
+            ctx.latest_scans->Record(ack.robot_id(), ack.sequence(), stamp, latest->pose,
+                                     latest->points);
+          }
         }
         Answer(ctx, ack, counts, outcome, done);
       },

@@ -57,7 +57,7 @@ grpc::Status QueryPoints(ServiceContext& ctx, const QueryControl& control,
 grpc::ServerUnaryReactor* StartQueryPoints(ServiceContext& ctx, grpc::CallbackServerContext* call,
                                            PrincipalRef who, const v1::PointsRequest* request,
                                            v1::PointsResponse* response) {
-  return RunUnaryQuery(ctx, call, std::move(who),
+  return RunUnaryQuery(ctx, call, std::move(who), RequestPhase::kPoints,
                        [&ctx, request, response](const QueryControl& control) {
                          return QueryPoints(ctx, control, *request, response);
                        });

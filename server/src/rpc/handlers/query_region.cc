@@ -6,6 +6,7 @@
 #include <grpc/compression.h>
 
 #include <boost/asio/post.hpp>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -25,7 +26,10 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
  public:
   RegionStream(ServiceContext& ctx, grpc::CallbackServerContext* call, const Principal& who,
                const v1::RegionRequest& request)
-      : ctx_(ctx), permit_(ctx, who), stalled_(call, ctx.limits.stalled_write_timeout_s) {
+      : ctx_(ctx),
+        permit_(ctx, who),
+        stalled_(call, ctx.limits.stalled_write_timeout_s),
+        received_(std::chrono::steady_clock::now()) {
     if (!permit_) {
       Finish(permit_.refusal());
       return;
@@ -65,6 +69,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
         if (delta->resync_reason.empty()) {
           patches_ = std::move(delta->patches);
           answer_ = v1::REGION_ANSWER_DELTA;
+          ReadDone();
           WriteNext();
           return;
         }
@@ -77,6 +82,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
         return;
       }
       raster_ = std::move(read).value();
+      ReadDone();
       const int64_t row_bytes =
           std::max<int64_t>(1, raster_.cols * static_cast<int64_t>(layers_.size()) * 4);
       rows_per_chunk_ =
@@ -150,7 +156,7 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
   // A delta: whole patches per chunk, about region_chunk_bytes each (at least one patch).
   void WriteNextPatches() {
     if (sent_header_ && next_patch_ >= patches_.size()) {
-      Finish(grpc::Status::OK);
+      FinishAnswered();
       return;
     }
     chunk_.Clear();
@@ -165,13 +171,24 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
     StartWrite(&chunk_);
   }
 
+  // The phases' timings (/metrics): the read once the answer is in memory, the transfer once
+  // the client has taken every chunk.
+  void ReadDone() {
+    read_ = std::chrono::steady_clock::now();
+    ctx_.latencies.of(RequestPhase::kRegionRead).Record(read_ - received_);
+  }
+  void FinishAnswered() {
+    ctx_.latencies.of(RequestPhase::kRegionStream).Record(std::chrono::steady_clock::now() - read_);
+    Finish(grpc::Status::OK);
+  }
+
   void WriteNext() {
     if (answer_ == v1::REGION_ANSWER_DELTA) {
       WriteNextPatches();
       return;
     }
     if (sent_header_ && next_row_ >= raster_.rows) {
-      Finish(grpc::Status::OK);
+      FinishAnswered();
       return;
     }
     chunk_.Clear();
@@ -204,6 +221,8 @@ class RegionStream final : public grpc::ServerWriteReactor<v1::RegionChunk> {
   size_t next_patch_ = 0;
   uint64_t reserved_bytes_ = 0;
   v1::RegionChunk chunk_;
+  const std::chrono::steady_clock::time_point received_;
+  std::chrono::steady_clock::time_point read_;
 };
 
 }  // namespace

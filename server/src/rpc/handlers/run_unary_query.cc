@@ -1,4 +1,5 @@
 #include <boost/asio/post.hpp>
+#include <chrono>
 #include <memory>
 #include <sstream>
 
@@ -33,8 +34,9 @@ grpc::Status QueryControl::Check() const {
 }
 
 grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                        PrincipalRef who,
+                                        PrincipalRef who, RequestPhase phase,
                                         std::function<grpc::Status(const QueryControl&)> work) {
+  const auto received = std::chrono::steady_clock::now();
   grpc::ServerUnaryReactor* reactor = call->DefaultReactor();
   auto permit = std::make_shared<QueryPermit>(ctx, *who);
   if (!*permit) {
@@ -42,12 +44,15 @@ grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServe
     return reactor;
   }
   auto control = std::make_shared<QueryControl>(call, ctx.limits.max_query_seconds);
-  boost::asio::post(ctx.query_pool, [reactor, permit, control, work = std::move(work)] {
-    // A call that ended while it waited for a thread is not worked on.
-    grpc::Status status = control->Check();
-    if (status.ok()) status = work(*control);
-    reactor->Finish(std::move(status));
-  });
+  boost::asio::post(ctx.query_pool,
+                    [&ctx, reactor, permit, control, phase, received, work = std::move(work)] {
+                      // A call that ended while it waited for a thread is not worked on.
+                      grpc::Status status = control->Check();
+                      if (status.ok()) status = work(*control);
+                      if (status.ok())
+                        ctx.latencies.of(phase).Record(std::chrono::steady_clock::now() - received);
+                      reactor->Finish(std::move(status));
+                    });
   return reactor;
 }
 
