@@ -115,6 +115,10 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
     std::merge(scan.write_tiles.begin(), scan.write_tiles.end(), cleared.begin(), cleared.end(),
                std::back_inserter(report.changed_tiles));
   }
+  report.changed_blocks.reserve(report.changed_tiles.size());
+  for (const TileKey& key : report.changed_tiles) {
+    report.changed_blocks.push_back(window.at(key)->TakeChangedBlocks());
+  }
   report.times = {Seconds(t0, t1), Seconds(t1, t2), Seconds(t2, t3)};
   return report;
 }

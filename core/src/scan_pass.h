@@ -50,7 +50,8 @@ struct ScanIntegrator::Pass {
   // size, up to splitting: each cell sees the same sequence of additions, so sums are bitwise
   // independent of the tiling.
   // With kSkipAbsent, runs in tiles the window does not hold (or that do not exist) are
-  // skipped; otherwise every tile must be there.
+  // skipped; otherwise every tile must be there. Every run's blocks are marked changed
+  // (Tile::MarkChanged) before `row` sees it: the callers write the runs.
   template <bool kSkipAbsent = false, typename RowFn>
   void ForEachKernelRun(CellIndex c, RowFn&& row) const {
     const KernelStencil& k = self.kernel_;
@@ -59,6 +60,7 @@ struct ScanIntegrator::Pass {
     if (lx >= R && lx + R < T && ly >= R && ly + R < T) {  // fast path: one tile
       Tile* tile = TileAt(c);
       if (kSkipAbsent && tile == nullptr) return;
+      tile->MarkChanged(lx - R, ly - R, lx + R, ly + R);  // the runs' bounding square
       for (int r = 0; r < k.row_count(); ++r) {
         const int hw = k.half_width(r);
         const int start = (ly + r - R) * T + lx - hw;
@@ -78,6 +80,7 @@ struct ScanIntegrator::Pass {
         Tile* tile = window.at(key);
         const int off = x - (c.x - hw);
         if (!kSkipAbsent || tile != nullptr) {
+          tile->MarkChanged(x - key.x * T, row_y, seg_end - key.x * T, row_y);
           row(*tile, row_y * T + (x - key.x * T), k.row_weights_double(r) + off,
               k.row_weights(r) + off, seg_end - x + 1);
         }

@@ -350,7 +350,8 @@ void ScanIntegrator::Pass::AddPlaneElevation(const PreparedScan& scan) const {
       internal::AddPlaneRun<kSecondMoment>(tile, start, len, ks, k, GainOf(tile), y);
       if (w_cap > 0) internal::CapElevationPlane(tile, start, len, w_cap);
     });
-    // The cell's own observations, apart: its elevation is theirs (docs/semantics.md).
+    // The cell's own observations, apart: its elevation is theirs (docs/semantics.md). (The
+    // stencil's centre: its block is marked.)
     Tile& own = *TileAt(oc.cell);
     const int i = self.geometry_.LocalIndex(oc.cell);
     const double g = GainOf(own);
@@ -385,6 +386,7 @@ void ScanIntegrator::Pass::AddRawElevation(const PreparedScan& scan) const {
     Tile* tile = TileAt(oc.cell);
     const int i = self.geometry_.LocalIndex(oc.cell);
     const double g = GainOf(*tile);  // 1 without forgetting: the sums are unchanged
+    tile->MarkCellChanged(i);
     tile->w()[i] += g;
     tile->s()[i] += g * oc.y;
     if (dynamic) {
@@ -472,7 +474,8 @@ void ScanIntegrator::Pass::SpreadValue(CellIndex cell, float v) const {
   const float direct = self.direct_weight_;
   if (direct > 0.0f) {
     // bgk-obstacle: the cell's own evidence weighs as much as its whole neighbourhood's, so an
-    // obstacle seen at a cell is not averaged away by the ground seen around it.
+    // obstacle seen at a cell is not averaged away by the ground seen around it. (The stencil's
+    // centre: its block is marked.)
     Tile* tile = TileAt(cell);
     const int i = self.geometry_.LocalIndex(cell);
     const float dg = direct * static_cast<float>(GainOf(*tile));
@@ -488,6 +491,7 @@ void ScanIntegrator::Pass::AddTraversability(
     for (const auto& [cell, v] : values) {
       Tile* tile = TileAt(cell);
       const int i = self.geometry_.LocalIndex(cell);
+      tile->MarkCellChanged(i);
       tile->a()[i] = v;
       tile->b()[i] = 1.0f - v;
     }
@@ -510,6 +514,7 @@ void ScanIntegrator::Pass::AddFootprint(const PreparedScan& scan) const {
     const int i = self.geometry_.LocalIndex(c);
     const double wf = p.footprint_weight * GainOf(*tile);
     const float bf = static_cast<float>(wf);
+    tile->MarkCellChanged(i);
     double* w = &tile->w()[i];
     double* s = &tile->s()[i];
     double* q = &tile->q()[i];

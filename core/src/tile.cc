@@ -239,6 +239,7 @@ void Tile::Add(const Tile& o) {
 
 void Tile::Scale(double f) {
   assert(!is_packed());
+  changed_blocks_ = kAllTileBlocks;
   for (size_t i = 0; i < n(); ++i) {
     w_[i] *= f;
     s_[i] *= f;

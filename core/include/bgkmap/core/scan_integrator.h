@@ -53,6 +53,9 @@ struct ScanReport {
   uint64_t feature_cells = 0;          // cells where v was computed
   uint64_t contradicted_cells = 0;     // cells whose confidence free-space evidence cut
   std::vector<TileKey> changed_tiles;  // sorted
+  // changed_blocks[i]: the blocks of changed_tiles[i] the scan may have changed (tile_blocks.h;
+  // over-approximate: no cell outside them changed).
+  std::vector<uint64_t> changed_blocks;
   StageTimes times;
 };
 

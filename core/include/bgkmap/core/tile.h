@@ -8,6 +8,7 @@
 #include <span>
 
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/tile_blocks.h"
 
 namespace bgkmap {
 
@@ -132,13 +133,33 @@ class Tile {
   void set_stamp_ns(int64_t t) { stamp_ns_ = t; }
 
   // Multiplies every statistic of every cell by f (forgetting: the tile brought to a later
-  // time). +0 stays +0.
+  // time). +0 stays +0. Marks every block changed.
   void Scale(double f);
+
+  // Which blocks (tile_blocks.h) were changed since the mask was last taken: what a region
+  // delta sends of the tile. Over-approximate by contract: ScanIntegrator::Integrate marks
+  // every block it may write (a marked block may be unchanged, never the reverse), and so do
+  // ScaleCell, ClearCell and Scale; other edits (merges, clears, corrections) are reported as
+  // whole tiles by their callers and need not mark. Not a statistic: copies start with none,
+  // operator== ignores it.
+  void MarkChanged(int x0, int y0, int x1, int y1) {
+    changed_blocks_ |= TileBlocksOf(block_shift_, x0, y0, x1, y1);
+  }
+  void MarkCellChanged(int local) {
+    const int x = local % size_, y = local / size_;
+    MarkChanged(x, y, x, y);
+  }
+  uint64_t TakeChangedBlocks() {
+    const uint64_t m = changed_blocks_;
+    changed_blocks_ = 0;
+    return m;
+  }
 
   // Multiplies every statistic of cell `local` by f: the mean and the disagreement stay, the
   // confidence scales (saturation and free-space evidence, docs/semantics.md).
   void ScaleCell(int local, double f) {
     assert(!is_packed());
+    MarkCellChanged(local);
     w_[local] *= f;
     s_[local] *= f;
     q_[local] *= f;
@@ -153,6 +174,7 @@ class Tile {
   // which a merge would turn into +0).
   void ClearCell(int local) {
     assert(!is_packed());
+    MarkCellChanged(local);
     w_[local] = s_[local] = q_[local] = 0.0;
     if (p_) {
       for (int m = 0; m < kPlaneMoments; ++m) p_[m * n() + local] = 0.0;
@@ -199,6 +221,8 @@ class Tile {
 
   int size_;
   bool plane_;
+  int block_shift_ = TileBlockShift(size_);
+  uint64_t changed_blocks_ = 0;
   uint64_t version_ = 0;
   int64_t stamp_ns_ = 0;
   std::unique_ptr<double[]> w_, s_, q_;
