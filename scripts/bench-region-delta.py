@@ -173,8 +173,8 @@ def main() -> int:
          ["elevation", "state"]),
         ("BALM hall, path +- 10 m", "balm_hall", 48, 10.0, None),
     ]
-    print("| sequence | region (pixels, tiles) | full answer bytes | after 1 scan: bytes (tiles, "
-          "ratio) | after 10 scans: bytes (tiles, ratio) | gzip on the wire: full, after 1, after 10 |")
+    print("| sequence | region (pixels, tiles) | full answer bytes | after 1 scan: bytes (patches, "
+          "ratio) | after 10 scans: bytes (patches, ratio) | gzip on the wire: full, after 1, after 10 |")
     print("|---|---|---|---|---|---|")
     for name, folder, base, margin, layers in runs:
         seq = bgkmap.KittiSequence(os.path.join(args.data, folder))
@@ -184,7 +184,7 @@ def main() -> int:
             if label not in r:
                 return "n/a (no more scans)"
             sent, b, tiles, tomb, z, differ, patched = r[label]
-            return (f"{b:,} ({tiles} tiles, 1/{r['full'] / b:.1f}; {differ:,} of {patched:,} "
+            return (f"{b:,} ({tiles} patches, 1/{r['full'] / b:.1f}; {differ:,} of {patched:,} "
                     "pixels sent changed)") if b else "0"
 
         zs = [f"{r['zfull']:,}"] + [f"{r[k][4]:,}" for k in ("after 1", "after 10") if k in r]

@@ -259,11 +259,11 @@ class Client:
         (region.map_version is the newest).
 
         since: a map version (an earlier answer's region.map_version, with its region.history_id
-        as history_id) asks only what changed after it, and returns a RegionDelta: the changed
-        tiles' patches and tombstones, or the whole region when the server cannot answer the
-        delta exactly (delta.full; docs/server.md, "Region deltas"). delta.apply_to(region)
-        brings the earlier answer up to date; MapMirror does all of this. A box that needs
-        pieces cannot be asked a delta (INVALID_ARGUMENT).
+        as history_id) asks only what changed after it, and returns a RegionDelta: the
+        patches (changed tiles, or their changed blocks) and tombstones, or the whole region
+        when the server cannot answer the delta exactly (delta.full; docs/server.md, "Region
+        deltas"). delta.apply_to(region) brings the earlier answer up to date; MapMirror does
+        all of this. A box that needs pieces cannot be asked a delta (INVALID_ARGUMENT).
 
         compress: the server gzips the answer's messages on the wire (RegionRequest.compress;
         decompressed here transparently): far fewer bytes for sparse regions, more server CPU."""

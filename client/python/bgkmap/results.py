@@ -195,8 +195,9 @@ class RegionDelta:
     """What changed in a region since a map version (Client.query with since).
 
     full: the server could not answer the delta exactly (resync_reason says why) and `region` is
-    the whole region; else `patches` hold every tile changed since, `region` is None. Ask the next
-    delta with since=map_version, history_id=history_id."""
+    the whole region; else `patches` hold what changed since (a changed tile's part of the
+    region, or rectangles of its changed blocks: several patches may name one tile), `region`
+    is None. Ask the next delta with since=map_version, history_id=history_id."""
 
     full: bool
     resync_reason: str

@@ -132,8 +132,8 @@ class ClusterNode final : public MapPort {
     return reads_->ListKnownTiles(min, max);
   }
   uint64_t history_id() const override { return reads_->history_id(); }
-  Result<std::vector<TileKey>> TilesChangedSince(TileKey min, TileKey max,
-                                                 uint64_t since) override {
+  Result<std::vector<ChangedTile>> TilesChangedSince(TileKey min, TileKey max,
+                                                     uint64_t since) override {
     return reads_->TilesChangedSince(min, max, since);
   }
   // Info: the shard's place in the cluster, and the cluster's counts as of the last

@@ -40,7 +40,7 @@ class ClusterReads final : public MapReads {
   // A cluster keeps no per-tile versions (a tile is read at a log sequence, not at its last
   // change): every since_version is answered with the whole region.
   uint64_t history_id() const override { return 0; }
-  Result<std::vector<TileKey>> TilesChangedSince(TileKey, TileKey, uint64_t) override {
+  Result<std::vector<ChangedTile>> TilesChangedSince(TileKey, TileKey, uint64_t) override {
     return Status::FailedPrecondition(
         "a cluster keeps no per-tile change versions: region deltas are not answered");
   }

@@ -91,7 +91,7 @@ void ChangeScheduler::Run(Job* job) {
       std::holds_alternative<Barrier>(job->kind) ? applied_version() : job->version;
   Done done = job->work(version);
   if (on_tiles_applied_ && !done.changed_tiles.empty()) {
-    on_tiles_applied_(version, done.changed_tiles);
+    on_tiles_applied_(version, done.changed_tiles, done.changed_blocks);
   }
   Finish(job);  // destroys the job
   if (on_tiles_changed_ && !done.changed_tiles.empty()) on_tiles_changed_(done.changed_tiles);

@@ -36,12 +36,14 @@ class MapReads {
   // Region deltas (docs/server.md, "Region deltas"). Names this map's record of tile changes;
   // a since_version is only answered for the id it was read with (new at every start).
   virtual uint64_t history_id() const = 0;
-  // Sorted keys of the tiles with min <= key <= max (per axis) whose last change is after
-  // `since` (read applied_version() first: every change up to it is then listed), including
-  // tiles emptied or removed since. FailedPrecondition saying why if this map cannot answer
-  // `since` exactly (then the caller answers the whole region).
-  virtual Result<std::vector<TileKey>> TilesChangedSince(TileKey min, TileKey max,
-                                                         uint64_t since) = 0;
+  // The tiles with min <= key <= max (per axis) whose last change is after `since`, sorted by
+  // key, each with the blocks (tile_blocks.h) that may have changed since (a superset of those
+  // that did; kAllTileBlocks where only the tile is known), including tiles emptied or removed
+  // since (read applied_version() first: every change up to it is then listed).
+  // FailedPrecondition saying why if this map cannot answer `since` exactly (then the caller
+  // answers the whole region).
+  virtual Result<std::vector<ChangedTile>> TilesChangedSince(TileKey min, TileKey max,
+                                                             uint64_t since) = 0;
 
  protected:
   ~MapReads() = default;

@@ -31,8 +31,9 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
       robots_(options.max_robots, options.max_sequence_jump),
       change_log_(durability.recovered_version(), NewHistoryId()),
       scheduler_(workers, std::move(options.on_tiles_changed),
-                 [this](uint64_t version, const std::vector<TileKey>& tiles) {
-                   change_log_.Record(version, tiles);
+                 [this](uint64_t version, const std::vector<TileKey>& tiles,
+                        const std::vector<uint64_t>& blocks) {
+                   change_log_.Record(version, tiles, blocks);
                  }) {
   scheduler_.Restore(durability.recovered_version());
   robots_.Restore(durability.LoggedRobotSequences());
@@ -102,14 +103,15 @@ ChangeScheduler::Done ServedMap::RunScan(const ScanOrigin& origin,
     robots_.Withdraw(origin.robot_id, origin.sequence, previous_sequence, scan.counts.kept);
     return {{}, [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
   }
-  outcome.changed_tiles = table_.ApplyScan(scan, version).changed_tiles;
+  ScanReport report = table_.ApplyScan(scan, version);
+  outcome.changed_tiles = report.changed_tiles;
   summary_.MarkStale(outcome.changed_tiles);
   checkpointer_.MarkChanged(outcome.changed_tiles);
   scans_applied_.fetch_add(1);
   residency_.SignalIfOverLimit();
-  std::vector<TileKey> tiles = outcome.changed_tiles;
-  return {std::move(tiles),
-          [done = std::move(done), outcome = std::move(outcome)] { done(outcome); }};
+  return {std::move(report.changed_tiles),
+          [done = std::move(done), outcome = std::move(outcome)] { done(outcome); },
+          std::move(report.changed_blocks)};
 }
 
 void ServedMap::SubmitClear(const CellBox& box, std::function<void(ClearOutcome)> done) {
@@ -316,9 +318,9 @@ std::vector<TileKey> ServedMap::ListTiles(TileKey min, TileKey max) const {
   return residency_.KeysIn(min, max);
 }
 
-Result<std::vector<TileKey>> ServedMap::TilesChangedSince(TileKey min, TileKey max,
-                                                          uint64_t since) {
-  std::optional<std::vector<TileKey>> keys = change_log_.ChangedSince(min, max, since);
+Result<std::vector<ChangedTile>> ServedMap::TilesChangedSince(TileKey min, TileKey max,
+                                                              uint64_t since) {
+  std::optional<std::vector<ChangedTile>> keys = change_log_.ChangedSince(min, max, since);
   if (!keys) {
     return Status::FailedPrecondition(
         "since_version " + std::to_string(since) + " is older than map version " +

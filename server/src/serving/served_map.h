@@ -131,7 +131,8 @@ class ServedMap final : public MapPort {
   uint64_t history_id() const override { return change_log_.history_id(); }
   // From the change log kept since the start: a `since` below the version the server started
   // at (the log is not stored) is FailedPrecondition.
-  Result<std::vector<TileKey>> TilesChangedSince(TileKey min, TileKey max, uint64_t since) override;
+  Result<std::vector<ChangedTile>> TilesChangedSince(TileKey min, TileKey max,
+                                                     uint64_t since) override;
 
   // ---- What Info and /metrics report.
   uint64_t known_version() const override { return applied_version(); }

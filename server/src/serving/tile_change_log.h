@@ -3,9 +3,14 @@
 // version covers it, so a reader that read the applied version V first finds every change up
 // to V here. Tiles a change emptied or removed stay recorded (the delta's tombstones).
 //
+// Per tile it also keeps which blocks (tile_blocks.h) changed, as a short history of (version,
+// blocks) entries: when the history is full its two oldest entries merge (the newer version,
+// both masks), so a delta since a recent version names the blocks changed since, and one since
+// an older version may name more (never fewer).
+//
 // Kept in memory only: a since_version below the version the server started at (`floor`) is
-// not answered from it. It holds one entry per tile changed since the start (24 bytes plus the
-// tree's node), at most the tiles of the map plus those removed since.
+// not answered from it. It holds one entry per tile changed since the start (~100 bytes plus
+// the tree's node), at most the tiles of the map plus those removed since.
 #pragma once
 
 #include <cstdint>
@@ -15,6 +20,7 @@
 #include <vector>
 
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/tile_blocks.h"
 
 namespace bgkmap {
 
@@ -28,17 +34,34 @@ class TileChangeLog {
   uint64_t history_id() const { return history_id_; }
 
   // Thread-safe. Changes of one tile are recorded in version order (the scheduler orders them).
-  void Record(uint64_t version, const std::vector<TileKey>& tiles);
+  // blocks[i]: the blocks of tiles[i] the change may have changed; empty: whole tiles.
+  void Record(uint64_t version, const std::vector<TileKey>& tiles,
+              const std::vector<uint64_t>& blocks = {});
 
-  // Sorted keys of the tiles with min <= key <= max (per axis) whose last change is after
-  // `since`; nullopt if `since` < floor() (changes before the start are not known here).
-  std::optional<std::vector<TileKey>> ChangedSince(TileKey min, TileKey max, uint64_t since) const;
+  // The tiles with min <= key <= max (per axis) whose last change is after `since`, sorted by
+  // key, with the blocks changed after it (a superset); nullopt if `since` < floor() (changes
+  // before the start are not known here).
+  std::optional<std::vector<ChangedTile>> ChangedSince(TileKey min, TileKey max,
+                                                       uint64_t since) const;
+
+  // Entries of block history kept per tile.
+  static constexpr int kHistory = 6;
 
  private:
   const uint64_t floor_;
   const uint64_t history_id_;
+  // A tile's changes, oldest first: entry i covers the changes after entry i - 1's version up to
+  // its own (the first: since the start).
+  struct History {
+    uint64_t version[kHistory] = {};
+    uint64_t blocks[kHistory] = {};
+    int size = 0;
+    uint64_t last() const { return version[size - 1]; }
+    void Add(uint64_t v, uint64_t b);
+    uint64_t BlocksAfter(uint64_t since) const;
+  };
   mutable std::mutex mu_;
-  std::map<TileKey, uint64_t> last_change_;  // sorted by (x, y): a column is one range
+  std::map<TileKey, History> changes_;  // sorted by (x, y): a column is one range
 };
 
 // A random, non-zero history id.

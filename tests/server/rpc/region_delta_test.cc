@@ -1,11 +1,13 @@
 // Region deltas (issue 27, docs/server.md "Region deltas"): a QueryRegion with since_version
-// answers the changed tiles of the region, bit for bit a full query's pixels there, with
+// answers the changed tiles of the region (at stride 1 after scans, their changed blocks only),
+// bit for bit a full query's pixels there, with
 // tombstones for tiles a clear emptied; a copy kept by deltas equals a fresh full query after
 // scans, clears, imports and pose corrections; a since_version the server cannot answer exactly
 // gets the whole region, flagged.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <set>
@@ -85,27 +87,54 @@ TEST(RegionDelta, AfterOneScanItHoldsTheChangedTilesOfAFullQueryBitForBit) {
     const RegionDelta& d = mirror.last;
     EXPECT_FALSE(d.full) << d.resync_reason;
     std::set<TileKey> sent;
-    for (const RegionPatch& p : d.patches) sent.insert(p.key);
+    int64_t pixels_sent = 0;
+    for (const RegionPatch& p : d.patches) {
+      sent.insert(p.key);
+      pixels_sent += p.rows * p.cols;
+    }
     std::set<TileKey> expected;
     const GridGeometry g(0.1, 64);
     for (TileKey k : changed) {
       if (!TilePatchCells(g, d.raster.box, stride, k).empty()) expected.insert(k);
     }
-    EXPECT_EQ(sent, expected);
+    // Every tile sent was changed (a tile the scan listed but did not write is not sent).
+    EXPECT_TRUE(std::includes(expected.begin(), expected.end(), sent.begin(), sent.end()));
     EXPECT_FALSE(sent.empty());
-    // Each patch holds exactly the full answer's pixels.
+    int64_t pixels_of_tiles = 0;
+    for (TileKey k : sent) {
+      const CellBox cells = TilePatchCells(g, d.raster.box, stride, k);
+      pixels_of_tiles +=
+          ((cells.width() + stride - 1) / stride) * ((cells.height() + stride - 1) / stride);
+    }
+    if (stride == 1) {
+      // After scans, at stride 1: the changed blocks, not the whole tiles.
+      EXPECT_LT(pixels_sent, pixels_of_tiles);
+    } else {
+      EXPECT_EQ(pixels_sent, pixels_of_tiles);  // other strides: whole tiles
+    }
+    // Each patch holds exactly the full answer's pixels. (A tombstone here is a block the scan
+    // may have written and left unknown: its pixels must be unknown in the full answer.)
     RpcResult<Raster> full = fixture.client().QueryRegion(query);
     ASSERT_TRUE(full.ok());
+    int tombstones = 0;
     for (const RegionPatch& p : d.patches) {
-      ASSERT_FALSE(p.tombstone);
+      tombstones += p.tombstone;
       for (size_t l = 0; l < full->layers.size(); ++l) {
+        const float unknown = UnknownValue(full->layers[l]);
         for (int64_t r = 0; r < p.rows; ++r) {
           const float* want = full->data[l].data() + (p.row_start + r) * full->cols + p.col_start;
+          if (p.tombstone) {
+            for (int64_t c = 0; c < p.cols; ++c) {
+              ASSERT_EQ(std::bit_cast<uint32_t>(want[c]), std::bit_cast<uint32_t>(unknown));
+            }
+            continue;
+          }
           ASSERT_EQ(std::memcmp(want, p.values[l].data() + r * p.cols, p.cols * sizeof(float)), 0)
               << "tile " << p.key.x << "," << p.key.y << " layer " << l << " row " << r;
         }
       }
     }
+    EXPECT_LT(tombstones, static_cast<int>(d.patches.size()));
     EXPECT_TRUE(mirror.EqualsAFreshQuery());
     // Nothing changed since: an empty delta.
     mirror.Refresh();

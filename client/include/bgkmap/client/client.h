@@ -139,7 +139,9 @@ struct RegionPatch {
 // The answer to QueryRegionSince.
 struct RegionDelta {
   // True: `raster` is the whole region (the delta could not be exact: `resync_reason`); replace
-  // the copy. False: `patches` hold every tile changed since; `raster` has the geometry only.
+  // the copy. False: `patches` hold what changed since, per changed tile its part of the region
+  // or rectangles of its changed blocks (several may name one tile: apply each by its
+  // rectangle); `raster` has the geometry only.
   bool full = false;
   std::string resync_reason;
   Raster raster;
@@ -345,8 +347,8 @@ class Client {
   RpcResult<Raster> QueryRegion(const RegionQuery& query, uint64_t* map_version = nullptr,
                                 uint64_t* history_id = nullptr);
   // What changed in the region after `since_version` of the answer with `since_history_id`
-  // (0: not checked): the changed tiles' patches, or the whole region when the server cannot
-  // answer the delta exactly (docs/server.md, "Region deltas"). ApplyDelta() keeps a copy.
+  // (0: not checked): the changed tiles' (or blocks') patches, or the whole region when the server
+  // cannot answer the delta exactly (docs/server.md, "Region deltas"). ApplyDelta() keeps a copy.
   RpcResult<RegionDelta> QueryRegionSince(const RegionQuery& query, uint64_t since_version,
                                           uint64_t since_history_id = 0);
   RpcResult<PointValues> QueryPoints(std::span<const std::array<double, 2>> points,
