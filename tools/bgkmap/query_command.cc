@@ -40,7 +40,9 @@ struct QueryOptions {
   uint64_t max_memory_mb = 256;
 };
 
-// The answer to --since: which tiles changed (patches and tombstones) or why it came back whole.
+// The answer to --since: which tiles changed (patches and tombstones: a tile's part of the
+// region, or at stride 1 rectangles of its changed blocks, so one tile may be listed more than
+// once) or why it came back whole.
 nlohmann::ordered_json DeltaJson(const RegionDelta& d, uint64_t since) {
   nlohmann::ordered_json j;
   j["answer"] = d.full ? "full_resync" : "delta";
@@ -315,7 +317,8 @@ void RegisterQueryCommand(CLI::App& app, int& exit_code) {
   cmd->add_flag("--cog", o->cog, "Write a Cloud-Optimized GeoTIFF (with overviews)");
   cmd->add_option("--since", o->since,
                   "Print as JSON which tiles of the region changed after this map version "
-                  "(patches and tombstones), or why the server answers the whole region");
+                  "(patches and tombstones: a tile's part, or rectangles of its changed blocks), "
+                  "or why the server answers the whole region");
   cmd->add_flag("--compress", o->compress,
                 "Have the server gzip the answer on the wire (RegionRequest.compress)");
   cmd->add_option("--max-memory-mb", o->max_memory_mb,
