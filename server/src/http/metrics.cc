@@ -264,7 +264,7 @@ void ExpositionWriter::Histogram(const LatencySnapshot& snapshot, const Labels& 
   Labels with_le = labels;
   with_le.emplace_back("le", "");
   for (size_t i = 0; i < snapshot.cumulative.size(); ++i) {
-    // The bounds as the shortest decimal that reads back the same (0.0005, 1, 10); +Inf last.
+    // The bounds in %g (six significant digits: exact for 0.0005 ... 10); +Inf last.
     char bound[32] = "+Inf";
     if (i < kLatencyBucketBounds.size()) {
       std::snprintf(bound, sizeof bound, "%g", kLatencyBucketBounds[i]);
