@@ -86,6 +86,16 @@ class Server {
   }
   ~Server() { Stop(); }
   pid_t pid() const { return pid_; }
+  // Dies if the child has exited: a server that found its port taken exits at once, and the
+  // benchmark would otherwise measure whatever else answers on that port.
+  void DieUnlessRunning(int port) {
+    int status = 0;
+    if (pid_ > 0 && waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = 0;
+      Die("bgkmapd exited (status " + std::to_string(status) + ") instead of serving on port " +
+          std::to_string(port) + ": is another process listening there? (--port)");
+    }
+  }
   double Stop() {
     if (pid_ <= 0) return 0;
     const auto t0 = Clock::now();
@@ -125,6 +135,13 @@ bool Listening(int port) {
   const bool ok = connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0;
   close(fd);
   return ok;
+}
+
+// Before a server is started on `port`: nothing else may be listening there.
+void DieIfPortTaken(int port) {
+  if (Listening(port)) {
+    Die("port " + std::to_string(port) + " is taken by another process (--port)");
+  }
 }
 
 // ---- restart
@@ -182,6 +199,7 @@ int RunRestart(const std::string& bgkmapd, const std::string& dir, const std::st
       "\n| trial | first point query | first 50x50 m region | RSS then | Info known cells |\n");
   std::printf("|---|---|---|---|---|\n");
   for (int trial = 1; trial <= trials; ++trial) {
+    DieIfPortTaken(port);
     const auto t0 = Clock::now();
     Server server(bgkmapd, {"--listen", target, "--data-dir", dir, "--log-level", "warn"});
     // Poll the port with plain TCP connects: a gRPC channel that finds nothing listening backs
@@ -191,6 +209,7 @@ int RunRestart(const std::string& bgkmapd, const std::string& dir, const std::st
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
     const double listening = Seconds(t0);
+    server.DieUnlessRunning(port);
     Client client(target);
     // A point of the first copy: the query must load its tile from the store.
     const std::array<double, 2> point{0.5, 0.5};
@@ -219,6 +238,7 @@ int RunBounded(const std::string& bgkmapd, const std::string& street_dir, int si
       (fs::temp_directory_path() / ("bgkmap_bounded_bench_" + std::to_string(getpid()))).string();
   fs::remove_all(dir);
   const std::string target = "127.0.0.1:" + std::to_string(port);
+  DieIfPortTaken(port);
   Server server(bgkmapd, {"--listen", target, "--data-dir", dir, "--log-level", "warn", "--set",
                           "server.max_message_bytes=134217728", "--set",
                           "storage.max_memory_mb=" + std::to_string(bound_mb)});
@@ -226,6 +246,7 @@ int RunBounded(const std::string& bgkmapd, const std::string& street_dir, int si
   for (int i = 0; i < 2000 && !client.Info().ok(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
+  server.DieUnlessRunning(port);
   std::atomic<bool> done{false};
   std::atomic<uint64_t> peak{0};
   std::thread sampler([&] {
@@ -320,6 +341,8 @@ int RunInfo(const std::string& bgkmapd, const std::string& store, const std::str
   fs::copy(store, dir, fs::copy_options::recursive);
   const std::string target = "127.0.0.1:" + std::to_string(port);
   const int metrics_port = port + 1;
+  DieIfPortTaken(port);
+  DieIfPortTaken(metrics_port);
   Server server(bgkmapd, {"--listen", target, "--data-dir", dir, "--log-level", "warn", "--metrics",
                           "127.0.0.1:" + std::to_string(metrics_port), "--set",
                           "storage.verify_on_start=false"});
@@ -330,6 +353,7 @@ int RunInfo(const std::string& bgkmapd, const std::string& store, const std::str
     start_info = client.Info();
   }
   if (!start_info.ok()) Die(start_info.status().ToString());
+  server.DieUnlessRunning(port);
 
   std::atomic<bool> stop{false};
   std::atomic<uint64_t> scans{0};
