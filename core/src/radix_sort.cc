@@ -6,15 +6,27 @@
 #include "scratch_buffer.h"
 
 namespace bgkmap::internal {
+namespace {
+
+// The passes' buffers are kept per thread from scan to scan (scratch_buffer.h): a scan's
+// megabytes of fresh pages each time cost more page faults than the sort itself.
+thread_local std::vector<uint32_t> order_tmp;
+thread_local std::vector<uint64_t> sorted, sorted_tmp;
+
+const bool kKept = RegisterKeptScratch(
+    {[] {
+       std::vector<uint32_t>().swap(order_tmp);
+       std::vector<uint64_t>().swap(sorted);
+       std::vector<uint64_t>().swap(sorted_tmp);
+     },
+     [] { return CapacityBytes(order_tmp) + CapacityBytes(sorted) + CapacityBytes(sorted_tmp); }});
+
+}  // namespace
 
 std::vector<uint32_t> RadixSortOrder(const std::vector<uint64_t>& keys) {
   const std::size_t n = keys.size();
   std::vector<uint32_t> order(n);
   for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
-  // The passes' buffers are kept per thread from scan to scan (scratch_buffer.h): a scan's
-  // megabytes of fresh pages each time cost more page faults than the sort itself.
-  thread_local std::vector<uint32_t> order_tmp;
-  thread_local std::vector<uint64_t> sorted, sorted_tmp;
   order_tmp.resize(n);
   sorted_tmp.resize(n);
   // The keys move with their indices (sequential reads per pass instead of a gather).

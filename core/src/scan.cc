@@ -53,6 +53,16 @@ struct BinnedPoint {
   double z;
 };
 
+// The scan's binned points and their sort keys, kept per thread (scratch_buffer.h).
+thread_local std::vector<BinnedPoint> binned_points;
+thread_local std::vector<uint64_t> binned_keys;
+const bool kKeptBins = internal::RegisterKeptScratch(
+    {[] {
+       std::vector<BinnedPoint>().swap(binned_points);
+       std::vector<uint64_t>().swap(binned_keys);
+     },
+     [] { return internal::CapacityBytes(binned_points) + internal::CapacityBytes(binned_keys); }});
+
 // Reduces points sorted by cell into one observation per cell.
 std::vector<ObservedCell> ReduceCells(const std::vector<BinnedPoint>& pts,
                                       const std::vector<uint32_t>& order, Observation mode) {
@@ -168,7 +178,7 @@ void AddRobotFootprint(const MapParams& params, const Pose& T, PreparedScan& sca
 // independent of how the map is cut into tiles (semantics 3).
 std::vector<ObservedCell> SortAndReduce(const std::vector<BinnedPoint>& binned,
                                         const CellBox& bounds, Observation mode) {
-  thread_local std::vector<uint64_t> keys;  // kept per thread (scratch_buffer.h)
+  std::vector<uint64_t>& keys = binned_keys;
   keys.resize(binned.size());
   for (size_t i = 0; i < binned.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(binned[i].ix - bounds.min.x) << 32) |
@@ -190,7 +200,7 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
   scan.sensor_x = T.translation.x();
   scan.sensor_y = T.translation.y();
   CellBox bounds;
-  thread_local std::vector<BinnedPoint> binned;  // kept per thread (scratch_buffer.h)
+  std::vector<BinnedPoint>& binned = binned_points;
   TransformAndBin(params, points, T, frame_is_map, scan.counts, bounds, binned);
   AddRobotFootprint(params, T, scan);
   if (!binned.empty()) scan.cells = SortAndReduce(binned, bounds, params.observation);

@@ -19,6 +19,11 @@ using internal::OwnHeight;
 
 constexpr float kNoValue = std::numeric_limits<float>::quiet_NaN();
 
+thread_local std::vector<uint64_t> cell_sort_keys;  // kept per thread (scratch_buffer.h)
+const bool kKeptSortKeys =
+    internal::RegisterKeptScratch({[] { std::vector<uint64_t>().swap(cell_sort_keys); },
+                                   [] { return internal::CapacityBytes(cell_sort_keys); }});
+
 // Sorts cells in (x, y) order, by a radix sort of their offsets in the cells' box: a scan's rays
 // contradict up to ~10^5 cells, most of them many times over.
 void SortCells(std::vector<CellIndex>& cells) {
@@ -28,7 +33,7 @@ void SortCells(std::vector<CellIndex>& cells) {
   }
   CellBox box;
   for (const CellIndex& c : cells) box.Extend(c);
-  thread_local std::vector<uint64_t> keys;  // kept per thread (scratch_buffer.h)
+  std::vector<uint64_t>& keys = cell_sort_keys;
   keys.resize(cells.size());
   for (size_t i = 0; i < cells.size(); ++i) {
     keys[i] = (static_cast<uint64_t>(int64_t{cells[i].x} - box.min.x) << 32) |

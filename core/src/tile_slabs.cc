@@ -1,6 +1,37 @@
 #include "tile_slabs.h"
 
+#include "scratch_buffer.h"
+
 namespace bgkmap::internal {
+namespace {
+
+thread_local TileSlabs::Scratch* kept_slabs = nullptr;  // set by the thread's first Buffers()
+
+}  // namespace
+
+TileSlabs::Scratch& TileSlabs::Buffers() {
+  thread_local Scratch s;
+  kept_slabs = &s;
+  return s;
+}
+
+// Registered here, not in Buffers(): ReleaseThreadScratch may run on a thread that never built
+// slabs (kept_slabs null there).
+const bool kKeptSlabs =
+    RegisterKeptScratch({[] {
+                           if (kept_slabs != nullptr) *kept_slabs = TileSlabs::Scratch();
+                         },
+                         [] {
+                           if (kept_slabs == nullptr) return std::size_t{0};
+                           return kept_slabs->values.size() * kept_slabs->cells * sizeof(double) +
+                                  CapacityBytes(kept_slabs->block_max);
+                         }});
+
+TileSlabs::~TileSlabs() {
+  const size_t keep = std::max<size_t>(1, kScratchKeepBytes / (s_.cells * sizeof(double)));
+  if (s_.values.size() > keep) s_.values.resize(keep);
+  ReleaseIfLarge(s_.block_max);
+}
 
 TileSlabs::Slab& TileSlabs::SlabOf(TileKey key) {
   auto it = std::lower_bound(slabs_.begin(), slabs_.end(), key,
@@ -12,7 +43,7 @@ TileSlabs::Slab& TileSlabs::SlabOf(TileKey key) {
 }
 
 void TileSlabs::FillSlab(Slab& slab) {
-  Scratch& s = Buffers();
+  Scratch& s = s_;
   const size_t cells = static_cast<size_t>(T) * T;
   if (s.used == s.values.size()) s.values.push_back(std::make_unique<double[]>(cells));
   double* values = s.values[s.used].get();
@@ -45,7 +76,7 @@ const double* TileSlabs::Of(TileKey key) {
   Slab& slab = SlabOf(key);
   if (slab.index == -1) FillSlab(slab);
   last_key_ = key;
-  last_ = slab.index < 0 ? nullptr : Buffers().values[slab.index].get();
+  last_ = slab.index < 0 ? nullptr : s_.values[slab.index].get();
   have_last_ = true;
   return last_;
 }
@@ -60,7 +91,7 @@ double TileSlabs::MaxIn(const CellBox& box) {
   if (x0 < 0 || y0 < 0 || x1 >= int64_t{tiles_x_} * T || y1 >= int64_t{tiles_y_} * T) {
     return kUnknown;
   }
-  const Scratch& s = Buffers();
+  const Scratch& s = s_;
   const int64_t row = int64_t{tiles_x_} * blocks_;
   double m = kNone;
   if (T % kBlock == 0) {  // the blocks are one grid across the tiles: no division per block

@@ -31,6 +31,9 @@ class TileSlabs {
   // With `blocks`, each tile's block maxima for MaxIn.
   template <typename Fill>
   TileSlabs(const PreparedScan& scan, int tile_size, bool blocks, Fill&& fill);
+  ~TileSlabs();  // keeps at most kScratchKeepBytes of the thread's buffers
+  TileSlabs(const TileSlabs&) = delete;
+  TileSlabs& operator=(const TileSlabs&) = delete;
 
   // Tile `key`'s values, filled at the first call; null for a tile the window does not hold.
   // Valid as long as this object.
@@ -39,26 +42,27 @@ class TileSlabs {
   // known (a box outside the scan's tiles' rectangle).
   double MaxIn(const CellBox& box);
 
- private:
-  struct Slab {
-    TileKey key;
-    int32_t index;  // into Scratch::values; -1: not filled; -2: no tile
-  };
+  // The buffers a thread keeps for its slabs (tile_slabs.cc keeps and releases them).
   struct Scratch {
     std::vector<std::unique_ptr<double[]>> values;  // a tile's cells each; the first `used` in use
     size_t used = 0;
     size_t cells = 0;  // per buffer
     std::vector<double> block_max;
   };
-  // One buffer per thread, kept from scan to scan: no allocation once it has grown.
-  static Scratch& Buffers() {
-    thread_local Scratch s;
-    return s;
-  }
+
+ private:
+  struct Slab {
+    TileKey key;
+    int32_t index;  // into Scratch::values; -1: not filled; -2: no tile
+  };
+  // This thread's buffers, kept from scan to scan (no allocation once they have grown), at
+  // most kScratchKeepBytes of slabs once a scan is done (scratch_buffer.h).
+  static Scratch& Buffers();
   Slab& SlabOf(TileKey key);
   void FillSlab(Slab& slab);
 
   const int T;
+  Scratch& s_;               // Buffers() of the constructing thread, which alone uses this object
   const int blocks_;         // per tile edge
   std::vector<Slab> slabs_;  // sorted by key
   TileKey last_key_{0, 0};   // the last Of, answered again without a search
@@ -72,7 +76,7 @@ class TileSlabs {
 
 template <typename Fill>
 TileSlabs::TileSlabs(const PreparedScan& scan, int tile_size, bool blocks, Fill&& fill)
-    : T(tile_size), blocks_((tile_size + kBlock - 1) / kBlock) {
+    : T(tile_size), s_(Buffers()), blocks_((tile_size + kBlock - 1) / kBlock) {
   fill_arg_ = &fill;
   fill_ = [](const void* f, TileKey key, double* values) {
     return (*static_cast<const std::remove_reference_t<Fill>*>(f))(key, values);
@@ -82,7 +86,7 @@ TileSlabs::TileSlabs(const PreparedScan& scan, int tile_size, bool blocks, Fill&
   }
   std::sort(slabs_.begin(), slabs_.end(),
             [](const Slab& a, const Slab& b) { return a.key < b.key; });
-  Scratch& s = Buffers();
+  Scratch& s = s_;
   s.used = 0;
   if (s.cells != static_cast<size_t>(T) * T) {  // another map's tile size
     s.values.clear();
