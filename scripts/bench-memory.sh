@@ -2,7 +2,8 @@
 # Memory per known cell of a served map (docs/benchmarks.md, "Memory per known cell", issue 28):
 # a fresh in-memory bgkmapd with a robot's settings (experiments/robots/) takes one real sequence
 # streamed by `bgkmap insert`; then the growth of its resident set (/proc/PID/status VmRSS, from
-# just before the insert to after it, once packing has settled) and its tile memory (GET
+# just before the insert to after it, once packing has settled, and once idle: the workers'
+# engine scratch handed back) and its tile memory (GET
 # /metrics, bgkmap_map_tile_memory_bytes) divided by the known cells (bgkmap_map_known_cells),
 # with the insert's wall rate. Each set runs with storage.dense_tiles_mb = 0 (every tile dense)
 # and with each DENSE_MB given, ROUNDS times alternating, on the same binary.
@@ -56,14 +57,26 @@ for set in $SETS; do
         sleep 0.5
       done
       r1=$(rss_kb "$SERVER")
+      # Idle: the workers hand their engine scratch back 2 s after the last change
+      # (IdleScratchRelease); wait for 3 s after the insert and a resident set that has not
+      # changed for 2 s.
+      rprev=-1
+      same=0
+      for _ in $(seq 200); do
+        r2=$(rss_kb "$SERVER")
+        if [ "$r2" = "$rprev" ]; then same=$((same + 1)); else same=0; fi
+        [ "$same" -ge 4 ] && [ $(($(date +%s%N) - t1)) -ge 3000000000 ] && break
+        rprev=$r2
+        sleep 0.5
+      done
       hwm=$(hwm_kb "$SERVER")
       known=$(metric bgkmap_map_known_cells)
       tiles=$(metric bgkmap_map_tiles)
       packed=$(metric bgkmap_map_packed_tiles)
-      awk -v s="${set%%:*}" -v mb="$mb" -v n="$n" -v r0="$r0" -v r1="$r1" -v hwm="$hwm" \
+      awk -v s="${set%%:*}" -v mb="$mb" -v n="$n" -v r0="$r0" -v r1="$r1" -v r2="$r2" -v hwm="$hwm" \
         -v k="$known" -v b="$prev" -v t="$tiles" -v p="$packed" -v w="$(((t1 - t0) / 1000000))" \
-        'BEGIN {printf "%s dense_tiles_mb %s: %d known cells, %d tiles (%d packed); RSS +%.1f MB = %.1f B/known cell (peak %.1f MB); tiles %.1f MB = %.1f B/known cell; %.1f scans/s\n",
-        s, mb, k, t, p, (r1 - r0) / 1024, (r1 - r0) * 1024 / k, hwm / 1024, b / 1048576, b / k, n * 1000 / w}'
+        'BEGIN {printf "%s dense_tiles_mb %s: %d known cells, %d tiles (%d packed); RSS +%.1f MB = %.1f B/known cell, idle +%.1f MB = %.1f B/known cell (peak %.1f MB); tiles %.1f MB = %.1f B/known cell; %.1f scans/s\n",
+        s, mb, k, t, p, (r1 - r0) / 1024, (r1 - r0) * 1024 / k, (r2 - r0) / 1024, (r2 - r0) * 1024 / k, hwm / 1024, b / 1048576, b / k, n * 1000 / w}'
       kill -INT "$SERVER"
       wait "$SERVER" || true
       SERVER=""

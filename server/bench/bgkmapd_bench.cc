@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bgkmap/client/client.h"
+#include "bgkmap/server/heap_policy.h"
 #include "bgkmap/server/map_server.h"
 #include "bgkmap/sim/city_world.h"
 #include "bgkmap/sim/ray_caster.h"

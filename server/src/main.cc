@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "bgkmap/config/map_params_yaml.h"
+#include "bgkmap/server/heap_policy.h"
 #include "bgkmap/server/log_safe.h"
 #include "bgkmap/server/map_server.h"
 #include "bgkmap/server/server_config.h"

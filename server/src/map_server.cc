@@ -6,7 +6,6 @@
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/server.h>
 #include <grpcpp/server_builder.h>
-#include <malloc.h>
 #include <spdlog/spdlog.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -192,6 +191,7 @@ struct MapServer::Impl {
     o.dense_tile_limit_bytes = cfg.storage.dense_tiles_mb << 20;
     o.on_over_memory = [this] { maintenance->RequestEviction(); };
     o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
+    o.worker_threads = ThreadCount(cfg.worker_threads);
     return o;
   }
 
@@ -226,11 +226,6 @@ struct MapServer::Impl {
   std::unique_ptr<foxglove::FoxgloveServer> foxglove;
   int foxglove_port = 0;
 };
-
-void KeepLargeAllocationsInHeap() {
-  mallopt(M_MMAP_THRESHOLD, 256 << 20);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
-}
 
 MapServer::MapServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 

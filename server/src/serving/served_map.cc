@@ -30,10 +30,12 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
       checkpointer_(durability, durability.persists(), copies_),
       robots_(options.max_robots, options.max_sequence_jump),
       change_log_(durability.recovered_version(), NewHistoryId()),
+      scratch_release_(workers, options.worker_threads, options.scratch_idle),
       scheduler_(workers, std::move(options.on_tiles_changed),
                  [this](uint64_t version, const std::vector<TileKey>& tiles,
                         const std::vector<uint64_t>& blocks) {
                    change_log_.Record(version, tiles, blocks);
+                   scratch_release_.Touch();
                  }) {
   scheduler_.Restore(durability.recovered_version());
   robots_.Restore(durability.LoggedRobotSequences());

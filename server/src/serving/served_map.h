@@ -31,6 +31,7 @@
 #include "durability/checkpointer.h"
 #include "durability/durability.h"
 #include "serving/change_scheduler.h"
+#include "serving/idle_scratch_release.h"
 #include "serving/map_port.h"
 #include "serving/map_summary.h"
 #include "serving/map_writes.h"
@@ -63,6 +64,10 @@ struct ServedMapOptions {
   std::function<void()> on_over_memory;
   // Called on a worker after each change with the tiles it changed (watchers).
   ChangeScheduler::TilesChanged on_tiles_changed;
+  // The workers' count, and how long after the last change their engine scratch is handed back
+  // (IdleScratchRelease).
+  size_t worker_threads = 1;
+  std::chrono::milliseconds scratch_idle = std::chrono::seconds(2);
 };
 
 class ServedMap final : public MapPort {
@@ -190,6 +195,7 @@ class ServedMap final : public MapPort {
   mutable std::mutex corrections_mu_;
   CorrectionStats corrections_;
   TileChangeLog change_log_;
+  IdleScratchRelease scratch_release_;
   ChangeScheduler scheduler_;  // last: its workers use everything above
 };
 

@@ -30,12 +30,6 @@ struct ServerReport {
   std::vector<RobotStats> robots;  // sorted by id
 };
 
-// glibc hands large buffers (region rasters, chunks, scans) back to the kernel when they are freed
-// and page-faults them in again on the next query, which made a 50 x 50 m region query ~3x
-// slower. This keeps them in the heap (the process keeps its peak memory). Call once at start;
-// bgkmapd does. Process-wide, so embedders decide.
-void KeepLargeAllocationsInHeap();
-
 class MapServer {
  public:
   // Creates the map and starts listening on config.listen_address (port 0: any free port), and
