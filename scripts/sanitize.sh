@@ -31,7 +31,7 @@ ROOT=$PWD
 stages=("$@")
 [ ${#stages[@]} -gt 0 ] || stages=(asan tsan)
 jobs=$(nproc)
-TSAN_SUITES='^(ChangeSchedulerTest|MapSummaryIndexTest|MapSummaryTest|ResidencyTest|ServedMapChangesTest|LatencyHistogramTest|ServerConfigTest|TileLockTableTest|TileResidencyTest|WatchHubTest)\.'
+TSAN_SUITES='^(ChangeSchedulerTest|IdleScratchReleaseTest|MapSummaryIndexTest|MapSummaryTest|ResidencyTest|ServedMapChangesTest|LatencyHistogramTest|ServerConfigTest|TileLockTableTest|TileResidencyTest|WatchHubTest)\.'
 bash scripts/install-deps.sh
 
 # -O1: compiles much faster than Release's -O3 and is what the sanitizers' manuals recommend.
@@ -89,7 +89,7 @@ for stage in "${stages[@]}"; do
       configure build-tsan thread
       cmake --build build-tsan -j"$jobs" --target served_map_changes_test tile_residency_test \
         map_summary_test change_scheduler_test tile_lock_table_test watch_hub_test server_config_test \
-        latency_histogram_test
+        latency_histogram_test idle_scratch_release_test
       echo "sanitize: tsan built in $((SECONDS - start)) s"
       reports=$(fresh_reports build-tsan)
       # detect_deadlocks=0: TSan's lock-order detector aborts beyond 64 locks held by one thread,
