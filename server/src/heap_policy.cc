@@ -3,6 +3,7 @@
 #include <malloc.h>
 
 #include <atomic>
+#include <mutex>
 
 namespace bgkmap {
 namespace {
@@ -13,6 +14,8 @@ constexpr int kKeptTrimThreshold = 1 << 30;
 constexpr int kReturningTrimThreshold = 128 << 10;
 
 std::atomic<bool> keeping{false};
+std::mutex returning_mu;
+int returning = 0;  // windows open (guarded by returning_mu)
 
 }  // namespace
 
@@ -23,12 +26,14 @@ void KeepLargeAllocationsInHeap() {
 }
 
 void BeginReturningFreedMemory() {
-  if (keeping.load()) mallopt(M_TRIM_THRESHOLD, kReturningTrimThreshold);
+  std::lock_guard lock(returning_mu);
+  if (returning++ == 0 && keeping.load()) mallopt(M_TRIM_THRESHOLD, kReturningTrimThreshold);
 }
 
 void EndReturningFreedMemory() {
   malloc_trim(0);
-  if (keeping.load()) mallopt(M_TRIM_THRESHOLD, kKeptTrimThreshold);
+  std::lock_guard lock(returning_mu);
+  if (--returning == 0 && keeping.load()) mallopt(M_TRIM_THRESHOLD, kKeptTrimThreshold);
 }
 
 }  // namespace bgkmap

@@ -14,8 +14,9 @@ void KeepLargeAllocationsInHeap();
 // Between these two calls memory freed on any thread goes back to the system as it is freed
 // (each arena's top is shrunk: with KeepLargeAllocationsInHeap it never is, and malloc_trim
 // releases free pages inside an arena, not its top); End also releases every arena's free pages
-// and restores the policy. Not nested: one caller at a time (IdleScratchRelease's rounds, which
-// never overlap). Without KeepLargeAllocationsInHeap, glibc trims by itself: End only trims.
+// and restores the policy once no other window is open (windows are counted, so two threads may
+// open theirs at once). Without KeepLargeAllocationsInHeap, glibc trims by itself: End only
+// trims.
 void BeginReturningFreedMemory();
 void EndReturningFreedMemory();
 
