@@ -24,7 +24,10 @@ kill $L 2>/dev/null; wait $L 2>/dev/null
 metric() { curl -s "http://127.0.0.1:$HTTP/metrics" | awk -v k="$1" '$1 == k {print $2}'; }
 prev=-1; same=0
 for _ in $(seq 200); do b=$(metric bgkmap_map_tile_memory_bytes); if [ "$b" = "$prev" ]; then same=$((same+1)); else same=0; fi; [ $same -ge 4 ] && break; prev=$b; sleep 0.5; done
-r1=$(awk '/^VmRSS:/ {print $2}' /proc/$S/status)
+# Idle: the workers hand their engine scratch back 2 s after the last change; wait for a
+# resident set unchanged for 2 s, at least 3 s after the ingest.
+rprev=-1; same=0
+for _ in $(seq 200); do r1=$(awk '/^VmRSS:/ {print $2}' /proc/$S/status); if [ "$r1" = "$rprev" ]; then same=$((same+1)); else same=0; fi; [ $same -ge 4 ] && [ $(($(date +%s) - t1)) -ge 3 ] && break; rprev=$r1; sleep 0.5; done
 echo "tiles_packed_total $(metric bgkmap_map_tiles_packed_total)"; k=$(metric bgkmap_map_known_cells); t=$(metric bgkmap_map_tiles); p=$(metric bgkmap_map_packed_tiles)
 head -6 "$OUT"
 awk -v mb=$mb -v r0=$r0 -v r1=$r1 -v k=$k -v b=$prev -v t=$t -v p=$p -v s=$((t1 - t0)) 'BEGIN {printf "simulated VLP-16 (server_load ingest) dense_tiles_mb %s: %d known cells, %d tiles (%d packed); RSS +%.1f MB = %.1f B/known cell; tiles %.1f MB = %.1f B/known cell; ingest %d s\n", mb, k, t, p, (r1-r0)/1024, (r1-r0)*1024/k, b/1048576, b/k, s}'
