@@ -7,8 +7,8 @@ namespace bgkmap {
 
 // glibc hands large buffers back to the kernel when they are freed and page-faults them in
 // again on the next query, which made a 50 x 50 m region query ~3x slower. This keeps them in
-// the heap (the process keeps its peak memory until ReturnFreedMemory). Call once at start;
-// bgkmapd does. Process-wide, so embedders decide.
+// the heap: the process keeps its peak memory, except where it returns it (below). Call once at
+// start; bgkmapd does. Process-wide, so embedders decide.
 void KeepLargeAllocationsInHeap();
 
 // Between these two calls memory freed on any thread goes back to the system as it is freed
