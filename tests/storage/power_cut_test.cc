@@ -73,6 +73,10 @@ struct Plan {
   size_t cut_at_ack = 0;                   // cut once this many scans were acknowledged
   std::chrono::microseconds cut_delay{0};  // ... and this much later
   std::chrono::milliseconds pace{0};       // pause of each thread before each scan
+  // After the cut, the store flushes its memory tables (onto a disk that drops the writes) and
+  // the writers go on until one more append has returned: what the store says then is not its
+  // error, nobody is left to hear it.
+  bool flush_after_cut = false;
 };
 
 // Ingests plan.changes scans into a new store in `dir` on a PowerCutFileSystem and cuts the
@@ -103,6 +107,7 @@ CutRun IngestAndCutPower(const std::string& dir, const Plan& plan) {
   bool checkpointing = false;
   bool stop = false;
   std::atomic<size_t> ack_count{0};
+  std::atomic<size_t> appends_returned{0};
   std::atomic<bool> finished{false};
 
   auto worker = [&] {
@@ -128,11 +133,14 @@ CutRun IngestAndCutPower(const std::string& dir, const Plan& plan) {
 
       const Status s = store->log().Append(
           LogRecord::Scan(v, "robot-" + std::to_string(robot), index + 1, scan));
+      ++appends_returned;
 
       lock.lock();
       --inflight;
       if (!s.ok()) {
-        run.error = s.ToString();
+        // After the cut the store works on a disk that silently drops writes (a flush may
+        // then read back a short table): what it reports then nobody would see.
+        if (!fs->power_is_cut()) run.error = s.ToString();
         stop = true;
       } else if (!fs->power_is_cut()) {  // then the append returned before the cut
         run.acked.push_back({v, fs->wal_syncs_started(), Clock::now()});
@@ -143,7 +151,7 @@ CutRun IngestAndCutPower(const std::string& dir, const Plan& plan) {
         // A consistent snapshot: nothing past v is integrated, everything up to v is logged.
         cv.wait(lock, [&] { return inflight == 0; });
         if (Status c = checkpointer.Checkpoint(*store, *map); !c.ok()) {
-          run.error = c.ToString();
+          if (!fs->power_is_cut()) run.error = c.ToString();
           stop = true;
         }
       }
@@ -162,6 +170,13 @@ CutRun IngestAndCutPower(const std::string& dir, const Plan& plan) {
     fs->CutPower();
     run.cut_at = Clock::now();
     run.cut = true;
+    if (plan.flush_after_cut) {
+      (void)store->Flush();  // whatever it says: the machine is off
+      const size_t returned = appends_returned.load();
+      while (!finished.load() && appends_returned.load() == returned) {
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
+      }
+    }
     std::lock_guard<std::mutex> lock(mu);
     stop = true;
     cv.notify_all();
@@ -226,6 +241,25 @@ TEST(PowerCutTest, SyncKeepsEveryAcknowledgedScan) {
   }
   // Appends of other threads between their write and their fsync at the cut.
   std::cout << "sync: " << wal_lost << " of 12 cuts took unsynced log bytes away\n";
+}
+
+// A cut in the middle of a flush (CI saw one once in trial 11 above: the flush read back the
+// table the cut had left short, and the next append reported "file is too short to be an
+// sstable"). That is said after the cut, to nobody; what counts is what the disk kept.
+TEST(PowerCutTest, WhatTheStoreSaysAfterTheCutIsNotCounted) {
+  TempDir dir;
+  Plan plan;
+  plan.changes = 60;
+  plan.cut_at_ack = 20;
+  plan.pace = std::chrono::milliseconds(2);
+  plan.flush_after_cut = true;
+  const CutRun run = IngestAndCutPower(dir.path(), plan);
+  ASSERT_TRUE(run.error.empty()) << run.error;
+  ASSERT_TRUE(run.cut);
+  const std::set<uint64_t> kept = CheckRecovered(dir.path());
+  for (const Ack& a : run.acked) {
+    ASSERT_TRUE(kept.count(a.version)) << "acknowledged scan " << a.version << " lost";
+  }
 }
 
 // periodic_sync_ms = 50; three threads at ~100 scans/s each, no checkpoint (its fsync would
