@@ -5,6 +5,8 @@
 #include <atomic>
 #include <mutex>
 
+#include "bgkmap/core/thread_scratch.h"
+
 namespace bgkmap {
 namespace {
 
@@ -34,6 +36,12 @@ void EndReturningFreedMemory() {
   malloc_trim(0);
   std::lock_guard lock(returning_mu);
   if (--returning == 0 && keeping.load()) mallopt(M_TRIM_THRESHOLD, kKeptTrimThreshold);
+}
+
+void ReturnThreadScratch() {
+  BeginReturningFreedMemory();
+  ReleaseThreadScratch();
+  EndReturningFreedMemory();
 }
 
 }  // namespace bgkmap

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "bgkmap/v1/types.pb.h"
+#include "cluster/quiet_scratch.h"
 
 namespace bgkmap::cluster {
 namespace {
@@ -423,6 +424,9 @@ std::vector<std::shared_ptr<PartitionReplica>> ClusterNode::Replicas() const {
 void ClusterNode::ReadLog() {
   LiveSubscription sub;
   uint64_t passed = 0;  // the last entry the current reader delivered (its start - 1 at first)
+  // This thread prepares and integrates every scan: its scratch goes back after a quiet spell
+  // as long as a single server's workers wait (ServedMapOptions::scratch_idle).
+  QuietScratch scratch(std::chrono::seconds(2));
   auto stopping = [this] {
     std::lock_guard lock(stop_mu_);
     return stop_;
@@ -451,7 +455,10 @@ void ClusterNode::ReadLog() {
     }
     natsMsg* raw = nullptr;
     const natsStatus st = natsSubscription_NextMsg(&raw, sub.get(), 100);
-    if (st == NATS_TIMEOUT) continue;
+    if (st == NATS_TIMEOUT) {
+      scratch.Quiet(std::chrono::steady_clock::now());
+      continue;
+    }
     if (st != NATS_OK) {
       spdlog::warn("event=cluster_log_read_failed reason=\"{}\"", natsStatus_GetText(st));
       sub.reset();
@@ -470,6 +477,12 @@ void ClusterNode::ReadLog() {
     }
     passed = sequence;
     Dispatch(sequence, msg.get(), to);
+    // Entries for other partitions only use no scratch: the thread is as quiet as on a timeout.
+    if (!to.empty()) {
+      scratch.Worked(std::chrono::steady_clock::now());
+    } else {
+      scratch.Quiet(std::chrono::steady_clock::now());
+    }
     QueueCheckpoints(to);
   }
 }

@@ -20,4 +20,9 @@ void KeepLargeAllocationsInHeap();
 void BeginReturningFreedMemory();
 void EndReturningFreedMemory();
 
+// Frees the calling thread's engine scratch (ReleaseThreadScratch, bgkmap/core/thread_scratch.h)
+// inside such a window, so it leaves the process: for a thread that integrates by itself once
+// it goes quiet.
+void ReturnThreadScratch();
+
 }  // namespace bgkmap
