@@ -20,7 +20,7 @@ n=$(ls "$input/velodyne" | wc -l)
 OUT="$(mktemp -d)"
 PIDS=()
 trap 'for p in "${PIDS[@]}"; do kill -KILL "$p" 2>/dev/null || true; done; rm -rf "$OUT"' EXIT
-rss_kb() { awk '/^VmRSS:/ {print $2}' "/proc/$1/status"; }
+source scripts/memory-bench-lib.sh
 metric() { curl -s "http://127.0.0.1:$HTTP/metrics" | awk -v k="$1" '$1 == k {print $2}'; }
 taken() { (echo >"/dev/tcp/127.0.0.1/$1") 2>/dev/null; }
 (umask 077 && openssl rand -hex 32 >"$OUT/cluster.key")
@@ -49,15 +49,7 @@ for round in $(seq "$ROUNDS"); do
   info() { "$BUILD/tools/bgkmap/bgkmap" info --server "127.0.0.1:$LISTEN" >/dev/null; }
   for _ in $(seq 600); do info && [ "$(metric bgkmap_map_version)" = "$n" ] && break; sleep 0.1; done
   r1=$(rss_kb "$SHARD")
-  rprev=-1
-  same=0
-  for _ in $(seq 200); do
-    r2=$(rss_kb "$SHARD")
-    if [ "$r2" = "$rprev" ]; then same=$((same + 1)); else same=0; fi
-    [ "$same" -ge 4 ] && [ $(($(date +%s%N) - t1)) -ge 3000000000 ] && break
-    rprev=$r2
-    sleep 0.5
-  done
+  r2=$(idle_rss_kb "$SHARD" "$t1")
   info
   known=$(metric bgkmap_map_known_cells)
   awk -v s="${SET%%:*}" -v k="$known" -v r0="$r0" -v r1="$r1" -v r2="$r2" \

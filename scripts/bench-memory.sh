@@ -22,7 +22,7 @@ METHOD="${METHOD:-bgk+}"
 OUT="$(mktemp -d)"
 SERVER=""
 trap '[ -n "$SERVER" ] && kill -KILL "$SERVER" 2>/dev/null; rm -rf "$OUT"' EXIT
-rss_kb() { awk '/^VmRSS:/ {print $2}' "/proc/$1/status"; }
+source scripts/memory-bench-lib.sh
 hwm_kb() { awk '/^VmHWM:/ {print $2}' "/proc/$1/status"; }
 metric() { curl -s "http://127.0.0.1:$HTTP/metrics" | awk -v k="$1" '$1 == k {print $2}'; }
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg); method $METHOD"
@@ -57,18 +57,7 @@ for set in $SETS; do
         sleep 0.5
       done
       r1=$(rss_kb "$SERVER")
-      # Idle: the workers hand their engine scratch back 2 s after the last change
-      # (IdleScratchRelease); wait for 3 s after the insert and a resident set that has not
-      # changed for 2 s.
-      rprev=-1
-      same=0
-      for _ in $(seq 200); do
-        r2=$(rss_kb "$SERVER")
-        if [ "$r2" = "$rprev" ]; then same=$((same + 1)); else same=0; fi
-        [ "$same" -ge 4 ] && [ $(($(date +%s%N) - t1)) -ge 3000000000 ] && break
-        rprev=$r2
-        sleep 0.5
-      done
+      r2=$(idle_rss_kb "$SERVER" "$t1")
       hwm=$(hwm_kb "$SERVER")
       known=$(metric bgkmap_map_known_cells)
       tiles=$(metric bgkmap_map_tiles)
