@@ -45,7 +45,8 @@ for round in $(seq "$ROUNDS"); do
   r0=$(rss_kb "$SHARD")
   "$BUILD/tools/bgkmap/bgkmap" insert --server "127.0.0.1:$LISTEN" --robot r "$input" >/dev/null
   t1=$(date +%s%N)
-  # A shard's /metrics shows the cluster's counts as of its last Info (docs/scale-out.md).
+  # A scrape shows the counts its previous scrape gathered; Info gathers them at once
+  # (docs/scale-out.md, "Info on a shard").
   info() { "$BUILD/tools/bgkmap/bgkmap" info --server "127.0.0.1:$LISTEN" >/dev/null; }
   for _ in $(seq 600); do info && [ "$(metric bgkmap_map_version)" = "$n" ] && break; sleep 0.1; done
   r1=$(rss_kb "$SHARD")

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <boost/asio/post.hpp>
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
@@ -299,7 +300,13 @@ Status MapServer::Impl::ListenHttp(const std::optional<TlsMaterial>& tls) {
       return t->Authenticate(authorization, &why);
     };
   }
-  auto render = [this] {
+  // A shard's counts are the cluster's as of its last ReadVersion, which asks the partitions'
+  // owners: a scrape starts the next one in the background (one at a time) and shows the
+  // previous one's, so /metrics never waits on another shard. A single server's is immediate.
+  auto render = [this, refreshing = std::make_shared<std::atomic<bool>>(false)] {
+    if (!refreshing->exchange(true)) {
+      map->ReadVersion([refreshing](uint64_t) { refreshing->store(false); });
+    }
     const ServiceCounts service{ctx->sessions.count(SessionRegistry::Kind::kIngest),
                                 ctx->sessions.count(SessionRegistry::Kind::kWatch),
                                 &ctx->latencies};

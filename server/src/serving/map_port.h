@@ -93,7 +93,7 @@ struct ShardState {
 struct MapState {
   uint64_t version = 0;  // known_version()
   uint64_t scans_applied = 0;
-  MapSummary summary;              // (a cluster node: the cluster's, as of its last Info)
+  MapSummary summary;              // (a cluster node: the cluster's, as of its last ReadVersion)
   std::vector<RobotStats> robots;  // sorted by id
   CorrectionStats corrections;
   Georeference georeference;            // where the map frame sits (empty: a local frame)

@@ -29,16 +29,27 @@
 #include "bgkmap/storage/map_archive.h"
 #include "bgkmapd_process.h"
 #include "cluster_support.h"
+#include "loopback_http.h"
 #include "nats_cluster.h"
 #include "test_support.h"
 
 namespace bgkmap::testing {
 namespace {
 
+// A shard's /metrics sample `name` (-1: not there).
+int64_t MetricsSample(int http_port, const std::string& name) {
+  const Reply reply = Get(http_port, "/metrics");
+  const size_t at = reply.body.find("\n" + name + " ");
+  if (at == std::string::npos) return -1;
+  return std::stoll(reply.body.substr(at + name.size() + 2));
+}
+
 // Two shards fed two robots' scans, r1 through a and r2 through b, one at a time (the log's
 // order is the reference's), answer right away (no waiting: a query reads at least every
 // acknowledged scan) as one server of the same method does, and Info on either counts what the
 // single server's Info counts (mutation: a partition's owner counting its halo's tiles too).
+// Before anyone asks Info, a's /metrics comes to count the cluster's known cells as well (a
+// scrape refreshes the counts in the background and shows the previous refresh's).
 void ExpectTwoShardsAnswerAsOne(Method method) {
   TempDir dir("bgkmap_cluster");
   NatsCluster nats(1, dir.str());
@@ -47,13 +58,24 @@ void ExpectTwoShardsAnswerAsOne(Method method) {
   ServerConfig single = TestConfig();
   ServerConfig ca = NodeConfig(nats.urls(), "a"), cb = NodeConfig(nats.urls(), "b");
   single.map.method = ca.map.method = cb.map.method = method;
+  ca.metrics_address = "127.0.0.1:0";
   Reference ref(scans, single);
   ServerFixture a(ca), b(cb);
   InsertByRobot(a.client(), b.client(), scans, 0, scans.size());
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
-  // Info on either shard counts the whole cluster as the single server counts its map.
   const MapInfo want = ref.single.client().Info().value();
+  int64_t scraped = -1;
+  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+       scraped != static_cast<int64_t>(want.known_cells) &&
+       std::chrono::steady_clock::now() < deadline;) {
+    scraped = MetricsSample(a.server().http_port(), "bgkmap_map_known_cells");
+    if (scraped != static_cast<int64_t>(want.known_cells)) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  EXPECT_EQ(scraped, static_cast<int64_t>(want.known_cells)) << "a's /metrics without an Info";
+  // Info on either shard counts the whole cluster as the single server counts its map.
   for (Client* via : {&a.client(), &b.client()}) {
     RpcResult<MapInfo> got = via->Info();
     ASSERT_TRUE(got.ok()) << got.status().message();
