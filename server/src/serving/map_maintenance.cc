@@ -7,7 +7,15 @@
 #include <chrono>
 #include <limits>
 
+#include "serving/heap_trim_pacer.h"
+
 namespace bgkmap {
+namespace {
+
+// Tiles only packed are handed back to the system at most this often (heap_trim_pacer.h).
+constexpr auto kPackedTrimGap = std::chrono::seconds(10);
+
+}  // namespace
 
 uint64_t TileMemoryLimit(const StorageConfig& storage) {
   return (storage.max_memory_mb << 20) / 3 * 2;
@@ -114,6 +122,7 @@ void MapMaintenance::EvictionLoop() {
   // bound is smaller than what is being changed, take one at most this often.
   constexpr auto kMinCheckpointGap = std::chrono::milliseconds(20);
   auto last_checkpoint = std::chrono::steady_clock::now() - kMinCheckpointGap;
+  HeapTrimPacer trim_pacer(kPackedTrimGap);
   std::unique_lock lock(mu_);
   while (!stopping_) {
     cv_.wait_for(lock, std::chrono::seconds(1),
@@ -130,11 +139,11 @@ void MapMaintenance::EvictionLoop() {
       if (s.ok()) held = map_.Evict(target);
     }
     // Hand the freed tiles back to the system: the heap keeps large free blocks otherwise
-    // (KeepLargeAllocationsInHeap), and the bound is about the process's memory.
+    // (KeepLargeAllocationsInHeap). Paced: heap_trim_pacer.h.
     const ResidencyStats after = map_.Residency();
-    const bool freed =
-        after.tiles_evicted != before.tiles_evicted || after.tiles_packed != before.tiles_packed;
-    if (freed) malloc_trim(0);
+    const bool evicted = after.tiles_evicted != before.tiles_evicted;
+    const bool freed = evicted || after.tiles_packed != before.tiles_packed;
+    if (trim_pacer.TrimNow(std::chrono::steady_clock::now(), freed, evicted)) malloc_trim(0);
     lock.lock();
     // Over the dense budget with only tiles in use (or used within the last second) dense: a
     // pass walks every tile under the residency's lock, which each pin waits for; requests
