@@ -2,10 +2,10 @@
 // every arena and drops each free page, which the next scans and answers fault in again: on a
 // VM a fault costs microseconds, and trimming after every packing pass of a streaming server
 // cost ~1,000 more faults a scan and ~40 % of its CPU (docs/benchmarks.md, "Trimming the
-// heap"). Tiles only packed are
-// trimmed at most once per `gap` (the freed arrays are what the next new tiles reuse); a pass
-// that evicted tiles under storage.max_memory_mb is trimmed at once (the bound is about the
-// process's memory). A trim put off is done once the gap has passed, freed or not.
+// heap"). Tiles only packed are trimmed at most once per `gap` (the freed arrays are what the
+// next new tiles reuse); a pass that evicted tiles under storage.max_memory_mb is trimmed at once
+// (the bound is about the process's memory). A trim put off is done once the gap has passed,
+// freed or not.
 #pragma once
 
 #include <chrono>
