@@ -3,8 +3,8 @@
 # hand their scratch back"; issue 28): one nats-server with JetStream and one bgkmapd shard on
 # loopback (cluster.replicas 1), the sequence streamed by `bgkmap insert` with a robot's settings;
 # the shard's VmRSS before the insert, once every scan is applied (bgkmap_map_version), and idle
-# (its log reader hands the engine's scratch back after two quiet seconds, QuietScratch: at
-# least 3 s later and unchanged for 2 s), with the known cells. ROUNDS runs.
+# (its log reader hands the engine's scratch back after two quiet seconds, QuietScratch;
+# idle_rss_kb in memory-bench-lib.sh), with the known cells. ROUNDS runs.
 #   scripts/bench-memory-cluster.sh [BUILD_DIR=build] [ROUNDS=1] [SET=kitti_raw_0048:car_kitti]
 # Needs nats-server (scripts/install-deps.sh installs it).
 set -euo pipefail

@@ -74,6 +74,14 @@ Reply Get(int port, const std::string& target, const std::string& method,
   return ReadReply(s, &buffer);
 }
 
+int64_t MetricsSample(int port, const std::string& series) {
+  const Reply reply = Get(port, "/metrics");
+  const std::string line = "\n" + series + " ";
+  const size_t at = reply.body.find(line);
+  if (reply.status != 200 || at == std::string::npos) return -1;
+  return std::stoll(reply.body.substr(at + line.size()));
+}
+
 std::optional<std::string> ReadEvent(Socket& s, std::string* buffer, const std::string& name,
                                      double seconds) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);

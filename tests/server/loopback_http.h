@@ -2,6 +2,7 @@
 // read at a time (Content-Length framed), and the events of an /events stream.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 
@@ -36,6 +37,10 @@ Reply ReadReply(Socket& s, std::string* buffer);
 // `method target` on a connection of its own, with `headers` ("Name: value\r\n" lines) added.
 Reply Get(int port, const std::string& target, const std::string& method = "GET",
           const std::string& headers = "");
+
+// The value of the sample `series` (a metric's name, with its labels if it has any) in GET
+// /metrics on `port`; -1 when the scrape fails or does not hold it.
+int64_t MetricsSample(int port, const std::string& series);
 
 // Reads an event stream until `event: name` arrives or `seconds` pass; the event's data line.
 std::optional<std::string> ReadEvent(Socket& s, std::string* buffer, const std::string& name,

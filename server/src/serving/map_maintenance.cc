@@ -142,13 +142,13 @@ void MapMaintenance::EvictionLoop() {
     // (KeepLargeAllocationsInHeap). Paced: heap_trim_pacer.h.
     const ResidencyStats after = map_.Residency();
     const bool evicted = after.tiles_evicted != before.tiles_evicted;
-    const bool freed = evicted || after.tiles_packed != before.tiles_packed;
-    if (trim_pacer.TrimNow(std::chrono::steady_clock::now(), freed, evicted)) malloc_trim(0);
+    const bool packed = after.tiles_packed != before.tiles_packed;
+    if (trim_pacer.TrimNow(std::chrono::steady_clock::now(), packed, evicted)) malloc_trim(0);
     lock.lock();
     // Over the dense budget with only tiles in use (or used within the last second) dense: a
     // pass walks every tile under the residency's lock, which each pin waits for; requests
     // that come every scan are served at most every kIdlePassGap, not after every scan.
-    if (!freed) {
+    if (!packed && !evicted) {
       constexpr auto kIdlePassGap = std::chrono::milliseconds(250);
       cv_.wait_for(lock, kIdlePassGap, [this] { return stopping_; });
     }

@@ -36,14 +36,6 @@
 namespace bgkmap::testing {
 namespace {
 
-// A shard's /metrics sample `name` (-1: not there).
-int64_t MetricsSample(int http_port, const std::string& name) {
-  const Reply reply = Get(http_port, "/metrics");
-  const size_t at = reply.body.find("\n" + name + " ");
-  if (at == std::string::npos) return -1;
-  return std::stoll(reply.body.substr(at + name.size() + 2));
-}
-
 // Two shards fed two robots' scans, r1 through a and r2 through b, one at a time (the log's
 // order is the reference's), answer right away (no waiting: a query reads at least every
 // acknowledged scan) as one server of the same method does, and Info on either counts what the
@@ -65,16 +57,14 @@ void ExpectTwoShardsAnswerAsOne(Method method) {
   EXPECT_TRUE(SameAnswers(a.client(), ref));
   EXPECT_TRUE(SameAnswers(b.client(), ref));
   const MapInfo want = ref.single.client().Info().value();
-  int64_t scraped = -1;
-  for (const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-       scraped != static_cast<int64_t>(want.known_cells) &&
-       std::chrono::steady_clock::now() < deadline;) {
+  const auto known = static_cast<int64_t>(want.known_cells);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  int64_t scraped = MetricsSample(a.server().http_port(), "bgkmap_map_known_cells");
+  while (scraped != known && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
     scraped = MetricsSample(a.server().http_port(), "bgkmap_map_known_cells");
-    if (scraped != static_cast<int64_t>(want.known_cells)) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
   }
-  EXPECT_EQ(scraped, static_cast<int64_t>(want.known_cells)) << "a's /metrics without an Info";
+  EXPECT_EQ(scraped, known) << "a's /metrics without an Info";
   // Info on either shard counts the whole cluster as the single server counts its map.
   for (Client* via : {&a.client(), &b.client()}) {
     RpcResult<MapInfo> got = via->Info();

@@ -140,11 +140,8 @@ struct TwoShards {
   }
   // Shard a's bgkmap_cluster_rejected_total{kind=...} (-1: not in /metrics).
   int64_t Refused(const std::string& kind) {
-    const Reply r = Get(a->server().http_port(), "/metrics");
-    const std::string sample = "bgkmap_cluster_rejected_total{kind=\"" + kind + "\"} ";
-    const size_t at = r.body.find(sample);
-    if (at == std::string::npos) return -1;
-    return std::stoll(r.body.substr(at + sample.size()));
+    return MetricsSample(a->server().http_port(),
+                         "bgkmap_cluster_rejected_total{kind=\"" + kind + "\"}");
   }
 };
 
