@@ -70,16 +70,18 @@ std::vector<ObservedCell> ReduceCells(const std::vector<BinnedPoint>& pts,
   size_t i = 0;
   while (i < order.size()) {
     const BinnedPoint& first = pts[order[i]];
-    double best = first.z, sum = 0.0;
+    double best = first.z, low = first.z, sum = 0.0;
     size_t j = i;
     for (; j < order.size(); ++j) {
       const BinnedPoint& p = pts[order[j]];
       if (p.ix != first.ix || p.iy != first.iy) break;
       best = std::max(best, p.z);
+      low = std::min(low, p.z);
       sum += p.z;
     }
     const double y = mode == Observation::kMax ? best : sum / static_cast<double>(j - i);
-    cells.push_back({{first.ix, first.iy}, y});
+    const double span_mm = std::min(65535.0, std::floor((best - low) * 1000.0));
+    cells.push_back({{first.ix, first.iy}, y, static_cast<uint16_t>(span_mm)});
     i = j;
   }
   return cells;

@@ -458,7 +458,18 @@ std::vector<std::pair<CellIndex, float>> ScanIntegrator::Pass::TrainingValues(
     for (const CellIndex& c : KernelReachKnownCells(scan)) add(c);
   } else {
     values.reserve(scan.cells.size());
-    for (const ObservedCell& oc : scan.cells) add(oc.cell);
+    // Beyond the paper: a cell whose own points span more than a traversable cell can is a
+    // face, v = 1, whatever its neighbours (a vehicle's face over ground the map forgot).
+    const double limit_mm = self.params_.dynamics == Dynamics::kOn
+                                ? InCellStepLimit(self.params_) * 1000.0
+                                : std::numeric_limits<double>::infinity();
+    for (const ObservedCell& oc : scan.cells) {
+      if (oc.span_mm > limit_mm) {
+        values.emplace_back(oc.cell, 1.0f);
+      } else {
+        add(oc.cell);
+      }
+    }
   }
   return values;
 }

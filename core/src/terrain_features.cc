@@ -59,4 +59,10 @@ double TraversabilityValue(const TerrainFeatures& f, const MapParams& p) {
   return std::clamp(v, 0.0, 1.0);
 }
 
+double InCellStepLimit(const MapParams& params) {
+  constexpr double kDegree = std::numbers::pi / 180.0;
+  return params.step_crit +
+         params.resolution * std::sqrt(2.0) * std::tan(params.slope_crit_deg * kDegree);
+}
+
 }  // namespace bgkmap

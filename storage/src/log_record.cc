@@ -47,7 +47,7 @@ bool GetTileKeys(ByteReader& r, std::vector<TileKey>* keys) {
   return true;
 }
 
-void PutCells(ByteWriter& w, const std::vector<ObservedCell>& cells) {
+void PutCells(ByteWriter& w, const std::vector<ObservedCell>& cells, uint8_t format) {
   w.PutVarint(cells.size());
   CellIndex prev{0, 0};
   for (const ObservedCell& cell : cells) {
@@ -61,6 +61,8 @@ void PutCells(ByteWriter& w, const std::vector<ObservedCell>& cells) {
     w.PutFixed64(bits ^ previous);
     previous = bits;
   }
+  if (format < 5) return;
+  for (const ObservedCell& cell : cells) w.PutVarint(cell.span_mm);
 }
 
 void PutScan(ByteWriter& w, const LogRecord& record) {
@@ -82,7 +84,7 @@ void PutScan(ByteWriter& w, const LogRecord& record) {
   if (record.cells_in_source) {
     w.PutFixed32(record.cells_crc);
   } else {
-    PutCells(w, scan.cells);
+    PutCells(w, scan.cells, kLogRecordFormat);
   }
 }
 
@@ -112,7 +114,8 @@ bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan, LogRecord* recor
     if (record->cells_in_source) return r.GetFixed32(&record->cells_crc);
   }
   uint64_t n;
-  if (!r.GetVarint(&n) || n > r.remaining() / 10) return false;  // >= 2 + 8 bytes per cell
+  const uint64_t min_cell_bytes = format >= 5 ? 2 + 8 + 1 : 2 + 8;
+  if (!r.GetVarint(&n) || n > r.remaining() / min_cell_bytes) return false;
   scan->cells.resize(n);
   CellIndex prev{0, 0};
   for (ObservedCell& cell : scan->cells) {
@@ -125,6 +128,12 @@ bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan, LogRecord* recor
     if (!r.GetFixed64(&bits)) return false;
     previous ^= bits;
     cell.y = std::bit_cast<double>(previous);
+  }
+  if (format < 5) return true;
+  for (ObservedCell& cell : scan->cells) {
+    uint64_t span;
+    if (!r.GetVarint(&span) || span > UINT16_MAX) return false;
+    cell.span_mm = static_cast<uint16_t>(span);
   }
   return true;
 }
@@ -164,18 +173,18 @@ LogRecord LogRecord::Correction(uint64_t version, std::string robot_id, uint64_t
   return r;
 }
 
-uint32_t LoggedCellsCrc(const PreparedScan& scan) {
+uint32_t LoggedCellsCrc(const PreparedScan& scan, uint8_t format) {
   std::string bytes;
-  bytes.reserve(8 + scan.cells.size() * 11);
+  bytes.reserve(8 + scan.cells.size() * 12);
   ByteWriter w(&bytes);
-  PutCells(w, scan.cells);
+  PutCells(w, scan.cells, format);
   return Crc32c(bytes);
 }
 
 std::string EncodeLogRecord(const LogRecord& record) {
   std::string out;
   if (record.type == LogRecord::Type::kScan && record.scan && !record.cells_in_source) {
-    out.reserve(64 + record.scan->cells.size() * 11);
+    out.reserve(64 + record.scan->cells.size() * 12);
   }
   ByteWriter w(&out);
   w.PutU8(kLogRecordFormat);
@@ -213,6 +222,7 @@ Result<LogRecord> DecodeLogRecord(std::string_view encoded) {
                                       " is newer than this build reads");
   }
   LogRecord record;
+  record.format = format;
   std::string_view robot;
   if (format < 1 || !r.GetVarint(&record.version) || !r.GetLengthPrefixed(&robot) ||
       !r.GetVarint(&record.sequence) || !r.GetSignedVarint(&record.stamp_ns)) {

@@ -177,8 +177,12 @@ Result<std::shared_ptr<const PreparedScan>> ScanLog::LoadCells(uint64_t version,
   Result<PreparedScan> prepared =
       PrepareScan(params_, source.points, source.pose, source.frame_is_map);
   if (!prepared.ok()) return Status::DataLoss(where + prepared.status().message());
+  // A record written before spans were kept was integrated without them: so it replays.
+  if (record.format < 5) {
+    for (ObservedCell& cell : prepared->cells) cell.span_mm = 0;
+  }
   const PreparedScan& logged = *record.scan;
-  if (LoggedCellsCrc(*prepared) != record.cells_crc ||
+  if (LoggedCellsCrc(*prepared, record.format) != record.cells_crc ||
       prepared->write_tiles != logged.write_tiles || prepared->read_tiles != logged.read_tiles ||
       prepared->clear_tiles != logged.clear_tiles || prepared->counts.kept != logged.counts.kept) {
     return Status::DataLoss(where +

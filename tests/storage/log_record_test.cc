@@ -15,7 +15,10 @@ std::shared_ptr<PreparedScan> RandomScan(unsigned seed, int cells) {
   std::uniform_int_distribution<int> coord(-100000, 100000);
   std::normal_distribution<double> z(-1.7, 0.4);
   auto scan = std::make_shared<PreparedScan>();
-  for (int i = 0; i < cells; ++i) scan->cells.push_back({{coord(rng), coord(rng)}, z(rng)});
+  std::uniform_int_distribution<int> span(0, 1200);
+  for (int i = 0; i < cells; ++i) {
+    scan->cells.push_back({{coord(rng), coord(rng)}, z(rng), static_cast<uint16_t>(span(rng))});
+  }
   std::sort(scan->cells.begin(), scan->cells.end(),
             [](const ObservedCell& a, const ObservedCell& b) { return a.cell < b.cell; });
   scan->counts = {1000, 900, 1, 2, 3, 94};
@@ -30,6 +33,7 @@ void ExpectSameScan(const PreparedScan& a, const PreparedScan& b) {
   for (size_t i = 0; i < a.cells.size(); ++i) {
     EXPECT_EQ(a.cells[i].cell, b.cells[i].cell);
     EXPECT_EQ(std::bit_cast<uint64_t>(a.cells[i].y), std::bit_cast<uint64_t>(b.cells[i].y));
+    EXPECT_EQ(a.cells[i].span_mm, b.cells[i].span_mm);
   }
   EXPECT_EQ(a.write_tiles, b.write_tiles);
   EXPECT_EQ(a.read_tiles, b.read_tiles);
@@ -56,7 +60,7 @@ TEST(LogRecordTest, ScanRoundTripsExactly) {
   }
 }
 
-// Format 4: a scan whose cells are kept in its raw scan is its headers and the cells' CRC.
+// Format >= 4: a scan whose cells are kept in its raw scan is its headers and the cells' CRC.
 TEST(LogRecordTest, AScanWithItsCellsInItsSourceKeepsHeadersAndCrc) {
   const auto scan = RandomScan(3, 800);
   LogRecord in = LogRecord::Scan(77, "rover", 5, scan, 123);
@@ -72,10 +76,37 @@ TEST(LogRecordTest, AScanWithItsCellsInItsSourceKeepsHeadersAndCrc) {
   EXPECT_EQ(out->scan->write_tiles, scan->write_tiles);
   EXPECT_EQ(out->scan->read_tiles, scan->read_tiles);
   EXPECT_EQ(out->scan->counts.kept, scan->counts.kept);
-  // The CRC is of the cells: another cell's height changes it.
+  // The CRC is of the cells: another cell's height or span changes it.
   auto other = std::make_shared<PreparedScan>(*scan);
   other->cells[400].y += 1e-9;
   EXPECT_NE(LoggedCellsCrc(*other), in.cells_crc);
+  other = std::make_shared<PreparedScan>(*scan);
+  ++other->cells[400].span_mm;
+  EXPECT_NE(LoggedCellsCrc(*other), in.cells_crc);
+  // Format 4 kept no spans: its CRC is of the cells without them (scan_log.cc replays such a
+  // record with spans 0).
+  EXPECT_EQ(LoggedCellsCrc(*other, 4), LoggedCellsCrc(*scan, 4));
+}
+
+// A record of format 4 (before spans were kept), written as that build wrote it: the format-5
+// encoding without its spans. It decodes with every span 0, as it was integrated.
+TEST(LogRecordTest, AFormat4ScanDecodesWithoutSpans) {
+  auto scan = std::make_shared<PreparedScan>();
+  for (int x = 0; x < 3; ++x) scan->cells.push_back({{x, 0}, 0.25 * x, 0});
+  const std::string v5 = EncodeLogRecord(LogRecord::Scan(8, "r", 2, scan));
+  // The spans are the last 3 bytes before the CRC (one varint 0 each).
+  std::string v4 = v5.substr(0, v5.size() - 4 - 3);
+  ASSERT_EQ(v5.substr(v5.size() - 7, 3), std::string(3, '\0'));
+  v4[0] = 4;
+  const uint32_t crc = Crc32c(v4);
+  v4.append(reinterpret_cast<const char*>(&crc), 4);
+  Result<LogRecord> out = DecodeLogRecord(v4);
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_EQ(out->format, 4);
+  ASSERT_EQ(out->scan->cells.size(), 3u);
+  for (const ObservedCell& c : out->scan->cells) EXPECT_EQ(c.span_mm, 0);
+  EXPECT_EQ(out->scan->cells[2].y, 0.5);
+  EXPECT_EQ(DecodeLogRecord(v5)->format, kLogRecordFormat);
 }
 
 TEST(LogRecordTest, ClearRoundTrips) {
@@ -87,13 +118,13 @@ TEST(LogRecordTest, ClearRoundTrips) {
   EXPECT_EQ(out->clear_box, box);
 }
 
-TEST(LogRecordTest, DenseScanCostsTenBytesPerCell) {
+TEST(LogRecordTest, DenseScanCostsElevenBytesPerCell) {
   auto scan = std::make_shared<PreparedScan>();
   for (int x = 0; x < 100; ++x) {
     for (int y = 0; y < 100; ++y) scan->cells.push_back({{x, y}, -1.5 + 0.001 * x});
   }
   const std::string bytes = EncodeLogRecord(LogRecord::Scan(1, "r", 1, scan));
-  EXPECT_LE(bytes.size(), 200u + 10u * scan->cells.size());  // + row jumps
+  EXPECT_LE(bytes.size(), 200u + 11u * scan->cells.size());  // + row jumps
 }
 
 TEST(LogRecordTest, EveryFlippedByteIsDataLoss) {

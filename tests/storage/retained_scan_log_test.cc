@@ -55,6 +55,7 @@ void ExpectSameCells(const PreparedScan& a, const PreparedScan& b) {
   for (size_t i = 0; i < a.cells.size(); ++i) {
     EXPECT_EQ(a.cells[i].cell, b.cells[i].cell);
     EXPECT_EQ(std::bit_cast<uint64_t>(a.cells[i].y), std::bit_cast<uint64_t>(b.cells[i].y));
+    EXPECT_EQ(a.cells[i].span_mm, b.cells[i].span_mm);
   }
 }
 
@@ -85,6 +86,32 @@ TEST(RetainedScanLog, ARetainedScanIsLoggedWithoutItsCellsAndReadBackWhole) {
   EXPECT_EQ(headers[0].scan->write_tiles, record.scan->write_tiles);
   EXPECT_EQ(headers[0].scan->read_tiles, record.scan->read_tiles);
   EXPECT_EQ(headers[0].cells_crc, LoggedCellsCrc(*record.scan));
+}
+
+// A store written before spans were kept (record format 4): its records' CRCs are of cells
+// without spans, and their scans were integrated without them, so they replay so.
+TEST(RetainedScanLog, AFormat4RecordPreparesAgainWithoutSpans) {
+  TempDir dir;
+  const MapParams params = SmallParams();
+  auto store = std::move(TileStore::Open(dir.path(), WithRetention(true), params)).value();
+  const LogRecord record = ScanRecord(params, 1, MakeRawScan(0, 3));
+  ASSERT_TRUE(store->log().Append(record).ok());  // keeps the raw scan under version 1
+  bool any_span = false;
+  for (const ObservedCell& c : record.scan->cells) any_span |= c.span_mm > 0;
+  ASSERT_TRUE(any_span) << "the scan must have cells of several points";
+
+  LogRecord old = ReadAll(*store, ScanLog::LogRead::kHeaders).at(0);
+  old.format = 4;
+  old.cells_crc = LoggedCellsCrc(*record.scan, 4);
+  Result<std::shared_ptr<const PreparedScan>> cells = store->log().LoadCells(1, old);
+  ASSERT_TRUE(cells.ok()) << cells.status().ToString();
+  ASSERT_EQ((*cells)->cells.size(), record.scan->cells.size());
+  for (const ObservedCell& c : (*cells)->cells) EXPECT_EQ(c.span_mm, 0);
+  // The same record as this build writes it prepares with its spans.
+  LogRecord now = ReadAll(*store, ScanLog::LogRead::kHeaders).at(0);
+  cells = store->log().LoadCells(1, now);
+  ASSERT_TRUE(cells.ok()) << cells.status().ToString();
+  ExpectSameCells(**cells, *record.scan);
 }
 
 TEST(RetainedScanLog, WithoutRetentionTheRecordKeepsItsCells) {

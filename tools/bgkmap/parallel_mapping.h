@@ -12,7 +12,7 @@
 // point far from the rest) is integrated as one band, on one thread.
 //
 // Memory: every prepared scan is held until the bands are integrated (a prepared scan is its
-// binned cells, 16 bytes each: tens of thousands per lidar scan, far less than its points).
+// binned cells, 24 bytes each: tens of thousands per lidar scan, far less than its points).
 #pragma once
 
 #include <cstdint>

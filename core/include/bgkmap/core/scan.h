@@ -47,6 +47,10 @@ struct ScanPointCounts {
 struct ObservedCell {
   CellIndex cell;
   double y;  // training elevation: max or mean q.z of the scan's points in the cell
+  // max - min q.z of the scan's points in the cell in whole millimetres (rounded down, at most
+  // 65535): a face within the cell (dynamics; 0 in a scan logged before spans were kept, which
+  // replays without them)
+  uint16_t span_mm = 0;
 };
 
 // A scan ready to integrate: its training set and the tiles integration will touch.

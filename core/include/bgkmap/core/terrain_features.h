@@ -33,4 +33,9 @@ double DiscountStep(double step, double sigma_z);
 // critical value, clamped to [0, 1].
 double TraversabilityValue(const TerrainFeatures& f, const MapParams& params);
 
+// The most height one scan's points in a single cell may span and still lie on traversable
+// ground: a critical step plus what a critical slope rises across the cell's diagonal
+// (semantics 6, "A step inside a cell"). A cell whose points span more holds a face.
+double InCellStepLimit(const MapParams& params);
+
 }  // namespace bgkmap

@@ -1,7 +1,7 @@
 // One entry of the scan log: a change applied to the map, recorded with everything needed to
 // apply it again bit for bit (the prepared scan's training set, not its raw points).
 //
-// Layout (format 4), little-endian:
+// Layout (format 5), little-endian:
 //   u8 format, u8 type, varint version, length-prefixed robot_id, varint sequence,
 //   zigzag stamp_ns, then
 //   scan:  varint counts (input, kept, nonfinite, range, height, out_of_bounds), f64 sensor_z,
@@ -10,7 +10,9 @@
 //          of x and y),
 //          (format >= 4) u8 cells_in_source, then if 1 a fixed32 CRC-32C of the cells' encoding
 //          (LoggedCellsCrc), else (and always before format 4) the cells (varint count, zigzag
-//          deltas of x and y), their y as f64 bits (XOR-delta)
+//          deltas of x and y), their y as f64 bits (XOR-delta), (format >= 5) their span_mm as
+//          varints; a cell logged or prepared for a record before format 5 replays with span
+//          0, as it was first integrated
 //   clear: zigzag min.x, min.y, max.x, max.y
 //   correction (format >= 3): varint base_version, seed_tiles (as write_tiles), varint count and
 //          varint deltas of revised_versions (ascending)
@@ -29,7 +31,7 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kLogRecordFormat = 4;
+inline constexpr uint8_t kLogRecordFormat = 5;
 
 struct LogRecord {
   // kCorrection: some earlier scan records were rewritten (a pose correction) or removed; the
@@ -37,9 +39,10 @@ struct LogRecord {
   enum class Type : uint8_t { kScan = 1, kClear = 2, kCorrection = 3 };
 
   Type type = Type::kScan;
-  uint64_t version = 0;   // map version the change was applied as; replay follows it
-  std::string robot_id;   // kScan: the sending robot
-  uint64_t sequence = 0;  // kScan: the robot's sequence number
+  uint8_t format = kLogRecordFormat;  // as decoded: what the record was written by
+  uint64_t version = 0;               // map version the change was applied as; replay follows it
+  std::string robot_id;               // kScan: the sending robot
+  uint64_t sequence = 0;              // kScan: the robot's sequence number
   // kScan: the sender's stamp, the scan's map time: decoding sets scan->stamp_ns to it, so a
   // replay forgets as the first run did (docs/semantics.md "Forgetting").
   int64_t stamp_ns = 0;
@@ -70,9 +73,10 @@ struct LogRecord {
 
 std::string EncodeLogRecord(const LogRecord& record);
 
-// CRC-32C of the encoding of `scan`'s observed cells: what a record with cells_in_source keeps
-// to check that preparing the raw scan again gives the cells first logged.
-uint32_t LoggedCellsCrc(const PreparedScan& scan);
+// CRC-32C of the encoding of `scan`'s observed cells in record format `format`: what a record
+// with cells_in_source keeps to check that preparing the raw scan again gives the cells first
+// logged.
+uint32_t LoggedCellsCrc(const PreparedScan& scan, uint8_t format = kLogRecordFormat);
 
 // DataLoss if the checksum fails or the bytes are malformed; FailedPrecondition for a newer
 // format.
