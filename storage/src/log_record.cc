@@ -61,7 +61,7 @@ void PutCells(ByteWriter& w, const std::vector<ObservedCell>& cells, uint8_t for
     w.PutFixed64(bits ^ previous);
     previous = bits;
   }
-  if (format < 5) return;
+  if (format < kLogFormatWithSpans) return;
   for (const ObservedCell& cell : cells) w.PutVarint(cell.span_mm);
 }
 
@@ -114,7 +114,7 @@ bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan, LogRecord* recor
     if (record->cells_in_source) return r.GetFixed32(&record->cells_crc);
   }
   uint64_t n;
-  const uint64_t min_cell_bytes = format >= 5 ? 2 + 8 + 1 : 2 + 8;
+  const uint64_t min_cell_bytes = format >= kLogFormatWithSpans ? 2 + 8 + 1 : 2 + 8;
   if (!r.GetVarint(&n) || n > r.remaining() / min_cell_bytes) return false;
   scan->cells.resize(n);
   CellIndex prev{0, 0};
@@ -129,7 +129,7 @@ bool GetScan(ByteReader& r, uint8_t format, PreparedScan* scan, LogRecord* recor
     previous ^= bits;
     cell.y = std::bit_cast<double>(previous);
   }
-  if (format < 5) return true;
+  if (format < kLogFormatWithSpans) return true;
   for (ObservedCell& cell : scan->cells) {
     uint64_t span;
     if (!r.GetVarint(&span) || span > UINT16_MAX) return false;

@@ -178,7 +178,7 @@ Result<std::shared_ptr<const PreparedScan>> ScanLog::LoadCells(uint64_t version,
       PrepareScan(params_, source.points, source.pose, source.frame_is_map);
   if (!prepared.ok()) return Status::DataLoss(where + prepared.status().message());
   // A record written before spans were kept was integrated without them: so it replays.
-  if (record.format < 5) {
+  if (record.format < kLogFormatWithSpans) {
     for (ObservedCell& cell : prepared->cells) cell.span_mm = 0;
   }
   const PreparedScan& logged = *record.scan;

@@ -32,6 +32,8 @@
 namespace bgkmap::storage {
 
 inline constexpr uint8_t kLogRecordFormat = 5;
+// The first format whose cells carry their spans (ObservedCell::span_mm).
+inline constexpr uint8_t kLogFormatWithSpans = 5;
 
 struct LogRecord {
   // kCorrection: some earlier scan records were rewritten (a pose correction) or removed; the
