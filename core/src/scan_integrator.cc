@@ -97,13 +97,15 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   if (forget) {
     for (const TileKey& key : scan.write_tiles) Advance(*window.at(key), scan.stamp_ns);
   }
-  const std::vector<TileKey> cleared = pass.ApplyFreeSpace(scan, report);
+  const Pass::FreeSpace free_space = pass.ApplyFreeSpace(scan, report);
+  const std::vector<TileKey>& cleared = free_space.cleared;
   pass.AddElevation(scan);
   const auto t1 = Clock::now();
   const std::vector<std::pair<CellIndex, float>> values = pass.TrainingValues(scan);
   report.feature_cells = values.size();
   const auto t2 = Clock::now();
   pass.AddTraversability(values);
+  pass.RelearnGroundLeft(scan, free_space.relearn);
   pass.AddFootprint(scan);
   const auto t3 = Clock::now();
 

@@ -91,10 +91,15 @@ struct ScanIntegrator::Pass {
 
   // The stages, in the order Integrate runs them.
 
+  // What the free-space evidence leaves for the later stages.
+  struct FreeSpace {
+    std::vector<TileKey> cleared;    // the clear tiles it changed (sorted)
+    std::vector<CellIndex> relearn;  // cells to re-learn from the ground left, each once
+  };
   // 0. Free-space evidence (dynamics, a sensor): contradicted cells keep clear_decay of their
-  // statistics per contradiction, and the Beta counts within l of them are re-learnt. Returns the
-  // clear tiles it changed (sorted); counts the contradicted cells in `report`.
-  std::vector<TileKey> ApplyFreeSpace(const PreparedScan& scan, ScanReport& report) const;
+  // statistics per contradiction, and the Beta counts within l of them are re-learnt; counts the
+  // contradicted cells in `report`.
+  FreeSpace ApplyFreeSpace(const PreparedScan& scan, ScanReport& report) const;
   // 1. Elevation (semantics 4): kernel sums, the plane moments too for bgk-ll, or the raw
   // running mean for baseline and one-step.
   void AddElevation(const PreparedScan& scan) const;
@@ -103,6 +108,9 @@ struct ScanIntegrator::Pass {
   // 3. Traversability (semantics 7): Beta pseudo-counts spread by the kernel, or the latest direct
   // value for baseline and bgk-trav.
   void AddTraversability(const std::vector<std::pair<CellIndex, float>>& values) const;
+  // 3b. Ground left by a forgotten object (dynamics): the cells of `relearn` that step 3 left
+  // without counts learn v from the surface around them, at the cell only, unless it is 1.
+  void RelearnGroundLeft(const PreparedScan& scan, const std::vector<CellIndex>& relearn) const;
   // 4. The robot's footprint (dynamics, sensor_height > 0): ground and traversable evidence at
   // each cell under the robot, at the cell only.
   void AddFootprint(const PreparedScan& scan) const;
@@ -112,7 +120,9 @@ struct ScanIntegrator::Pass {
   void ResetBetaNear(const std::vector<std::pair<CellIndex, int>>& contradicted,
                      std::vector<const Tile*>& touched) const;
   void CutContradicted(const std::vector<std::pair<CellIndex, int>>& contradicted,
-                       std::vector<const Tile*>& touched) const;
+                       std::vector<const Tile*>& touched, std::vector<CellIndex>& forgotten) const;
+  std::vector<CellIndex> GroundLeftBy(const std::vector<CellIndex>& forgotten,
+                                      std::vector<const Tile*>& touched) const;
   template <bool kSecondMoment>
   void AddPlaneElevation(const PreparedScan& scan) const;
   template <bool kSecondMoment, bool kGain>

@@ -304,8 +304,8 @@ void ScanIntegrator::Pass::ResetBetaNear(const std::vector<std::pair<CellIndex, 
 }
 
 void ScanIntegrator::Pass::CutContradicted(
-    const std::vector<std::pair<CellIndex, int>>& contradicted,
-    std::vector<const Tile*>& touched) const {
+    const std::vector<std::pair<CellIndex, int>>& contradicted, std::vector<const Tile*>& touched,
+    std::vector<CellIndex>& forgotten) const {
   for (const auto& [c, count] : contradicted) {
     Tile& tile = *TileAt(c);
     if (forget) self.Advance(tile, stamp);
@@ -314,23 +314,65 @@ void ScanIntegrator::Pass::CutContradicted(
     double keep = 1.0;
     for (int k = 0; k < count && keep > 0.0; ++k) keep *= self.params_.clear_decay;
     tile.ScaleCell(i, keep);
+    tile.a()[i] = tile.b()[i] = 0.0f;  // as ResetBetaNear leaves them, so GroundLeftBy skips it
     // What is left is less than a tenth of one observation: forgotten, the cell is unknown
     // again until something is seen there (a removed object over ground no ray reaches).
-    if (tile.w()[i] < self.caps_.forget_below) tile.ClearCell(i);
+    if (tile.w()[i] < self.caps_.forget_below) {
+      tile.ClearCell(i);
+      forgotten.push_back(c);
+    }
     if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
   }
 }
 
-std::vector<TileKey> ScanIntegrator::Pass::ApplyFreeSpace(const PreparedScan& scan,
-                                                          ScanReport& report) const {
-  std::vector<TileKey> cleared;
-  if (self.params_.dynamics != Dynamics::kOn || !scan.has_sensor) return cleared;
+// The cells within l of a forgotten cell that still hold Beta counts (the contradicted cells'
+// were zeroed by the cut): ground an object stood beside and left. Each is reset here, as
+// ResetBetaNear would, and so listed once.
+std::vector<CellIndex> ScanIntegrator::Pass::GroundLeftBy(const std::vector<CellIndex>& forgotten,
+                                                          std::vector<const Tile*>& touched) const {
+  std::vector<CellIndex> out;
+  if (!InfersTraversability(self.params_.method)) return out;
+  const KernelStencil& k = self.kernel_;
+  const int R = k.radius();
+  for (const CellIndex& f : forgotten) {
+    for (int r = 0; r < k.row_count(); ++r) {
+      const int gy = f.y + r - R, x_end = f.x + k.half_width(r);
+      const int row_start = FloorMod(gy, T) * T;
+      for (int x = f.x - k.half_width(r); x <= x_end;) {
+        const TileKey key{FloorDiv(x, T), FloorDiv(gy, T)};
+        const int seg_end = std::min(x_end, key.x * T + T - 1);
+        Tile* tile = window.at(key);
+        for (; tile != nullptr && x <= seg_end; ++x) {
+          const int i = row_start + x - key.x * T;
+          float& a = tile->a()[i];
+          float& b = tile->b()[i];
+          if (a == 0.0f && b == 0.0f) continue;
+          if (forget) self.Advance(*tile, stamp);
+          a = b = 0.0f;
+          if (touched.empty() || touched.back() != tile) touched.push_back(tile);
+          out.push_back({x, gy});
+        }
+        x = seg_end + 1;
+      }
+    }
+  }
+  return out;
+}
+
+ScanIntegrator::Pass::FreeSpace ScanIntegrator::Pass::ApplyFreeSpace(const PreparedScan& scan,
+                                                                     ScanReport& report) const {
+  FreeSpace out;
+  std::vector<TileKey>& cleared = out.cleared;
+  if (self.params_.dynamics != Dynamics::kOn || !scan.has_sensor) return out;
   const std::vector<std::pair<CellIndex, int>> contradicted = CountContradictions(scan);
   // Every tile this changes beyond the write tiles is stamped and reported like them (it must be
   // checkpointed before it can be evicted).
   std::vector<const Tile*> touched;
+  std::vector<CellIndex> forgotten;
+  // The cut before the reset: the reset zeroes the contradicted cells' Beta counts either way.
+  CutContradicted(contradicted, touched, forgotten);
+  out.relearn = GroundLeftBy(forgotten, touched);
   ResetBetaNear(contradicted, touched);
-  CutContradicted(contradicted, touched);
   report.contradicted_cells = contradicted.size();
   read_tile = nullptr;  // a clear tile read above may have been brought to the scan's time
   std::sort(touched.begin(), touched.end());
@@ -340,7 +382,7 @@ std::vector<TileKey> ScanIntegrator::Pass::ApplyFreeSpace(const PreparedScan& sc
       cleared.push_back(key);
     }
   }
-  return cleared;
+  return out;
 }
 
 // ---- 1. Elevation ----
@@ -515,6 +557,34 @@ void ScanIntegrator::Pass::AddTraversability(
   }
   for (const auto& [cell, v] : values)
     forget ? SpreadValue<true>(cell, v) : SpreadValue<false>(cell, v);
+}
+
+// Beyond the paper: ground beside a forgotten object that this scan's values left no counts
+// re-learns from the surface left around it, where that surface crosses no critical value, at
+// the weight one observation gives its own cell (the kernel's k(0) = 1). Its tile was reset
+// (GroundLeftBy): it is reported.
+void ScanIntegrator::Pass::RelearnGroundLeft(const PreparedScan& scan,
+                                             const std::vector<CellIndex>& relearn) const {
+  if (relearn.empty()) return;
+  std::vector<PatchPoint> patch;
+  patch.reserve(self.neighbourhood_.size());
+  const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
+  internal::TileSlabs heights(scan, T, false, fill);
+  const float ab_cap = self.caps_.ab;
+  for (const CellIndex& c : relearn) {
+    Tile* tile = TileAt(c);
+    const int i = self.geometry_.LocalIndex(c);
+    float& a = tile->a()[i];
+    float& b = tile->b()[i];
+    if (a != 0.0f || b != 0.0f) continue;
+    const float v = ValueAt(c, patch, heights);
+    if (!(v < 1.0f)) continue;  // an obstacle, or no value (NaN)
+    tile->MarkCellChanged(i);
+    const float g = static_cast<float>(GainOf(*tile));
+    a = g * v;
+    b = g * (1.0f - v);
+    if (ab_cap > 0) internal::CapBeta(&a, &b, 1, ab_cap);
+  }
 }
 
 // ---- 4. The robot's footprint ----

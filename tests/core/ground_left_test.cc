@@ -1,0 +1,142 @@
+// Ground left by a forgotten object (docs/semantics.md, "Dynamics"): the free-space evidence
+// resets the Beta counts within l of every contradicted cell; where a cell was forgotten, the
+// cells around it that it did not contradict re-learn v from the surface left there, at the
+// weight of one observation at the cell, when that surface crosses no critical value. Without
+// it, ground a vehicle stood beside stays blocked ("no value") until a scan's returns land
+// within l of it.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "bgkmap/core/terrain_map.h"
+#include "synthetic_terrain.h"
+
+namespace bgkmap::testing {
+namespace {
+
+const Eigen::Vector3d kSensor(0.05, 0.05, 1.0);
+
+std::vector<Point3f> SensorFrame(const std::vector<Point3f>& map_frame) {
+  std::vector<Point3f> pts;
+  for (const Point3f& q : map_frame) {
+    pts.push_back({q.x - static_cast<float>(kSensor.x()), q.y - static_cast<float>(kSensor.y()),
+                   q.z - static_cast<float>(kSensor.z())});
+  }
+  return pts;
+}
+
+bool InBox(float x, float y) { return x > 5.5f && x < 6.0f && y > -0.5f && y < 0.5f; }
+
+// Flat ground 3-8 m ahead with a 0.5 x 1 m box, 0.8 m tall, at 5.5-6 m (and its shadow).
+std::vector<Point3f> GroundWithBox() {
+  std::vector<Point3f> pts;
+  for (int i = 0; i < 50; ++i) {
+    for (int j = 0; j < 30; ++j) {
+      const float x = 3.05f + 0.1f * i, y = -1.45f + 0.1f * j;
+      if (InBox(x, y)) {
+        pts.push_back({x, y, 0.8f});
+      } else if (!(x > 6.0f && y > -0.5f && y < 0.5f)) {
+        pts.push_back({x, y, 0.0f});
+      }
+    }
+  }
+  return pts;
+}
+
+// The box has gone: returns only from the ground 7-8 m ahead, whose rays pass low over where it
+// stood; none within l of the ground in front of it.
+std::vector<Point3f> FarGroundOnly() {
+  std::vector<Point3f> pts;
+  for (int i = 0; i < 10; ++i) {
+    for (int j = 0; j < 30; ++j) pts.push_back({7.05f + 0.1f * i, -1.45f + 0.1f * j, 0.0f});
+  }
+  return pts;
+}
+
+std::unique_ptr<TerrainMap> BoxThenGone(MapParams p,
+                                        const std::vector<Point3f>& last = FarGroundOnly()) {
+  std::unique_ptr<TerrainMap> map = TerrainMap::Create(p).value();
+  for (int k = 0; k < 3; ++k)
+    EXPECT_TRUE(map->IntegrateScan(SensorFrame(GroundWithBox()), At(kSensor)).ok());
+  EXPECT_TRUE(map->IntegrateScan(SensorFrame(last), At(kSensor)).ok());
+  return map;
+}
+
+TEST(GroundLeftTest, GroundInFrontOfAForgottenObjectIsTraversableWithoutNewReturns) {
+  const std::unique_ptr<TerrainMap> map = BoxThenGone(MapParams{});
+  // The box is forgotten (no ray reaches the ground under it: unknown).
+  EXPECT_EQ(map->EstimateAt(5.75, 0.05).state, CellState::kUnknown);
+  // The ground in front of it learnt "obstacle near" while the box stood; its counts were reset
+  // and no return of the last scan is within l of it. It re-learns from the flat ground left.
+  for (double y = -0.25; y <= 0.26; y += 0.1) {
+    for (double x : {5.25, 5.35}) {
+      const CellEstimate e = map->EstimateAt(x, y);
+      EXPECT_EQ(e.state, CellState::kTraversable) << x << ", " << y;
+      EXPECT_LT(e.traversability, 0.5f) << x << ", " << y;
+    }
+  }
+}
+
+TEST(GroundLeftTest, ReLearningAddsNoObstacleEvidence) {
+  // A wall as tall as the box stands beside it and stays; the last scan's rays pass under the
+  // box only. The wall's cells are within l of the forgotten box: their counts are reset, and the
+  // surface left around them has the wall's step, v = 1, which is not re-learnt: they keep no
+  // Beta counts (blocked for want of a value) until a return comes.
+  std::vector<Point3f> scan = GroundWithBox();
+  for (Point3f& q : scan) {
+    if (q.x > 5.5f && q.x < 6.0f && q.y > 0.5f && q.y < 0.7f) q.z = 0.8f;
+  }
+  std::erase_if(scan, [](const Point3f& q) { return q.x > 6.0f && q.y > 0.5f && q.y < 0.7f; });
+  std::vector<Point3f> far_ground;
+  for (const Point3f& q : FarGroundOnly()) {
+    if (q.y > -0.5f && q.y < 0.5f) far_ground.push_back(q);
+  }
+  std::unique_ptr<TerrainMap> map = TerrainMap::Create(MapParams{}).value();
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_TRUE(map->IntegrateScan(SensorFrame(scan), At(kSensor)).ok());
+  }
+  EXPECT_TRUE(map->IntegrateScan(SensorFrame(far_ground), At(kSensor)).ok());
+  for (double x = 5.65; x < 6.0; x += 0.1) {
+    const CellEstimate e = map->EstimateAt(x, 0.55);
+    EXPECT_EQ(e.state, CellState::kNonTraversable) << x;
+    EXPECT_EQ(e.block_reasons, kBlockedNoValue) << x;
+  }
+}
+
+// The far ground only where the box stood: the rays pass under the box, not beside it.
+std::vector<Point3f> FarGroundBehindTheBox() {
+  std::vector<Point3f> pts = FarGroundOnly();
+  std::erase_if(pts, [](const Point3f& q) { return q.y < -0.5f || q.y > 0.5f; });
+  return pts;
+}
+
+TEST(GroundLeftTest, TheSameMapWhateverTheTiling) {
+  // The cells beside the box re-learn from a patch reaching l + robot_radius beyond the rays'
+  // cells; a tile border there (9 cells: at y = 0.9 m) must not change what they read.
+  for (const std::vector<Point3f>& last : {FarGroundOnly(), FarGroundBehindTheBox()}) {
+    MapParams p;
+    p.tile_size = 64;
+    const std::unique_ptr<TerrainMap> reference = BoxThenGone(p, last);
+    const CellBox box = reference->KnownBounds();
+    for (int tile_size : {8, 9, 20}) {
+      p.tile_size = tile_size;
+      const std::unique_ptr<TerrainMap> map = BoxThenGone(p, last);
+      int differing = 0;
+      for (int y = box.min.y - 8; y <= box.max.y + 8; ++y) {
+        for (int x = box.min.x - 8; x <= box.max.x + 8; ++x) {
+          const CellEstimate a = reference->Estimate({x, y}), b = map->Estimate({x, y});
+          const bool same = a.state == b.state &&
+                            (a.state == CellState::kUnknown ||
+                             (a.elevation == b.elevation && a.traversability == b.traversability &&
+                              a.traversability_variance == b.traversability_variance));
+          differing += !same;
+        }
+      }
+      EXPECT_EQ(differing, 0) << "tile size " << tile_size << ", " << last.size() << " points";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace bgkmap::testing
