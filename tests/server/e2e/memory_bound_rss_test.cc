@@ -39,8 +39,12 @@ constexpr double kSiteSpacing = 300.0;  // metres
 // (docs/server.md), 197-204 MiB; allowed: 160. What this test catches is a map that is not
 // bounded, or an overhead grown by ~50 MiB: the tile limit at 4/3 of max_memory_mb instead of
 // 2/3 gave peaks of 294-314 MiB before those fixes (and failed), 217-249 MiB after (and passes:
-// within the run-to-run spread of the checkpoints' timing).
-constexpr uint64_t kOverheadMb = 160;
+// within the run-to-run spread of the checkpoints' timing). On 2026-11-30 the same machine type
+// gave peaks of 218-283 MiB for the build of 2026-11-29 (505e1e4, whose runs had given 197-204),
+// 219-315 for main before that day's change and 232-297 after it (6-9 runs each, alone): the
+// machine, not the code, moved, and 160 failed half the runs. Allowed now: 256. An evictor that
+// never evicts still fails it (peaks of 411-431 MiB; `Evict` returning at once).
+constexpr uint64_t kOverheadMb = 256;
 
 // A field of /proc/<pid>/status in KiB ("VmHWM", "VmRSS"); 0 if absent.
 uint64_t StatusKiB(pid_t pid, const std::string& field) {
