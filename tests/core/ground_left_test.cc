@@ -18,12 +18,7 @@ namespace {
 const Eigen::Vector3d kSensor(0.05, 0.05, 1.0);
 
 std::vector<Point3f> SensorFrame(const std::vector<Point3f>& map_frame) {
-  std::vector<Point3f> pts;
-  for (const Point3f& q : map_frame) {
-    pts.push_back({q.x - static_cast<float>(kSensor.x()), q.y - static_cast<float>(kSensor.y()),
-                   q.z - static_cast<float>(kSensor.z())});
-  }
-  return pts;
+  return InSensorFrame(map_frame, kSensor);
 }
 
 bool InBox(float x, float y) { return x > 5.5f && x < 6.0f && y > -0.5f && y < 0.5f; }

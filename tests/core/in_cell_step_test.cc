@@ -17,13 +17,8 @@ const Eigen::Vector3d kSensor(0.05, 0.05, 1.0);
 
 CellState StateAfterOneScan(const MapParams& p, const std::vector<Point3f>& map_frame_points,
                             double x, double y) {
-  std::vector<Point3f> pts;
-  for (const Point3f& q : map_frame_points) {
-    pts.push_back({q.x - static_cast<float>(kSensor.x()), q.y - static_cast<float>(kSensor.y()),
-                   q.z - static_cast<float>(kSensor.z())});
-  }
   std::unique_ptr<TerrainMap> map = TerrainMap::Create(p).value();
-  EXPECT_TRUE(map->IntegrateScan(pts, At(kSensor)).ok());
+  EXPECT_TRUE(map->IntegrateScan(InSensorFrame(map_frame_points, kSensor), At(kSensor)).ok());
   return map->EstimateAt(x, y).state;
 }
 

@@ -29,6 +29,18 @@ inline std::vector<Point3f> SampleSurface(const Surface& surface, const Eigen::V
   return pts;
 }
 
+// Map-frame points as a sensor at `origin` with an identity rotation (At(origin)) sees them.
+inline std::vector<Point3f> InSensorFrame(const std::vector<Point3f>& map_frame,
+                                          const Eigen::Vector3d& origin) {
+  std::vector<Point3f> pts;
+  pts.reserve(map_frame.size());
+  for (const Point3f& q : map_frame) {
+    pts.push_back({q.x - static_cast<float>(origin.x()), q.y - static_cast<float>(origin.y()),
+                   q.z - static_cast<float>(origin.z())});
+  }
+  return pts;
+}
+
 inline Pose At(const Eigen::Vector3d& origin) {
   Pose p;
   p.translation = origin;
