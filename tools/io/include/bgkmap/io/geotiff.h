@@ -1,6 +1,6 @@
 // GeoTIFF export of rasters (GDAL GTiff): one float32 band per layer, the band description
 // naming the layer (LayerName), NoData = NaN on every band, north-up geotransform
-// (x0, resolution, 0, y1, 0, -resolution), DEFLATE + floating-point predictor, tiled.
+// (x0, resolution, 0, y1, 0, -resolution), DEFLATE (level 3, no predictor), tiled.
 // The cell box and stride are kept as BGKMAP_* metadata so ReadGeoTiff restores the Raster.
 //
 // Thread-safe: GDAL drivers are registered once; GDAL's own error output is silenced and its
