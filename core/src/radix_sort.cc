@@ -24,6 +24,12 @@ const bool kKept = RegisterKeptScratch(
 }  // namespace
 
 std::vector<uint32_t> RadixSortOrder(const std::vector<uint64_t>& keys) {
+  // 11-bit digits: a scan's dense cell keys (22-24 bits) sort in two or three passes, and a
+  // digit's 2,048 counters stay in L1.
+  constexpr int kBits = 11;
+  constexpr int kDigits = (64 + kBits - 1) / kBits;
+  constexpr uint64_t kMask = (uint64_t{1} << kBits) - 1;
+  constexpr size_t kBuckets = size_t{1} << kBits;
   const std::size_t n = keys.size();
   std::vector<uint32_t> order(n);
   for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
@@ -33,27 +39,28 @@ std::vector<uint32_t> RadixSortOrder(const std::vector<uint64_t>& keys) {
   sorted.assign(keys.begin(), keys.end());
   uint64_t all_bits = 0;
   for (uint64_t k : keys) all_bits |= k;
-  // The counts of every byte some key has bits in, in one read of the keys.
-  std::array<int, 8> bytes{};
-  int nbytes = 0;
-  for (int b = 0; b < 8; ++b) {
-    if ((all_bits >> (8 * b)) & 0xff) bytes[nbytes++] = b;
+  // The counts of every digit some key has bits in, in one read of the keys.
+  std::array<int, kDigits> digits{};
+  int ndigits = 0;
+  for (int d = 0; d < kDigits; ++d) {
+    if ((all_bits >> (kBits * d)) & kMask) digits[ndigits++] = d;
   }
-  std::array<std::array<uint32_t, 257>, 8> count{};
+  std::vector<uint32_t> counts(static_cast<size_t>(ndigits) * (kBuckets + 1), 0);
   for (uint64_t k : keys) {
-    for (int j = 0; j < nbytes; ++j) ++count[j][((k >> (8 * bytes[j])) & 0xff) + 1];
+    for (int j = 0; j < ndigits; ++j) {
+      ++counts[j * (kBuckets + 1) + ((k >> (kBits * digits[j])) & kMask) + 1];
+    }
   }
-  for (int j = 0; j < nbytes; ++j) {
-    const int b = bytes[j];
-    std::array<uint32_t, 257>& c = count[j];
-    // A byte every key shares orders nothing: the stable pass would be the identity.
+  for (int j = 0; j < ndigits; ++j) {
+    uint32_t* c = counts.data() + j * (kBuckets + 1);
+    // A digit every key shares orders nothing: the stable pass would be the identity.
     bool shared = false;
-    for (int v = 1; v <= 256 && !shared; ++v) shared = c[v] == n;
+    for (size_t v = 1; v <= kBuckets && !shared; ++v) shared = c[v] == n;
     if (shared) continue;
-    for (int v = 0; v < 256; ++v) c[v + 1] += c[v];
-    const int shift = 8 * b;
+    for (size_t v = 0; v < kBuckets; ++v) c[v + 1] += c[v];
+    const int shift = kBits * digits[j];
     for (std::size_t i = 0; i < n; ++i) {
-      const uint32_t at = c[(sorted[i] >> shift) & 0xff]++;
+      const uint32_t at = c[(sorted[i] >> shift) & kMask]++;
       sorted_tmp[at] = sorted[i];
       order_tmp[at] = order[i];
     }

@@ -182,9 +182,10 @@ std::vector<ObservedCell> SortAndReduce(const std::vector<BinnedPoint>& binned,
                                         const CellBox& bounds, Observation mode) {
   std::vector<uint64_t>& keys = binned_keys;
   keys.resize(binned.size());
+  const uint64_t height = static_cast<uint64_t>(bounds.height());
   for (size_t i = 0; i < binned.size(); ++i) {
-    keys[i] = (static_cast<uint64_t>(binned[i].ix - bounds.min.x) << 32) |
-              static_cast<uint64_t>(binned[i].iy - bounds.min.y);
+    keys[i] = internal::CellSortKey(int64_t{binned[i].ix} - bounds.min.x,
+                                    int64_t{binned[i].iy} - bounds.min.y, height);
   }
   const std::vector<uint32_t> order = internal::RadixSortOrder(keys);
   internal::ReleaseIfLarge(keys);

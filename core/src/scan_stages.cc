@@ -35,9 +35,10 @@ void SortCells(std::vector<CellIndex>& cells) {
   for (const CellIndex& c : cells) box.Extend(c);
   std::vector<uint64_t>& keys = cell_sort_keys;
   keys.resize(cells.size());
+  const uint64_t height = static_cast<uint64_t>(box.height());
   for (size_t i = 0; i < cells.size(); ++i) {
-    keys[i] = (static_cast<uint64_t>(int64_t{cells[i].x} - box.min.x) << 32) |
-              static_cast<uint64_t>(int64_t{cells[i].y} - box.min.y);
+    keys[i] = internal::CellSortKey(int64_t{cells[i].x} - box.min.x,
+                                    int64_t{cells[i].y} - box.min.y, height);
   }
   const std::vector<uint32_t> order = internal::RadixSortOrder(keys);
   internal::ReleaseIfLarge(keys);

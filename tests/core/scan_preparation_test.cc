@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <thread>
 
@@ -30,6 +31,50 @@ TEST(ScanPreparationTest, BinsPointsIntoCellsWithMaxOrMean) {
   p.observation = Observation::kMean;
   s = PrepareScan(p, pts, Pose{});
   EXPECT_DOUBLE_EQ(s->cells[1].y, -0.75);
+}
+
+// The cells come out in (x, y) order, one per cell, each the max (or the mean, summed in the
+// points' order) of its own points, whatever the box's size: a street-sized scan sorts in two
+// digits of the radix sort, a stray point 20 km away widens the box to three and more.
+TEST(ScanPreparationTest, CellsAreSortedAndReducedAsANaiveReductionWouldHaveThem) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> near(-60.0f, 60.0f),
+      height(-3.0f, 0.4f);  // below max_height_above_sensor
+  std::vector<Point3f> pts;
+  for (int i = 0; i < 20000; ++i) pts.push_back({near(rng), near(rng), height(rng)});
+  for (int i = 0; i < 2000; ++i) pts.push_back({pts[i].x, pts[i].y, height(rng)});  // repeats
+  MapParams p;
+  p.min_range = 0.0;
+  p.max_range = 1e6;
+  for (const bool stray : {false, true}) {
+    std::vector<Point3f> in = pts;
+    if (stray) in.push_back({-20000.0f, 15000.0f, -1.0f});
+    for (const Observation mode : {Observation::kMax, Observation::kMean}) {
+      p.observation = mode;
+      std::map<std::pair<int, int>, std::vector<double>> naive;
+      const double inv_res = 1.0 / p.resolution;  // PrepareScan's binning
+      for (const Point3f& q : in) {
+        naive[{static_cast<int>(std::floor(double{q.x} * inv_res)),
+               static_cast<int>(std::floor(double{q.y} * inv_res))}]
+            .push_back(static_cast<double>(q.z));
+      }
+      Result<PreparedScan> s = PrepareScan(p, in, Pose{});
+      ASSERT_TRUE(s.ok());
+      ASSERT_EQ(s->cells.size(), naive.size());
+      size_t k = 0;
+      for (const auto& [cell, zs] : naive) {
+        const ObservedCell& c = s->cells[k++];
+        ASSERT_EQ(c.cell, (CellIndex{cell.first, cell.second}));
+        double y = zs.front(), sum = 0.0;
+        for (double z : zs) {
+          y = std::max(y, z);
+          sum += z;
+        }
+        if (mode == Observation::kMean) y = sum / static_cast<double>(zs.size());
+        ASSERT_EQ(c.y, y) << "cell " << cell.first << ", " << cell.second;
+      }
+    }
+  }
 }
 
 TEST(ScanPreparationTest, TransformsByThePose) {
