@@ -4,7 +4,9 @@
 # scans (KITTI HDL-64E, the hall) and for all of it, ROUNDS times alternating, default threads
 # and the robot's settings. A short drive's ms per scan carries the fixed part (process start,
 # the GeoTIFF); the marginal (T_all - T_half) / (N - N_half) is the part that every further scan
-# of a long drive pays.
+# of a long drive pays. Then a long drive of real scans: the KITTI drive laid 7 times, 140 m
+# apart along x (its 60 m range never reaches the next copy), 154 scans as the issue's drive, its
+# whole process per scan.
 #   scripts/bench-dense-marginal.sh [BGKMAP=build/tools/bgkmap/bgkmap] [ROUNDS=5]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -49,4 +51,27 @@ for set in kitti_raw_0048:car_kitti balm_hall:handheld_hall; do
     'BEGIN {printf "%s: %d scans %.0f ms (%.1f ms per scan), %d scans %.0f ms (%.1f ms per scan); marginal %.1f ms per scan (medians of %d)\n",
       s, h, th, th / h, n, ta, ta / n, (ta - th) / (n - h), r}'
 done | tee "$out/result.txt"
+# The KITTI drive 7 times over, each copy's poses 140 m further along x.
+long="$out/kitti-x7"
+mkdir -p "$long/velodyne"
+kitti="$data/kitti_raw_0048"
+k=0
+for copy in 0 1 2 3 4 5 6; do
+  awk -v dx=$((copy * 140)) '{$4 = $4 + dx; print}' "$kitti/poses.txt" >>"$long/poses.txt"
+  for f in $(find "$kitti/velodyne" -name '*.bin' | sort); do
+    ln -s "$f" "$long/velodyne/$(printf %06d.bin "$k")"
+    k=$((k + 1))
+  done
+done
+: >"$out/times"
+for ((r = 0; r < rounds; r++)); do
+  start=$(date +%s%N)
+  "$bin" build "$long" --config experiments/robots/car_kitti.yaml --out "$out/long.tif" --quiet \
+    >/dev/null
+  end=$(date +%s%N)
+  echo $(((end - start) / 1000000)) >>"$out/times"
+done
+t_long=$(median <"$out/times")
+awk -v n="$k" -v t="$t_long" -v r="$rounds" 'BEGIN {printf "kitti_raw_0048 x 7, 140 m apart: %d scans %.0f ms, %.1f ms per scan (median of %d)\n", n, t, t / n, r}' |
+  tee -a "$out/result.txt"
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
