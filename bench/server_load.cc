@@ -128,12 +128,12 @@ int main(int argc, char** argv) {
   double region_x = 12.0;
   app.add_option("--region-x", region_x, "x (m) of the queried regions' centre")
       ->capture_default_str();
-  // Queries in the first 1-2 s after the loading robots connect answer much slower (why is not
-  // yet measured: docs/benchmarks.md); a longer settle measures the queries of a steady load.
   int load_robots = 4;
   app.add_option("--load-robots", load_robots, "Robots streaming while the queries are timed")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
+  // Queries in the first 1-2 s after the loading robots connect answer much slower (why is not
+  // yet measured: docs/benchmarks.md); a longer settle measures the queries of a steady load.
   double settle_s = 0.5;
   app.add_option("--settle-seconds", settle_s, "Load time before the queries start")
       ->capture_default_str();
