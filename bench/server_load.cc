@@ -92,11 +92,15 @@ IngestResult Ingest(Client& client, const Drive& d, const std::string& tag, int 
           }
         }
       });
+      // Paced robots are spread over the period, as independent sensors are: started in step,
+      // they would all send at the same instant and load the machine in bursts.
       const auto t0 = Clock::now();
+      const double phase = (rate_hz > 0 ? static_cast<double>(r) / robots : 0.0);
       for (uint64_t k = 0; k < per_robot && !(stop && stop->load()); ++k) {
         if (rate_hz > 0) {
           std::this_thread::sleep_until(
-              t0 + std::chrono::microseconds(static_cast<int64_t>(1e6 * k / rate_hz)));
+              t0 + std::chrono::microseconds(
+                       static_cast<int64_t>(1e6 * (static_cast<double>(k) + phase) / rate_hz)));
         }
         if (!stream->Send(MakeScan(d, robot, r, k))) break;
       }

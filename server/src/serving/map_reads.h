@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -27,6 +28,13 @@ class MapReads {
   virtual Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                                     int stride) = 0;
   virtual Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) = 0;
+  // ReadCells() if it can answer at once, without waiting on a change, a lock or the store;
+  // empty (call ReadCells() from a thread that may wait) otherwise. A short read on the thread
+  // that received the call saves the wake-up of another (docs/server.md, "Point queries").
+  virtual std::optional<Result<std::vector<CellEstimate>>> TryReadCellsNow(
+      std::span<const CellIndex> /*cells*/) {
+    return std::nullopt;
+  }
   // One tile's cells (what Watch sends). A cluster knows no per-tile version: it gives the log
   // sequence the tile was read at, which is at or after the tile's last change.
   virtual Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) = 0;

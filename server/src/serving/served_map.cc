@@ -278,16 +278,32 @@ Result<Raster> ServedMap::ReadRegion(const CellBox& box, const std::vector<Layer
   return table_.ReadRegion(box, layers, stride);
 }
 
-Result<std::vector<CellEstimate>> ServedMap::ReadCells(std::span<const CellIndex> cells) {
+std::vector<TileKey> ServedMap::TilesOf(std::span<const CellIndex> cells) const {
   std::vector<TileKey> keys;
   keys.reserve(cells.size());
   for (CellIndex c : cells) keys.push_back(geometry().TileOf(c));
   SortUnique(&keys);
+  return keys;
+}
+
+Result<std::vector<CellEstimate>> ServedMap::ReadCells(std::span<const CellIndex> cells) {
+  std::vector<TileKey> keys = TilesOf(cells);
   if (Status s = RefuseCorrupt(keys); !s.ok()) return s;
   TileLockTable::Guard locked = table_.LockShared(keys);
   Result<TileResidency::Pins> pins = residency_.Pin(std::move(keys), /*strict=*/true);
   if (!pins.ok()) return pins.status();
   return table_.ReadCells(cells);
+}
+
+std::optional<Result<std::vector<CellEstimate>>> ServedMap::TryReadCellsNow(
+    std::span<const CellIndex> cells) {
+  std::vector<TileKey> keys = TilesOf(cells);
+  if (Status s = RefuseCorrupt(keys); !s.ok()) return Result<std::vector<CellEstimate>>(s);
+  std::optional<TileLockTable::Guard> locked = table_.TryLockShared(keys);
+  if (!locked) return std::nullopt;  // a change holds one of them
+  std::optional<TileResidency::Pins> pins = residency_.TryPinInMemory(std::move(keys));
+  if (!pins) return std::nullopt;  // a tile to load or unpack, or eviction at work
+  return Result<std::vector<CellEstimate>>(table_.ReadCells(cells));
 }
 
 Result<TileContent> ServedMap::ReadTile(TileKey key, const std::vector<Layer>& layers) {

@@ -127,6 +127,8 @@ class ServedMap final : public MapPort {
   Result<Raster> ReadRegion(const CellBox& box, const std::vector<Layer>& layers,
                             int stride) override;
   Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) override;
+  std::optional<Result<std::vector<CellEstimate>>> TryReadCellsNow(
+      std::span<const CellIndex> cells) override;
   Result<TileContent> ReadTile(TileKey key, const std::vector<Layer>& layers) override;
   // Keys of the tiles with min <= key <= max, in memory or stored, sorted.
   std::vector<TileKey> ListTiles(TileKey min, TileKey max) const;
@@ -182,6 +184,8 @@ class ServedMap final : public MapPort {
   // DataLoss naming the first tile of the range (or of `keys`) the store found corrupt.
   Status RefuseCorrupt(TileKey min, TileKey max) const;
   Status RefuseCorrupt(std::span<const TileKey> keys) const;
+  // The tiles of `cells`, sorted and unique.
+  std::vector<TileKey> TilesOf(std::span<const CellIndex> cells) const;
 
   Durability& durability_;
   TileTable table_;

@@ -77,6 +77,29 @@ TileLockTable::Guard TileLockTable::LockRange(TileKey min, TileKey max) {
   return Lock({}, keys);
 }
 
+std::optional<TileLockTable::Guard> TileLockTable::TryLockShared(std::span<const TileKey> keys) {
+  Guard guard;
+  guard.table_ = this;
+  guard.held_.reserve(keys.size());
+  {
+    std::lock_guard lock(mu_);
+    for (TileKey k : keys) {
+      std::unique_ptr<Entry>& e = entries_[k];
+      if (!e) e = std::make_unique<Entry>();
+      ++e->users;
+      guard.held_.push_back({k, e.get(), false});
+    }
+  }
+  for (size_t i = 0; i < guard.held_.size(); ++i) {
+    if (guard.held_[i].entry->mu.try_lock_shared()) continue;
+    for (size_t j = 0; j < i; ++j) guard.held_[j].entry->mu.unlock_shared();
+    Unref(guard.held_);
+    guard.held_.clear();
+    return std::nullopt;
+  }
+  return guard;
+}
+
 void TileLockTable::Unref(const std::vector<Guard::Held>& held) {
   std::lock_guard lock(mu_);
   for (const Guard::Held& h : held) {

@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <span>
 #include <unordered_map>
@@ -54,6 +55,10 @@ class TileLockTable {
   Guard Lock(std::span<const TileKey> exclusive, std::span<const TileKey> shared);
   // Every key of the inclusive rectangle [min, max], shared.
   Guard LockRange(TileKey min, TileKey max);
+  // `keys` (sorted, unique) shared if none of them is held exclusively right now;
+  // otherwise nothing is held and the result is empty. Never blocks on a tile lock: for a reader
+  // that would rather hand its work to another thread than wait on this one.
+  std::optional<Guard> TryLockShared(std::span<const TileKey> keys);
 
   size_t entry_count() const;
 

@@ -63,15 +63,8 @@ Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool s
   Pins pins;
   if (!tracks_) return pins;  // everything is in memory and dense
   {
-    const auto at = std::chrono::steady_clock::now();
     std::lock_guard lock(mu_);
-    const uint64_t now = ++use_clock_;
-    for (TileKey k : keys) {
-      Use& u = uses_[k];
-      ++u.pins;
-      u.last_use = now;
-      u.used_at = at;
-    }
+    PinLocked(keys);
   }
   pins.owner_ = this;
   pins.keys_ = std::move(keys);
@@ -98,6 +91,36 @@ Result<TileResidency::Pins> TileResidency::Pin(std::vector<TileKey> keys, bool s
     tiles_loaded_.fetch_add(loaded.size());
   }
   SignalIfOverLimit();
+  return pins;
+}
+
+void TileResidency::PinLocked(const std::vector<TileKey>& keys) {
+  const auto at = std::chrono::steady_clock::now();
+  const uint64_t now = ++use_clock_;
+  for (TileKey k : keys) {
+    Use& u = uses_[k];
+    ++u.pins;
+    u.last_use = now;
+    u.used_at = at;
+  }
+}
+
+std::optional<TileResidency::Pins> TileResidency::TryPinInMemory(std::vector<TileKey> keys) {
+  Pins pins;
+  if (!tracks_) return pins;
+  {
+    std::unique_lock lock(mu_, std::try_to_lock);
+    if (!lock.owns_lock()) return std::nullopt;
+    PinLocked(keys);
+  }
+  pins.owner_ = this;
+  pins.keys_ = std::move(keys);
+  // Pinned: none of them is evicted from here on, so what is checked now holds.
+  if (persists_) {
+    for (TileKey k : table_.NotResident(pins.keys_)) {
+      if (backing_.IsStored(k)) return std::nullopt;  // (`pins` unpins)
+    }
+  }
   return pins;
 }
 

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <tuple>
 #include <unordered_map>
 #include <vector>
@@ -59,6 +60,11 @@ class TileResidency {
   // cannot be read. `strict`: a stored tile failing its checksum is DataLoss naming it (readers);
   // otherwise it is left out, and the change starts it afresh (the store keeps it listed).
   Result<Pins> Pin(std::vector<TileKey> keys, bool strict);
+  // Pin() without waiting: empty (nothing pinned) if the residency's lock is held right now or
+  // any tile would have to be loaded from the store. Packed tiles stay packed (a reader of
+  // cells reads either form, tile.h). For a reader that would rather hand its work to another
+  // thread than wait on this one.
+  std::optional<Pins> TryPinInMemory(std::vector<TileKey> keys);
   // Pin() of a scan's write and read tiles, non-strict (a change starts a corrupt tile afresh).
   Result<Pins> PinScan(const PreparedScan& scan);
   // Pin() of every tile in memory or stored in [min, max].
@@ -84,6 +90,8 @@ class TileResidency {
     std::chrono::steady_clock::time_point used_at;
   };
   void Unpin(const std::vector<TileKey>& keys);
+  // With mu_ held: counts a pin and a use of each key.
+  void PinLocked(const std::vector<TileKey>& keys);
   // With mu_ held: uses_ kept to the tiles in memory or pinned; the unpinned tiles in memory,
   // (last use, key, bytes), those dense and those clean.
   struct Candidates {

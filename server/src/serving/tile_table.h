@@ -73,6 +73,9 @@ class TileTable final {
 
   // Read locks. A reader holds them while it pins and reads.
   TileLockTable::Guard LockShared(std::span<const TileKey> keys);
+  std::optional<TileLockTable::Guard> TryLockShared(std::span<const TileKey> keys) {
+    return tile_locks_.TryLockShared(keys);
+  }
   TileLockTable::Guard LockRangeShared(TileKey min, TileKey max);
   // Reads, under the caller's tile locks (and pins).
   Raster ReadRegion(const CellBox& box, const std::vector<Layer>& layers, int stride) const;

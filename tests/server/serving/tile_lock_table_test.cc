@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <optional>
 #include <thread>
 
 namespace bgkmap {
@@ -60,6 +61,30 @@ TEST(TileLockTableTest, OpposingOrdersDoNotDeadlock) {
   t3.join();
   t4.join();
   EXPECT_EQ(done.load(), 4);
+  EXPECT_EQ(table.entry_count(), 0u);
+}
+
+// A point query tries the tiles without waiting (and leaves the query to a pool thread if a
+// change holds one): it must fail while any of them is held exclusively, succeed beside other
+// readers, and hold nothing after failing.
+TEST(TileLockTableTest, TryLockSharedNeverWaitsAndHoldsNothingWhenItFails) {
+  TileLockTable table;
+  const std::vector<TileKey> both = {{0, 0}, {1, 0}};
+  {
+    TileLockTable::Guard reader = table.Lock({}, std::vector<TileKey>{both[0]});
+    EXPECT_TRUE(table.TryLockShared(both).has_value());  // readers share
+  }
+  TileLockTable::Guard writer = table.Lock(std::vector<TileKey>{both[1]}, {});
+  EXPECT_FALSE(table.TryLockShared(both).has_value());
+  EXPECT_EQ(table.entry_count(), 1u);  // only the writer's
+  // The tile it took before failing is free: a writer takes it (would block forever if not).
+  std::thread other_writer([&] { TileLockTable::Guard g = table.Lock(both, {}); });
+  writer.Release();
+  other_writer.join();
+  std::optional<TileLockTable::Guard> shared = table.TryLockShared(both);
+  ASSERT_TRUE(shared.has_value());
+  EXPECT_EQ(table.entry_count(), 2u);
+  shared->Release();
   EXPECT_EQ(table.entry_count(), 0u);
 }
 

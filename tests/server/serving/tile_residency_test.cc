@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <optional>
 
 #include "serving_test_util.h"
 
@@ -69,6 +70,48 @@ TEST_F(ResidencyTest, EvictsOnlyCleanTilesAndLoadsThemBackExactly) {
   }
 }
 
+// Every field of every estimate, bit for bit (NaN for unknown included).
+bool SameEstimates(const std::vector<CellEstimate>& a, const std::vector<CellEstimate>& b) {
+  if (a.size() != b.size()) return false;
+  auto same = [](float x, float y) { return std::memcmp(&x, &y, sizeof x) == 0; };
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!same(a[i].elevation, b[i].elevation) ||
+        !same(a[i].elevation_variance, b[i].elevation_variance) ||
+        !same(a[i].traversability, b[i].traversability) ||
+        !same(a[i].traversability_variance, b[i].traversability_variance) ||
+        a[i].state != b[i].state || !same(a[i].elevation_weight, b[i].elevation_weight) ||
+        !same(a[i].disagreement, b[i].disagreement) || a[i].block_reasons != b[i].block_reasons) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// The points read at once are those ReadCells() reads, bit for bit; a tile evicted to the store
+// is left to ReadCells() (which loads it), then read at once again.
+TEST_F(ResidencyTest, PointsReadAtOnceAreThoseReadCellsReadsAndEvictedTilesWait) {
+  ASSERT_TRUE(Scan(1, 0, 0).status.ok());
+  std::vector<CellIndex> cells;
+  for (double x = -20; x <= 20; x += 0.7) cells.push_back(map_.geometry().CellAt(x, 0.3 * x));
+  Result<std::vector<CellEstimate>> waited = map_.ReadCells(cells);
+  ASSERT_TRUE(waited.ok());
+  std::optional<Result<std::vector<CellEstimate>>> now = map_.TryReadCellsNow(cells);
+  ASSERT_TRUE(now.has_value());
+  ASSERT_TRUE(now->ok());
+  EXPECT_TRUE(SameEstimates(**now, *waited));
+
+  ASSERT_TRUE(map_.Checkpoint().ok());
+  map_.Evict(0);
+  ASSERT_EQ(map_.Residency().resident_tiles, 0u);
+  EXPECT_FALSE(map_.TryReadCellsNow(cells).has_value());
+  EXPECT_EQ(map_.Residency().tiles_loaded, 0u);
+  ASSERT_TRUE(map_.ReadCells(cells).ok());
+  EXPECT_GT(map_.Residency().tiles_loaded, 0u);
+  now = map_.TryReadCellsNow(cells);
+  ASSERT_TRUE(now.has_value() && now->ok());
+  EXPECT_TRUE(SameEstimates(**now, *waited));
+}
+
 // Pins and recency, on a residency of its own over the fake store.
 TEST(TileResidencyTest, PinnedTilesStayAndTheLeastRecentlyUsedGoFirst) {
   MapParams params;
@@ -99,6 +142,33 @@ TEST(TileResidencyTest, PinnedTilesStayAndTheLeastRecentlyUsedGoFirst) {
   residency.Evict(0);
   EXPECT_EQ(table.NotResident(keys).size(), 4u);
   EXPECT_EQ(residency.Stats().tiles_evicted, 4u);
+}
+
+// What a point query answered on the receiving thread may pin: only tiles it can read at once,
+// packed or dense, never one it would have to load.
+TEST(TileResidencyTest, TryPinInMemoryNeverLoads) {
+  MapParams params;
+  FakeDurability store(params);
+  TileTable table(TerrainMap::Create(params).value(), /*keep_cleared=*/true);
+  TileResidency residency(table, store, /*persists=*/true, 0, {}, /*dense_limit_bytes=*/1);
+  const TileKey stored{0, 0}, absent{7, 7};
+  std::vector<std::unique_ptr<Tile>> tiles;
+  tiles.push_back(std::make_unique<Tile>(params.tile_size));
+  tiles.back()->w()[3] = 2.0;
+  ASSERT_TRUE(store.WriteCheckpoint(1, std::vector<TileKey>{stored}, tiles).ok());
+
+  EXPECT_FALSE(residency.TryPinInMemory({stored}).has_value());  // it would load it
+  EXPECT_EQ(residency.Stats().tiles_loaded, 0u);
+  EXPECT_TRUE(residency.TryPinInMemory({absent}).has_value());  // nothing to read: unknown
+  ASSERT_TRUE(residency.Pin({stored}, true).ok());              // loaded (and released)
+  EXPECT_TRUE(residency.TryPinInMemory({stored, absent}).has_value());
+  table.Pack(std::vector<TileKey>{stored});
+  ASSERT_EQ(table.packed_tiles(), 1u);
+  EXPECT_TRUE(residency.TryPinInMemory({stored}).has_value());
+  EXPECT_EQ(table.packed_tiles(), 1u);  // read as it is
+  table.Erase(std::vector<TileKey>{stored});  // evicted
+  EXPECT_FALSE(residency.TryPinInMemory({stored}).has_value());
+  EXPECT_EQ(residency.Stats().tiles_loaded, 1u);
 }
 
 TEST(TileResidencyTest, CorruptStoredTileIsDataLossForReadersAndLeftOutForChanges) {
@@ -138,6 +208,9 @@ TEST_F(ResidencyTest, TileTheStoreFoundCorruptIsNeverAnsweredEvenOnceRebuilt) {
   EXPECT_EQ(region.status().code(), Status::Code::kDataLoss);
   Result<TileContent> tile = map_.ReadTile(k, {Layer::kElevation});
   EXPECT_EQ(tile.status().code(), Status::Code::kDataLoss);
+  std::optional<Result<std::vector<CellEstimate>>> at_once = map_.TryReadCellsNow(cells);
+  ASSERT_TRUE(at_once.has_value());
+  EXPECT_EQ(at_once->status().code(), Status::Code::kDataLoss);
   // Its neighbours still answer.
   const CellIndex far[] = {map_.geometry().CellAt(-3.0, 0.0)};
   ASSERT_NE(map_.geometry().TileOf(far[0]), k);

@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <functional>
+#include <optional>
 
 #include "bgkmap/v1/map_service.grpc.pb.h"
 #include "rpc/service_context.h"
@@ -80,9 +81,12 @@ class QueryControl {
 // Runs `work` on the query pool under the concurrent-query limit and finishes `reactor` with its
 // status (RESOURCE_EXHAUSTED without running it when the limit is reached; CANCELLED or
 // DEADLINE_EXCEEDED without running it when the call ended while it waited for a thread).
-// A query that ran OK is timed, request to answer, as `phase`.
-grpc::ServerUnaryReactor* RunUnaryQuery(ServiceContext& ctx, grpc::CallbackServerContext* call,
-                                        PrincipalRef who, RequestPhase phase,
-                                        std::function<grpc::Status(const QueryControl&)> work);
+// A query that ran OK is timed, request to answer, as `phase`. `now`, if given, is tried first
+// on the calling (gRPC) thread: a short answer that needs no wait is finished there, which saves
+// waking a pool thread on a busy machine; it returns empty to leave the query to `work`.
+grpc::ServerUnaryReactor* RunUnaryQuery(
+    ServiceContext& ctx, grpc::CallbackServerContext* call, PrincipalRef who, RequestPhase phase,
+    std::function<grpc::Status(const QueryControl&)> work,
+    const std::function<std::optional<grpc::Status>(const QueryControl&)>& now = nullptr);
 
 }  // namespace bgkmap
