@@ -3,6 +3,7 @@
 #include <malloc.h>
 
 #include <atomic>
+#include <cstdlib>
 #include <mutex>
 
 #include "bgkmap/core/thread_scratch.h"
@@ -25,6 +26,11 @@ void KeepLargeAllocationsInHeap() {
   mallopt(M_MMAP_THRESHOLD, kKeptMmapThreshold);
   mallopt(M_TRIM_THRESHOLD, kKeptTrimThreshold);
   keeping.store(true);
+}
+
+void LimitHeapArenas(int arenas) {
+  if (arenas <= 0 || std::getenv("MALLOC_ARENA_MAX") != nullptr) return;
+  mallopt(M_ARENA_MAX, arenas);
 }
 
 void BeginReturningFreedMemory() {

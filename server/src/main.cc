@@ -181,5 +181,6 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::from_str(config->log_level));
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e%z %^%l%$ %v");
   bgkmap::KeepLargeAllocationsInHeap();
+  bgkmap::LimitHeapArenas(config->malloc_arenas);
   return Serve(*config);
 }

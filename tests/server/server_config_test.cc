@@ -106,20 +106,23 @@ TEST(ServerConfigTest, StorageSection) {
   EXPECT_EQ(error("storage: {min_free_space_mb: 2000000000}").rfind("storage.min_free_space_mb", 0),
             0u);
   EXPECT_EQ(ServerConfig{}.storage.min_free_space_mb, 64u);
-  EXPECT_EQ(ServerConfig{}.storage.dense_tiles_mb, 64u);
+  EXPECT_EQ(ServerConfig{}.storage.dense_tiles_mb, 16u);
   EXPECT_EQ(error("storage: {dense_tiles_mb: -1}").rfind("storage.dense_tiles_mb", 0), 0u);
   EXPECT_EQ(error("storage: {dense_tiles_mb: 2000000000}").rfind("storage.dense_tiles_mb", 0), 0u);
   Result<ServerConfig> unpacked = ServerConfigFromYaml(YAML::Load("storage: {dense_tiles_mb: 0}"));
   ASSERT_TRUE(unpacked.ok()) << unpacked.status().ToString();  // a map in memory may pack
   EXPECT_EQ(unpacked->storage.dense_tiles_mb, 0u);
   EXPECT_EQ(error("server: {worker_nice: 20}").rfind("server.worker_nice", 0), 0u);
+  EXPECT_EQ(ServerConfig{}.malloc_arenas, 2);
+  EXPECT_EQ(error("server: {malloc_arenas: -1}").rfind("server.malloc_arenas", 0), 0u);
   Result<ServerConfig> bounded = ServerConfigFromYaml(
-      YAML::Load("server: {worker_nice: 0}\n"
+      YAML::Load("server: {worker_nice: 0, malloc_arenas: 0}\n"
                  "storage: {data_dir: /x, max_memory_mb: 512, verify_on_start: false}\n"));
   ASSERT_TRUE(bounded.ok()) << bounded.status().ToString();
   EXPECT_EQ(bounded->storage.max_memory_mb, 512u);
   EXPECT_FALSE(bounded->storage.verify_on_start);
   EXPECT_EQ(bounded->worker_nice, 0);
+  EXPECT_EQ(bounded->malloc_arenas, 0);
   ServerConfig o;
   ASSERT_TRUE(ApplyConfigOverride(o, "storage.data_dir=/x").ok());
   EXPECT_EQ(o.storage.data_dir, "/x");

@@ -11,6 +11,10 @@ namespace bgkmap {
 // start; bgkmapd does. Process-wide, so embedders decide.
 void KeepLargeAllocationsInHeap();
 
+// At most `arenas` glibc heap arenas (0: glibc's own limit), unless the environment sets
+// MALLOC_ARENA_MAX (the operator's word wins). Call once at start, before threads allocate.
+void LimitHeapArenas(int arenas);
+
 // Between these two calls memory freed on any thread goes back to the system as it is freed
 // (each arena's top is shrunk: with KeepLargeAllocationsInHeap it never is, and malloc_trim
 // releases free pages inside an arena, not its top); End also releases every arena's free pages

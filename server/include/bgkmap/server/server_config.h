@@ -81,7 +81,7 @@ struct StorageConfig {
   // recently are packed to their known cells (bit for bit, about 32 bytes per stored cell), and
   // made dense again when an operation next touches them: less memory for a unpacking cost on
   // the next scan or query there. With max_memory_mb, both count the real bytes.
-  uint64_t dense_tiles_mb = 64;
+  uint64_t dense_tiles_mb = 16;
   // verify_on_start: read and check every stored tile in the background after start, so that
   // damage is reported before a query meets it (tiles are otherwise read only on demand).
   bool verify_on_start = true;
@@ -202,6 +202,11 @@ struct ServerConfig {
   // worker_nice: the worker threads' nice increment (0..19): a planner waits on its query, while a
   // scan's integration can wait a few milliseconds, so on busy cores queries run first.
   int worker_nice = 10;
+  // malloc_arenas: glibc's heap arenas at most (0 = glibc's own limit, 8 per core). Threads that
+  // take in scans leave freed memory resident in arenas of their own; two arenas cut what the
+  // process holds above its tiles (docs/benchmarks.md, "Memory per known cell"). The
+  // environment's MALLOC_ARENA_MAX, when set, wins.
+  int malloc_arenas = 2;
   std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
   double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
   // metrics_address: host:port of the HTTP endpoint (`--http`, or `--metrics`): GET /metrics for
