@@ -212,6 +212,12 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
   return scan;
 }
 
+int ScanReachCells(const MapParams& params) {
+  const double reach = 2 * params.kernel_length + params.robot_radius +
+                       (params.dynamics == Dynamics::kOn ? params.clear_ray_length : 0.0);
+  return static_cast<int>(std::ceil(reach / params.resolution)) + 2;
+}
+
 PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep) {
   PreparedScan out;
   out.counts = scan.counts;

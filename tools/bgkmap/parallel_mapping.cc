@@ -13,16 +13,6 @@
 namespace bgkmap::cli {
 namespace {
 
-// How far a scan's observations change the map, in cells: an observation at i changes elevation
-// within l of i; a traversability value reads elevation within the robot radius and spreads
-// within l; a free-space ray changes cells up to clear_ray_length back from its return. Two cells
-// of margin absorb rounding. (The cluster's PartitionLayout grows its partitions by the same.)
-int HaloCells(const MapParams& p) {
-  const double reach = 2 * p.kernel_length + p.robot_radius +
-                       (p.dynamics == Dynamics::kOn ? p.clear_ray_length : 0.0);
-  return static_cast<int>(std::ceil(reach / p.resolution)) + 2;
-}
-
 // Runs fn(0..threads-1) on `threads` threads (the caller's included) and joins them.
 template <typename Fn>
 void RunOnThreads(int threads, Fn fn) {
@@ -128,7 +118,7 @@ std::vector<Band> CutIntoBands(const MapParams& params, const std::vector<Prepar
   Band band;
   band.along_x = along_x;
   for (const int64_t border :
-       CutBorders(cells, first, params.tile_size, HaloCells(params), count)) {
+       CutBorders(cells, first, params.tile_size, ScanReachCells(params), count)) {
     band.hi = border;
     bands.push_back(band);
     band.lo = border;
@@ -141,7 +131,7 @@ std::vector<Band> CutIntoBands(const MapParams& params, const std::vector<Prepar
 // Integrates every scan, restricted to the band's reach, into `map`, in scan order.
 StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan>& scans,
                          const Band& band, TerrainMap& map, io::ProgressBar* progress) {
-  const CellBox keep = band.Reach(HaloCells(params));
+  const CellBox keep = band.Reach(ScanReachCells(params));
   StageTimes times;
   PreparedScan restricted;
   for (size_t k = 0; k < scans.size(); ++k) {

@@ -1,7 +1,8 @@
 #include "cluster/partition_layout.h"
 
 #include <charconv>
-#include <cmath>
+
+#include "bgkmap/core/scan.h"
 
 namespace bgkmap::cluster {
 
@@ -22,14 +23,9 @@ std::optional<PartitionKey> ParsePartitionName(std::string_view name) {
 }
 
 PartitionLayout::PartitionLayout(const MapParams& params, int partition_tiles)
-    : geometry_(params.resolution, params.tile_size), partition_tiles_(partition_tiles) {
-  // An observation at i changes elevation within l of i; a traversability value at an observed
-  // cell reads elevation within the robot radius, and spreads within l; a free-space ray changes
-  // cells up to clear_ray_length back from its return. Two cells of margin absorb rounding.
-  const double reach = 2 * params.kernel_length + params.robot_radius +
-                       (params.dynamics == Dynamics::kOn ? params.clear_ray_length : 0.0);
-  halo_cells_ = static_cast<int>(std::ceil(reach / params.resolution)) + 2;
-}
+    : geometry_(params.resolution, params.tile_size),
+      partition_tiles_(partition_tiles),
+      halo_cells_(ScanReachCells(params)) {}
 
 PartitionKey PartitionLayout::PartitionOf(TileKey tile) const {
   return {FloorDiv(tile.x, partition_tiles_), FloorDiv(tile.y, partition_tiles_)};

@@ -96,4 +96,11 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
 // whole scan would, bit for bit (a cluster shard's halo, docs/scale-out.md).
 PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep);
 
+// How far, in cells, an observed cell's effects reach under `params` (the margin `keep` must
+// have around the cells a restricted scan is to change exactly): an observation changes
+// elevation within l; a traversability value reads elevation within the robot radius and spreads
+// within l; a free-space ray changes cells up to clear_ray_length back from its return. Two cells
+// of margin absorb rounding.
+int ScanReachCells(const MapParams& params);
+
 }  // namespace bgkmap
