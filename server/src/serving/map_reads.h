@@ -30,7 +30,7 @@ class MapReads {
   virtual Result<std::vector<CellEstimate>> ReadCells(std::span<const CellIndex> cells) = 0;
   // ReadCells() if it can answer at once, without waiting on a change, a lock or the store;
   // empty (call ReadCells() from a thread that may wait) otherwise. A short read on the thread
-  // that received the call saves the wake-up of another (docs/server.md, "Point queries").
+  // that received the call saves the wake-up of another (docs/server.md, "Concurrency").
   virtual std::optional<Result<std::vector<CellEstimate>>> TryReadCellsNow(
       std::span<const CellIndex> /*cells*/) {
     return std::nullopt;

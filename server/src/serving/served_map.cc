@@ -302,7 +302,7 @@ std::optional<Result<std::vector<CellEstimate>>> ServedMap::TryReadCellsNow(
   std::optional<TileLockTable::Guard> locked = table_.TryLockShared(keys);
   if (!locked) return std::nullopt;  // a change holds one of them
   std::optional<TileResidency::Pins> pins = residency_.TryPinInMemory(std::move(keys));
-  if (!pins) return std::nullopt;  // a tile to load or unpack, or eviction at work
+  if (!pins) return std::nullopt;  // a tile to load, or eviction at work
   return Result<std::vector<CellEstimate>>(table_.ReadCells(cells));
 }
 

@@ -45,25 +45,23 @@ grpc::ServerUnaryReactor* RunUnaryQuery(
     return reactor;
   }
   auto control = std::make_shared<QueryControl>(call, ctx.limits.max_query_seconds);
+  // A query that ran OK is timed; either way the call ends with its status.
+  auto finish = [&ctx, reactor, phase, received](grpc::Status status) {
+    if (status.ok()) ctx.latencies.of(phase).Record(std::chrono::steady_clock::now() - received);
+    reactor->Finish(std::move(status));
+  };
   if (now) {
-    std::optional<grpc::Status> answered = now(*control);
-    if (answered) {
-      if (answered->ok()) {
-        ctx.latencies.of(phase).Record(std::chrono::steady_clock::now() - received);
-      }
-      reactor->Finish(std::move(*answered));
+    if (std::optional<grpc::Status> answered = now(*control)) {
+      finish(std::move(*answered));
       return reactor;
     }
   }
-  boost::asio::post(ctx.query_pool,
-                    [&ctx, reactor, permit, control, phase, received, work = std::move(work)] {
-                      // A call that ended while it waited for a thread is not worked on.
-                      grpc::Status status = control->Check();
-                      if (status.ok()) status = work(*control);
-                      if (status.ok())
-                        ctx.latencies.of(phase).Record(std::chrono::steady_clock::now() - received);
-                      reactor->Finish(std::move(status));
-                    });
+  boost::asio::post(ctx.query_pool, [permit, control, finish, work = std::move(work)] {
+    // A call that ended while it waited for a thread is not worked on.
+    grpc::Status status = control->Check();
+    if (status.ok()) status = work(*control);
+    finish(std::move(status));
+  });
   return reactor;
 }
 
