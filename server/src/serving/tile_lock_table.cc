@@ -42,19 +42,7 @@ TileLockTable::Guard TileLockTable::Lock(std::span<const TileKey> exclusive,
   std::sort(wanted.begin(), wanted.end(), [](const auto& a, const auto& b) {
     return a.first != b.first ? a.first < b.first : a.second > b.second;
   });
-  Guard guard;
-  guard.table_ = this;
-  guard.held_.reserve(wanted.size());
-  {
-    std::lock_guard lock(mu_);
-    for (size_t i = 0; i < wanted.size(); ++i) {
-      if (i > 0 && wanted[i].first == wanted[i - 1].first) continue;
-      std::unique_ptr<Entry>& e = entries_[wanted[i].first];
-      if (!e) e = std::make_unique<Entry>();
-      ++e->users;
-      guard.held_.push_back({wanted[i].first, e.get(), wanted[i].second});
-    }
-  }
+  Guard guard = Register(wanted);
   for (const Guard::Held& h : guard.held_) {
     if (h.exclusive) {
       h.entry->mu.lock();
@@ -78,24 +66,31 @@ TileLockTable::Guard TileLockTable::LockRange(TileKey min, TileKey max) {
 }
 
 std::optional<TileLockTable::Guard> TileLockTable::TryLockShared(std::span<const TileKey> keys) {
-  Guard guard;
-  guard.table_ = this;
-  guard.held_.reserve(keys.size());
-  {
-    std::lock_guard lock(mu_);
-    for (TileKey k : keys) {
-      std::unique_ptr<Entry>& e = entries_[k];
-      if (!e) e = std::make_unique<Entry>();
-      ++e->users;
-      guard.held_.push_back({k, e.get(), false});
-    }
-  }
+  std::vector<std::pair<TileKey, bool>> wanted;
+  wanted.reserve(keys.size());
+  for (TileKey k : keys) wanted.emplace_back(k, false);
+  Guard guard = Register(wanted);
   for (size_t i = 0; i < guard.held_.size(); ++i) {
     if (guard.held_[i].entry->mu.try_lock_shared()) continue;
     for (size_t j = 0; j < i; ++j) guard.held_[j].entry->mu.unlock_shared();
     Unref(guard.held_);
     guard.held_.clear();
     return std::nullopt;
+  }
+  return guard;
+}
+
+TileLockTable::Guard TileLockTable::Register(std::span<const std::pair<TileKey, bool>> wanted) {
+  Guard guard;
+  guard.table_ = this;
+  guard.held_.reserve(wanted.size());
+  std::lock_guard lock(mu_);
+  for (size_t i = 0; i < wanted.size(); ++i) {
+    if (i > 0 && wanted[i].first == wanted[i - 1].first) continue;
+    std::unique_ptr<Entry>& e = entries_[wanted[i].first];
+    if (!e) e = std::make_unique<Entry>();
+    ++e->users;
+    guard.held_.push_back({wanted[i].first, e.get(), wanted[i].second});
   }
   return guard;
 }

@@ -14,6 +14,7 @@
 #include <shared_mutex>
 #include <span>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "bgkmap/core/grid.h"
@@ -63,6 +64,9 @@ class TileLockTable {
   size_t entry_count() const;
 
  private:
+  // A guard naming `wanted` (ascending keys, the strongest mode of a key first; later entries of
+  // a key are skipped), each entry counted as used, none of them locked yet.
+  Guard Register(std::span<const std::pair<TileKey, bool>> wanted);
   void Unref(const std::vector<Guard::Held>& held);
 
   mutable std::mutex mu_;
