@@ -193,6 +193,7 @@ struct MapServer::Impl {
     o.on_over_memory = [this] { maintenance->RequestEviction(); };
     o.on_tiles_changed = [this](const std::vector<TileKey>& changed) { hub.Publish(changed); };
     o.worker_threads = ThreadCount(cfg.worker_threads);
+    o.scan_bands = cfg.scan_bands > 0 ? cfg.scan_bands : static_cast<int>(o.worker_threads);
     return o;
   }
 
@@ -516,6 +517,7 @@ ServerReport MapServer::Report() const {
   r.known_cells = state.summary.known_cells;
   if (impl_->served != nullptr) {
     r.peak_parallel_integrations = impl_->served->peak_parallel_integrations();
+    r.banded_scans = impl_->served->banded_scans();
   }
   r.robots = std::move(state.robots);
   return r;

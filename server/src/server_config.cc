@@ -82,6 +82,8 @@ std::vector<ServerKey> ListenerKeys() {
           "worker_nice", [](ServerConfig & c) -> auto& { return c.worker_nice; }),
       Key<int>(
           "malloc_arenas", [](ServerConfig & c) -> auto& { return c.malloc_arenas; }),
+      Key<int>(
+          "scan_bands", [](ServerConfig & c) -> auto& { return c.scan_bands; }),
       Key<std::string>(
           "log_level", [](ServerConfig & c) -> auto& { return c.log_level; }),
       Key<double>(
@@ -513,6 +515,7 @@ Status ValidateServerKeys(const ServerConfig& c) {
   if (c.query_threads < 0 || c.query_threads > 1024) return Bad("query_threads", "0..1024");
   if (c.worker_nice < 0 || c.worker_nice > 19) return Bad("worker_nice", "0..19");
   if (c.malloc_arenas < 0 || c.malloc_arenas > 1024) return Bad("malloc_arenas", "0..1024");
+  if (c.scan_bands < 0 || c.scan_bands > 64) return Bad("scan_bands", "0..64");
   if (c.shutdown_timeout_s < 0) return Bad("shutdown_timeout_s", "must be >= 0");
   return Status::Ok();
 }

@@ -115,14 +115,18 @@ TEST(ServerConfigTest, StorageSection) {
   EXPECT_EQ(error("server: {worker_nice: 20}").rfind("server.worker_nice", 0), 0u);
   EXPECT_EQ(ServerConfig{}.malloc_arenas, 2);
   EXPECT_EQ(error("server: {malloc_arenas: -1}").rfind("server.malloc_arenas", 0), 0u);
+  EXPECT_EQ(ServerConfig{}.scan_bands, 1);
+  EXPECT_EQ(error("server: {scan_bands: -1}").rfind("server.scan_bands", 0), 0u);
+  EXPECT_EQ(error("server: {scan_bands: 65}").rfind("server.scan_bands", 0), 0u);
   Result<ServerConfig> bounded = ServerConfigFromYaml(
-      YAML::Load("server: {worker_nice: 0, malloc_arenas: 0}\n"
+      YAML::Load("server: {worker_nice: 0, malloc_arenas: 0, scan_bands: 0}\n"
                  "storage: {data_dir: /x, max_memory_mb: 512, verify_on_start: false}\n"));
   ASSERT_TRUE(bounded.ok()) << bounded.status().ToString();
   EXPECT_EQ(bounded->storage.max_memory_mb, 512u);
   EXPECT_FALSE(bounded->storage.verify_on_start);
   EXPECT_EQ(bounded->worker_nice, 0);
   EXPECT_EQ(bounded->malloc_arenas, 0);
+  EXPECT_EQ(bounded->scan_bands, 0);
   ServerConfig o;
   ASSERT_TRUE(ApplyConfigOverride(o, "storage.data_dir=/x").ok());
   EXPECT_EQ(o.storage.data_dir, "/x");

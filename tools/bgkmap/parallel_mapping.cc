@@ -7,7 +7,7 @@
 #include <optional>
 #include <thread>
 
-#include "band_cut.h"
+#include "bgkmap/core/scan_bands.h"
 #include "bgkmap/io/progress_bar.h"
 
 namespace bgkmap::cli {
@@ -74,63 +74,9 @@ PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int 
   return out;
 }
 
-// A band of whole tiles along one axis: cells with lo <= coordinate < hi.
-struct Band {
-  bool along_x = true;
-  int64_t lo = std::numeric_limits<int>::min();
-  int64_t hi = int64_t{std::numeric_limits<int>::max()} + 1;
-
-  bool IsWholeMap() const { return lo == Band{}.lo && hi == Band{}.hi; }
-  bool Owns(TileKey key, int tile_size) const {
-    const int64_t first = int64_t{along_x ? key.x : key.y} * tile_size;
-    return first >= lo && first < hi;
-  }
-  // The band grown by `halo` cells along its axis, the whole map across it.
-  CellBox Reach(int halo) const {
-    constexpr int kLow = std::numeric_limits<int>::min(), kHigh = std::numeric_limits<int>::max();
-    const int a = static_cast<int>(std::max<int64_t>(kLow, lo - halo));
-    const int b = static_cast<int>(std::min<int64_t>(kHigh, hi - 1 + halo));
-    return along_x ? CellBox{{a, kLow}, {b, kHigh}} : CellBox{{kLow, a}, {kHigh, b}};
-  }
-};
-
-// Cuts the map into up to `count` bands along its longer axis, at tile borders, so that the
-// slowest band's work, the observed cells within its halo, is the least (band_cut.h).
-std::vector<Band> CutIntoBands(const MapParams& params, const std::vector<PreparedScan>& scans,
-                               int count) {
-  CellBox box;
-  for (const PreparedScan& s : scans) {
-    for (const ObservedCell& c : s.cells) box.Extend(c.cell);
-  }
-  const bool along_x = box.width() >= box.height();
-  const int64_t extent = along_x ? box.width() : box.height();
-  // The cut counts the cells of each coordinate along the axis: a map longer than 2^21 cells
-  // (210 km at 0.1 m: a stray point far from the rest) is integrated as one band.
-  if (count <= 1 || box.empty() || extent > (int64_t{1} << 21)) return {Band{}};
-  const int first = along_x ? box.min.x : box.min.y;
-  std::vector<int64_t> cells(static_cast<size_t>(extent), 0);
-  for (const PreparedScan& s : scans) {
-    for (const ObservedCell& c : s.cells) {
-      ++cells[static_cast<size_t>((along_x ? c.cell.x : c.cell.y) - first)];
-    }
-  }
-  std::vector<Band> bands;
-  Band band;
-  band.along_x = along_x;
-  for (const int64_t border :
-       CutBorders(cells, first, params.tile_size, ScanReachCells(params), count)) {
-    band.hi = border;
-    bands.push_back(band);
-    band.lo = border;
-  }
-  band.hi = Band{}.hi;
-  bands.push_back(band);
-  return bands;
-}
-
 // Integrates every scan, restricted to the band's reach, into `map`, in scan order.
 StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan>& scans,
-                         const Band& band, TerrainMap& map, io::ProgressBar* progress) {
+                         const TileBand& band, TerrainMap& map, io::ProgressBar* progress) {
   const CellBox keep = band.Reach(ScanReachCells(params));
   StageTimes times;
   PreparedScan restricted;
@@ -167,7 +113,7 @@ Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const Scan
     totals->counts.dropped_height += s.counts.dropped_height;
     totals->counts.dropped_out_of_bounds += s.counts.dropped_out_of_bounds;
   }
-  const std::vector<Band> bands = CutIntoBands(params, prepared.scans, threads);
+  const std::vector<TileBand> bands = CutScansIntoBands(params, prepared.scans, threads);
   std::vector<std::unique_ptr<TerrainMap>> maps(bands.size());
   std::vector<StageTimes> times(bands.size());
   // One bar, as the first band's thread integrates (the bands keep about the same pace).

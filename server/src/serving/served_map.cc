@@ -1,6 +1,7 @@
 #include "serving/served_map.h"
 
 #include <algorithm>
+#include <boost/asio/post.hpp>
 #include <future>
 #include <set>
 #include <string>
@@ -23,7 +24,11 @@ Status CorruptTile(TileKey k) {
 ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
                      boost::asio::thread_pool& workers, ServedMapOptions options)
     : durability_(durability),
-      table_(std::move(map), /*keep_cleared=*/durability.persists()),
+      table_(std::move(map), /*keep_cleared=*/durability.persists(),
+             ScanBandOptions{options.scan_bands, options.scan_band_cells,
+                             [&workers](std::function<void()> band) {
+                               boost::asio::post(workers, std::move(band));
+                             }}),
       residency_(table_, durability, durability.persists(), options.tile_memory_limit_bytes,
                  std::move(options.on_over_memory), options.dense_tile_limit_bytes,
                  options.pack_after_idle),

@@ -68,6 +68,10 @@ struct ServedMapOptions {
   // (IdleScratchRelease).
   size_t worker_threads = 1;
   std::chrono::milliseconds scratch_idle = std::chrono::seconds(2);
+  // A large scan's integration in up to this many bands on the workers, each of at least
+  // scan_band_cells observed cells (ScanBandOptions; 1: whole scans only).
+  int scan_bands = 1;
+  size_t scan_band_cells = ScanBandOptions{}.cells_per_band;
 };
 
 class ServedMap final : public MapPort {
@@ -162,6 +166,8 @@ class ServedMap final : public MapPort {
   Checkpointer& checkpointer() { return checkpointer_; }
   const Checkpointer& checkpointer() const { return checkpointer_; }
   uint32_t peak_parallel_integrations() const { return table_.peak_parallel_integrations(); }
+  // Scans integrated in bands (ServedMapOptions::scan_bands).
+  uint64_t banded_scans() const { return table_.banded_scans(); }
 
   // Blocks until every admitted change has finished.
   void WaitIdle() { scheduler_.WaitIdle(); }

@@ -5,6 +5,8 @@
 #include <mutex>
 #include <sstream>
 
+#include "bgkmap/core/scan_bands.h"
+
 namespace bgkmap {
 namespace {
 
@@ -26,8 +28,8 @@ std::vector<std::unique_ptr<Tile>> CopyEach(const TerrainMap& map, std::span<con
 
 }  // namespace
 
-TileTable::TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared)
-    : map_(std::move(map)), keep_cleared_(keep_cleared) {
+TileTable::TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared, ScanBandOptions bands)
+    : map_(std::move(map)), keep_cleared_(keep_cleared), bands_(std::move(bands)) {
   resident_.store(map_->tile_count());
 }
 
@@ -58,9 +60,33 @@ ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version) {
   uint32_t peak = peak_integrations_.load();
   while (now > peak && !peak_integrations_.compare_exchange_weak(peak, now)) {
   }
-  ScanReport report = map_->Integrate(scan, window, version);
+  ScanReport report = Integrate(scan, window, version, /*alone=*/now == 1);
   integrations_.fetch_sub(1);
   return report;
+}
+
+ScanReport TileTable::Integrate(const PreparedScan& scan, const TileWindow& window,
+                                uint64_t version, bool alone) {
+  const size_t most =
+      alone && bands_.offer && bands_.cells_per_band > 0
+          ? std::min<size_t>(bands_.bands, scan.cells.size() / bands_.cells_per_band)
+          : 1;
+  if (most < 2) return map_->Integrate(scan, window, version);
+  std::vector<BandIntegration> parts;
+  for (const TileBand& band : CutScansIntoBands(params(), {&scan, 1}, static_cast<int>(most))) {
+    std::optional<BandIntegration> part = BandIntegration::Make(params(), scan, window, band);
+    if (!part) return map_->Integrate(scan, window, version);  // (never for a cut's bands)
+    parts.push_back(std::move(*part));
+  }
+  if (parts.size() < 2) return map_->Integrate(scan, window, version);
+  std::vector<ScanReport> reports(parts.size());
+  std::vector<std::function<void()>> tasks;
+  for (size_t b = 0; b < parts.size(); ++b) {
+    tasks.push_back([&, b] { reports[b] = parts[b].Run(*map_, version); });
+  }
+  RunSharingWithPool(tasks, bands_.offer);
+  banded_scans_.fetch_add(1);
+  return MergeBandReports(scan, std::move(reports));
 }
 
 std::vector<TileKey> TileTable::ClearBox(const CellBox& box, uint64_t version) {

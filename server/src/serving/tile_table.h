@@ -29,16 +29,26 @@
 #include "bgkmap/core/scan_integrator.h"
 #include "bgkmap/core/terrain_map.h"
 #include "bgkmap/core/tile_summary.h"
+#include "serving/shared_tasks.h"
 #include "serving/tile_lock_table.h"
 #include "serving/writer_priority_mutex.h"
 
 namespace bgkmap {
 
+// How one scan's integration is cut into bands (core/scan_bands.h) that run on the ingest
+// workers: a dense scan then takes the cores the other scans leave idle. The map is the same bit
+// for bit either way.
+struct ScanBandOptions {
+  int bands = 1;                 // most bands per scan (1: every scan whole)
+  size_t cells_per_band = 8192;  // observed cells a band needs at least (fewer: not worth a cut)
+  Offer offer;                   // hands a band to the workers (RunSharingWithPool)
+};
+
 class TileTable final {
  public:
   // `keep_cleared`: a tile a clear empties stays (all zero, stamped) until a checkpoint deletes
   // its stored copy; otherwise the uncleared stored tile could be loaded back.
-  TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared);
+  TileTable(std::unique_ptr<TerrainMap> map, bool keep_cleared, ScanBandOptions bands = {});
 
   const MapParams& params() const { return map_->params(); }
   const GridGeometry& geometry() const { return map_->geometry(); }
@@ -121,6 +131,8 @@ class TileTable final {
 
   // Most ApplyScan() calls ever inside Integrate() at once.
   uint32_t peak_parallel_integrations() const { return peak_integrations_.load(); }
+  // Scans integrated in bands (ScanBandOptions).
+  uint64_t banded_scans() const { return banded_scans_.load(); }
 
  private:
   // Call with table_mu_ held after the tile table changed size.
@@ -130,6 +142,10 @@ class TileTable final {
   void UnpackLocked(TileKey key);
   void ForgetPackedLocked(TileKey key);
   void CountPackedLocked(TileKey key);
+  // Integrates `scan` into its window: in bands when it is large enough and `alone` (no other
+  // scan integrating, so the workers may be free), whole otherwise.
+  ScanReport Integrate(const PreparedScan& scan, const TileWindow& window, uint64_t version,
+                       bool alone);
 
   std::unique_ptr<TerrainMap> map_;
   const bool keep_cleared_;
@@ -142,6 +158,8 @@ class TileTable final {
   mutable std::shared_mutex table_mu_;
   std::atomic<uint32_t> integrations_{0};
   std::atomic<uint32_t> peak_integrations_{0};
+  const ScanBandOptions bands_;
+  std::atomic<uint64_t> banded_scans_{0};
 };
 
 }  // namespace bgkmap

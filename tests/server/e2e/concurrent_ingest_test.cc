@@ -72,6 +72,26 @@ uint32_t RunTwoRobots(const std::vector<OwnedScan>& a, const std::vector<OwnedSc
   return fixture.server().Report().peak_parallel_integrations;
 }
 
+// server.scan_bands: one robot's dense scans (the real Ouster street, ~30k observed cells each),
+// each cut into bands that integrate on the workers beside each other, give the map of a
+// sequential integration of the whole scans, and the same region answer.
+TEST(ConcurrentIngestTest, ScansInBandsEqualSequentialIntegration) {
+  ServerConfig config = TestConfig();
+  config.scan_bands = 3;
+  config.worker_threads = 3;
+  ServerFixture fixture(config);
+  const std::vector<OwnedScan>& scans = StreetScans();
+  const std::vector<ScanAck> acks = Stream(fixture.client(), scans);
+  const std::vector<const OwnedScan*> order = VersionOrder({{&scans, acks}});
+  EXPECT_EQ(fixture.server().Report().banded_scans, scans.size()) << "a scan integrated whole";
+  std::unique_ptr<TerrainMap> sequential = OfflineMap(order);
+  EXPECT_TRUE(MapsEqual(*fixture.server().SnapshotMap(), *sequential));
+  const MetricBox box{-60, -60, 60, 60};
+  RpcResult<Raster> served = fixture.client().QueryRegion({box, {}, 1});
+  ASSERT_TRUE(served.ok()) << served.status().ToString();
+  EXPECT_TRUE(RastersMatch(*served, OfflineRegion(*sequential, box), 0.0));
+}
+
 TEST(ConcurrentIngestTest, OverlappingRobotsEqualSequentialIntegrationInAckOrder) {
   // Every scan overlaps every other: none may ever integrate beside another.
   EXPECT_EQ(RunTwoRobots(SubScans("a", 5), SubScans("b", 4)), 1u);

@@ -27,6 +27,7 @@ struct ServerReport {
   uint64_t known_cells = 0;
   // Most scans ever integrating at the same moment: > 1 shows disjoint scans ran in parallel.
   uint32_t peak_parallel_integrations = 0;
+  uint64_t banded_scans = 0;  // scans integrated in bands (server.scan_bands)
   std::vector<RobotStats> robots;  // sorted by id
 };
 

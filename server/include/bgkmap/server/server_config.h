@@ -207,6 +207,10 @@ struct ServerConfig {
   // process holds above its tiles (docs/benchmarks.md, "Memory per known cell"). The
   // environment's MALLOC_ARENA_MAX, when set, wins.
   int malloc_arenas = 2;
+  // scan_bands: a dense scan's integration is cut into at most this many bands of whole tiles,
+  // run on idle workers beside each other; the map is the same bit for bit (0 = one band per
+  // worker thread, 1 = every scan on one thread; docs/benchmarks.md "A scan in bands").
+  int scan_bands = 1;
   std::string log_level = "info";    // log_level: trace|debug|info|warn|error|off
   double shutdown_timeout_s = 30.0;  // shutdown_timeout_s: grace for in-flight calls
   // metrics_address: host:port of the HTTP endpoint (`--http`, or `--metrics`): GET /metrics for

@@ -1,9 +1,9 @@
-#include "band_cut.h"
+#include "bgkmap/core/band_cut.h"
 
 #include <algorithm>
 #include <limits>
 
-namespace bgkmap::cli {
+namespace bgkmap {
 namespace {
 
 // Cells with a coordinate in [a, b), from the running sums (sums[i]: cells before first + i).
@@ -82,4 +82,25 @@ std::vector<int64_t> CutBorders(const std::vector<int64_t>& cells, int64_t first
   return GreedyCut(count, candidates, halo, bands, hi, &fits);
 }
 
-}  // namespace bgkmap::cli
+CellBox TileBand::Reach(int halo) const {
+  constexpr int kLow = std::numeric_limits<int>::min(), kHigh = std::numeric_limits<int>::max();
+  const int a = static_cast<int>(std::max<int64_t>(kLow, lo - halo));
+  const int b = static_cast<int>(std::min<int64_t>(kHigh, hi - 1 + halo));
+  return along_x ? CellBox{{a, kLow}, {b, kHigh}} : CellBox{{kLow, a}, {kHigh, b}};
+}
+
+std::vector<TileBand> BandsBetween(const std::vector<int64_t>& borders, bool along_x) {
+  std::vector<TileBand> bands;
+  TileBand band;
+  band.along_x = along_x;
+  for (const int64_t border : borders) {
+    band.hi = border;
+    bands.push_back(band);
+    band.lo = border;
+  }
+  band.hi = TileBand{}.hi;
+  bands.push_back(band);
+  return bands;
+}
+
+}  // namespace bgkmap

@@ -1,5 +1,5 @@
-// Where `bgkmap build --threads N` cuts the map into bands (tools/bgkmap/band_cut.h).
-#include "band_cut.h"
+// Where the map is cut into bands of whole tiles (core/band_cut.h).
+#include "bgkmap/core/band_cut.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <limits>
 #include <random>
 
-namespace bgkmap::cli {
+namespace bgkmap {
 namespace {
 
 // The work of the band [lo, hi): the cells within `halo` of it.
@@ -98,4 +98,4 @@ TEST(BandCutTest, LeastLargestWorkAgainstEveryCut) {
 }
 
 }  // namespace
-}  // namespace bgkmap::cli
+}  // namespace bgkmap

@@ -1,0 +1,161 @@
+// A scan integrated in bands on several threads (core/scan_bands.h) changes the map exactly as
+// the whole scan does: every tile, bit for bit, with its version and stamp, and the same report
+// of changed tiles and blocks. Scans that clear a vanished obstacle (free-space rays), a
+// vehicle's box footprint and forgetting are among them.
+#include "bgkmap/core/scan_bands.h"
+
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <functional>
+#include <string>
+#include <thread>
+
+#include "synthetic_terrain.h"
+
+namespace bgkmap {
+namespace {
+
+// Rolling ground; while `boxes`, a row of 0.6 m boxes 0.8 m long every 1.5 m along x, |y| < 1
+// (parked cars that then drive off: wherever a band's border falls, rays clear one near it).
+testing::Surface Ground(bool boxes) {
+  return [boxes](double x, double y) {
+    const bool in_box = boxes && std::fmod(x + 30.0, 1.5) < 0.8 && std::abs(y) < 1.0;
+    return testing::RollingWithStep(x, y) + (in_box ? 0.6 : 0.0);
+  };
+}
+
+struct Case {
+  Method method;
+  bool forgetting_and_box;  // half_life_s and a footprint box
+};
+
+MapParams ParamsFor(const Case& c) {
+  MapParams p;
+  p.resolution = 0.1;
+  p.tile_size = 8;  // many tiles across the halo (31 cells), so that bands cut between them
+  p.method = c.method;
+  p.sensor_height = 1.0;
+  if (c.forgetting_and_box) {
+    p.half_life_s = 2.0;
+    p.footprint_length = 2.0;
+    p.footprint_width = 1.0;
+  }
+  return p;
+}
+
+std::vector<PreparedScan> MakeScans(const MapParams& p) {
+  std::vector<PreparedScan> scans;
+  for (int s = 0; s < 6; ++s) {
+    const Eigen::Vector3d origin(0.7 * s, 0.2 * s, 1.0);
+    const auto points = testing::SampleSurface(Ground(s < 2), origin, 7.0, 9000, 300 + s);
+    PreparedScan scan = std::move(PrepareScan(p, points, testing::At(origin))).value();
+    scan.stamp_ns = 1'000'000'000 + s * 300'000'000LL;
+    scans.push_back(std::move(scan));
+  }
+  return scans;
+}
+
+void ExpectSameTiles(const TerrainMap& a, const TerrainMap& b) {
+  EXPECT_EQ(a.tile_count(), b.tile_count());
+  a.ForEachTile([&](TileKey key, const Tile& ta) {
+    const Tile* tb = b.FindTile(key);
+    ASSERT_NE(tb, nullptr) << key.x << "," << key.y;
+    EXPECT_TRUE(ta == *tb) << "tile " << key.x << "," << key.y;
+    EXPECT_EQ(ta.version(), tb->version()) << key.x << "," << key.y;
+  });
+}
+
+// Integrates `scan` into `map` in `bands`, one thread each; returns the merged report.
+ScanReport IntegrateInBands(TerrainMap& map, const PreparedScan& scan, uint64_t version,
+                            const std::vector<TileBand>& bands) {
+  const TileWindow whole = map.MakeWindow(scan);
+  std::vector<BandIntegration> parts;
+  for (const TileBand& band : bands) {
+    std::optional<BandIntegration> part = BandIntegration::Make(map.params(), scan, whole, band);
+    EXPECT_TRUE(part.has_value());
+    if (!part) return {};
+    parts.push_back(std::move(*part));
+  }
+  std::vector<ScanReport> reports(parts.size());
+  std::vector<std::thread> threads;
+  for (size_t b = 0; b < parts.size(); ++b) {
+    threads.emplace_back([&, b] { reports[b] = parts[b].Run(map, version); });
+  }
+  for (std::thread& t : threads) t.join();
+  return MergeBandReports(scan, std::move(reports));
+}
+
+// Integrates every scan whole into one map and in bands into another and compares them. `cut`
+// gives a scan's bands.
+void ExpectBandsChangeAsTheWhole(
+    const MapParams& p, const std::function<std::vector<TileBand>(const PreparedScan&)>& cut) {
+  const std::vector<PreparedScan> scans = MakeScans(p);
+  auto whole = std::move(TerrainMap::Create(p)).value();
+  auto banded = std::move(TerrainMap::Create(p)).value();
+  uint64_t contradicted = 0;
+  for (size_t k = 0; k < scans.size(); ++k) {
+    const TileWindow window = whole->MakeWindow(scans[k]);
+    const ScanReport expected = whole->Integrate(scans[k], window, k + 1);
+    contradicted += expected.contradicted_cells;
+    const ScanReport got = IntegrateInBands(*banded, scans[k], k + 1, cut(scans[k]));
+    EXPECT_EQ(got.changed_tiles, expected.changed_tiles) << "scan " << k;
+    EXPECT_EQ(got.changed_blocks, expected.changed_blocks) << "scan " << k;
+    EXPECT_EQ(got.observed_cells, expected.observed_cells);
+  }
+  EXPECT_GT(contradicted, 0u) << "no free-space ray cleared a vanished box";
+  ExpectSameTiles(*whole, *banded);
+}
+
+class ScanBandsTest : public ::testing::TestWithParam<Case> {};
+
+TEST_P(ScanBandsTest, BandsOfTheCutChangeTheMapAsTheWholeScan) {
+  const MapParams p = ParamsFor(GetParam());
+  for (const int count : {2, 3, 5}) {
+    size_t most_bands = 0;
+    ExpectBandsChangeAsTheWhole(p, [&](const PreparedScan& scan) {
+      std::vector<TileBand> bands = CutScansIntoBands(p, {&scan, 1}, count);
+      most_bands = std::max(most_bands, bands.size());
+      return bands;
+    });
+    EXPECT_EQ(most_bands, static_cast<size_t>(count)) << "the cut made fewer bands than asked";
+  }
+}
+
+// The cut puts its borders where the cells are densest, near the sensor, where rays are high;
+// borders far from it are crossed low by the rays of returns beyond them, which clear a box on
+// the other side (a halo without the rays' reach fails here).
+TEST_P(ScanBandsTest, BandsCutAnywhereChangeTheMapAsTheWholeScan) {
+  const MapParams p = ParamsFor(GetParam());
+  for (const std::vector<int64_t>& borders :
+       std::vector<std::vector<int64_t>>{{56}, {-40}, {-48, 24, 64}}) {
+    for (const bool along_x : {true, false}) {
+      ExpectBandsChangeAsTheWhole(
+          p, [&](const PreparedScan&) { return BandsBetween(borders, along_x); });
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Methods, ScanBandsTest,
+    ::testing::Values(Case{Method::kBgkPlus, false}, Case{Method::kBgkPlus, true},
+                      Case{Method::kBgkLocalLinear, false}, Case{Method::kBgkObstacle, true}),
+    [](const ::testing::TestParamInfo<Case>& param_info) {
+      std::string name;
+      for (char ch : MethodName(param_info.param.method)) {
+        if (std::isalnum(static_cast<unsigned char>(ch))) name += ch;
+        if (ch == '+') name += "plus";
+      }
+      return name + (param_info.param.forgetting_and_box ? "ForgettingBox" : "");
+    });
+
+TEST(ScanBandsTest, OneBandWhenThereIsNothingToCut) {
+  MapParams p;
+  const PreparedScan empty;
+  EXPECT_TRUE(CutScansIntoBands(p, {&empty, 1}, 4).front().IsWholeMap());
+  const std::vector<PreparedScan> scans = MakeScans(p);
+  EXPECT_EQ(CutScansIntoBands(p, scans, 1).size(), 1u);
+}
+
+}  // namespace
+}  // namespace bgkmap
