@@ -68,8 +68,8 @@ ScanReport TileTable::ApplyScan(const PreparedScan& scan, uint64_t version) {
 ScanReport TileTable::Integrate(const PreparedScan& scan, const TileWindow& window,
                                 uint64_t version, bool alone) {
   const size_t most =
-      alone && bands_.offer && bands_.cells_per_band > 0
-          ? std::min<size_t>(bands_.bands, scan.cells.size() / bands_.cells_per_band)
+      alone && bands_.bands > 1 && bands_.offer && bands_.cells_per_band > 0
+          ? std::min(static_cast<size_t>(bands_.bands), scan.cells.size() / bands_.cells_per_band)
           : 1;
   if (most < 2) return map_->Integrate(scan, window, version);
   std::vector<BandIntegration> parts;
