@@ -13,8 +13,9 @@
 #            cli and python suites run under ASan in `asan` only. docs/testing.md has the times
 #            that decided it.
 #   tsan  TSan over the server's map-serving and durability layers without gRPC or RocksDB
-#         (ServedMap, ChangeScheduler, TileResidency, TileLockTable, MapSummary, WatchHub: the
-#         threaded core, tests/server/serving/), in build-tsan/. Not the gRPC or RocksDB suites: Debian's gRPC,
+#         (ServedMap, ChangeScheduler, TileResidency, TileLockTable, MapSummary, WatchHub, a scan
+#         in bands on threads and their hand-off: the threaded core, tests/server/serving/), in
+#         build-tsan/. Not the gRPC or RocksDB suites: Debian's gRPC,
 #         abseil and RocksDB are not built with TSan, so their internal hand-offs (a message or a
 #         write batch passed between threads through their own atomics) are reported as races in
 #         our frames; docs/testing.md lists them. tests/sanitizers/tsan.supp is for library-only
@@ -31,7 +32,7 @@ ROOT=$PWD
 stages=("$@")
 [ ${#stages[@]} -gt 0 ] || stages=(asan tsan)
 jobs=$(nproc)
-TSAN_SUITES='^(ChangeSchedulerTest|IdleScratchReleaseTest|MapSummaryIndexTest|MapSummaryTest|ResidencyTest|ServedMapChangesTest|LatencyHistogramTest|ServerConfigTest|TileLockTableTest|TileResidencyTest|WatchHubTest)\.'
+TSAN_SUITES='^(Methods/)?(ChangeSchedulerTest|ScanBandsTest|ScanBandsServedTest|SharedTasksTest|IdleScratchReleaseTest|MapSummaryIndexTest|MapSummaryTest|ResidencyTest|ServedMapChangesTest|LatencyHistogramTest|ServerConfigTest|TileLockTableTest|TileResidencyTest|WatchHubTest)\.'
 bash scripts/install-deps.sh
 
 # -O1: compiles much faster than Release's -O3 and is what the sanitizers' manuals recommend.
@@ -89,7 +90,8 @@ for stage in "${stages[@]}"; do
       configure build-tsan thread
       cmake --build build-tsan -j"$jobs" --target served_map_changes_test tile_residency_test \
         map_summary_test change_scheduler_test tile_lock_table_test watch_hub_test server_config_test \
-        latency_histogram_test idle_scratch_release_test
+        latency_histogram_test idle_scratch_release_test scan_bands_test scan_bands_served_test \
+        shared_tasks_test
       echo "sanitize: tsan built in $((SECONDS - start)) s"
       reports=$(fresh_reports build-tsan)
       # detect_deadlocks=0: TSan's lock-order detector aborts beyond 64 locks held by one thread,
