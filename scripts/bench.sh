@@ -9,6 +9,11 @@ cmake --build build -j"$(nproc)" --target scan_update_benchmark server_load bgkm
 mkdir -p out/bench
 build/bench/scan_update_benchmark --benchmark_counters_tabular=true --benchmark_min_time=2 \
   | tee out/bench/scan_update.txt
+# One dense real scan in two bands on two threads against whole (docs/benchmarks.md, "A scan in
+# bands on the server").
+cmake --build build -j"$(nproc)" --target scan_bands
+build/bench/scan_bands "${BGKMAP_SHARED_DATA:-../shared/data}/kitti_raw_0048" \
+  --config experiments/robots/car_kitti.yaml --bands 2 --rounds 5 | tee out/bench/scan_bands.txt
 
 ADDR="127.0.0.1:${BGKMAP_BENCH_PORT:-50571}"
 build/server/bgkmapd --listen "$ADDR" >out/bench/bgkmapd.log 2>&1 &
