@@ -49,6 +49,14 @@ std::vector<PreparedScan> PrepareDrive(const std::string& dir, const MapParams& 
   return scans;
 }
 
+// Runs the first task here and each other on a thread of its own.
+void OnThreads(std::span<const std::function<void()>> tasks) {
+  std::vector<std::thread> others;
+  for (size_t i = 1; i < tasks.size(); ++i) others.emplace_back(tasks[i]);
+  if (!tasks.empty()) tasks[0]();
+  for (std::thread& t : others) t.join();
+}
+
 struct Run {
   double wall_s = 0, cpu_s = 0;
   std::unique_ptr<TerrainMap> map;
@@ -65,18 +73,10 @@ Run Integrate(const MapParams& params, const std::vector<PreparedScan>& scans, i
       run.map->Integrate(scans[k], window, k + 1);
       continue;
     }
-    std::vector<BandIntegration> parts;
-    for (const TileBand& band : CutScansIntoBands(params, {&scans[k], 1}, bands)) {
-      std::optional<BandIntegration> part = BandIntegration::Make(params, scans[k], window, band);
-      if (!part) Die("a band's tile is missing from the window");
-      parts.push_back(std::move(*part));
+    const std::vector<TileBand> cut = CutScansIntoBands(params, {&scans[k], 1}, bands);
+    if (!IntegrateInBands(*run.map, scans[k], window, cut, k + 1, OnThreads)) {
+      Die("a band's tile is missing from the window");
     }
-    std::vector<std::thread> others;
-    for (size_t b = 1; b < parts.size(); ++b) {
-      others.emplace_back([&, b] { parts[b].Run(*run.map, k + 1); });
-    }
-    parts[0].Run(*run.map, k + 1);
-    for (std::thread& t : others) t.join();
   }
   run.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   run.cpu_s = CpuSeconds() - cpu0;

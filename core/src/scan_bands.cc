@@ -1,6 +1,7 @@
 #include "bgkmap/core/scan_bands.h"
 
 #include <algorithm>
+#include <memory>
 #include <utility>
 
 namespace bgkmap {
@@ -24,6 +25,29 @@ std::vector<TileBand> CutScansIntoBands(const MapParams& params,
   return BandsBetween(CutBorders(cells, first, params.tile_size, ScanReachCells(params), count),
                       along_x);
 }
+
+namespace {
+
+// One band's part of a scan's integration into the tiles of `whole`. Every band's part is made
+// before any runs (the copies are the tiles as they are before the scan); then they run
+// concurrently, one thread each.
+class BandIntegration {
+ public:
+  // nullopt if a tile the band must change is not in `whole`.
+  static std::optional<BandIntegration> Make(const MapParams& params, const PreparedScan& scan,
+                                             const TileWindow& whole, const TileBand& band);
+
+  // Integrates the band's part; the report names only the band's own tiles.
+  ScanReport Run(const TerrainMap& map, uint64_t version) const;
+
+ private:
+  BandIntegration() = default;
+  TileBand band_;
+  int tile_size_ = 0;
+  PreparedScan scan_;  // restricted to the band's reach
+  TileWindow window_;  // own tiles: the map's; the others: copies_
+  std::vector<std::unique_ptr<Tile>> copies_;
+};
 
 std::optional<BandIntegration> BandIntegration::Make(const MapParams& params,
                                                      const PreparedScan& scan,
@@ -74,6 +98,7 @@ ScanReport BandIntegration::Run(const TerrainMap& map, uint64_t version) const {
   return report;
 }
 
+// The whole scan's report from its bands' reports.
 ScanReport MergeBandReports(const PreparedScan& scan, std::vector<ScanReport> parts) {
   ScanReport out;
   out.counts = scan.counts;
@@ -98,6 +123,27 @@ ScanReport MergeBandReports(const PreparedScan& scan, std::vector<ScanReport> pa
     out.changed_blocks.push_back(blocks);
   }
   return out;
+}
+
+}  // namespace
+
+std::optional<ScanReport> IntegrateInBands(const TerrainMap& map, const PreparedScan& scan,
+                                           const TileWindow& whole,
+                                           const std::vector<TileBand>& bands, uint64_t version,
+                                           const RunTasks& run) {
+  std::vector<BandIntegration> parts;
+  for (const TileBand& band : bands) {
+    std::optional<BandIntegration> part = BandIntegration::Make(map.params(), scan, whole, band);
+    if (!part) return std::nullopt;
+    parts.push_back(std::move(*part));
+  }
+  std::vector<ScanReport> reports(parts.size());
+  std::vector<std::function<void()>> tasks;
+  for (size_t b = 0; b < parts.size(); ++b) {
+    tasks.push_back([&, b] { reports[b] = parts[b].Run(map, version); });
+  }
+  run(tasks);
+  return MergeBandReports(scan, std::move(reports));
 }
 
 }  // namespace bgkmap

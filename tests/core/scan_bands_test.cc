@@ -66,24 +66,21 @@ void ExpectSameTiles(const TerrainMap& a, const TerrainMap& b) {
   });
 }
 
+// Runs each task on a thread of its own.
+void OnThreads(std::span<const std::function<void()>> tasks) {
+  std::vector<std::thread> threads;
+  for (const std::function<void()>& task : tasks) threads.emplace_back(task);
+  for (std::thread& t : threads) t.join();
+}
+
 // Integrates `scan` into `map` in `bands`, one thread each; returns the merged report.
 ScanReport IntegrateInBands(TerrainMap& map, const PreparedScan& scan, uint64_t version,
                             const std::vector<TileBand>& bands) {
   const TileWindow whole = map.MakeWindow(scan);
-  std::vector<BandIntegration> parts;
-  for (const TileBand& band : bands) {
-    std::optional<BandIntegration> part = BandIntegration::Make(map.params(), scan, whole, band);
-    EXPECT_TRUE(part.has_value());
-    if (!part) return {};
-    parts.push_back(std::move(*part));
-  }
-  std::vector<ScanReport> reports(parts.size());
-  std::vector<std::thread> threads;
-  for (size_t b = 0; b < parts.size(); ++b) {
-    threads.emplace_back([&, b] { reports[b] = parts[b].Run(map, version); });
-  }
-  for (std::thread& t : threads) t.join();
-  return MergeBandReports(scan, std::move(reports));
+  std::optional<ScanReport> report =
+      bgkmap::IntegrateInBands(map, scan, whole, bands, version, OnThreads);
+  EXPECT_TRUE(report.has_value());
+  return report ? std::move(*report) : ScanReport{};
 }
 
 // Integrates every scan whole into one map and in bands into another and compares them. `cut`

@@ -71,22 +71,15 @@ ScanReport TileTable::Integrate(const PreparedScan& scan, const TileWindow& wind
       alone && bands_.bands > 1 && bands_.offer && bands_.cells_per_band > 0
           ? std::min(static_cast<size_t>(bands_.bands), scan.cells.size() / bands_.cells_per_band)
           : 1;
-  if (most < 2) return map_->Integrate(scan, window, version);
-  std::vector<BandIntegration> parts;
-  for (const TileBand& band : CutScansIntoBands(params(), {&scan, 1}, static_cast<int>(most))) {
-    std::optional<BandIntegration> part = BandIntegration::Make(params(), scan, window, band);
-    if (!part) return map_->Integrate(scan, window, version);  // (never for a cut's bands)
-    parts.push_back(std::move(*part));
-  }
-  if (parts.size() < 2) return map_->Integrate(scan, window, version);
-  std::vector<ScanReport> reports(parts.size());
-  std::vector<std::function<void()>> tasks;
-  for (size_t b = 0; b < parts.size(); ++b) {
-    tasks.push_back([&, b] { reports[b] = parts[b].Run(*map_, version); });
-  }
-  RunSharingWithPool(tasks, bands_.offer);
+  const std::vector<TileBand> cut = CutScansIntoBands(params(), {&scan, 1}, static_cast<int>(most));
+  if (cut.size() < 2) return map_->Integrate(scan, window, version);
+  std::optional<ScanReport> report = IntegrateInBands(
+      *map_, scan, window, cut, version, [this](std::span<const std::function<void()>> tasks) {
+        RunSharingWithPool(tasks, bands_.offer);
+      });
+  if (!report) return map_->Integrate(scan, window, version);  // (never for a cut's bands)
   banded_scans_.fetch_add(1);
-  return MergeBandReports(scan, std::move(reports));
+  return std::move(*report);
 }
 
 std::vector<TileKey> TileTable::ClearBox(const CellBox& box, uint64_t version) {

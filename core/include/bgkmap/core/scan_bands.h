@@ -9,7 +9,7 @@
 // the cores a server has idle instead of on one.
 #pragma once
 
-#include <memory>
+#include <functional>
 #include <optional>
 #include <span>
 #include <vector>
@@ -30,31 +30,18 @@ namespace bgkmap {
 std::vector<TileBand> CutScansIntoBands(const MapParams& params,
                                         std::span<const PreparedScan> scans, int count);
 
-// One band's part of a scan's integration into the tiles of `whole` (the scan's window,
-// TerrainMap::MakeWindow). Construct every band's part before running any of them (the copies
-// are the tiles as they are before the scan); then Run() them concurrently, one thread each.
-class BandIntegration {
- public:
-  // nullopt if a tile the band must change is not in `whole` (never for bands of one cut; the
-  // caller then integrates the scan whole).
-  static std::optional<BandIntegration> Make(const MapParams& params, const PreparedScan& scan,
-                                             const TileWindow& whole, const TileBand& band);
+// Runs every task before it returns, on whichever threads it chooses.
+using RunTasks = std::function<void(std::span<const std::function<void()>>)>;
 
-  // Integrates the band's part; the report names only the band's own tiles.
-  ScanReport Run(const TerrainMap& map, uint64_t version) const;
-
- private:
-  BandIntegration() = default;
-  TileBand band_;
-  int tile_size_ = 0;
-  PreparedScan scan_;  // restricted to the band's reach
-  TileWindow window_;  // own tiles: the map's; the others: copies_
-  std::vector<std::unique_ptr<Tile>> copies_;
-};
-
-// The whole scan's report from its bands' reports: the changed tiles in order, the point counts
-// and observed cells of `scan`, the stage times summed (thread seconds). feature_cells and
-// contradicted_cells are summed too, so a halo's cells count once per band that worked on them.
-ScanReport MergeBandReports(const PreparedScan& scan, std::vector<ScanReport> parts);
+// `scan` integrated into the tiles of `whole` (its window, TerrainMap::MakeWindow) in `bands` (a
+// cut: every tile in exactly one band), one task per band handed to `run`. Returns the whole
+// scan's report (changed tiles and blocks in order; feature_cells and contradicted_cells count a
+// halo's cells once per band that worked on them, the stage times are summed thread seconds);
+// nullopt, with nothing changed, if a tile a band must change is not in `whole` (never for the
+// bands of one cut).
+std::optional<ScanReport> IntegrateInBands(const TerrainMap& map, const PreparedScan& scan,
+                                           const TileWindow& whole,
+                                           const std::vector<TileBand>& bands, uint64_t version,
+                                           const RunTasks& run);
 
 }  // namespace bgkmap
