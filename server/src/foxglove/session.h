@@ -16,7 +16,6 @@
 #include <boost/beast/websocket.hpp>
 #include <boost/beast/websocket/ssl.hpp>
 #include <chrono>
-#include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -30,6 +29,7 @@
 #include "foxglove/foxglove_server.h"
 #include "foxglove/live_feed.h"
 #include "foxglove/messages.h"
+#include "foxglove/outgoing_queue.h"
 #include "foxglove/protocol.h"
 #include "foxglove/upgrade_check.h"
 
@@ -160,12 +160,6 @@ class Session final : public SessionBase,
 
  private:
   using Beast = boost::beast::error_code;
-  struct Outgoing {
-    std::shared_ptr<const std::string> bytes;
-    bool binary = false;
-    uint32_t grid_subscription = 0;  // a grid for this subscription (0: not a grid)
-  };
-
   boost::beast::tcp_stream& Tcp() { return boost::beast::get_lowest_layer(ws_); }
 
   void ReadUpgrade() {
@@ -231,9 +225,10 @@ class Session final : public SessionBase,
   void OnOpen() {
     spdlog::info("event=foxglove_client_open session={} clients={}", id_, state_.clients.load());
     state_.feed->Add(this->shared_from_this());
-    Queue(std::make_shared<const std::string>(ServerInfoJson("bgkmapd", std::to_string(id_))),
-          false);
-    Queue(std::make_shared<const std::string>(AdvertiseJson(state_.channels)), false);
+    Queue({std::make_shared<const std::string>(ServerInfoJson("bgkmapd", std::to_string(id_))),
+           false, std::nullopt});
+    Queue(
+        {std::make_shared<const std::string>(AdvertiseJson(state_.channels)), false, std::nullopt});
     Read();
   }
 
@@ -305,59 +300,39 @@ class Session final : public SessionBase,
     for (const auto& [id, subscribed] : subscriptions_) {
       if (subscribed != channel) continue;
       auto frame = std::make_shared<const std::string>(MessageDataFrame(id, time_ns, message));
-      if (channel == kGridChannel && ReplaceWaitingGrid(id, frame)) continue;
-      Queue(std::move(frame), true, channel == kGridChannel ? id : 0);
+      Queue({std::move(frame), true,
+             channel == kGridChannel ? std::optional<uint32_t>(id) : std::nullopt});
     }
-  }
-
-  // A newer grid replaces one still waiting for this subscription (not the one being written):
-  // a client slower than the map's changes gets the latest grid, not every grid.
-  bool ReplaceWaitingGrid(uint32_t subscription, std::shared_ptr<const std::string>& frame) {
-    for (size_t i = writing_ ? 1 : 0; i < queue_.size(); ++i) {
-      if (queue_[i].grid_subscription != subscription) continue;
-      queued_bytes_ = queued_bytes_ - queue_[i].bytes->size() + frame->size();
-      queue_[i].bytes = std::move(frame);
-      return true;
-    }
-    return false;
   }
 
   void SendStatus(StatusLevel level, const std::string& message) {
-    Queue(std::make_shared<const std::string>(StatusJson(level, message)), false);
+    Queue({std::make_shared<const std::string>(StatusJson(level, message)), false, std::nullopt});
   }
 
-  // Sends in order; a client that lets the bytes waiting behind the one being written fill the
-  // bound is dropped, not buffered for.
-  void Queue(std::shared_ptr<const std::string> bytes, bool binary,
-             uint32_t grid_subscription = 0) {
+  // Sends in order (OutgoingQueue); a client too slow for the bound is dropped, not buffered for.
+  void Queue(OutgoingQueue::Frame frame) {
     if (closed_ || revoked_) return;
-    const size_t waiting = queued_bytes_ - (writing_ ? queue_.front().bytes->size() : 0);
-    if (waiting > 0 && waiting + bytes->size() > state_.options.max_queued_bytes) {
+    if (!queue_.Add(std::move(frame))) {
       spdlog::warn("event=foxglove_slow_client_dropped session={} queued_bytes={}", id_,
-                   queued_bytes_);
+                   queue_.queued_bytes());
       Close();
       return;
     }
-    queued_bytes_ += bytes->size();
-    queue_.push_back({std::move(bytes), binary, grid_subscription});
-    if (!writing_) WriteNext();
+    WriteNext();
   }
 
   void WriteNext() {
-    if (closed_ || revoked_ || queue_.empty()) {
-      writing_ = false;
-      return;
-    }
-    writing_ = true;
-    ws_.binary(queue_.front().binary);
-    ws_.async_write(boost::asio::buffer(*queue_.front().bytes),
+    if (closed_ || revoked_) return;
+    const OutgoingQueue::Frame* frame = queue_.StartWrite();
+    if (frame == nullptr) return;
+    ws_.binary(frame->binary);
+    ws_.async_write(boost::asio::buffer(*frame->bytes),
                     [self = this->shared_from_this()](Beast ec, size_t) {
                       if (ec) {
                         self->Close();
                         return;
                       }
-                      self->queued_bytes_ -= self->queue_.front().bytes->size();
-                      self->queue_.pop_front();
+                      self->queue_.FinishWrite();
                       self->WriteNext();
                     });
   }
@@ -373,11 +348,9 @@ class Session final : public SessionBase,
   PrincipalRef who_;  // the token it was admitted with (null without tokens)
   bool upgraded_ = false;
   bool closed_ = false;
-  bool revoked_ = false;  // closing: its token was revoked
-  bool writing_ = false;
+  bool revoked_ = false;                        // closing: its token was revoked
   std::map<uint32_t, uint32_t> subscriptions_;  // subscription id -> channel
-  std::deque<Outgoing> queue_;
-  size_t queued_bytes_ = 0;
+  OutgoingQueue queue_{state_.options.max_queued_bytes};
 };
 
 }  // namespace bgkmap::foxglove

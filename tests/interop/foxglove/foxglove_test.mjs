@@ -100,7 +100,9 @@ async function startServer(args) {
 // Waits until `predicate()` holds, checking on every event of `emitter` named `event`.
 function waitFor(emitter, event, predicate, what) {
   return new Promise((resolve, reject) => {
-    const timer = setTimeout(() => reject(new Error(`timed out waiting for ${what}`)), deadline);
+    const timer = setTimeout(() => reject(new Error(`timed out waiting for ${what}; ` +
+      `the servers' last log lines:\n${servers.map((s) => s.log.split('\n').slice(-15).join('\n')).join('\n')}`)),
+    deadline);
     const check = () => {
       const value = predicate();
       if (value) {
