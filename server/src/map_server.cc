@@ -500,6 +500,7 @@ void MapServer::Shutdown() {
         store->directory, store->durability, store->checkpoint_version, store->corrupt_tiles,
         s.ok() ? "ok" : s.message());
   }
+  if (impl_->served != nullptr) impl_->served->StopScratchRelease();
   impl_->ingest_pool.join();
   impl_->query_pool.join();
   const double seconds =

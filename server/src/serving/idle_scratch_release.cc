@@ -102,10 +102,12 @@ IdleScratchRelease::IdleScratchRelease(boost::asio::thread_pool& pool, size_t th
   state_->after = after ? std::move(after) : [] { EndReturningFreedMemory(); };
 }
 
-IdleScratchRelease::~IdleScratchRelease() {
+IdleScratchRelease::~IdleScratchRelease() { Stop(); }
+
+void IdleScratchRelease::Stop() {
   std::lock_guard lock(state_->mu);
   state_->stopped = true;
-  state_->timer.cancel();
+  state_->timer.cancel();  // the pending wait ends now (operation_aborted): the pool is free
 }
 
 void IdleScratchRelease::Touch() {

@@ -23,13 +23,16 @@ class IdleScratchRelease {
   // test passes its own.
   IdleScratchRelease(boost::asio::thread_pool& pool, size_t threads, std::chrono::milliseconds idle,
                      std::function<void()> release = {}, std::function<void()> after = {});
-  ~IdleScratchRelease();  // no release starts afterwards
+  ~IdleScratchRelease();  // Stop()
   IdleScratchRelease(const IdleScratchRelease&) = delete;
   IdleScratchRelease& operator=(const IdleScratchRelease&) = delete;
 
   // Work ran on the pool: the idle clock starts again. Cheap (an atomic store) while a round is
   // pending.
   void Touch();
+  // No release starts afterwards, and the pending timer is cancelled, so the pool can be joined
+  // without waiting for the idle time. Touch() then does nothing.
+  void Stop();
 
   struct State;  // shared with the timer's and the release round's tasks (the .cc)
 

@@ -171,6 +171,9 @@ class ServedMap final : public MapPort {
 
   // Blocks until every admitted change has finished.
   void WaitIdle() { scheduler_.WaitIdle(); }
+  // Shutting down: no scratch release is left pending on the workers, whose pool can then be
+  // joined at once (not when the release's idle time has passed).
+  void StopScratchRelease() { scratch_release_.Stop(); }
   // For tests and reports: a copy of every tile, stored ones included.
   std::unique_ptr<TerrainMap> Snapshot() const;
 

@@ -105,6 +105,29 @@ TEST(IdleScratchReleaseTest, WorkKeepsPostponingTheRelease) {
   EXPECT_EQ(seen.Counts(), std::make_pair(0, 0)) << "no release after destruction";
 }
 
+// A server shutting down joins its workers while the served map (and this) still exist: the
+// pending timer must not keep the pool busy until the idle time has passed.
+TEST(IdleScratchReleaseTest, StoppedThePoolJoinsWithoutWaitingForTheIdleTime) {
+  boost::asio::thread_pool pool(2);
+  Seen seen;
+  IdleScratchRelease release(
+      pool, 2, 90s,
+      [&] {
+        std::lock_guard lock(seen.mu);
+        ++seen.releases;
+      },
+      [&] {
+        std::lock_guard lock(seen.mu);
+        ++seen.trims;
+      });
+  release.Touch();  // a timer of 90 s is pending
+  release.Stop();
+  release.Touch();  // nothing is armed after a stop
+  std::future<void> joined = std::async(std::launch::async, [&] { pool.join(); });
+  ASSERT_EQ(joined.wait_for(30s), std::future_status::ready) << "the pool waited for the timer";
+  EXPECT_EQ(seen.Counts(), std::make_pair(0, 0));
+}
+
 TEST(IdleScratchReleaseTest, TheDefaultReleaseHandsBackTheEngineScratch) {
   boost::asio::thread_pool pool(1);
   // A scan on the pool's thread leaves the engine's scratch there.
