@@ -7,8 +7,6 @@
 #include <grpcpp/server.h>
 #include <grpcpp/server_builder.h>
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -17,7 +15,6 @@
 #include <chrono>
 #include <condition_variable>
 #include <future>
-#include <latch>
 #include <mutex>
 #include <optional>
 #include <string_view>
@@ -45,6 +42,7 @@
 #include "serving/latest_scans.h"
 #include "serving/map_maintenance.h"
 #include "serving/served_map.h"
+#include "worker_threads.h"
 
 namespace bgkmap {
 namespace {
@@ -63,22 +61,6 @@ void KeepGrpcInitialized() {
 void KeepServiceDescriptorLinked() {
   static const void* volatile keep = &::descriptor_table_bgkmap_2fv1_2fmap_5fservice_2eproto;
   (void)keep;
-}
-
-// Lowers the scheduling priority of every thread of `pool` by `nice` (Linux: per thread). Each
-// thread takes exactly one task: all of them wait until every one has started.
-void LowerPriority(boost::asio::thread_pool& pool, size_t threads, int nice) {
-  if (nice == 0) return;
-  auto started = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
-  for (size_t i = 0; i < threads; ++i) {
-    boost::asio::post(pool, [started, nice] {
-      if (setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice) != 0) {
-        spdlog::warn("event=worker_nice_failed errno={}", errno);
-      }
-      started->arrive_and_wait();
-    });
-  }
-  started->wait();
 }
 
 // How often idle and stalled streams are looked for: a quarter of the shortest timeout, within
@@ -387,6 +369,7 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
   if (Status s = ValidateServerConfig(config); !s.ok()) return s;
   if (Status s = ValidateSecurity(config); !s.ok()) return s;
   if (Status s = ValidateCluster(config); !s.ok()) return s;
+  if (Status s = CheckWorkerCpus(config.worker_cpus); !s.ok()) return s;
   std::optional<TlsMaterial> tls;
   std::unique_ptr<TokenTable> tokens;
   if (Status s = LoadSecurity(config, &tls, &tokens); !s.ok()) return s;
@@ -407,7 +390,8 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     impl->OpenServedMap(std::move(map).value(), std::move(durability).value());
   }
   impl->Serve();
-  LowerPriority(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice);
+  ConfigureWorkerThreads(impl->ingest_pool, ThreadCount(config.worker_threads), config.worker_nice,
+                         config.worker_cpus);
   if (!config.metrics_address.empty()) {
     if (Status s = impl->ListenHttp(tls); !s.ok()) return s;
   }

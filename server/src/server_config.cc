@@ -80,6 +80,8 @@ std::vector<ServerKey> ListenerKeys() {
           "query_threads", [](ServerConfig & c) -> auto& { return c.query_threads; }),
       Key<int>(
           "worker_nice", [](ServerConfig & c) -> auto& { return c.worker_nice; }),
+      Key<std::vector<int>>(
+          "worker_cpus", [](ServerConfig & c) -> auto& { return c.worker_cpus; }),
       Key<int>(
           "malloc_arenas", [](ServerConfig & c) -> auto& { return c.malloc_arenas; }),
       Key<int>(
@@ -514,6 +516,9 @@ Status ValidateServerKeys(const ServerConfig& c) {
   if (c.worker_threads < 0 || c.worker_threads > 1024) return Bad("worker_threads", "0..1024");
   if (c.query_threads < 0 || c.query_threads > 1024) return Bad("query_threads", "0..1024");
   if (c.worker_nice < 0 || c.worker_nice > 19) return Bad("worker_nice", "0..19");
+  for (int cpu : c.worker_cpus) {
+    if (cpu < 0 || cpu > 1023) return Bad("worker_cpus", "each a CPU number, 0..1023");
+  }
   if (c.malloc_arenas < 0 || c.malloc_arenas > 1024) return Bad("malloc_arenas", "0..1024");
   if (c.scan_bands < 0 || c.scan_bands > 64) return Bad("scan_bands", "0..64");
   if (c.shutdown_timeout_s < 0) return Bad("shutdown_timeout_s", "must be >= 0");

@@ -118,6 +118,17 @@ TEST(ServerConfigTest, StorageSection) {
   EXPECT_EQ(ServerConfig{}.scan_bands, 1);
   EXPECT_EQ(error("server: {scan_bands: -1}").rfind("server.scan_bands", 0), 0u);
   EXPECT_EQ(error("server: {scan_bands: 65}").rfind("server.scan_bands", 0), 0u);
+  EXPECT_TRUE(ServerConfig{}.worker_cpus.empty());  // not pinned
+  EXPECT_EQ(error("server: {worker_cpus: [0, -1]}").rfind("server.worker_cpus", 0), 0u);
+  EXPECT_EQ(error("server: {worker_cpus: [1024]}").rfind("server.worker_cpus", 0), 0u);
+  EXPECT_EQ(error("server: {worker_cpus: [0.5]}").rfind("server.worker_cpus", 0), 0u);
+  EXPECT_EQ(error("server: {worker_cpus: all}").rfind("server.worker_cpus", 0), 0u);
+  Result<ServerConfig> pinned = ServerConfigFromYaml(YAML::Load("server: {worker_cpus: [1, 0]}"));
+  ASSERT_TRUE(pinned.ok()) << pinned.status().ToString();
+  EXPECT_EQ(pinned->worker_cpus, (std::vector<int>{1, 0}));
+  ServerConfig pin_override;
+  ASSERT_TRUE(ApplyConfigOverride(pin_override, "server.worker_cpus=[3]").ok());
+  EXPECT_EQ(pin_override.worker_cpus, (std::vector<int>{3}));
   Result<ServerConfig> bounded = ServerConfigFromYaml(
       YAML::Load("server: {worker_nice: 0, malloc_arenas: 0, scan_bands: 0}\n"
                  "storage: {data_dir: /x, max_memory_mb: 512, verify_on_start: false}\n"));

@@ -1,5 +1,6 @@
 // A served map equals the offline map of the same scans.
 #include <gtest/gtest.h>
+#include <sched.h>
 
 #include <algorithm>
 #include <cstring>
@@ -317,6 +318,71 @@ TEST(WorkerPriorityTest, WorkerThreadsRunAtTheConfiguredNice) {
   ServerFixture fixture(config);
   EXPECT_EQ(count7(ThreadNiceValues()) - count7(before), config.worker_threads);
   EXPECT_TRUE(fixture.client().Info().ok());  // queries still answered
+}
+
+// The CPUs each of this process's threads may run on, one entry per thread.
+std::vector<std::vector<int>> ThreadCpus() {
+  std::vector<std::vector<int>> out;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    const pid_t tid = static_cast<pid_t>(std::stol(entry.path().filename().string()));
+    if (sched_getaffinity(tid, sizeof(set), &set) != 0) continue;  // the thread ended
+    std::vector<int> cpus;
+    for (int c = 0; c < CPU_SETSIZE; ++c) {
+      if (CPU_ISSET(c, &set)) cpus.push_back(c);
+    }
+    out.push_back(std::move(cpus));
+  }
+  return out;
+}
+
+TEST(WorkerPinningTest, WorkersArePinnedToTheConfiguredCpusAndOthersAreNot) {
+  cpu_set_t allowed;
+  ASSERT_EQ(sched_getaffinity(0, sizeof(allowed), &allowed), 0);
+  std::vector<int> cpus;
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(c, &allowed)) cpus.push_back(c);
+  }
+  if (cpus.size() < 2) GTEST_SKIP() << "needs two CPUs to tell a pinned thread from another";
+  ServerConfig config = TestConfig();
+  config.worker_threads = 3;
+  config.worker_cpus = {cpus[1], cpus[0]};  // worker i on worker_cpus[i % 2]
+  const auto count_on = [](const std::vector<std::vector<int>>& threads, int cpu) {
+    return std::count(threads.begin(), threads.end(), std::vector<int>{cpu});
+  };
+  const auto before = ThreadCpus();
+  ServerFixture fixture(config);
+  const auto after = ThreadCpus();
+  EXPECT_EQ(count_on(after, cpus[1]) - count_on(before, cpus[1]), 2);  // workers 0 and 2
+  EXPECT_EQ(count_on(after, cpus[0]) - count_on(before, cpus[0]), 1);  // worker 1
+  // The query threads and gRPC's keep every CPU.
+  EXPECT_GT(std::count(after.begin(), after.end(), cpus),
+            std::count(before.begin(), before.end(), cpus));
+  std::vector<ScanData> scans;
+  for (const OwnedScan& s : StreetScans()) scans.push_back(s.Data());
+  RpcResult<std::vector<ScanAck>> acks = fixture.client().IngestAll(scans);
+  ASSERT_TRUE(acks.ok()) << acks.status().ToString();  // pinned workers integrate
+  EXPECT_TRUE(fixture.client().Info().ok());
+}
+
+TEST(WorkerPinningTest, ACpuTheProcessMayNotRunOnIsRefusedAtStart) {
+  cpu_set_t allowed;
+  ASSERT_EQ(sched_getaffinity(0, sizeof(allowed), &allowed), 0);
+  int outside = -1;
+  for (int c = CPU_SETSIZE - 1; c >= 0 && outside < 0; --c) {
+    if (!CPU_ISSET(c, &allowed)) outside = c;
+  }
+  if (outside < 0) GTEST_SKIP() << "this process may run on every CPU number";
+  ServerConfig config = TestConfig();
+  config.worker_cpus = {outside};
+  Result<std::unique_ptr<MapServer>> start = MapServer::Start(config);
+  ASSERT_FALSE(start.ok());
+  EXPECT_EQ(start.status().message().rfind("server.worker_cpus: CPU " + std::to_string(outside) +
+                                               " is not one this process may run on",
+                                           0),
+            0u)
+      << start.status().ToString();
 }
 
 }  // namespace

@@ -202,6 +202,11 @@ struct ServerConfig {
   // worker_nice: the worker threads' nice increment (0..19): a planner waits on its query, while a
   // scan's integration can wait a few milliseconds, so on busy cores queries run first.
   int worker_nice = 10;
+  // worker_cpus: pins worker i to CPU worker_cpus[i % size] ([] = not pinned, the default). For
+  // a robot computer that keeps cores for the mapping server, and for schedulers that wake a
+  // thread on its waker's busy core (docs/server.md "Threads"). Every CPU must be one the
+  // process may run on.
+  std::vector<int> worker_cpus;
   // malloc_arenas: glibc's heap arenas at most (0 = glibc's own limit, 8 per core). Threads that
   // take in scans leave freed memory resident in arenas of their own; two arenas cut what the
   // process holds above its tiles (docs/benchmarks.md, "Memory per known cell"). The
