@@ -404,12 +404,18 @@ Result<std::unique_ptr<MapServer>> MapServer::Start(const ServerConfig& config) 
     return s;
   }
   impl->ctx->sessions.StartWatchdog(WatchdogPeriod(config.limits));
+  std::string worker_cpus;  // as configured: "any" unpinned, else "1,0"
+  for (int cpu : config.worker_cpus) {
+    worker_cpus += (worker_cpus.empty() ? "" : ",") + std::to_string(cpu);
+  }
   spdlog::info(
-      "event=listening address={} port={} worker_threads={} query_threads={} tls={} auth={}",
+      "event=listening address={} port={} worker_threads={} query_threads={} tls={} auth={} "
+      "worker_cpus={}",
       config.listen_address, impl->port, ThreadCount(config.worker_threads),
       ThreadCount(config.query_threads),
       !tls.has_value() ? "off" : (tls->client_ca_pem.empty() ? "on" : "mutual"),
-      impl->tokens == nullptr ? "off" : std::to_string(impl->tokens->size()) + "_tokens");
+      impl->tokens == nullptr ? "off" : std::to_string(impl->tokens->size()) + "_tokens",
+      worker_cpus.empty() ? "any" : worker_cpus);
   if (impl->http != nullptr) {
     impl->http->Start();
     spdlog::info("event=metrics_listening address={} port={}", config.metrics_address,
