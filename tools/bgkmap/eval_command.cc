@@ -208,7 +208,10 @@ Result<Run> MapScans(const MapParams& params, const std::vector<SourceScan>& sca
     Result<Pose> pose = PoseToIntegrate(params, scans[k], *run.map, align, &run.alignment);
     if (!pose.ok()) return pose.status();
     const auto t0 = Clock::now();
-    Result<ScanReport> r = run.map->IntegrateScan(scans[k].points, *pose, scans[k].frame_is_map);
+    // The scans' times are the map's clock, as in `bgkmap build` (forgetting).
+    const int64_t stamp = MapTimeNs(scans[k].time_s, scans.front().time_s);
+    Result<ScanReport> r =
+        run.map->IntegrateScan(scans[k].points, *pose, scans[k].frame_is_map, stamp);
     const double total = std::chrono::duration<double>(Clock::now() - t0).count();
     if (!r.ok()) return Status(r.status());
     const StageTimes& t = r->times;

@@ -63,13 +63,10 @@ PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int 
       return out;
     }
   }
-  // Map time (forgetting): the first scan at 1 s (0 would be unstamped); without times,
-  // unstamped.
+  // Map time (forgetting).
   const double first_time = times.empty() ? std::nan("") : times[0];
   for (size_t k = 0; k < out.scans.size(); ++k) {
-    out.scans[k].stamp_ns = std::isfinite(times[k]) && std::isfinite(first_time)
-                                ? 1'000'000'000 + std::llround((times[k] - first_time) * 1e9)
-                                : 0;
+    out.scans[k].stamp_ns = MapTimeNs(times[k], first_time);
   }
   return out;
 }

@@ -13,6 +13,12 @@
 #include "scan_graph_reader.h"
 
 namespace bgkmap::cli {
+
+int64_t MapTimeNs(double time_s, double first_time_s) {
+  if (!std::isfinite(time_s) || !std::isfinite(first_time_s)) return 0;
+  return 1'000'000'000 + std::llround((time_s - first_time_s) * 1e9);
+}
+
 namespace {
 
 class KittiSource : public ScanSource {

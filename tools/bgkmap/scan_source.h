@@ -25,6 +25,11 @@ struct SourceScan {
   double time_s = std::nan("");  // the scan's time in seconds (KITTI times.txt); NaN: none
 };
 
+// The map time (forgetting's clock, ns) of a scan taken at `time_s` in a sequence whose first
+// scan was taken at `first_time_s`: 1 s plus the time since the first scan (0 would be
+// unstamped); 0, unstamped, when either time is unknown (NaN).
+int64_t MapTimeNs(double time_s, double first_time_s);
+
 struct SourceOptions {
   std::vector<uint8_t> las_classes;  // keep only these LAS classes (empty = all)
   std::string topic;                 // a recording's PointCloud2 topic (empty: its only one)
