@@ -7,6 +7,7 @@
 #include <boost/asio/post.hpp>
 #include <boost/asio/thread_pool.hpp>
 #include <chrono>
+#include <functional>
 #include <future>
 #include <mutex>
 #include <set>
@@ -30,6 +31,20 @@ struct Seen {
     std::lock_guard lock(mu);
     return {releases, trims};
   }
+  // The release and the trim that count here.
+  std::function<void()> Release() {
+    return [this] {
+      std::lock_guard lock(mu);
+      released_on.insert(std::this_thread::get_id());
+      ++releases;
+    };
+  }
+  std::function<void()> Trim() {
+    return [this] {
+      std::lock_guard lock(mu);
+      ++trims;
+    };
+  }
 };
 
 // Polls `done` until it holds or 60 s pass (CI's machine may be loaded).
@@ -48,17 +63,7 @@ TEST(IdleScratchReleaseTest, ReleasesOnEveryThreadThenTrimsOnceWhenIdle) {
   boost::asio::thread_pool pool(kThreads);
   Seen seen;
   {
-    IdleScratchRelease release(
-        pool, kThreads, 20ms,
-        [&] {
-          std::lock_guard lock(seen.mu);
-          seen.released_on.insert(std::this_thread::get_id());
-          ++seen.releases;
-        },
-        [&] {
-          std::lock_guard lock(seen.mu);
-          ++seen.trims;
-        });
+    IdleScratchRelease release(pool, kThreads, 20ms, seen.Release(), seen.Trim());
     EXPECT_EQ(seen.Counts(), std::make_pair(0, 0)) << "nothing before any work";
     release.Touch();
     ASSERT_TRUE(WaitFor([&] { return seen.Counts().second == 1; }));
@@ -83,16 +88,7 @@ TEST(IdleScratchReleaseTest, WorkKeepsPostponingTheRelease) {
   Seen seen;
   {
     // An idle time far above the gap between touches, however loaded the machine.
-    IdleScratchRelease release(
-        pool, 2, 2s,
-        [&] {
-          std::lock_guard lock(seen.mu);
-          ++seen.releases;
-        },
-        [&] {
-          std::lock_guard lock(seen.mu);
-          ++seen.trims;
-        });
+    IdleScratchRelease release(pool, 2, 2s, seen.Release(), seen.Trim());
     const auto start = std::chrono::steady_clock::now();
     while (std::chrono::steady_clock::now() - start < 300ms) {
       release.Touch();
@@ -110,16 +106,7 @@ TEST(IdleScratchReleaseTest, WorkKeepsPostponingTheRelease) {
 TEST(IdleScratchReleaseTest, StoppedThePoolJoinsWithoutWaitingForTheIdleTime) {
   boost::asio::thread_pool pool(2);
   Seen seen;
-  IdleScratchRelease release(
-      pool, 2, 90s,
-      [&] {
-        std::lock_guard lock(seen.mu);
-        ++seen.releases;
-      },
-      [&] {
-        std::lock_guard lock(seen.mu);
-        ++seen.trims;
-      });
+  IdleScratchRelease release(pool, 2, 90s, seen.Release(), seen.Trim());
   release.Touch();  // a timer of 90 s is pending
   release.Stop();
   release.Touch();  // nothing is armed after a stop
