@@ -6,7 +6,6 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <boost/asio/post.hpp>
 #include <latch>
 #include <memory>
@@ -54,14 +53,13 @@ void ConfigureWorkerThreads(boost::asio::thread_pool& pool, size_t threads, int 
                             const std::vector<int>& cpus) {
   if (nice == 0 && cpus.empty()) return;
   auto started = std::make_shared<std::latch>(static_cast<std::ptrdiff_t>(threads));
-  auto next = std::make_shared<std::atomic<size_t>>(0);
   for (size_t i = 0; i < threads; ++i) {
-    boost::asio::post(pool, [started, next, nice, &cpus] {
+    const int cpu = cpus.empty() ? -1 : cpus[i % cpus.size()];  // -1: not pinned
+    boost::asio::post(pool, [started, nice, cpu] {
       if (nice != 0 && setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice) != 0) {
         spdlog::warn("event=worker_nice_failed errno={}", errno);
       }
-      if (!cpus.empty()) {
-        const int cpu = cpus[next->fetch_add(1) % cpus.size()];
+      if (cpu >= 0) {
         cpu_set_t one;
         CPU_ZERO(&one);
         CPU_SET(cpu, &one);
@@ -69,10 +67,10 @@ void ConfigureWorkerThreads(boost::asio::thread_pool& pool, size_t threads, int 
           spdlog::warn("event=worker_pin_failed cpu={} errno={}", cpu, e);
         }
       }
-      started->arrive_and_wait();
+      started->arrive_and_wait();  // so that no thread takes two of these tasks
     });
   }
-  started->wait();  // `cpus` is read by the tasks: it outlives them
+  started->wait();
 }
 
 }  // namespace bgkmap

@@ -1,5 +1,5 @@
 // The ingest workers' scheduling: their nice value, and the CPUs each is pinned to
-// (server.worker_nice, server.worker_cpus; docs/server.md "Threads").
+// (server.worker_nice, server.worker_cpus; docs/server.md "Server keys").
 #pragma once
 
 #include <boost/asio/thread_pool.hpp>

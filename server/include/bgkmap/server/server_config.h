@@ -204,7 +204,7 @@ struct ServerConfig {
   int worker_nice = 10;
   // worker_cpus: pins worker i to CPU worker_cpus[i % size] ([] = not pinned, the default). For
   // a robot computer that keeps cores for the mapping server, and for schedulers that wake a
-  // thread on its waker's busy core (docs/server.md "Threads"). Every CPU must be one the
+  // thread on its waker's busy core (docs/server.md "Server keys"). Every CPU must be one the
   // process may run on.
   std::vector<int> worker_cpus;
   // malloc_arenas: glibc's heap arenas at most (0 = glibc's own limit, 8 per core). Threads that
