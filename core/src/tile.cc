@@ -62,6 +62,7 @@ void Tile::Assign(const Tile& o) {
   plane_ = o.plane_;
   version_ = o.version_;
   stamp_ns_ = o.stamp_ns_;
+  pending_ = o.pending_;
   FreeDense();
   FreePacked();
   if (o.is_packed()) {
@@ -92,6 +93,7 @@ std::unique_ptr<Tile> Tile::PackedCopy(const Tile& o) {
   std::unique_ptr<Tile> out(new Tile(NoArrays{}, o));
   out->version_ = o.version_;
   out->stamp_ns_ = o.stamp_ns_;
+  out->pending_ = o.pending_;
   out->PackFrom(o);
   return out;
 }
@@ -158,9 +160,10 @@ void Tile::Unpack() {
 }
 
 size_t Tile::MemoryBytes() const {
-  if (!is_packed()) return sizeof(Tile) + n() * bytes_per_cell();
+  const size_t kept = pending_.capacity() * sizeof(PendingGround);
+  if (!is_packed()) return sizeof(Tile) + n() * bytes_per_cell() + kept;
   return sizeof(Tile) + words() * (sizeof(uint64_t) + sizeof(uint32_t)) +
-         static_cast<size_t>(packed_count_) * bytes_per_cell();
+         static_cast<size_t>(packed_count_) * bytes_per_cell() + kept;
 }
 
 Tile::CellStats Tile::PackedCellAt(int local) const {
@@ -218,6 +221,14 @@ Tile::KnownCells Tile::Known() const {
 
 void Tile::Add(const Tile& o) {
   assert(!is_packed());
+  // Ground kept aside is kept only by a merge into an empty tile (a map loaded or imported into
+  // nothing): it was kept from one map's own cells, which the sum changes. Either order of a
+  // merge drops it alike.
+  if (pending_.empty() && Empty()) {
+    pending_ = o.pending_;
+  } else {
+    pending_.clear();
+  }
   if (o.is_packed()) {
     // Every cell, the unstored ones too: +0 + -0 is +0, as in the dense sum.
     Tile dense(o);
@@ -253,9 +264,18 @@ void Tile::Scale(double f) {
     a_[i] = static_cast<float>(a_[i] * f);
     b_[i] = static_cast<float>(b_[i] * f);
   }
+  // Ground kept aside is as of the tile's stamp too.
+  for (PendingGround& p : pending_) {
+    p.saved.w *= f;
+    p.saved.s *= f;
+    p.saved.q *= f;
+    p.saved.a = static_cast<float>(p.saved.a * f);
+    p.saved.b = static_cast<float>(p.saved.b * f);
+  }
 }
 
 void Tile::Clear() {
+  pending_.clear();
   if (is_packed()) {
     FreePacked();
     AllocateDense();  // zeroed
@@ -278,7 +298,10 @@ bool Tile::PackedEqual(const Tile& o) const {
 
 bool Tile::operator==(const Tile& o) const {
   // Bitwise comparison: "identical maps" means identical statistics, not merely close ones.
-  if (size_ != o.size_ || stamp_ns_ != o.stamp_ns_ || has_plane() != o.has_plane()) return false;
+  if (size_ != o.size_ || stamp_ns_ != o.stamp_ns_ || has_plane() != o.has_plane() ||
+      pending_ != o.pending_) {
+    return false;
+  }
   // Packing is a function of the statistics, so two packed tiles compare in that form.
   if (is_packed() && o.is_packed()) return PackedEqual(o);
   if (is_packed() || o.is_packed()) {
@@ -291,6 +314,13 @@ bool Tile::operator==(const Tile& o) const {
          SameBits(q_.get(), o.q_.get(), n()) && SameBits(a_.get(), o.a_.get(), n()) &&
          SameBits(b_.get(), o.b_.get(), n()) &&
          (!p_ || SameBits(p_.get(), o.p_.get(), kPlaneMoments * n()));
+}
+
+bool Tile::PendingGround::operator==(const PendingGround& o) const {
+  return local == o.local && appeared_ns == o.appeared_ns && last_seen_ns == o.last_seen_ns &&
+         SameBits(&saved.w, &o.saved.w, 1) && SameBits(&saved.s, &o.saved.s, 1) &&
+         SameBits(&saved.q, &o.saved.q, 1) && SameBits(&saved.a, &o.saved.a, 1) &&
+         SameBits(&saved.b, &o.saved.b, 1);
 }
 
 }  // namespace bgkmap

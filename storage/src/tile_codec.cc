@@ -69,6 +69,51 @@ bool GetArray(ByteReader& r, std::span<Value> values, const std::vector<int>& ce
   return true;
 }
 
+// Ground kept aside (Tile::pending): a count, then per cell its index (the gap to the previous
+// one), W, S, Q (IEEE bits), A, B (fixed32 bits), the appearance's stamp and how long it was
+// seen (zigzag varints).
+void PutPending(ByteWriter& w, const Tile& tile) {
+  w.PutVarint(tile.pending().size());
+  int32_t previous = -1;
+  for (const Tile::PendingGround& p : tile.pending()) {
+    w.PutVarint(static_cast<uint64_t>(p.local - previous));
+    previous = p.local;
+    w.PutDouble(p.saved.w);
+    w.PutDouble(p.saved.s);
+    w.PutDouble(p.saved.q);
+    w.PutFixed32(std::bit_cast<uint32_t>(p.saved.a));
+    w.PutFixed32(std::bit_cast<uint32_t>(p.saved.b));
+    w.PutSignedVarint(p.appeared_ns);
+    w.PutSignedVarint(p.last_seen_ns - p.appeared_ns);
+  }
+}
+
+bool GetPending(ByteReader& r, Tile& tile) {
+  uint64_t count;
+  if (!r.GetVarint(&count) || count > static_cast<uint64_t>(tile.cell_count())) return false;
+  std::vector<Tile::PendingGround>& out = tile.pending();
+  out.resize(count);
+  int64_t previous = -1;
+  for (Tile::PendingGround& p : out) {
+    uint64_t gap;
+    uint32_t a, b;
+    int64_t seen_for;
+    if (!r.GetVarint(&gap) || gap == 0 || gap > static_cast<uint64_t>(tile.cell_count()) ||
+        !r.GetDouble(&p.saved.w) || !r.GetDouble(&p.saved.s) || !r.GetDouble(&p.saved.q) ||
+        !r.GetFixed32(&a) || !r.GetFixed32(&b) || !r.GetSignedVarint(&p.appeared_ns) ||
+        !r.GetSignedVarint(&seen_for)) {
+      return false;
+    }
+    previous += static_cast<int64_t>(gap);  // strictly increasing: each cell once, sorted
+    if (previous >= tile.cell_count()) return false;
+    p.local = static_cast<int32_t>(previous);
+    p.saved.a = std::bit_cast<float>(a);
+    p.saved.b = std::bit_cast<float>(b);
+    p.last_seen_ns = p.appeared_ns + seen_for;
+  }
+  return true;
+}
+
 Status Malformed(std::string_view what) {
   return Status::DataLoss("tile encoding is malformed: " + std::string(what));
 }
@@ -76,6 +121,7 @@ Status Malformed(std::string_view what) {
 }  // namespace
 
 bool IsZeroTile(const Tile& tile) {
+  if (!tile.pending().empty()) return false;
   if (tile.is_packed()) {
     Tile dense(tile);
     dense.Unpack();
@@ -102,13 +148,15 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
   for (int i : present) moments |= std::bit_cast<uint64_t>(tile.q()[i]) != 0;
   const bool stamped = tile.stamp_ns() != 0;  // a map without forgetting has none: not stored
   const bool plane = tile.has_plane();
+  const bool pending = !tile.pending().empty();  // only with transient objects: not stored
   const uint8_t flags = static_cast<uint8_t>(
       (options.shuffle ? kTileShuffled : 0) | (options.xor_delta ? kTileXorDelta : 0) |
-      (moments ? kTileMoments : 0) | (stamped ? kTileStamp : 0) | (plane ? kTilePlane : 0));
+      (moments ? kTileMoments : 0) | (stamped ? kTileStamp : 0) | (plane ? kTilePlane : 0) |
+      (pending ? kTilePending : 0));
   std::string out;
   out.reserve(16 + cell_count / 8 + present.size() * tile.bytes_per_cell());
   ByteWriter w(&out);
-  w.PutU8(plane ? 4 : stamped ? 3 : 2);
+  w.PutU8(pending ? 5 : plane ? 4 : stamped ? 3 : 2);
   w.PutU8(flags);
   w.PutVarint(static_cast<uint64_t>(tile.tile_size()));
   w.PutVarint(tile.version());
@@ -128,6 +176,7 @@ std::string EncodeTile(const Tile& tile, const TileEncodeOptions& options) {
     for (int m = 0; m < Tile::kPlaneMoments; ++m)
       PutArray<uint64_t>(w, tile.plane(m), present, flags);
   }
+  if (pending) PutPending(w, tile);
   w.PutFixed32(Crc32c(out));
   return out;
 }
@@ -154,7 +203,8 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
   // Format 1 is format 2 without moments (written before dynamics), format 2 format 3 without
   // a stamp (written before forgetting): both still read.
   const uint8_t known_flags = kTileShuffled | kTileXorDelta | (format >= 2 ? kTileMoments : 0) |
-                              (format >= 3 ? kTileStamp : 0) | (format >= 4 ? kTilePlane : 0);
+                              (format >= 3 ? kTileStamp : 0) | (format >= 4 ? kTilePlane : 0) |
+                              (format >= 5 ? kTilePending : 0);
   if (format < 1 || (flags & ~known_flags) != 0) {
     return Malformed("unknown format or flags");
   }
@@ -200,6 +250,9 @@ Result<std::unique_ptr<Tile>> DecodeTile(std::string_view encoded, int tile_size
     if (!GetArray<uint64_t>(r, tile->plane(m), present, flags)) {
       return Malformed("truncated plane moments");
     }
+  }
+  if ((flags & kTilePending) && !GetPending(r, *tile)) {
+    return Malformed("bad or truncated ground kept aside");
   }
   if (r.remaining() != 0) return Malformed("trailing bytes");
   return tile;

@@ -183,10 +183,10 @@ TEST(TileCodecTest, NewerFormatsAreRefusedNamingBothAndStampsNeedFormat3) {
   t.set_stamp_ns(77);
   std::string bytes = EncodeTile(t);
   std::string body = bytes.substr(0, bytes.size() - 4);
-  body[0] = 5;
+  body[0] = 6;
   const auto newer = DecodeTile(WithCrc(body), 8);
   EXPECT_EQ(newer.status().code(), Status::Code::kFailedPrecondition);
-  EXPECT_EQ(newer.status().message(), "tile format 5 is newer than this build reads (4)");
+  EXPECT_EQ(newer.status().message(), "tile format 6 is newer than this build reads (5)");
   body[0] = 2;  // a stamp in a format that has none
   EXPECT_EQ(DecodeTile(WithCrc(body), 8).status().code(), Status::Code::kDataLoss);
 }
@@ -222,6 +222,46 @@ TEST(TileCodecTest, PlaneMomentsRoundTripInFormat4AndMustMatchTheMap) {
   std::string body = bytes.substr(0, bytes.size() - 4);
   body[0] = 3;  // plane moments in a format that has none
   EXPECT_EQ(DecodeTile(WithCrc(body), 8, true).status().code(), Status::Code::kDataLoss);
+}
+
+// Ground kept aside by transient objects (format 5): round-trips bitwise in every layout with
+// the tile; a tile without any encodes as before (format 3 here); malformed entries (a cell
+// twice, beyond the tile, truncated) are DataLoss, and format 4 cannot hold them.
+// Mutations: not writing the entries (round trip differs); accepting a repeated cell.
+TEST(TileCodecTest, KeptGroundRoundTripsInFormat5) {
+  Tile t = RandomTile(8, 0.5, 13);
+  t.set_stamp_ns(5'000'000'000);
+  const std::string without = EncodeTile(t);
+  EXPECT_EQ(without[0], 3);
+  t.pending().push_back({3, {1.5, -0.25, 0.125, 0.5f, -0.0f}, 4'000'000'000, 4'300'000'000});
+  t.pending().push_back({63, {2.0, 240.0, 28800.0, 1e-20f, 3.0f}, -7, -7});
+  for (bool shuffle : {false, true}) {
+    for (bool xor_delta : {false, true}) {
+      const std::string bytes = EncodeTile(t, {shuffle, xor_delta});
+      EXPECT_EQ(bytes[0], 5);
+      std::unique_ptr<Tile> back = RoundTrip(t, {shuffle, xor_delta});
+      ASSERT_NE(back, nullptr);
+      ExpectIdentical(t, *back);
+      EXPECT_EQ(back->pending(), t.pending());
+    }
+  }
+  const std::string bytes = EncodeTile(t);
+  for (size_t n : {bytes.size() - 5, bytes.size() - 20}) {
+    EXPECT_EQ(DecodeTile(bytes.substr(0, n), 8).status().code(), Status::Code::kDataLoss);
+  }
+  std::string body = bytes.substr(0, bytes.size() - 4);
+  body[0] = 4;  // kept ground in a format that has none
+  EXPECT_EQ(DecodeTile(WithCrc(body), 8).status().code(), Status::Code::kDataLoss);
+  Tile repeated = t;
+  repeated.pending()[1].local = 3;  // the second entry's gap is 0: the same cell twice
+  EXPECT_EQ(DecodeTile(EncodeTile(repeated), 8).status().code(), Status::Code::kDataLoss);
+  Tile beyond = t;
+  beyond.pending()[1].local = 64;  // past the tile's 64 cells
+  EXPECT_EQ(DecodeTile(EncodeTile(beyond), 8).status().code(), Status::Code::kDataLoss);
+  EXPECT_TRUE(IsZeroTile(Tile(8)));
+  Tile only_pending(8);
+  only_pending.pending().push_back({0, {1.0, 0.0, 0.0, 0.0f, 1.0f}, 1, 1});
+  EXPECT_FALSE(IsZeroTile(only_pending));
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <vector>
 
 #include "bgkmap/core/grid.h"
 #include "bgkmap/core/tile_blocks.h"
@@ -182,6 +183,22 @@ class Tile {
     a_[local] = b_[local] = 0.0f;
   }
 
+  // Ground kept aside (dynamics with transient_confirm_s > 0, docs/semantics.md "Transient
+  // objects"): the statistics cell `local` had, seen traversable, when something appeared over
+  // it, until the appearance is confirmed (then dropped) or expires (then restored). Sorted by
+  // `local`, each cell once; empty in every map without the rule. Part of the tile's state:
+  // copied, compared, scaled by Scale, stored (tile_codec.h); a merge keeps it only into an
+  // empty tile (Add).
+  struct PendingGround {
+    int32_t local = 0;
+    CellStats saved;
+    int64_t appeared_ns = 0;   // the stamp of the scan that saw the appearance
+    int64_t last_seen_ns = 0;  // the last scan that still saw it (semantics)
+    bool operator==(const PendingGround& o) const;
+  };
+  std::vector<PendingGround>& pending() { return pending_; }
+  const std::vector<PendingGround>& pending() const { return pending_; }
+
   static constexpr size_t kBytesPerCell = 3 * sizeof(double) + 2 * sizeof(float);
   static constexpr size_t kPlaneBytesPerCell = kPlaneMoments * sizeof(double);
   size_t bytes_per_cell() const { return kBytesPerCell + (plane_ ? kPlaneBytesPerCell : 0); }
@@ -224,6 +241,7 @@ class Tile {
   int block_shift_ = TileBlockShift(size_);
   uint64_t changed_blocks_ = 0;
   uint64_t version_ = 0;
+  std::vector<PendingGround> pending_;
   int64_t stamp_ns_ = 0;
   std::unique_ptr<double[]> w_, s_, q_;
   std::unique_ptr<float[]> a_, b_;

@@ -1,12 +1,13 @@
 // The on-disk encoding of one tile's statistics: exact (bitwise) and compact.
 //
-// Layout (format 4; format 3 is format 4 without kTilePlane, format 2 format 3 without
-// kTileStamp, format 1 format 2 without kTileMoments; all still read), little-endian:
-//   u8      format            4 with kTilePlane, else 3 with kTileStamp, else 2 (the oldest that
-//                             holds the tile, so maps of the older methods, without forgetting,
-//                             encode byte for byte as before)
+// Layout (format 5; format 4 is format 5 without kTilePending, format 3 format 4 without
+// kTilePlane, format 2 format 3 without kTileStamp, format 1 format 2 without kTileMoments; all
+// still read), little-endian:
+//   u8      format            5 with kTilePending, else 4 with kTilePlane, else 3 with
+//                             kTileStamp, else 2 (the oldest that holds the tile, so maps
+//                             without the newer rules encode byte for byte as before)
 //   u8      layout flags      kTileShuffled | kTileXorDelta | kTileMoments | kTileStamp |
-//                             kTilePlane
+//                             kTilePlane | kTilePending
 //   varint  tile_size         cells per edge
 //   varint  version           map version of the tile's last change
 //   zigzag  stamp             with kTileStamp: the map time (ns) the statistics are as of
@@ -18,6 +19,9 @@
 //   A[n] B[n] (4 bytes each), then with kTilePlane (bgk-ll) the seven plane moments
 //   (Tile::Plane order, 8 bytes each, n of each), present cells only, in cell order,
 //                             each array optionally XOR-delta coded and byte-shuffled
+//   with kTilePending: varint count, then per entry of Tile::pending() (sorted by cell):
+//     varint cell - previous cell (the first: cell + 1), W S Q (8 bytes each), A B (4 bytes
+//     each), zigzag appeared_ns, zigzag last_seen_ns - appeared_ns
 //   fixed32 crc32c            of every byte before it
 // Cells that are bitwise +0 in all five arrays are skipped: a missing cell decodes to +0. Every
 // other bit pattern (-0, NaN payloads, denormals) round-trips unchanged.
@@ -33,12 +37,13 @@
 
 namespace bgkmap::storage {
 
-inline constexpr uint8_t kTileFormat = 4;    // the newest format this build reads and writes
+inline constexpr uint8_t kTileFormat = 5;    // the newest format this build reads and writes
 inline constexpr uint8_t kTileShuffled = 1;  // arrays stored as byte planes
 inline constexpr uint8_t kTileXorDelta = 2;  // each value XOR the previous present value
 inline constexpr uint8_t kTileMoments = 4;   // the Q array is stored (format >= 2)
 inline constexpr uint8_t kTileStamp = 8;     // the tile's stamp is stored (format >= 3)
 inline constexpr uint8_t kTilePlane = 16;    // the plane moments are stored (format >= 4)
+inline constexpr uint8_t kTilePending = 32;  // ground kept aside is stored (format >= 5)
 
 // Both transforms are off by default: measured on the real street map with zstd, the plain
 // arrays compress best (18.6 bytes per known cell; shuffled 19.9, XOR-delta 20.2; see
