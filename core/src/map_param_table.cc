@@ -182,6 +182,23 @@ Status SelfFilterMargin(std::string_view key, double v, const MapParams& p) {
   return Status::Ok();
 }
 
+// Transient objects keep whole cells' statistics aside, which bgk-ll's plane moments are not
+// part of: refused there rather than restoring half a cell.
+Status TransientConfirm(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 3600) return Bad(key, v, "must lie in [0, 3600] seconds (0: off)");
+  if (v > 0 && KeepsPlaneMoments(p.method)) {
+    return Bad(key, v, "must be 0 with method bgk-ll (its cells keep plane moments)");
+  }
+  return Status::Ok();
+}
+
+Status TransientExpire(std::string_view key, double v, const MapParams& p) {
+  if (Status s = FiniteNonNegative(key, v, p); !s.ok()) return s;
+  if (v > 3600) return Bad(key, v, "must lie in [0, 3600] seconds");
+  return Status::Ok();
+}
+
 // The sensor's offset from the footprint box's centre, within 20 m.
 Status FootprintOffset(std::string_view key, double v, const MapParams& p) {
   if (Status s = Finite(key, v, p); !s.ok()) return s;
@@ -339,6 +356,16 @@ std::vector<MapParamInfo> ChangingWorldEntries() {
                   "seconds of map time (scan stamps) in which a statistic's weight halves "
                   "(dynamics on); 0: no forgetting"),
              "0"),
+      // Transient objects; maps from before them kept no ground aside (0).
+      Legacy(Real("transient_confirm_s", &P::transient_confirm_s, kStats, TransientConfirm,
+                  "seconds something that appeared on traversable ground must still be seen "
+                  "after it appeared to stay when it is no longer seen (stamped scans, "
+                  "dynamics on); 0: off, everything seen stays"),
+             "0"),
+      Legacy(Real("transient_expire_s", &P::transient_expire_s, kStats, TransientExpire,
+                  "seconds an unconfirmed appearance may go unseen before the ground it "
+                  "covered comes back"),
+             "1"),
   };
 }
 

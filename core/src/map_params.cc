@@ -58,4 +58,8 @@ bool InfersElevation(Method m) {
 }
 bool KeepsPlaneMoments(Method m) { return m == Method::kBgkLocalLinear; }
 
+bool KeepsTransients(const MapParams& p) {
+  return p.transient_confirm_s > 0 && p.dynamics == Dynamics::kOn;
+}
+
 }  // namespace bgkmap

@@ -234,6 +234,11 @@ PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, con
   out.footprint_y = scan.footprint_y;
   out.footprint_box = scan.footprint_box;
   out.stamp_ns = scan.stamp_ns;
+  if (KeepsTransients(params) && scan.has_sensor) {
+    out.whole_cells = scan.whole_cells
+                          ? scan.whole_cells
+                          : std::make_shared<const std::vector<ObservedCell>>(scan.cells);
+  }
   if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeScanTiles(params, out);
   return out;
 }

@@ -25,6 +25,16 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       kernel_(params.resolution, params.kernel_length),
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
       neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
+  if (KeepsTransients(params)) {
+    const double reach = params.robot_radius + params.kernel_length;
+    appearance_reach_ = DiskOffsets(reach, params.resolution);
+    appearance_reach_radius_ = static_cast<int>(std::ceil(reach / params.resolution));
+    appearance_reach_half_.assign(2 * appearance_reach_radius_ + 1, -1);
+    for (const CellIndex& d : appearance_reach_) {
+      int& h = appearance_reach_half_[d.x + appearance_reach_radius_];
+      h = std::max(h, std::abs(d.y));
+    }
+  }
   if (params.method == Method::kBgkObstacle) {
     for (int r = 0; r < kernel_.row_count(); ++r) {
       for (int j = 0; j <= 2 * kernel_.half_width(r); ++j)
@@ -97,6 +107,7 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   if (forget) {
     for (const TileKey& key : scan.write_tiles) Advance(*window.at(key), scan.stamp_ns);
   }
+  pass.ResolveTransients(scan);
   const Pass::FreeSpace free_space = pass.ApplyFreeSpace(scan, report);
   const std::vector<TileKey>& cleared = free_space.cleared;
   pass.AddElevation(scan);

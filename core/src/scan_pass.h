@@ -99,6 +99,10 @@ struct ScanIntegrator::Pass {
   // 0. Free-space evidence (dynamics, a sensor): contradicted cells keep clear_decay of their
   // statistics per contradiction, and the Beta counts within l of them are re-learnt; counts the
   // contradicted cells in `report`.
+  // 0a. Transient objects (transient_confirm_s > 0, stamped scans): ground kept aside in the
+  // tiles the scan writes is dropped where its appearance is confirmed and restored where it
+  // expired unconfirmed (transient_ground.cc).
+  void ResolveTransients(const PreparedScan& scan) const;
   FreeSpace ApplyFreeSpace(const PreparedScan& scan, ScanReport& report) const;
   // 1. Elevation (semantics 4): kernel sums, the plane moments too for bgk-ll, or the raw
   // running mean for baseline and one-step.
@@ -116,7 +120,15 @@ struct ScanIntegrator::Pass {
   void AddFootprint(const PreparedScan& scan) const;
 
  private:
-  std::vector<std::pair<CellIndex, int>> CountContradictions(const PreparedScan& scan) const;
+  std::vector<std::pair<CellIndex, int>> CountContradictions(
+      const PreparedScan& scan, std::vector<ObservedCell>& appeared) const;
+  // Transient objects: the traversable cells within robot_radius + l of each appeared cell that
+  // starts or continues one are kept aside.
+  void KeepGroundUnder(const PreparedScan& scan, const std::vector<ObservedCell>& appeared) const;
+  std::vector<CellIndex> TransientSeeds(const std::vector<ObservedCell>& appeared) const;
+  void FillObservedAround(const PreparedScan& scan, TileKey key,
+                          std::vector<double>& heights) const;
+  bool Hidden(const PreparedScan& scan, CellIndex e, double g) const;
   void ResetBetaNear(const std::vector<std::pair<CellIndex, int>>& contradicted,
                      std::vector<const Tile*>& touched) const;
   void CutContradicted(const std::vector<std::pair<CellIndex, int>>& contradicted,
@@ -136,7 +148,8 @@ struct ScanIntegrator::Pass {
   bool SeenTop(const Tile& tile, int i, double f, double* top) const;
   void FillSeenTops(const Tile& tile, double* tops) const;
   double Elevation(CellIndex c) const;
-  std::vector<CellIndex> Contradicted(const PreparedScan& scan) const;
+  std::vector<CellIndex> Contradicted(const PreparedScan& scan,
+                                      std::vector<ObservedCell>& appeared) const;
   void AddRayContradictions(const PreparedScan& scan, std::vector<CellIndex>& out) const;
   bool FillFeatureHeights(TileKey key, double* z) const;
   float ValueAt(CellIndex c, std::vector<PatchPoint>& patch, internal::TileSlabs& heights) const;

@@ -186,13 +186,18 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
 // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
 // "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
 // elevation (something appeared), and a ray passing clearly below one on its way to its return
-// (what was there has gone).
-std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(const PreparedScan& scan) const {
+// (what was there has gone). The first kind also in `appeared` with transient objects on, in
+// scan order (sorted).
+std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(
+    const PreparedScan& scan, std::vector<ObservedCell>& appeared) const {
   std::vector<CellIndex> out;
   const double margin = self.params_.clear_margin;
+  const bool transients = KeepsTransients(self.params_);
   for (const ObservedCell& oc : scan.cells) {
     const double m = Elevation(oc.cell);
-    if (oc.y > m + margin) out.push_back(oc.cell);  // false for NaN (unknown)
+    if (!(oc.y > m + margin)) continue;  // true for NaN (unknown)
+    out.push_back(oc.cell);
+    if (transients) appeared.push_back(oc);
   }
   if (self.params_.clear_ray_length > 0) AddRayContradictions(scan, out);
   SortCells(out);
@@ -272,10 +277,10 @@ float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch,
 // ---- 0. Free-space evidence ----
 
 std::vector<std::pair<CellIndex, int>> ScanIntegrator::Pass::CountContradictions(
-    const PreparedScan& scan) const {
+    const PreparedScan& scan, std::vector<ObservedCell>& appeared) const {
   // Each contradicted cell once, with the number of rays (and returns) that contradict it.
   std::vector<std::pair<CellIndex, int>> contradicted;
-  for (const CellIndex& c : Contradicted(scan)) {
+  for (const CellIndex& c : Contradicted(scan, appeared)) {
     if (!contradicted.empty() && contradicted.back().first == c) {
       ++contradicted.back().second;
     } else {
@@ -365,7 +370,9 @@ ScanIntegrator::Pass::FreeSpace ScanIntegrator::Pass::ApplyFreeSpace(const Prepa
   FreeSpace out;
   std::vector<TileKey>& cleared = out.cleared;
   if (self.params_.dynamics != Dynamics::kOn || !scan.has_sensor) return out;
-  const std::vector<std::pair<CellIndex, int>> contradicted = CountContradictions(scan);
+  std::vector<ObservedCell> appeared;
+  const std::vector<std::pair<CellIndex, int>> contradicted = CountContradictions(scan, appeared);
+  KeepGroundUnder(scan, appeared);
   // Every tile this changes beyond the write tiles is stamped and reported like them (it must be
   // checkpointed before it can be evicted).
   std::vector<const Tile*> touched;

@@ -47,6 +47,8 @@ inline MapParams NonDefaultParams() {
   p.footprint_sensor_y = 0.1;
   p.self_filter_below = 0.7;
   p.self_filter_margin = 0.15;
+  p.transient_confirm_s = 2.5;
+  p.transient_expire_s = 0.75;
   return p;
 }
 

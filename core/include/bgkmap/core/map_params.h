@@ -108,6 +108,12 @@ struct MapParams {
   // Forgetting (dynamics on): > 0 halves every statistic's weight per half_life_s seconds of map
   // time (scan stamps), docs/semantics.md "Forgetting"; 0: off.
   double half_life_s = 0.0;
+  // Transient objects (dynamics on, stamped scans; issue 24, P4): > 0 keeps aside the ground
+  // under something that appears where the map saw traversable ground; unless it is still seen
+  // transient_confirm_s after it appeared, the ground comes back once it has not been seen for
+  // transient_expire_s (docs/semantics.md, "Transient objects"). 0: off.
+  double transient_confirm_s = 0.0;
+  double transient_expire_s = 1.0;
 
   // Checks every field (MapParamInfo::check); the message names the key, the value and the rule
   // broken.
@@ -124,6 +130,9 @@ inline constexpr int kMaxCellIndex = (1 << 30);
 inline constexpr int kMaxStencilRadiusCells = 64;
 inline constexpr int kMinTileSize = 4;
 inline constexpr int kMaxTileSize = 1024;
+
+// Transient objects are on (transient_confirm_s > 0 with dynamics; docs/semantics.md).
+bool KeepsTransients(const MapParams& p);
 
 // All key names, in MapParamTable() order.
 const std::vector<std::string_view>& MapParamKeys();

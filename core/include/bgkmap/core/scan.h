@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -78,6 +79,11 @@ struct PreparedScan {
   // Map time of the scan, ns (the sender's stamp; 0: unstamped). Only forgetting reads it
   // (half_life_s > 0, docs/semantics.md "Forgetting"); PrepareScan leaves it 0, the caller sets it.
   int64_t stamp_ns = 0;
+  // A restricted scan's (RestrictScan) unrestricted observed cells, shared, with transient
+  // objects on: whether a place is hidden from the sensor depends on returns far from it
+  // (docs/semantics.md, "Transient objects"). Null in an unrestricted scan, whose `cells` are all.
+  std::shared_ptr<const std::vector<ObservedCell>> whole_cells;
+  const std::vector<ObservedCell>& WholeCells() const { return whole_cells ? *whole_cells : cells; }
 
   // write_tiles and clear_tiles, merged: every tile the scan may change.
   std::vector<TileKey> ChangeableTiles() const;
