@@ -41,12 +41,18 @@ class DriveEvalTest : public ::testing::Test {
     std::ofstream(*dir_ / "robot.yaml") << "sensor_height: 1.5\n";
     // Forgetting with a half-life of half a scan period (simulate writes times.txt at 10 Hz).
     std::ofstream(*dir_ / "robot_forgets.yaml") << "sensor_height: 1.5\nhalf_life_s: 0.05\n";
+    // Traffic let go (transient objects), unseen for 0.2 s: this drive lasts 1.2 s.
+    std::ofstream(*dir_ / "robot_transients.yaml")
+        << "sensor_height: 1.5\ntransient_confirm_s: 2\ntransient_expire_s: 0.2\n";
     const std::string common = "simulate flat --scans 12 --length 11 --truth-spacing 1 ";
     CliRun sim = RunCli(common + "--change " + (*dir_ / "traffic.yaml").string() + " --out " +
                         (*dir_ / "traffic").string());
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
     sim = RunCli(common + "--no-truth --out " + (*dir_ / "drive").string());
     ASSERT_EQ(sim.exit_code, 0) << sim.output;
+    // The same drive without times.txt, as a KITTI-like folder often comes.
+    fs::copy(*dir_ / "drive", *dir_ / "untimed", fs::copy_options::recursive);
+    fs::remove(*dir_ / "untimed" / "times.txt");
   }
   static void TearDownTestSuite() {
     fs::remove_all(*dir_);
@@ -143,6 +149,35 @@ TEST_F(DriveEvalTest, ForgettingRunsOnTheScansTimes) {
   // A half-life of half a scan period: evidence a few scans old is too little to know (the
   // driven cells behind the robot; measured 1,546 known without forgetting, 621 with it).
   EXPECT_LT(cells(forgot, "known_cells"), cells(kept, "known_cells") * 4 / 5);
+}
+
+// A sequence without times.txt is taken at --rate (default 10 Hz, as `bgkmap simulate` writes
+// times.txt): forgetting scores it as the same drive with its times; before, it ran unstamped.
+TEST_F(DriveEvalTest, ASequenceWithoutTimesRunsAtItsRate) {
+  const std::string args = "--footprint-radius 0.8 --no-figures --no-odd-even";
+  const nlohmann::json timed = Eval("drive", args, "timed_forgot", "robot_forgets.yaml");
+  const nlohmann::json untimed = Eval("untimed", args, "untimed_forgot", "robot_forgets.yaml");
+  const nlohmann::json slow =
+      Eval("untimed", args + " --rate 1", "untimed_slow", "robot_forgets.yaml");
+  const auto known = [](const nlohmann::json& m) { return m["drive"]["known_cells"].get<int>(); };
+  EXPECT_EQ(known(untimed), known(timed));
+  EXPECT_NE(known(slow), known(untimed));  // 1 s apart: 20 half-lives between scans
+}
+
+// The car behind drives over the robot's path and hides it from every later scan: with the
+// robot profiles' transient objects, the road it left is given back (docs/semantics.md).
+TEST_F(DriveEvalTest, TransientObjectsGiveTheRoadBehindBack) {
+  const std::string args = "--footprint-radius 0.8 --no-odd-even --no-figures";
+  const nlohmann::json kept = Eval("traffic", args, "traffic_kept");
+  const nlohmann::json let_go = Eval("traffic", args, "traffic_let_go", "robot_transients.yaml");
+  const auto blocked = [](const nlohmann::json& m) {
+    return m["drive"]["blocked_cells"].get<int>();
+  };
+  std::printf("driven cells blocked: %d without, %d with transient objects\n", blocked(kept),
+              blocked(let_go));
+  // Measured 977 -> 910: in this 1.2 s drive most of the car's trail is not yet 0.2 s out of
+  // sight, or is where the car still is (docs/results.md measures the City's 10 s).
+  EXPECT_LT(blocked(let_go), blocked(kept) - 30);
 }
 
 TEST_F(DriveEvalTest, TrafficLeavesTrailsAndIsScored) {

@@ -38,6 +38,7 @@ struct BuildOptions {
   bool cog = false;
   std::vector<double> origin;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  double rate_hz = 10.0;  // the scans' spacing in map time without times.txt
 };
 
 // The GeoTIFF band contract shared with `bgkmap query`.
@@ -156,7 +157,8 @@ int RunBuild(const BuildOptions& o) {
   }
 
   MappingTotals totals;
-  Result<std::unique_ptr<TerrainMap>> mapped = MapScans(params, **source, o.threads, &totals);
+  Result<std::unique_ptr<TerrainMap>> mapped =
+      MapScans(params, **source, o.threads, o.rate_hz, &totals);
   if (!mapped.ok()) return Fail(mapped.status().message());
   const TerrainMap& map = **mapped;
   const CellBox box = OutputBox(o, map);
@@ -219,6 +221,11 @@ void RegisterBuildCommand(CLI::App& app, int& exit_code) {
                   "Threads for reading, preparing and integrating scans (default: the cores); "
                   "the map is the same bit for bit for any number")
       ->capture_default_str();
+  cmd->add_option("--rate", o->rate_hz,
+                  "A sequence without times.txt: its scans' rate, Hz, their spacing in map time "
+                  "(forgetting, transient objects; default 10)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--origin", o->origin,
                   "E,N[,H]: where the map frame's origin lies in --crs (a scan sequence's frame "
                   "is local: a projected --crs needs it)")

@@ -208,7 +208,8 @@ Result<Run> MapScans(const MapParams& params, const std::vector<SourceScan>& sca
     Result<Pose> pose = PoseToIntegrate(params, scans[k], *run.map, align, &run.alignment);
     if (!pose.ok()) return pose.status();
     const auto t0 = Clock::now();
-    // The scans' times are the map's clock, as in `bgkmap build` (forgetting).
+    // The scans' times are the map's clock, as in `bgkmap build` (forgetting, transient
+    // objects); LoadInputs gave a sequence without times its nominal rate's.
     const int64_t stamp = MapTimeNs(scans[k].time_s, scans.front().time_s);
     Result<ScanReport> r =
         run.map->IntegrateScan(scans[k].points, *pose, scans[k].frame_is_map, stamp);
@@ -380,6 +381,7 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
   for (size_t k = 0; k < (*source)->size(); ++k) {  // read up front: no file I/O in the timings
     Result<SourceScan> s = (*source)->Read(k);
     if (!s.ok()) return Fail(s.status().message());
+    s->time_s = ScanTimeS(*s, k, o.rate_hz);  // without times.txt: --rate apart
     in->scans.push_back(std::move(s).value());
   }
   if (int code = LoadDrive(o, *noise, in); code != 0) return code;
@@ -539,7 +541,9 @@ void RegisterEvalCommand(CLI::App& app, int& exit_code) {
       ->required();
   cmd->add_option("--name", o->name, "Dataset name in tables and figures");
   cmd->add_option("--methods", o->methods, "Methods to compare (default: all six)")->delimiter(',');
-  cmd->add_option("--rate", o->rate_hz, "Scan rate for the real-time replay, Hz (default 10)");
+  cmd->add_option("--rate", o->rate_hz,
+                  "Scan rate, Hz (default 10): of the real-time replay, and the scans' spacing in "
+                  "map time for a sequence without times.txt");
   cmd->add_flag("!--no-figures", o->figures, "Skip the gnuplot figures");
   cmd->add_option("--changes", o->changes,
                   "changes.json of bgkmap simulate --change (default: <sequence>/changes.json if "

@@ -15,8 +15,9 @@
 namespace bgkmap::cli {
 
 // Writes `layers` of `map` over `box` (stride 1) to the GeoTIFF `path`, with extraction on up to
-// `threads` threads (and at most 256 MiB of strips extracted ahead): pixel for pixel the file WriteGeoTiff(ExtractRaster(map, box, layers)) writes
-// (a pixel at stride 1 is its own cell's estimate). The errors of io::GeoTiffWriter.
+// `threads` threads (and at most 256 MiB of strips extracted ahead): pixel for pixel the file
+// WriteGeoTiff(ExtractRaster(map, box, layers)) writes (a pixel at stride 1 is its own cell's
+// estimate). The errors of io::GeoTiffWriter.
 Status WriteMapGeoTiff(const TerrainMap& map, const CellBox& box, const std::vector<Layer>& layers,
                        const std::string& path, const io::GeoTiffOptions& tiff, int threads);
 

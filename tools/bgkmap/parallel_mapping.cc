@@ -29,7 +29,8 @@ struct PreparedScans {
 
 // Reads and prepares every scan on `threads` threads; scans are taken in order from a counter.
 // Each scan is read once: the stamps, which count from the first scan's time, are set after.
-PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int threads) {
+PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int threads,
+                         double rate_hz) {
   PreparedScans out;
   out.scans.resize(source.size());
   std::vector<Status> errors(source.size());
@@ -53,7 +54,7 @@ PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int 
         failed = true;
         break;
       }
-      times[k] = scan->time_s;
+      times[k] = ScanTimeS(*scan, k, rate_hz);
       out.scans[k] = std::move(prepared).value();
     }
   });
@@ -95,12 +96,12 @@ StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan
 }  // namespace
 
 Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const ScanSource& source,
-                                             int threads, MappingTotals* totals) {
+                                             int threads, double rate_hz, MappingTotals* totals) {
   if (Result<std::unique_ptr<TerrainMap>> created = TerrainMap::Create(params); !created.ok()) {
     return created.status();
   }
   threads = std::max(1, threads);
-  PreparedScans prepared = PrepareAll(params, source, threads);
+  PreparedScans prepared = PrepareAll(params, source, threads, rate_hz);
   if (!prepared.error.ok()) return prepared.error;
   for (const PreparedScan& s : prepared.scans) {
     totals->counts.input += s.counts.input;

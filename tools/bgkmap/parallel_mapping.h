@@ -29,9 +29,9 @@ struct MappingTotals {
 };
 
 // Maps every scan of `source` into a new map of `params`, on `threads` threads (>= 1). A scan's
-// map time is its time (times.txt) since the first scan, plus 1 s; unstamped without times.
-// Fails with "scan k: ..." naming the first scan that cannot be read or prepared.
+// map time is its time (times.txt; without, k / rate_hz: ScanTimeS) since the first scan, plus
+// 1 s. Fails with "scan k: ..." naming the first scan that cannot be read or prepared.
 Result<std::unique_ptr<TerrainMap>> MapScans(const MapParams& params, const ScanSource& source,
-                                             int threads, MappingTotals* totals);
+                                             int threads, double rate_hz, MappingTotals* totals);
 
 }  // namespace bgkmap::cli

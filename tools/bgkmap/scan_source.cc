@@ -19,6 +19,12 @@ int64_t MapTimeNs(double time_s, double first_time_s) {
   return 1'000'000'000 + std::llround((time_s - first_time_s) * 1e9);
 }
 
+double ScanTimeS(const SourceScan& scan, size_t k, double rate_hz) {
+  if (std::isfinite(scan.time_s)) return scan.time_s;
+  if (scan.frame_is_map || !(rate_hz > 0)) return std::nan("");
+  return static_cast<double>(k) / rate_hz;
+}
+
 namespace {
 
 class KittiSource : public ScanSource {

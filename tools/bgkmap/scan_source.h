@@ -30,6 +30,12 @@ struct SourceScan {
 // unstamped); 0, unstamped, when either time is unknown (NaN).
 int64_t MapTimeNs(double time_s, double first_time_s);
 
+// The time of scan `k` of a sequence, seconds: its own (times.txt); a sensor's scan without one
+// (a KITTI-like directory without times.txt) is taken at its nominal rate, k / rate_hz, so the
+// rules on map time (forgetting, transient objects) act on such a drive too; NaN (unstamped) for a
+// cloud in the map frame without a time, or with rate_hz 0.
+double ScanTimeS(const SourceScan& scan, size_t k, double rate_hz);
+
 struct SourceOptions {
   std::vector<uint8_t> las_classes;  // keep only these LAS classes (empty = all)
   std::string topic;                 // a recording's PointCloud2 topic (empty: its only one)
