@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 
 #include "bgkmap/core/point_filter.h"
@@ -175,6 +176,17 @@ Raster OfflineRegion(const TerrainMap& map, const MetricBox& box, int stride) {
   std::vector<Layer> all;
   for (int i = 0; i < kLayerCount; ++i) all.push_back(static_cast<Layer>(i));
   return ExtractRaster(map, cells, all, stride);
+}
+
+bool BitwiseEqual(const Raster& a, const Raster& b) {
+  if (a.cols != b.cols || a.rows != b.rows || a.data.size() != b.data.size()) return false;
+  for (size_t i = 0; i < a.data.size(); ++i) {
+    if (a.data[i].size() != b.data[i].size()) return false;
+    if (std::memcmp(a.data[i].data(), b.data[i].data(), a.data[i].size() * sizeof(float)) != 0) {
+      return false;
+    }
+  }
+  return true;
 }
 
 ::testing::AssertionResult RastersMatch(const Raster& a, const Raster& b, double tolerance) {

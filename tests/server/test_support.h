@@ -87,6 +87,9 @@ MetricBox KnownBox(const TerrainMap& map);
 // The region query `box` would produce from an offline map.
 Raster OfflineRegion(const TerrainMap& map, const MetricBox& box, int stride = 1);
 
+// Same geometry and every layer's floats the same bits (NaN payloads included).
+bool BitwiseEqual(const Raster& a, const Raster& b);
+
 // Same geometry, same known pixels, values within `tolerance` (absolute, or relative for values
 // above 1). Reports at most a few mismatches.
 ::testing::AssertionResult RastersMatch(const Raster& served, const Raster& offline,

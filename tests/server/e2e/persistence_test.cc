@@ -49,17 +49,6 @@ MetricBox BoxAround(const OwnedScan& s, double half) {
   return {s.pose.tx - half, s.pose.ty - half, s.pose.tx + half, s.pose.ty + half};
 }
 
-bool BitwiseEqual(const Raster& a, const Raster& b) {
-  if (a.cols != b.cols || a.rows != b.rows || a.data.size() != b.data.size()) return false;
-  for (size_t i = 0; i < a.data.size(); ++i) {
-    if (a.data[i].size() != b.data[i].size()) return false;
-    if (std::memcmp(a.data[i].data(), b.data[i].data(), a.data[i].size() * sizeof(float)) != 0) {
-      return false;
-    }
-  }
-  return true;
-}
-
 // `acks` is read only after the streaming thread is joined; `applied` (acks with status applied
 // so far) may be read while it runs.
 struct RobotRun {

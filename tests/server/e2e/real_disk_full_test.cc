@@ -104,17 +104,6 @@ Raster Reference(const std::vector<OwnedScan>& base, uint64_t last_sequence) {
   return OfflineRegion(*OfflineMap(scans), kBox);
 }
 
-bool BitwiseEqual(const Raster& a, const Raster& b) {
-  if (a.cols != b.cols || a.rows != b.rows || a.data.size() != b.data.size()) return false;
-  for (size_t i = 0; i < a.data.size(); ++i) {
-    if (a.data[i].size() != b.data[i].size()) return false;
-    if (std::memcmp(a.data[i].data(), b.data[i].data(), a.data[i].size() * sizeof(float)) != 0) {
-      return false;
-    }
-  }
-  return true;
-}
-
 // Retries `sequence` until it is applied (the server polls the free space every second).
 RpcResult<ScanAck> InsertOnceThereIsRoom(Client& client, BgkmapdProcess& server,
                                          const std::vector<OwnedScan>& base, uint64_t sequence) {

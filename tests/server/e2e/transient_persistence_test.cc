@@ -64,17 +64,6 @@ std::vector<OwnedScan> Scans() {
 
 int64_t StampOf(int k) { return int64_t{1'764'000'000} * 1'000'000'000 + (k + 1) * 100'000'000LL; }
 
-bool BitwiseEqual(const Raster& a, const Raster& b) {
-  if (a.cols != b.cols || a.rows != b.rows || a.data.size() != b.data.size()) return false;
-  for (size_t i = 0; i < a.data.size(); ++i) {
-    if (a.data[i].size() != b.data[i].size()) return false;
-    if (std::memcmp(a.data[i].data(), b.data[i].data(), a.data[i].size() * sizeof(float)) != 0) {
-      return false;
-    }
-  }
-  return true;
-}
-
 void InsertAll(Client& client, const std::vector<OwnedScan>& scans, size_t from, size_t to) {
   for (size_t k = from; k < to; ++k) {
     ScanData d = scans[k].Data();
