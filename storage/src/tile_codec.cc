@@ -84,7 +84,10 @@ void PutPending(ByteWriter& w, const Tile& tile) {
     w.PutFixed32(std::bit_cast<uint32_t>(p.saved.a));
     w.PutFixed32(std::bit_cast<uint32_t>(p.saved.b));
     w.PutSignedVarint(p.appeared_ns);
-    w.PutSignedVarint(p.last_seen_ns - p.appeared_ns);
+    // Wrapping: an entry that cannot be (seen before it appeared, or out of range) is written as
+    // it is and refused by the decoder, never undefined here.
+    w.PutSignedVarint(static_cast<int64_t>(static_cast<uint64_t>(p.last_seen_ns) -
+                                           static_cast<uint64_t>(p.appeared_ns)));
   }
 }
 
@@ -109,7 +112,9 @@ bool GetPending(ByteReader& r, Tile& tile) {
     p.local = static_cast<int32_t>(previous);
     p.saved.a = std::bit_cast<float>(a);
     p.saved.b = std::bit_cast<float>(b);
-    p.last_seen_ns = p.appeared_ns + seen_for;
+    if (seen_for < 0 || __builtin_add_overflow(p.appeared_ns, seen_for, &p.last_seen_ns)) {
+      return false;  // last seen before it appeared, or beyond 64 bits
+    }
   }
   return true;
 }

@@ -259,6 +259,15 @@ TEST(TileCodecTest, KeptGroundRoundTripsInFormat5) {
   beyond.pending()[1].local = 64;  // past the tile's 64 cells
   EXPECT_EQ(DecodeTile(EncodeTile(beyond), 8).status().code(), Status::Code::kDataLoss);
   EXPECT_TRUE(IsZeroTile(Tile(8)));
+  // An entry last seen before it appeared, or whose last sighting does not fit in 64 bits (the
+  // tile_codec fuzzer's finding: the decoder overflowed adding them), is malformed.
+  Tile backwards = t;
+  backwards.pending()[0].last_seen_ns = backwards.pending()[0].appeared_ns - 5;
+  EXPECT_EQ(DecodeTile(EncodeTile(backwards), 8).status().code(), Status::Code::kDataLoss);
+  Tile overflowing = t;
+  overflowing.pending()[0].appeared_ns = std::numeric_limits<int64_t>::max() - 1;
+  overflowing.pending()[0].last_seen_ns = std::numeric_limits<int64_t>::min();
+  EXPECT_EQ(DecodeTile(EncodeTile(overflowing), 8).status().code(), Status::Code::kDataLoss);
   Tile only_pending(8);
   only_pending.pending().push_back({0, {1.0, 0.0, 0.0, 0.0f, 1.0f}, 1, 1});
   EXPECT_FALSE(IsZeroTile(only_pending));
