@@ -218,7 +218,15 @@ int ScanReachCells(const MapParams& params) {
   return static_cast<int>(std::ceil(reach / params.resolution)) + 2;
 }
 
-PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep) {
+std::shared_ptr<const std::vector<ObservedCell>> WholeCellsOf(const MapParams& params,
+                                                              const PreparedScan& scan) {
+  if (!KeepsTransients(params) || !scan.has_sensor) return nullptr;
+  if (scan.whole_cells) return scan.whole_cells;
+  return std::make_shared<const std::vector<ObservedCell>>(scan.cells);
+}
+
+PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep,
+                          std::shared_ptr<const std::vector<ObservedCell>> whole) {
   PreparedScan out;
   out.counts = scan.counts;
   out.sensor_z = scan.sensor_z;
@@ -234,11 +242,7 @@ PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, con
   out.footprint_y = scan.footprint_y;
   out.footprint_box = scan.footprint_box;
   out.stamp_ns = scan.stamp_ns;
-  if (KeepsTransients(params) && scan.has_sensor) {
-    out.whole_cells = scan.whole_cells
-                          ? scan.whole_cells
-                          : std::make_shared<const std::vector<ObservedCell>>(scan.cells);
-  }
+  out.whole_cells = whole ? std::move(whole) : WholeCellsOf(params, scan);
   if (!out.cells.empty() || !out.footprint_cells.empty()) internal::ComputeScanTiles(params, out);
   return out;
 }

@@ -34,8 +34,9 @@ namespace {
 class BandIntegration {
  public:
   // nullopt if a tile the band must change is not in `whole`.
-  static std::optional<BandIntegration> Make(const MapParams& params, const PreparedScan& scan,
-                                             const TileWindow& whole, const TileBand& band);
+  static std::optional<BandIntegration> Make(
+      const MapParams& params, const PreparedScan& scan, const TileWindow& whole,
+      const TileBand& band, std::shared_ptr<const std::vector<ObservedCell>> whole_cells);
 
   // Integrates the band's part; the report names only the band's own tiles.
   ScanReport Run(const TerrainMap& map, uint64_t version) const;
@@ -49,14 +50,14 @@ class BandIntegration {
   std::vector<std::unique_ptr<Tile>> copies_;
 };
 
-std::optional<BandIntegration> BandIntegration::Make(const MapParams& params,
-                                                     const PreparedScan& scan,
-                                                     const TileWindow& whole,
-                                                     const TileBand& band) {
+std::optional<BandIntegration> BandIntegration::Make(
+    const MapParams& params, const PreparedScan& scan, const TileWindow& whole,
+    const TileBand& band, std::shared_ptr<const std::vector<ObservedCell>> whole_cells) {
   BandIntegration part;
   part.band_ = band;
   part.tile_size_ = params.tile_size;
-  part.scan_ = RestrictScan(params, scan, band.Reach(ScanReachCells(params)));
+  part.scan_ =
+      RestrictScan(params, scan, band.Reach(ScanReachCells(params)), std::move(whole_cells));
   // The keys MakeWindow would resolve for the restricted scan.
   const std::vector<TileKey> changeable = part.scan_.ChangeableTiles();
   std::vector<TileKey> keys;
@@ -132,8 +133,12 @@ std::optional<ScanReport> IntegrateInBands(const TerrainMap& map, const Prepared
                                            const std::vector<TileBand>& bands, uint64_t version,
                                            const RunTasks& run) {
   std::vector<BandIntegration> parts;
+  // One copy of the whole scan's cells for every band (transient objects' sight test).
+  const std::shared_ptr<const std::vector<ObservedCell>> whole_cells =
+      WholeCellsOf(map.params(), scan);
   for (const TileBand& band : bands) {
-    std::optional<BandIntegration> part = BandIntegration::Make(map.params(), scan, whole, band);
+    std::optional<BandIntegration> part =
+        BandIntegration::Make(map.params(), scan, whole, band, whole_cells);
     if (!part) return std::nullopt;
     parts.push_back(std::move(*part));
   }

@@ -99,8 +99,14 @@ Result<PreparedScan> PrepareScan(const MapParams& params, std::span<const Point3
 // map that holds only the cells near `keep` needs. A cell's statistics depend only on the
 // observed cells within the kernel's, the robot radius' and the free-space rays' reach of it, so
 // integrating the restricted scan changes every cell far enough inside `keep` exactly as the
-// whole scan would, bit for bit (a cluster shard's halo, docs/scale-out.md).
-PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep);
+// whole scan would, bit for bit (a cluster shard's halo, docs/scale-out.md). With transient
+// objects the result also carries the whole scan's cells (whole_cells): `whole`, when a caller
+// restricting one scan several times shares one copy, else a copy of its own.
+PreparedScan RestrictScan(const MapParams& params, const PreparedScan& scan, const CellBox& keep,
+                          std::shared_ptr<const std::vector<ObservedCell>> whole = nullptr);
+// The whole cells a restriction of `scan` carries (null without transient objects).
+std::shared_ptr<const std::vector<ObservedCell>> WholeCellsOf(const MapParams& params,
+                                                              const PreparedScan& scan);
 
 // How far, in cells, an observed cell's effects reach under `params` (the margin `keep` must
 // have around the cells a restricted scan is to change exactly): an observation changes
