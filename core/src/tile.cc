@@ -221,6 +221,12 @@ Tile::KnownCells Tile::Known() const {
 
 void Tile::Add(const Tile& o) {
   assert(!is_packed());
+  if (o.is_packed()) {
+    // Every cell, the unstored ones too: +0 + -0 is +0, as in the dense sum.
+    Tile dense(o);
+    dense.Unpack();
+    return Add(dense);
+  }
   // Ground kept aside is kept only by a merge into an empty tile (a map loaded or imported into
   // nothing): it was kept from one map's own cells, which the sum changes. Either order of a
   // merge drops it alike.
@@ -228,12 +234,6 @@ void Tile::Add(const Tile& o) {
     pending_ = o.pending_;
   } else {
     pending_.clear();
-  }
-  if (o.is_packed()) {
-    // Every cell, the unstored ones too: +0 + -0 is +0, as in the dense sum.
-    Tile dense(o);
-    dense.Unpack();
-    return Add(dense);
   }
   for (size_t i = 0; i < n(); ++i) {
     w_[i] += o.w_[i];

@@ -172,6 +172,11 @@ TEST(TransientGroundTest, AKeptGroundIsPartOfTheTile) {
   EXPECT_EQ(empty.pending(), tile->pending());
   empty.Add(*tile);
   EXPECT_TRUE(empty.pending().empty());
+  // A packed tile merges the same way (it is unpacked on the way).
+  std::unique_ptr<Tile> packed = Tile::PackedCopy(*tile);
+  Tile into(tile->tile_size());
+  into.Add(*packed);
+  EXPECT_EQ(into.pending(), tile->pending());
 }
 
 }  // namespace
