@@ -14,7 +14,7 @@ namespace {
 
 // The rule's clock is the scans' stamps: off for unstamped scans and without free-space evidence.
 bool TransientsOn(const MapParams& p, int64_t stamp, const PreparedScan& scan) {
-  return p.transient_confirm_s > 0 && p.dynamics == Dynamics::kOn && stamp != 0 && scan.has_sensor;
+  return KeepsTransients(p) && stamp != 0 && scan.has_sensor;
 }
 
 int64_t Nanoseconds(double seconds) { return static_cast<int64_t>(std::llround(seconds * 1e9)); }
