@@ -128,6 +128,31 @@ TEST_F(TrafficScoreTest, StaleAndMissedAgainstTheMap) {
   EXPECT_NEAR(c.stale_rate(), static_cast<double>(left_at_1.size()) / trails, 1e-12);
 }
 
+TEST_F(TrafficScoreTest, EachVehicleHasItsShare) {
+  // A second vehicle 3 m beside the first, standing still from scan 2 on: it enters its cells
+  // once and leaves none. The trail left at scan 1 stays blocked, as above.
+  VehicleTrack parked;
+  parked.first_scan = 2;
+  for (int k = 2; k < kScans; ++k) parked.boxes.push_back({0.0, 3.0, 1.0, 4.0});
+  TrafficJudge judge(params_, {track_, parked}, kScans, truth_, observed_, 2, 1);
+  const CellSet left_at_1 = Minus(occupied_[0], occupied_[1]);
+  const std::unique_ptr<TerrainMap> map = MapWith(left_at_1), clear = MapWith({});
+  for (int k = 0; k < kScans; ++k) judge.Score(k, k == 2 ? *map : *clear);
+  const TrafficCounts& c = judge.counts();
+  ASSERT_EQ(c.by_vehicle.size(), 2u);
+  const VehicleCounts &moving = c.by_vehicle[0], &standing = c.by_vehicle[1];
+  EXPECT_EQ(moving.trail_stale, static_cast<int64_t>(left_at_1.size()));
+  EXPECT_EQ(moving.trail_judged, c.trail_judged);
+  EXPECT_EQ(standing.trail_judged, 0);
+  EXPECT_TRUE(std::isnan(standing.stale_rate()));
+  EXPECT_EQ(
+      standing.new_judged,
+      static_cast<int64_t>(CellsNearBox(geometry_, parked.boxes[0], params_.robot_radius).size()));
+  EXPECT_EQ(standing.new_missed, standing.new_judged);  // the clear map shows none of it
+  EXPECT_EQ(moving.new_judged + standing.new_judged, c.new_judged);
+  EXPECT_EQ(moving.new_missed + standing.new_missed, c.new_missed);
+}
+
 TEST_F(TrafficScoreTest, OnlyCellsTheTruthCallsTraversableAndAScanSawAreJudged) {
   const CellSet left_at_1 = Minus(occupied_[0], occupied_[1]);
   SetTruth(left_at_1.front(), CellState::kNonTraversable);  // a kerb there anyway

@@ -60,6 +60,7 @@ Status LoadTraffic(const std::string& path, const MapParams& params, DriveInputs
                                      "than the map's (pass the simulation's --config)");
     for (const auto& v : j.at("vehicles")) {
       eval::VehicleTrack t;
+      t.name = v.value("name", "");
       t.first_scan = v.at("first_scan").get<int>();
       for (const auto& b : v.at("boxes")) t.boxes.push_back(b.get<std::array<double, 4>>());
       in->vehicles.push_back(std::move(t));

@@ -489,6 +489,7 @@ int RunEval(const EvalOptions& o) {
   report.has_changes = !in.changes.empty();
   report.has_drive = in.drive.footprint.has_value();
   report.has_traffic = in.drive.static_truth.has_value();
+  for (const eval::VehicleTrack& v : in.drive.vehicles) report.vehicle_names.push_back(v.name);
   report.trail_scans = o.trail_scans;
   report.new_scans = o.new_scans;
   report.has_odd_even = report.has_drive && o.odd_even;

@@ -93,6 +93,21 @@ Json CausesJson(const eval::CauseCounts& c) {
   return j;
 }
 
+Json VehicleCountsJson(const EvalReport& r, const eval::TrafficCounts& t) {
+  Json out = Json::array();
+  for (size_t v = 0; v < t.by_vehicle.size(); ++v) {
+    const eval::VehicleCounts& c = t.by_vehicle[v];
+    out.push_back({{"name", v < r.vehicle_names.size() ? r.vehicle_names[v] : ""},
+                   {"trail_judged_cells", c.trail_judged},
+                   {"trail_stale_cells", c.trail_stale},
+                   {"trail_stale_rate", JsonNumber<Json>(c.stale_rate())},
+                   {"new_judged_cells", c.new_judged},
+                   {"new_missed_cells", c.new_missed},
+                   {"new_missed_rate", JsonNumber<Json>(c.missed_rate())}});
+  }
+  return out;
+}
+
 Json AgreementJson(const eval::MapAgreement& a) {
   return {{"common_cells", a.common},
           {"only_odd", a.only_a},
@@ -225,7 +240,8 @@ std::string ToJson(const EvalReport& r) {
                                    {"new_judged_cells", t.new_judged},
                                    {"new_missed_cells", t.new_missed},
                                    {"new_missed_unknown_cells", t.new_unknown},
-                                   {"new_missed_rate", JsonNumber<Json>(t.missed_rate())}};
+                                   {"new_missed_rate", JsonNumber<Json>(t.missed_rate())},
+                                   {"by_vehicle", VehicleCountsJson(r, t)}};
     }
     if (r.has_drive) {
       methods.back()["drive"] = DriveJson(m.drive);
@@ -314,6 +330,24 @@ std::string TruthMarkdown(const EvalReport& r) {
   return o.str();
 }
 
+// Trails and new obstacles of each vehicle, in traffic.json's order.
+std::string TrafficByVehicleMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  o << "\n| Dataset | Method | Vehicle | Trail cells judged | Stale (%) | New-obstacle cells "
+       "judged "
+       "| Missed (%) |\n|---|---|---|---|---|---|---|\n";
+  for (const MethodResult& m : r.methods) {
+    for (size_t v = 0; v < m.traffic.by_vehicle.size(); ++v) {
+      const eval::VehicleCounts& c = m.traffic.by_vehicle[v];
+      o << "| " << r.name << " | " << MethodName(m.method) << " | "
+        << (v < r.vehicle_names.size() ? r.vehicle_names[v] : "") << " | " << c.trail_judged
+        << " | " << Cell(100 * c.stale_rate(), "%.2f") << " | " << c.new_judged << " | "
+        << Cell(100 * c.missed_rate(), "%.2f") << " |\n";
+    }
+  }
+  return o.str();
+}
+
 // Trails and new obstacles of the traffic.
 std::string TrafficMarkdown(const EvalReport& r) {
   std::ostringstream o;
@@ -338,7 +372,7 @@ std::string TrafficMarkdown(const EvalReport& r) {
 std::string ToMarkdown(const EvalReport& r) {
   std::ostringstream o;
   if (r.has_truth) o << TruthMarkdown(r);
-  if (r.has_traffic) o << TrafficMarkdown(r);
+  if (r.has_traffic) o << TrafficMarkdown(r) << TrafficByVehicleMarkdown(r);
   if (r.has_drive) o << DriveMarkdown(r).substr(r.has_truth ? 0 : 1);  // no leading blank line
   return o.str();
 }

@@ -61,7 +61,8 @@ struct EvalReport {
   bool has_changes = false;  // a changes.json was scored: eval.json and table.md report it
   bool has_drive = false;    // a footprint was given: driven cells and odd/even agreement
   bool has_odd_even = false;
-  bool has_traffic = false;  // a traffic.json was scored
+  bool has_traffic = false;                // a traffic.json was scored
+  std::vector<std::string> vehicle_names;  // its vehicles, in TrafficCounts::by_vehicle's order
   int trail_scans = 5, new_scans = 1;
   std::string footprint;  // eval::Footprint::Describe()
   std::string poses;      // the poses the maps were built with, if not the sequence's

@@ -20,14 +20,16 @@ bool TrulyTraversable(const Raster& truth, const std::vector<float>& state, Cell
   return state[k] == static_cast<float>(CellState::kTraversable);
 }
 
+double Share(int64_t part, int64_t whole) {
+  return whole ? static_cast<double>(part) / static_cast<double>(whole) : NAN;
+}
+
 }  // namespace
 
-double TrafficCounts::stale_rate() const {
-  return trail_judged ? static_cast<double>(trail_stale) / static_cast<double>(trail_judged) : NAN;
-}
-double TrafficCounts::missed_rate() const {
-  return new_judged ? static_cast<double>(new_missed) / static_cast<double>(new_judged) : NAN;
-}
+double TrafficCounts::stale_rate() const { return Share(trail_stale, trail_judged); }
+double TrafficCounts::missed_rate() const { return Share(new_missed, new_judged); }
+double VehicleCounts::stale_rate() const { return Share(trail_stale, trail_judged); }
+double VehicleCounts::missed_rate() const { return Share(new_missed, new_judged); }
 
 std::vector<CellIndex> CellsNearBox(const GridGeometry& g, const std::array<double, 4>& b,
                                     double radius) {
@@ -50,16 +52,19 @@ TrafficJudge::TrafficJudge(const MapParams& params, const std::vector<VehicleTra
                            int new_scans)
     : due_(static_cast<size_t>(std::max(scans, 0))) {
   const GridGeometry g(params.resolution, params.tile_size);
-  // The cells the vehicles occupy at each scan.
+  counts_.by_vehicle.resize(tracks.size());
+  // The cells the vehicles occupy at each scan, all of them and each vehicle's.
   std::vector<CellSet>& occupied = occupied_;
   occupied.resize(due_.size());
   near_.resize(due_.size());
-  for (const VehicleTrack& t : tracks) {
+  std::vector<std::vector<CellSet>> occupied_by(tracks.size(), std::vector<CellSet>(due_.size()));
+  for (size_t v = 0; v < tracks.size(); ++v) {
+    const VehicleTrack& t = tracks[v];
     for (size_t i = 0; i < t.boxes.size(); ++i) {
       const int k = t.first_scan + static_cast<int>(i);
       if (k < 0 || k >= scans) continue;
-      for (const CellIndex& c : CellsNearBox(g, t.boxes[i], params.robot_radius))
-        occupied[k].push_back(c);
+      occupied_by[v][k] = CellsNearBox(g, t.boxes[i], params.robot_radius);
+      occupied[k].insert(occupied[k].end(), occupied_by[v][k].begin(), occupied_by[v][k].end());
       for (const CellIndex& c :
            CellsNearBox(g, t.boxes[i], params.robot_radius + params.kernel_length))
         near_[k].push_back(c);
@@ -73,6 +78,15 @@ TrafficJudge::TrafficJudge(const MapParams& params, const std::vector<VehicleTra
   }
   const std::vector<float>* state = static_truth.Find(Layer::kState);
   if (state == nullptr) return;
+  for (std::vector<CellSet>& per_scan : occupied_by) {
+    for (CellSet& s : per_scan) std::sort(s.begin(), s.end());  // CellsNearBox: no repeats
+  }
+  auto vehicle_at = [&](int k, CellIndex c) {
+    for (size_t v = 0; v < occupied_by.size(); ++v) {
+      if (In(occupied_by[v][k], c)) return static_cast<int>(v);
+    }
+    return -1;  // not reached: c is in occupied[k]
+  };
   auto seen_in = [&](CellIndex c, int from, int to) {
     for (int m = from; m <= to; ++m) {
       if (m < static_cast<int>(observed.size()) && In(observed[m], c)) return true;
@@ -87,7 +101,7 @@ TrafficJudge::TrafficJudge(const MapParams& params, const std::vector<VehicleTra
       bool free = true;
       for (int m = k + 1; m <= trail_at && free; ++m) free = !In(occupied[m], c);
       if (free && TrulyTraversable(static_truth, *state, c) && seen_in(c, k, trail_at))
-        due_[trail_at].push_back({c, true});
+        due_[trail_at].push_back({c, true, vehicle_at(k - 1, c)});
     }
     // Entered at k: occupied at k, not at k - 1; judged at k + new_scans - 1 if still occupied.
     const int new_at = k + new_scans - 1;
@@ -96,7 +110,7 @@ TrafficJudge::TrafficJudge(const MapParams& params, const std::vector<VehicleTra
       bool still = true;
       for (int m = k + 1; m <= new_at && still; ++m) still = In(occupied[m], c);
       if (still && TrulyTraversable(static_truth, *state, c) && seen_in(c, k, new_at))
-        due_[new_at].push_back({c, false});
+        due_[new_at].push_back({c, false, vehicle_at(k, c)});
     }
   }
 }
@@ -113,10 +127,13 @@ void TrafficJudge::Score(int k, const TerrainMap& map) {
   if (k < 0 || k >= static_cast<int>(due_.size())) return;
   for (const Due& d : due_[k]) {
     const CellState s = map.Estimate(d.cell).state;
+    VehicleCounts& by = counts_.by_vehicle[static_cast<size_t>(d.vehicle)];
     if (d.trail) {
       ++counts_.trail_judged;
+      ++by.trail_judged;
       if (s != CellState::kNonTraversable) continue;
       ++counts_.trail_stale;
+      ++by.trail_stale;
       const uint8_t r = BlockReasonsAt(map, d.cell);
       counts_.stale_no_value += (r & kNoValue) != 0;
       counts_.stale_mean += (r & kHighMean) != 0;
@@ -124,7 +141,9 @@ void TrafficJudge::Score(int k, const TerrainMap& map) {
       counts_.stale_disagreement += (r & kDisagreement) != 0;
     } else {
       ++counts_.new_judged;
+      ++by.new_judged;
       counts_.new_missed += s != CellState::kNonTraversable;
+      by.new_missed += s != CellState::kNonTraversable;
       counts_.new_unknown += s == CellState::kUnknown;
     }
   }

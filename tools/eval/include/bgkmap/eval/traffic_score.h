@@ -19,6 +19,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "bgkmap/core/grid.h"
@@ -31,13 +32,24 @@ namespace bgkmap::eval {
 // A vehicle's axis-aligned footprint [xmin, ymin, xmax, ymax] (metres) at each scan from
 // first_scan on, one per scan while it is in the scene.
 struct VehicleTrack {
+  std::string name;  // for the report (traffic.json's name)
   int first_scan = 0;
   std::vector<std::array<double, 4>> boxes;
+};
+
+// One vehicle's share: the trail cells it left and the cells it entered. A cell two vehicles
+// occupy at once counts for the first in traffic.json's order.
+struct VehicleCounts {
+  int64_t trail_judged = 0, trail_stale = 0;
+  int64_t new_judged = 0, new_missed = 0;
+  double stale_rate() const;  // NaN without judged cells
+  double missed_rate() const;
 };
 
 struct TrafficCounts {
   int64_t trail_judged = 0, trail_stale = 0;
   int64_t new_judged = 0, new_missed = 0, new_unknown = 0;  // unknown: missed, not known
+  std::vector<VehicleCounts> by_vehicle;                    // one per track, in the tracks' order
   // The stale cells' reasons (BlockReason, eval/drive_score.h; several may hold).
   int64_t stale_no_value = 0, stale_mean = 0, stale_variance = 0, stale_disagreement = 0;
   double stale_rate() const;   // trail_stale / trail_judged (NaN without judged cells)
@@ -68,7 +80,8 @@ class TrafficJudge {
  private:
   struct Due {
     CellIndex cell;
-    bool trail;  // else a new obstacle
+    bool trail;   // else a new obstacle
+    int vehicle;  // the track that left or entered it
   };
   std::vector<std::vector<Due>> due_;             // per scan
   std::vector<std::vector<CellIndex>> occupied_;  // per scan, sorted
