@@ -25,13 +25,13 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       kernel_(params.resolution, params.kernel_length),
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
       neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
-  if (KeepsTransients(params)) {
+  if (params.dynamics == Dynamics::kOn) {
     const double reach = params.robot_radius + params.kernel_length;
-    appearance_reach_ = DiskOffsets(reach, params.resolution);
-    appearance_reach_radius_ = static_cast<int>(std::ceil(reach / params.resolution));
-    appearance_reach_half_.assign(2 * appearance_reach_radius_ + 1, -1);
-    for (const CellIndex& d : appearance_reach_) {
-      int& h = appearance_reach_half_[d.x + appearance_reach_radius_];
+    evidence_reach_ = DiskOffsets(reach, params.resolution);
+    evidence_reach_radius_ = static_cast<int>(std::ceil(reach / params.resolution));
+    evidence_reach_half_.assign(2 * evidence_reach_radius_ + 1, -1);
+    for (const CellIndex& d : evidence_reach_) {
+      int& h = evidence_reach_half_[d.x + evidence_reach_radius_];
       h = std::max(h, std::abs(d.y));
     }
   }

@@ -159,10 +159,10 @@ void ComputeScanTiles(const MapParams& p, PreparedScan& scan) {
     const double res = p.resolution;
     const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
     const double length = p.clear_ray_length / res;
-    // Slack each way: the cells the segment touches, the kernel support around them (a
-    // contradicted cell's neighbours re-learn their traversability) and the robot-radius patch
-    // around those (ground left by a forgotten object re-learns from the surface around it).
-    const int slack = kernel_radius + robot_radius + 1;
+    // Slack each way: the cells the segment touches, the reach of the traversability evidence
+    // around them (robot_radius + l: a forgotten cell's neighbours there re-learn theirs) and
+    // the robot-radius patch around those (the surface they re-learn from).
+    const int slack = kernel_radius + 2 * robot_radius + 1;
     // A ray ends within `length` of its cell: the tiles lie within that and the slack.
     TileSet tiles =
         TileSetAround(geo, scan.cells, static_cast<int64_t>(std::ceil(length)) + slack + 2);

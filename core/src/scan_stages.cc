@@ -331,34 +331,46 @@ void ScanIntegrator::Pass::CutContradicted(
   }
 }
 
-// The cells within l of a forgotten cell that still hold Beta counts (the contradicted cells'
-// were zeroed by the cut): ground an object stood beside and left. Each is reset here, as
-// ResetBetaNear would, and so listed once.
+// The cells near a forgotten cell that still hold Beta counts (the contradicted cells' were
+// zeroed by the cut): ground an object stood beside and left. Within l every one; beyond, as far
+// as the object's obstacle evidence reached (robot_radius + l: its step made v over r, spread
+// over l), those whose counts say "obstacle". Each is reset here, as ResetBetaNear would, and so
+// listed once.
 std::vector<CellIndex> ScanIntegrator::Pass::GroundLeftBy(const std::vector<CellIndex>& forgotten,
                                                           std::vector<const Tile*>& touched) const {
   std::vector<CellIndex> out;
   if (!InfersTraversability(self.params_.method)) return out;
+  const MapParams& p = self.params_;
   const KernelStencil& k = self.kernel_;
-  const int R = k.radius();
+  const int R = self.evidence_reach_radius_, RK = k.radius();
   for (const CellIndex& f : forgotten) {
-    for (int r = 0; r < k.row_count(); ++r) {
-      const int gy = f.y + r - R, x_end = f.x + k.half_width(r);
-      const int row_start = FloorMod(gy, T) * T;
-      for (int x = f.x - k.half_width(r); x <= x_end;) {
-        const TileKey key{FloorDiv(x, T), FloorDiv(gy, T)};
-        const int seg_end = std::min(x_end, key.x * T + T - 1);
+    for (int dx = -R; dx <= R; ++dx) {
+      const int h = self.evidence_reach_half_[dx + R];
+      if (h < 0) continue;
+      const int hk = std::abs(dx) <= RK ? k.half_width(dx + RK) : -1;  // the kernel's column
+      const int x = f.x + dx, lx = FloorMod(x, T), tx = FloorDiv(x, T);
+      for (int y = f.y - h; y <= f.y + h;) {
+        const TileKey key{tx, FloorDiv(y, T)};
+        const int seg_end = std::min(f.y + h, key.y * T + T - 1);
         Tile* tile = window.at(key);
-        for (; tile != nullptr && x <= seg_end; ++x) {
-          const int i = row_start + x - key.x * T;
+        for (; tile != nullptr && y <= seg_end; ++y) {
+          const int i = FloorMod(y, T) * T + lx;
           float& a = tile->a()[i];
           float& b = tile->b()[i];
           if (a == 0.0f && b == 0.0f) continue;
+          // Beyond l only obstacle evidence is suspect: ground evidence there was learnt from
+          // the cell's own surroundings, not only from the forgotten surface.
+          if (std::abs(y - f.y) > hk &&
+              (p.alpha0 + a) / (p.alpha0 + p.beta0 + a + b) < p.trav_threshold) {
+            continue;
+          }
           if (forget) self.Advance(*tile, stamp);
           a = b = 0.0f;
+          tile->MarkCellChanged(i);
           if (touched.empty() || touched.back() != tile) touched.push_back(tile);
-          out.push_back({x, gy});
+          out.push_back({x, y});
         }
-        x = seg_end + 1;
+        y = seg_end + 1;
       }
     }
   }

@@ -62,7 +62,7 @@ void MergeIntoPending(std::vector<std::pair<Tile*, Tile::PendingGround>>& found)
 // entry.
 void ScanIntegrator::Pass::FillObservedAround(const PreparedScan& scan, TileKey key,
                                               std::vector<double>& heights) const {
-  const int R = self.appearance_reach_radius_;
+  const int R = self.evidence_reach_radius_;
   const int W = T + 2 * R;
   const int x0 = key.x * T - R, y0 = key.y * T - R;
   heights.assign(static_cast<size_t>(W) * W, -std::numeric_limits<double>::infinity());
@@ -102,7 +102,7 @@ void ScanIntegrator::Pass::ResolveTransients(const PreparedScan& scan) const {
   const int64_t confirm_ns = Nanoseconds(p.transient_confirm_s);
   const int64_t expire_ns = Nanoseconds(p.transient_expire_s);
   std::vector<double> heights;
-  const int R = self.appearance_reach_radius_;
+  const int R = self.evidence_reach_radius_;
   const int W = T + 2 * R;
   // Decided on the map as the scan finds it, then applied: no restore is read by another's test.
   std::vector<std::pair<Tile*, Tile::PendingGround>> restore;
@@ -116,7 +116,7 @@ void ScanIntegrator::Pass::ResolveTransients(const PreparedScan& scan) const {
       const double ground = g.saved.s / g.saved.w;  // saved ground always has weight
       const int lx = g.local % T + R, ly = g.local / T + R;
       double near = -std::numeric_limits<double>::infinity();
-      for (const CellIndex& d : self.appearance_reach_) {
+      for (const CellIndex& d : self.evidence_reach_) {
         near = std::max(near, heights[static_cast<size_t>(ly + d.y) * W + lx + d.x]);
       }
       if (near > ground + p.clear_margin) {
@@ -221,7 +221,7 @@ void ScanIntegrator::Pass::KeepGroundUnder(const PreparedScan& scan,
   };
   // `appeared` is sorted by (x, y): a run of it in one column reaches, in column x + dx, the
   // cells from its first's y - h(dx) to its last's y + h(dx).
-  const int R = self.appearance_reach_radius_;
+  const int R = self.evidence_reach_radius_;
   for (size_t a = 0; a < appeared.size();) {
     size_t b = a + 1;
     while (b < appeared.size() && appeared[b].x == appeared[a].x &&
@@ -229,7 +229,7 @@ void ScanIntegrator::Pass::KeepGroundUnder(const PreparedScan& scan,
       ++b;
     }
     for (int dx = -R; dx <= R; ++dx) {
-      const int h = self.appearance_reach_half_[dx + R];
+      const int h = self.evidence_reach_half_[dx + R];
       if (h < 0) continue;
       for (int y = appeared[a].y - h; y <= appeared[b - 1].y + h; ++y) {
         visit({appeared[a].x + dx, y});

@@ -1,6 +1,7 @@
 // Ground left by a forgotten object (docs/semantics.md, "Dynamics"): the free-space evidence
 // resets the Beta counts within l of every contradicted cell; where a cell was forgotten, the
-// cells around it that it did not contradict re-learn v from the surface left there, at the
+// cells within l of it, and those within robot_radius + l (as far as its surface's evidence
+// reached) whose counts say "obstacle", re-learn v from the surface left there, at the
 // weight of one observation at the cell, when that surface crosses no critical value. Without
 // it, ground a vehicle stood beside stays blocked ("no value") until a scan's returns land
 // within l of it.
@@ -70,6 +71,32 @@ TEST(GroundLeftTest, GroundInFrontOfAForgottenObjectIsTraversableWithoutNewRetur
       EXPECT_EQ(e.state, CellState::kTraversable) << x << ", " << y;
       EXPECT_LT(e.traversability, 0.5f) << x << ", " << y;
     }
+  }
+}
+
+TEST(GroundLeftTest, GroundAsFarAsTheObjectsEvidenceReachedReLearns) {
+  // The box's step made v = 1 at the ground within robot_radius of it, and that spread within l
+  // further: obstacle evidence reached robot_radius + l (0.6 m) in front of the box, beyond the
+  // l within which the contradicted cells reset counts. Where it made a cell there say
+  // "obstacle", that cell re-learns too, or it keeps saying so of an obstacle that is gone (a
+  // car's trail, 0.3-0.6 m behind it); where the cell's own ground evidence won, it is kept.
+  const MapParams p;
+  std::unique_ptr<TerrainMap> with_box = TerrainMap::Create(p).value();
+  for (int k = 0; k < 3; ++k)
+    EXPECT_TRUE(with_box->IntegrateScan(SensorFrame(GroundWithBox()), At(kSensor)).ok());
+  const std::unique_ptr<TerrainMap> map = BoxThenGone(p);
+  for (double y = -0.25; y <= 0.26; y += 0.1) {
+    // 0.4 m from the box's cells: blocked by it, re-learnt.
+    const CellEstimate blocked = with_box->EstimateAt(5.15, y), now = map->EstimateAt(5.15, y);
+    EXPECT_GE(blocked.traversability, p.trav_threshold) << y;
+    EXPECT_EQ(now.state, CellState::kTraversable) << y;
+    EXPECT_LT(now.traversability, 0.1f) << y;
+    // 0.5 m: obstacle evidence there too, but its own ground evidence won; kept as it was.
+    const CellEstimate ground = with_box->EstimateAt(5.05, y), kept = map->EstimateAt(5.05, y);
+    EXPECT_GT(ground.traversability, 0.2f) << y;
+    EXPECT_EQ(ground.state, CellState::kTraversable) << y;
+    EXPECT_EQ(kept.traversability, ground.traversability) << y;
+    EXPECT_EQ(kept.traversability_variance, ground.traversability_variance) << y;
   }
 }
 

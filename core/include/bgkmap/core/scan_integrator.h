@@ -107,12 +107,13 @@ class ScanIntegrator {
   KernelStencil kernel_;
   std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
   int neighbourhood_radius_;              // largest |offset| in neighbourhood_
-  // Transient objects: offsets within robot_radius + kernel_length, the cells whose statistics
-  // an appearance at the centre changes (elevation within l, traversability within r + l).
-  std::vector<CellIndex> appearance_reach_;
-  int appearance_reach_radius_ = 0;
+  // Dynamics: offsets within robot_radius + kernel_length, the cells whose statistics a surface
+  // at the centre reaches (elevation within l, traversability within r + l): what a forgotten
+  // surface taught (GroundLeftBy), what an appearance hides (transient objects).
+  std::vector<CellIndex> evidence_reach_;
+  int evidence_reach_radius_ = 0;
   // Its half height at each dx in [-radius, radius] (the disk's column dx is dy in [-h, h]).
-  std::vector<int> appearance_reach_half_;
+  std::vector<int> evidence_reach_half_;
 };
 
 }  // namespace bgkmap
