@@ -8,6 +8,7 @@
 #include "bgkmap/core/cell_shapes.h"
 #include "integration_kernels.h"
 #include "scan_pass.h"
+#include "scan_reach.h"
 
 namespace bgkmap {
 namespace {
@@ -26,6 +27,10 @@ ScanIntegrator::ScanIntegrator(const MapParams& params)
       neighbourhood_(DiskOffsets(params.robot_radius, params.resolution)),
       neighbourhood_radius_(static_cast<int>(std::ceil(params.robot_radius / params.resolution))) {
   if (params.dynamics == Dynamics::kOn) {
+    for (const CellIndex& d : neighbourhood_) {
+      if (!internal::InKernelSupport(d.x, d.y, params.resolution, params.kernel_length))
+        beside_kernel_.push_back(d);
+    }
     const double reach = params.robot_radius + params.kernel_length;
     evidence_reach_ = DiskOffsets(reach, params.resolution);
     evidence_reach_radius_ = static_cast<int>(std::ceil(reach / params.resolution));

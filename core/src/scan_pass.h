@@ -120,8 +120,9 @@ struct ScanIntegrator::Pass {
   void AddFootprint(const PreparedScan& scan) const;
 
  private:
-  std::vector<std::pair<CellIndex, int>> CountContradictions(
-      const PreparedScan& scan, std::vector<ObservedCell>& appeared) const;
+  std::vector<std::pair<CellIndex, int>> CountContradictions(const PreparedScan& scan,
+                                                             std::vector<ObservedCell>& appeared,
+                                                             std::vector<CellIndex>& risen) const;
   // Transient objects: the traversable cells within robot_radius + l of each appeared cell that
   // starts or continues one are kept aside.
   void KeepGroundUnder(const PreparedScan& scan, const std::vector<ObservedCell>& appeared) const;
@@ -131,6 +132,8 @@ struct ScanIntegrator::Pass {
   bool Hidden(const PreparedScan& scan, CellIndex e, double g) const;
   void ResetBetaNear(const std::vector<std::pair<CellIndex, int>>& contradicted,
                      std::vector<const Tile*>& touched) const;
+  void ResetBetaBesideRisen(const std::vector<CellIndex>& risen,
+                            std::vector<const Tile*>& touched) const;
   void CutContradicted(const std::vector<std::pair<CellIndex, int>>& contradicted,
                        std::vector<const Tile*>& touched, std::vector<CellIndex>& forgotten) const;
   std::vector<CellIndex> GroundLeftBy(const std::vector<CellIndex>& forgotten,
@@ -148,8 +151,8 @@ struct ScanIntegrator::Pass {
   bool SeenTop(const Tile& tile, int i, double f, double* top) const;
   void FillSeenTops(const Tile& tile, double* tops) const;
   double Elevation(CellIndex c) const;
-  std::vector<CellIndex> Contradicted(const PreparedScan& scan,
-                                      std::vector<ObservedCell>& appeared) const;
+  std::vector<CellIndex> Contradicted(const PreparedScan& scan, std::vector<ObservedCell>& appeared,
+                                      std::vector<CellIndex>& risen) const;
   void AddRayContradictions(const PreparedScan& scan, std::vector<CellIndex>& out) const;
   bool FillFeatureHeights(TileKey key, double* z) const;
   float ValueAt(CellIndex c, std::vector<PatchPoint>& patch, internal::TileSlabs& heights) const;

@@ -153,9 +153,11 @@ void ComputeScanTiles(const MapParams& p, PreparedScan& scan) {
       return OffsetWithinRadius(dx, dy, p.robot_radius, p.resolution);
     });
   }
-  // Rays: the tiles of each ray's last clear_ray_length metres (its bounding box of tiles).
+  // Rays: the tiles of each ray's last clear_ray_length metres (its bounding box of tiles), and
+  // with the slack below also those of the cells within robot_radius of what rose (without rays
+  // too: clear_ray_length 0).
   std::vector<TileKey> rays;
-  if (p.dynamics == Dynamics::kOn && scan.has_sensor && p.clear_ray_length > 0) {
+  if (p.dynamics == Dynamics::kOn && scan.has_sensor) {
     const double res = p.resolution;
     const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
     const double length = p.clear_ray_length / res;

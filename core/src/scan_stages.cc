@@ -186,10 +186,11 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
 // The cells this scan contradicts, sorted, each once per piece of evidence (semantics
 // "Dynamics"), read from the map before the scan changes it: a return clearly above a cell's
 // elevation (something appeared), and a ray passing clearly below one on its way to its return
-// (what was there has gone). The first kind also in `appeared` with transient objects on, in
-// scan order (sorted).
-std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(
-    const PreparedScan& scan, std::vector<ObservedCell>& appeared) const {
+// (what was there has gone). The first kind also in `appeared` with transient objects on, and
+// where the cell had an elevation (something rose) in `risen`, both in scan order (sorted).
+std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(const PreparedScan& scan,
+                                                          std::vector<ObservedCell>& appeared,
+                                                          std::vector<CellIndex>& risen) const {
   std::vector<CellIndex> out;
   const double margin = self.params_.clear_margin;
   const bool transients = KeepsTransients(self.params_);
@@ -198,6 +199,7 @@ std::vector<CellIndex> ScanIntegrator::Pass::Contradicted(
     if (!(oc.y > m + margin)) continue;  // true for NaN (unknown)
     out.push_back(oc.cell);
     if (transients) appeared.push_back(oc);
+    if (!std::isnan(m)) risen.push_back(oc.cell);
   }
   if (self.params_.clear_ray_length > 0) AddRayContradictions(scan, out);
   SortCells(out);
@@ -277,10 +279,11 @@ float ScanIntegrator::Pass::ValueAt(CellIndex c, std::vector<PatchPoint>& patch,
 // ---- 0. Free-space evidence ----
 
 std::vector<std::pair<CellIndex, int>> ScanIntegrator::Pass::CountContradictions(
-    const PreparedScan& scan, std::vector<ObservedCell>& appeared) const {
+    const PreparedScan& scan, std::vector<ObservedCell>& appeared,
+    std::vector<CellIndex>& risen) const {
   // Each contradicted cell once, with the number of rays (and returns) that contradict it.
   std::vector<std::pair<CellIndex, int>> contradicted;
-  for (const CellIndex& c : Contradicted(scan, appeared)) {
+  for (const CellIndex& c : Contradicted(scan, appeared, risen)) {
     if (!contradicted.empty() && contradicted.back().first == c) {
       ++contradicted.back().second;
     } else {
@@ -306,6 +309,29 @@ void ScanIntegrator::Pass::ResetBetaNear(const std::vector<std::pair<CellIndex, 
       std::fill_n(b, len, 0.0f);
       if (touched.empty() || touched.back() != &tile) touched.push_back(&tile);
     });
+  }
+}
+
+// Where something rose above the ground the map knew, every cell within robot_radius of it is
+// now within a robot's reach of an obstacle (its v is 1), and the counts it learnt without the
+// obstacle are reset like those within l (ResetBetaNear, which has done the offsets inside the
+// kernel's support already): with l = robot_radius, the cells at exactly robot_radius.
+void ScanIntegrator::Pass::ResetBetaBesideRisen(const std::vector<CellIndex>& risen,
+                                                std::vector<const Tile*>& touched) const {
+  for (const CellIndex& c : risen) {
+    for (const CellIndex& d : self.beside_kernel_) {
+      const CellIndex n{c.x + d.x, c.y + d.y};
+      Tile* tile = window.at(self.geometry_.TileOf(n));
+      if (tile == nullptr) continue;
+      const int i = self.geometry_.LocalIndex(n);
+      float& a = tile->a()[i];
+      float& b = tile->b()[i];
+      if (a == 0.0f && b == 0.0f) continue;
+      if (forget) self.Advance(*tile, stamp);
+      a = b = 0.0f;
+      tile->MarkCellChanged(i);
+      if (touched.empty() || touched.back() != tile) touched.push_back(tile);
+    }
   }
 }
 
@@ -383,7 +409,9 @@ ScanIntegrator::Pass::FreeSpace ScanIntegrator::Pass::ApplyFreeSpace(const Prepa
   std::vector<TileKey>& cleared = out.cleared;
   if (self.params_.dynamics != Dynamics::kOn || !scan.has_sensor) return out;
   std::vector<ObservedCell> appeared;
-  const std::vector<std::pair<CellIndex, int>> contradicted = CountContradictions(scan, appeared);
+  std::vector<CellIndex> risen;
+  const std::vector<std::pair<CellIndex, int>> contradicted =
+      CountContradictions(scan, appeared, risen);
   KeepGroundUnder(scan, appeared);
   // Every tile this changes beyond the write tiles is stamped and reported like them (it must be
   // checkpointed before it can be evicted).
@@ -393,6 +421,7 @@ ScanIntegrator::Pass::FreeSpace ScanIntegrator::Pass::ApplyFreeSpace(const Prepa
   CutContradicted(contradicted, touched, forgotten);
   out.relearn = GroundLeftBy(forgotten, touched);
   ResetBetaNear(contradicted, touched);
+  ResetBetaBesideRisen(risen, touched);
   report.contradicted_cells = contradicted.size();
   read_tile = nullptr;  // a clear tile read above may have been brought to the scan's time
   std::sort(touched.begin(), touched.end());
