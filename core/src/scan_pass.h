@@ -138,6 +138,8 @@ struct ScanIntegrator::Pass {
                        std::vector<const Tile*>& touched, std::vector<CellIndex>& forgotten) const;
   std::vector<CellIndex> GroundLeftBy(const std::vector<CellIndex>& forgotten,
                                       std::vector<const Tile*>& touched) const;
+  void ResetGroundLeftColumn(int x, int y_from, int y_to, int kernel_from, int kernel_to,
+                             std::vector<const Tile*>& touched, std::vector<CellIndex>& out) const;
   template <bool kSecondMoment>
   void AddPlaneElevation(const PreparedScan& scan) const;
   template <bool kSecondMoment, bool kGain>

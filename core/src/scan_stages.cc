@@ -366,41 +366,61 @@ std::vector<CellIndex> ScanIntegrator::Pass::GroundLeftBy(const std::vector<Cell
                                                           std::vector<const Tile*>& touched) const {
   std::vector<CellIndex> out;
   if (!InfersTraversability(self.params_.method)) return out;
-  const MapParams& p = self.params_;
-  const KernelStencil& k = self.kernel_;
-  const int R = self.evidence_reach_radius_, RK = k.radius();
-  for (const CellIndex& f : forgotten) {
+  const int R = self.evidence_reach_radius_, RK = self.kernel_.radius();
+  // `forgotten` is sorted by (x, y): a run of it in one column reaches, in column x + dx, from
+  // its first's y - h(dx) to its last's y + h(dx), and the kernel's support of some cell of it
+  // from its first's y - hk(dx) to its last's y + hk(dx).
+  for (size_t a = 0; a < forgotten.size();) {
+    size_t b = a + 1;
+    while (b < forgotten.size() && forgotten[b].x == forgotten[a].x &&
+           forgotten[b].y == forgotten[b - 1].y + 1) {
+      ++b;
+    }
+    const int y0 = forgotten[a].y, y1 = forgotten[b - 1].y;
     for (int dx = -R; dx <= R; ++dx) {
       const int h = self.evidence_reach_half_[dx + R];
       if (h < 0) continue;
-      const int hk = std::abs(dx) <= RK ? k.half_width(dx + RK) : -1;  // the kernel's column
-      const int x = f.x + dx, lx = FloorMod(x, T), tx = FloorDiv(x, T);
-      for (int y = f.y - h; y <= f.y + h;) {
-        const TileKey key{tx, FloorDiv(y, T)};
-        const int seg_end = std::min(f.y + h, key.y * T + T - 1);
-        Tile* tile = window.at(key);
-        for (; tile != nullptr && y <= seg_end; ++y) {
-          const int i = FloorMod(y, T) * T + lx;
-          float& a = tile->a()[i];
-          float& b = tile->b()[i];
-          if (a == 0.0f && b == 0.0f) continue;
-          // Beyond l only obstacle evidence is suspect: ground evidence there was learnt from
-          // the cell's own surroundings, not only from the forgotten surface.
-          if (std::abs(y - f.y) > hk &&
-              (p.alpha0 + a) / (p.alpha0 + p.beta0 + a + b) < p.trav_threshold) {
-            continue;
-          }
-          if (forget) self.Advance(*tile, stamp);
-          a = b = 0.0f;
-          tile->MarkCellChanged(i);
-          if (touched.empty() || touched.back() != tile) touched.push_back(tile);
-          out.push_back({x, y});
-        }
-        y = seg_end + 1;
-      }
+      // Outside the kernel's columns no cell is within l of the run (an empty range).
+      const bool in_kernel = std::abs(dx) <= RK;
+      const int hk = in_kernel ? self.kernel_.half_width(dx + RK) : 0;
+      ResetGroundLeftColumn(forgotten[a].x + dx, y0 - h, y1 + h, in_kernel ? y0 - hk : 1,
+                            in_kernel ? y1 + hk : 0, touched, out);
     }
+    a = b;
   }
   return out;
+}
+
+// Column x from y_from to y_to of GroundLeftBy: every cell with counts in [kernel_from,
+// kernel_to] (within l of the forgotten run), the others only if their counts say "obstacle".
+void ScanIntegrator::Pass::ResetGroundLeftColumn(int x, int y_from, int y_to, int kernel_from,
+                                                 int kernel_to, std::vector<const Tile*>& touched,
+                                                 std::vector<CellIndex>& out) const {
+  const MapParams& p = self.params_;
+  const int lx = FloorMod(x, T), tx = FloorDiv(x, T);
+  for (int y = y_from; y <= y_to;) {
+    const TileKey key{tx, FloorDiv(y, T)};
+    const int seg_end = std::min(y_to, key.y * T + T - 1);
+    Tile* tile = window.at(key);
+    for (; tile != nullptr && y <= seg_end; ++y) {
+      const int i = FloorMod(y, T) * T + lx;
+      float& a = tile->a()[i];
+      float& b = tile->b()[i];
+      if (a == 0.0f && b == 0.0f) continue;
+      // Beyond l only obstacle evidence is suspect: ground evidence there was learnt from the
+      // cell's own surroundings, not only from the forgotten surface.
+      if ((y < kernel_from || y > kernel_to) &&
+          p.alpha0 + a < p.trav_threshold * (p.alpha0 + p.beta0 + a + b)) {
+        continue;
+      }
+      if (forget) self.Advance(*tile, stamp);
+      a = b = 0.0f;
+      tile->MarkCellChanged(i);
+      if (touched.empty() || touched.back() != tile) touched.push_back(tile);
+      out.push_back({x, y});
+    }
+    y = seg_end + 1;
+  }
 }
 
 ScanIntegrator::Pass::FreeSpace ScanIntegrator::Pass::ApplyFreeSpace(const PreparedScan& scan,
