@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <thread>
 
@@ -72,6 +73,14 @@ PreparedScans PrepareAll(const MapParams& params, const ScanSource& source, int 
   return out;
 }
 
+// The whole scan's cells a band's restriction carries (transient objects' sight test), shared
+// with the scan instead of copied once per band: `scans` outlive every band (MapScans).
+std::shared_ptr<const std::vector<ObservedCell>> WholeCellsView(const MapParams& params,
+                                                                const PreparedScan& scan) {
+  if (!KeepsTransients(params) || !scan.has_sensor) return nullptr;
+  return {std::shared_ptr<const void>(), &scan.cells};  // aliasing, owning nothing
+}
+
 // Integrates every scan, restricted to the band's reach, into `map`, in scan order.
 StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan>& scans,
                          const TileBand& band, TerrainMap& map, io::ProgressBar* progress) {
@@ -81,7 +90,9 @@ StageTimes IntegrateBand(const MapParams& params, const std::vector<PreparedScan
   for (size_t k = 0; k < scans.size(); ++k) {
     if (progress != nullptr) progress->Add();
     // The whole map (one thread) takes every scan as it is.
-    if (!band.IsWholeMap()) restricted = RestrictScan(params, scans[k], keep);
+    if (!band.IsWholeMap()) {
+      restricted = RestrictScan(params, scans[k], keep, WholeCellsView(params, scans[k]));
+    }
     const PreparedScan& scan = band.IsWholeMap() ? scans[k] : restricted;
     if (scan.cells.empty() && scan.footprint_cells.empty()) continue;
     const TileWindow window = map.MakeWindow(scan);
