@@ -370,24 +370,17 @@ std::vector<CellIndex> ScanIntegrator::Pass::GroundLeftBy(const std::vector<Cell
   // `forgotten` is sorted by (x, y): a run of it in one column reaches, in column x + dx, from
   // its first's y - h(dx) to its last's y + h(dx), and the kernel's support of some cell of it
   // from its first's y - hk(dx) to its last's y + hk(dx).
-  for (size_t a = 0; a < forgotten.size();) {
-    size_t b = a + 1;
-    while (b < forgotten.size() && forgotten[b].x == forgotten[a].x &&
-           forgotten[b].y == forgotten[b - 1].y + 1) {
-      ++b;
-    }
-    const int y0 = forgotten[a].y, y1 = forgotten[b - 1].y;
+  internal::ForEachColumnRun(forgotten, [&](int x, int y0, int y1) {
     for (int dx = -R; dx <= R; ++dx) {
       const int h = self.evidence_reach_half_[dx + R];
       if (h < 0) continue;
       // Outside the kernel's columns no cell is within l of the run (an empty range).
       const bool in_kernel = std::abs(dx) <= RK;
       const int hk = in_kernel ? self.kernel_.half_width(dx + RK) : 0;
-      ResetGroundLeftColumn(forgotten[a].x + dx, y0 - h, y1 + h, in_kernel ? y0 - hk : 1,
+      ResetGroundLeftColumn(x + dx, y0 - h, y1 + h, in_kernel ? y0 - hk : 1,
                             in_kernel ? y1 + hk : 0, touched, out);
     }
-    a = b;
-  }
+  });
   return out;
 }
 

@@ -222,21 +222,13 @@ void ScanIntegrator::Pass::KeepGroundUnder(const PreparedScan& scan,
   // `appeared` is sorted by (x, y): a run of it in one column reaches, in column x + dx, the
   // cells from its first's y - h(dx) to its last's y + h(dx).
   const int R = self.evidence_reach_radius_;
-  for (size_t a = 0; a < appeared.size();) {
-    size_t b = a + 1;
-    while (b < appeared.size() && appeared[b].x == appeared[a].x &&
-           appeared[b].y == appeared[b - 1].y + 1) {
-      ++b;
-    }
+  internal::ForEachColumnRun(appeared, [&](int x, int y0, int y1) {
     for (int dx = -R; dx <= R; ++dx) {
       const int h = self.evidence_reach_half_[dx + R];
       if (h < 0) continue;
-      for (int y = appeared[a].y - h; y <= appeared[b - 1].y + h; ++y) {
-        visit({appeared[a].x + dx, y});
-      }
+      for (int y = y0 - h; y <= y1 + h; ++y) visit({x + dx, y});
     }
-    a = b;
-  }
+  });
   MergeIntoPending(found);
 }
 
