@@ -106,9 +106,9 @@ class ScanIntegrator {
   GridGeometry geometry_;
   KernelStencil kernel_;
   std::vector<CellIndex> neighbourhood_;  // offsets within robot_radius, inclusive
+  int neighbourhood_radius_;              // largest |offset| in neighbourhood_
   // Dynamics: the offsets of neighbourhood_ outside the kernel's support (distance < l).
   std::vector<CellIndex> beside_kernel_;
-  int neighbourhood_radius_;  // largest |offset| in neighbourhood_
   // Dynamics: offsets within robot_radius + kernel_length, the cells whose statistics a surface
   // at the centre reaches (elevation within l, traversability within r + l): what a forgotten
   // surface taught (GroundLeftBy), what an appearance hides (transient objects).
