@@ -22,33 +22,12 @@ std::vector<Point3f> SensorFrame(const std::vector<Point3f>& map_frame) {
   return InSensorFrame(map_frame, kSensor);
 }
 
-bool InBox(float x, float y) { return x > 5.5f && x < 6.0f && y > -0.5f && y < 0.5f; }
-
 // Flat ground 3-8 m ahead with a 0.5 x 1 m box, 0.8 m tall, at 5.5-6 m (and its shadow).
-std::vector<Point3f> GroundWithBox() {
-  std::vector<Point3f> pts;
-  for (int i = 0; i < 50; ++i) {
-    for (int j = 0; j < 30; ++j) {
-      const float x = 3.05f + 0.1f * i, y = -1.45f + 0.1f * j;
-      if (InBox(x, y)) {
-        pts.push_back({x, y, 0.8f});
-      } else if (!(x > 6.0f && y > -0.5f && y < 0.5f)) {
-        pts.push_back({x, y, 0.0f});
-      }
-    }
-  }
-  return pts;
-}
+std::vector<Point3f> GroundWithBox() { return GroundAhead(LaneBox{5.5f, 6.0f, 0.8f}); }
 
 // The box has gone: returns only from the ground 7-8 m ahead, whose rays pass low over where it
 // stood; none within l of the ground in front of it.
-std::vector<Point3f> FarGroundOnly() {
-  std::vector<Point3f> pts;
-  for (int i = 0; i < 10; ++i) {
-    for (int j = 0; j < 30; ++j) pts.push_back({7.05f + 0.1f * i, -1.45f + 0.1f * j, 0.0f});
-  }
-  return pts;
-}
+std::vector<Point3f> FarGroundOnly() { return GroundStripAhead(7.05f, 10); }
 
 std::unique_ptr<TerrainMap> BoxThenGone(MapParams p,
                                         const std::vector<Point3f>& last = FarGroundOnly()) {

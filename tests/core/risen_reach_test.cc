@@ -20,19 +20,7 @@ const Eigen::Vector3d kSensor(0.05, 0.05, 1.0);
 // Flat ground 3-8 m ahead; with `box`, a 0.5 x 1 m box 0.8 m tall at x 5.5-6 m (its shadow
 // unseen).
 std::vector<Point3f> Scene(bool box) {
-  std::vector<Point3f> pts;
-  for (int i = 0; i < 50; ++i) {
-    for (int j = 0; j < 30; ++j) {
-      const float x = 3.05f + 0.1f * i, y = -1.45f + 0.1f * j;
-      const bool across = y > -0.5f && y < 0.5f;
-      if (box && across && x > 5.5f && x < 6.0f) {
-        pts.push_back({x, y, 0.8f});
-      } else if (!(box && across && x > 6.0f)) {
-        pts.push_back({x, y, 0.0f});
-      }
-    }
-  }
-  return InSensorFrame(pts, kSensor);
+  return InSensorFrame(box ? GroundAhead(LaneBox{5.5f, 6.0f, 0.8f}) : GroundAhead(), kSensor);
 }
 
 TEST(RisenReachTest, CellsExactlyARobotRadiusFromANewObjectAreBlockedAtOnce) {

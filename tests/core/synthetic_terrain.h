@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <functional>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -45,6 +46,40 @@ inline Pose At(const Eigen::Vector3d& origin) {
   Pose p;
   p.translation = origin;
   return p;
+}
+
+// A box standing in the lane |y| < 0.5 m, from x0 to x1 metres ahead, `height` tall.
+struct LaneBox {
+  float x0, x1, height;
+};
+
+// Map-frame returns of flat ground (z = 0) 3-8 m ahead of a sensor near the origin, |y| < 1.5 m,
+// on a 0.1 m grid; with `box`, the box's top where it stands and no return from its shadow (the
+// lane beyond it). The changing-world tests' scene: a vehicle in the lane ahead.
+inline std::vector<Point3f> GroundAhead(std::optional<LaneBox> box = std::nullopt) {
+  std::vector<Point3f> pts;
+  for (int i = 0; i < 50; ++i) {
+    for (int j = 0; j < 30; ++j) {
+      const float x = 3.05f + 0.1f * i, y = -1.45f + 0.1f * j;
+      const bool lane = y > -0.5f && y < 0.5f;
+      if (box && lane && x > box->x0 && x < box->x1) {
+        pts.push_back({x, y, box->height});
+      } else if (!(box && lane && x > box->x1)) {
+        pts.push_back({x, y, 0.0f});
+      }
+    }
+  }
+  return pts;
+}
+
+// Map-frame returns of flat ground only from `rows` rows of the same grid, the first at x_first
+// (a scan that samples part of GroundAhead's ground and nothing else).
+inline std::vector<Point3f> GroundStripAhead(float x_first, int rows) {
+  std::vector<Point3f> pts;
+  for (int i = 0; i < rows; ++i) {
+    for (int j = 0; j < 30; ++j) pts.push_back({x_first + 0.1f * i, -1.45f + 0.1f * j, 0.0f});
+  }
+  return pts;
 }
 
 // Gently rolling ground with a 0.2 m step along x = 2.

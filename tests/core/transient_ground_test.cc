@@ -18,52 +18,19 @@ namespace {
 const Eigen::Vector3d kSensor(0.05, 0.05, 1.0);
 constexpr int64_t kScanNs = 100'000'000;  // 10 Hz
 
-bool InBox(float x, float y) { return x > 5.5f && x < 6.0f && y > -0.5f && y < 0.5f; }
-
 // Flat ground 3-8 m ahead; with `box`, a 0.5 x 1 m box, 1 m tall, at 5.5-6 m and no return from
 // its shadow.
 std::vector<Point3f> Ground(bool box) {
-  std::vector<Point3f> pts;
-  for (int i = 0; i < 50; ++i) {
-    for (int j = 0; j < 30; ++j) {
-      const float x = 3.05f + 0.1f * i, y = -1.45f + 0.1f * j;
-      if (box && InBox(x, y)) {
-        pts.push_back({x, y, 1.0f});
-      } else if (!box || !(x > 6.0f && y > -0.5f && y < 0.5f)) {
-        pts.push_back({x, y, 0.0f});
-      }
-    }
-  }
-  return pts;
+  return box ? GroundAhead(LaneBox{5.5f, 6.0f, 1.0f}) : GroundAhead();
 }
 
 // The box has moved 1.5 m toward the sensor (a car following the robot): its returns at 4-4.5 m,
 // 1.2 m tall, hide the place where it stood; the ground 3-4 m and beside it is seen.
-std::vector<Point3f> BoxMovedCloser() {
-  std::vector<Point3f> pts;
-  for (int i = 0; i < 50; ++i) {
-    for (int j = 0; j < 30; ++j) {
-      const float x = 3.05f + 0.1f * i, y = -1.45f + 0.1f * j;
-      const bool lane = y > -0.5f && y < 0.5f;
-      if (lane && x > 4.0f && x < 4.5f) {
-        pts.push_back({x, y, 1.2f});
-      } else if (!(lane && x > 4.5f)) {
-        pts.push_back({x, y, 0.0f});
-      }
-    }
-  }
-  return pts;
-}
+std::vector<Point3f> BoxMovedCloser() { return GroundAhead(LaneBox{4.0f, 4.5f, 1.2f}); }
 
 // Only the ground 3-5 m ahead: nothing within l of where the box stood, but nothing hides it
 // either (a place in view that no return happens to sample).
-std::vector<Point3f> NearGroundOnly() {
-  std::vector<Point3f> pts;
-  for (int i = 0; i < 20; ++i) {
-    for (int j = 0; j < 30; ++j) pts.push_back({3.05f + 0.1f * i, -1.45f + 0.1f * j, 0.0f});
-  }
-  return pts;
-}
+std::vector<Point3f> NearGroundOnly() { return GroundStripAhead(3.05f, 20); }
 
 MapParams Transients(double confirm_s) {
   MapParams p;
