@@ -8,7 +8,10 @@ RegionRequest.compress (gzip), the bytes a counting TCP proxy saw from server to
 framing included: what a radio carries).
 
     PYTHONPATH=build/python /usr/bin/python3 scripts/bench-region-delta.py \
-        --bgkmapd build/server/bgkmapd --data ../shared/data
+        --bgkmapd build/server/bgkmapd --data ../shared/data [--bgkmap build/tools/bgkmap/bgkmap]
+
+With --bgkmap it also simulates the City street the issue measured (a car with a VLP-16 driving
+100 m, experiments/robots/car_sim.yaml) and refreshes the street's 50 x 100 m mid-drive.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import re
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 
 import numpy as np
@@ -107,14 +111,15 @@ class CountingProxy:
 
 
 def run(binary: str, name: str, seq: bgkmap.KittiSequence, base: int, margin: float,
-        layers) -> dict:
+        layers, box=None) -> dict:
     server = Server(binary)
     try:
         proxy = CountingProxy(server.port)
         with bgkmap.Client(f"127.0.0.1:{server.port}", timeout=600) as client, \
                 bgkmap.Client(f"127.0.0.1:{proxy.port}", timeout=600) as zclient:
             limit = client.info()["limits"]["max_region_cells"]
-            box = box_around([seq[k][1] for k in range(len(seq))], margin, limit)
+            if box is None:
+                box = box_around([seq[k][1] for k in range(len(seq))], margin, limit)
 
             def insert(first: int, count: int):
                 for k in range(first, min(first + count, len(seq))):
@@ -164,21 +169,34 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bgkmapd", required=True)
     ap.add_argument("--data", required=True, help="../shared/data")
+    ap.add_argument("--bgkmap", help="the CLI, to simulate the City street as well")
     args = ap.parse_args()
     runs = [
-        ("Ouster OS1-128 street", "ouster_os1_128_street", 2, 40.0, None),
-        ("KITTI 0048, drive +- 40 m", "kitti_raw_0048", 11, 40.0, None),
-        ("KITTI 0048, 200 x 200 m", "kitti_raw_0048", 11, 500.0, None),
-        ("KITTI 0048, 200 x 200 m, elevation+state", "kitti_raw_0048", 11, 500.0,
-         ["elevation", "state"]),
-        ("BALM hall, path +- 10 m", "balm_hall", 48, 10.0, None),
+        ("Ouster OS1-128 street", os.path.join(args.data, "ouster_os1_128_street"), 2, 40.0, None,
+         None),
+        ("KITTI 0048, drive +- 40 m", os.path.join(args.data, "kitti_raw_0048"), 11, 40.0, None,
+         None),
+        ("KITTI 0048, 200 x 200 m", os.path.join(args.data, "kitti_raw_0048"), 11, 500.0, None,
+         None),
+        ("KITTI 0048, 200 x 200 m, elevation+state", os.path.join(args.data, "kitti_raw_0048"),
+         11, 500.0, ["elevation", "state"], None),
+        ("BALM hall, path +- 10 m", os.path.join(args.data, "balm_hall"), 48, 10.0, None, None),
     ]
+    scratch = tempfile.TemporaryDirectory(prefix="bgkmap-region-delta-")
+    if args.bgkmap:
+        city = os.path.join(scratch.name, "city")
+        subprocess.run([args.bgkmap, "simulate", "city", "--config",
+                        os.path.join(os.path.dirname(__file__), "..", "experiments", "robots",
+                                     "car_sim.yaml"),
+                        "--length", "100", "--out", city], check=True, stdout=subprocess.DEVNULL)
+        runs.append(("simulated City street, VLP-16 (50 x 100 m)", city, 50, 0.0, None,
+                     (-25.0, 0.0, 25.0, 100.0)))
     print("| sequence | region (pixels, tiles) | full answer bytes | after 1 scan: bytes (patches, "
           "ratio) | after 10 scans: bytes (patches, ratio) | gzip on the wire: full, after 1, after 10 |")
     print("|---|---|---|---|---|---|")
-    for name, folder, base, margin, layers in runs:
-        seq = bgkmap.KittiSequence(os.path.join(args.data, folder))
-        r = run(args.bgkmapd, name, seq, base, margin, layers)
+    for name, folder, base, margin, layers, box in runs:
+        seq = bgkmap.KittiSequence(folder)
+        r = run(args.bgkmapd, name, seq, base, margin, layers, box)
 
         def cell(label):
             if label not in r:

@@ -104,7 +104,7 @@ ScanReport MergeBandReports(const PreparedScan& scan, std::vector<ScanReport> pa
   ScanReport out;
   out.counts = scan.counts;
   out.observed_cells = scan.cells.size();
-  std::vector<std::pair<TileKey, uint64_t>> changed;
+  std::vector<std::pair<TileKey, TileBlocks>> changed;
   for (const ScanReport& p : parts) {
     out.feature_cells += p.feature_cells;
     out.contradicted_cells += p.contradicted_cells;

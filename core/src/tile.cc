@@ -250,7 +250,7 @@ void Tile::Add(const Tile& o) {
 
 void Tile::Scale(double f) {
   assert(!is_packed());
-  changed_blocks_ = kAllTileBlocks;
+  changed_blocks_ = TileBlocks::All();
   for (size_t i = 0; i < n(); ++i) {
     w_[i] *= f;
     s_[i] *= f;

@@ -28,9 +28,7 @@ Raster Crop(const Raster& r, const CellBox& box) {
 // same blocks joined to it.
 void AppendBlockPatches(const GridGeometry& g, const CellBox& region, const ChangedTile& tile,
                         const Raster& part, std::vector<v1::TilePatch>* out) {
-  auto row_bits = [&](int by) {
-    return static_cast<unsigned>((tile.blocks >> (by * kTileBlocksPerSide)) & 0xffu);
-  };
+  auto row_bits = [&](int by) { return tile.blocks.Row(by); };
   for (int by = 0; by < kTileBlocksPerSide;) {
     const unsigned bits = row_bits(by);
     int by_end = by;
@@ -42,9 +40,7 @@ void AppendBlockPatches(const GridGeometry& g, const CellBox& region, const Chan
       }
       int bx_end = bx;
       while (bx_end + 1 < kTileBlocksPerSide && (bits >> (bx_end + 1) & 1u)) ++bx_end;
-      CellBox box = TileBlockRowCells(g, tile.key, by, bx, bx_end);
-      box.max.y = TileBlockRowCells(g, tile.key, by_end, bx, bx_end).max.y;
-      box = box.Intersect(part.box);
+      const CellBox box = TileBlockCells(g, tile.key, bx, by, bx_end, by_end).Intersect(part.box);
       if (!box.empty()) ToProto(tile.key, region, Crop(part, box), &out->emplace_back());
       bx = bx_end + 1;
     }
@@ -77,12 +73,12 @@ Result<DeltaAnswer> ReadRegionDelta(MapPort& map, const DeltaQuery& q, uint64_t 
   }
   answer.patches.reserve(changed->size());
   for (const ChangedTile& tile : *changed) {
-    if (tile.blocks == 0) continue;  // listed, but nothing in it changed
+    if (tile.blocks.Empty()) continue;  // listed, but nothing in it changed
     const CellBox cells = TilePatchCells(g, q.region, q.stride, tile.key);
     if (cells.empty()) continue;
     Result<Raster> part = map.ReadRegion(cells, q.layers, q.stride);
     if (!part.ok()) return part.status();
-    if (q.stride != 1 || tile.blocks == kAllTileBlocks || TileBlockShift(g.tile_size()) < 0) {
+    if (q.stride != 1 || tile.blocks.IsAll() || TileBlockShift(g.tile_size()) < 0) {
       ToProto(tile.key, q.region, *part, &answer.patches.emplace_back());
       continue;
     }

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "bgkmap/core/grid.h"
+#include "bgkmap/core/tile_blocks.h"
 
 namespace bgkmap {
 
@@ -49,14 +50,14 @@ class ChangeScheduler {
     std::function<void()> then;
     // changed_blocks[i]: the blocks of changed_tiles[i] that may have changed (a scan's report);
     // empty: the whole tiles.
-    std::vector<uint64_t> changed_blocks = {};
+    std::vector<TileBlocks> changed_blocks = {};
   };
   // Runs on a worker with the change's version (a barrier: the applied version, which then
   // covers every change admitted before it).
   using Work = std::function<Done(uint64_t version)>;
   using TilesChanged = std::function<void(const std::vector<TileKey>&)>;
   using TilesApplied = std::function<void(uint64_t version, const std::vector<TileKey>&,
-                                          const std::vector<uint64_t>& blocks)>;
+                                          const std::vector<TileBlocks>& blocks)>;
 
   // `on_tiles_applied` is told a change's version and tiles before the applied version covers
   // it (a reader that sees the applied version finds the change recorded); `on_tiles_changed`

@@ -46,7 +46,7 @@ class MapReads {
   virtual uint64_t history_id() const = 0;
   // The tiles with min <= key <= max (per axis) whose last change is after `since`, sorted by
   // key, each with the blocks (tile_blocks.h) that may have changed since (a superset of those
-  // that did; kAllTileBlocks where only the tile is known), including tiles emptied or removed
+  // that did; TileBlocks::All() where only the tile is known), including tiles emptied or removed
   // since (read applied_version() first: every change up to it is then listed).
   // FailedPrecondition saying why if this map cannot answer `since` exactly (then the caller
   // answers the whole region).

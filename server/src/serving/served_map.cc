@@ -38,7 +38,7 @@ ServedMap::ServedMap(std::unique_ptr<TerrainMap> map, Durability& durability,
       scratch_release_(workers, options.worker_threads, options.scratch_idle),
       scheduler_(workers, std::move(options.on_tiles_changed),
                  [this](uint64_t version, const std::vector<TileKey>& tiles,
-                        const std::vector<uint64_t>& blocks) {
+                        const std::vector<TileBlocks>& blocks) {
                    change_log_.Record(version, tiles, blocks);
                    scratch_release_.Touch();
                  }) {

@@ -8,7 +8,7 @@ namespace bgkmap {
 TileChangeLog::TileChangeLog(uint64_t floor, uint64_t history_id)
     : floor_(floor), history_id_(history_id) {}
 
-void TileChangeLog::History::Add(uint64_t v, uint64_t b) {
+void TileChangeLog::History::Add(uint64_t v, const TileBlocks& b) {
   if (size > 0 && version[size - 1] >= v) {  // (the same change told again: one entry)
     blocks[size - 1] |= b;
     return;
@@ -24,17 +24,17 @@ void TileChangeLog::History::Add(uint64_t v, uint64_t b) {
   ++size;
 }
 
-uint64_t TileChangeLog::History::BlocksAfter(uint64_t since) const {
-  uint64_t out = 0;
+TileBlocks TileChangeLog::History::BlocksAfter(uint64_t since) const {
+  TileBlocks out;
   for (int i = size - 1; i >= 0 && version[i] > since; --i) out |= blocks[i];
   return out;
 }
 
 void TileChangeLog::Record(uint64_t version, const std::vector<TileKey>& tiles,
-                           const std::vector<uint64_t>& blocks) {
+                           const std::vector<TileBlocks>& blocks) {
   std::lock_guard lock(mu_);
   for (size_t i = 0; i < tiles.size(); ++i) {
-    changes_[tiles[i]].Add(version, blocks.empty() ? kAllTileBlocks : blocks[i]);
+    changes_[tiles[i]].Add(version, blocks.empty() ? TileBlocks::All() : blocks[i]);
   }
 }
 

@@ -9,7 +9,7 @@
 // an older version may name more (never fewer).
 //
 // Kept in memory only: a since_version below the version the server started at (`floor`) is
-// not answered from it. It holds one entry per tile changed since the start (~100 bytes plus
+// not answered from it. It holds one entry per tile changed since the start (~250 bytes plus
 // the tree's node), at most the tiles of the map plus those removed since.
 #pragma once
 
@@ -36,7 +36,7 @@ class TileChangeLog {
   // Thread-safe. Changes of one tile are recorded in version order (the scheduler orders them).
   // blocks[i]: the blocks of tiles[i] the change may have changed; empty: whole tiles.
   void Record(uint64_t version, const std::vector<TileKey>& tiles,
-              const std::vector<uint64_t>& blocks = {});
+              const std::vector<TileBlocks>& blocks = {});
 
   // The tiles with min <= key <= max (per axis) whose last change is after `since`, sorted by
   // key, with the blocks changed after it (a superset); nullopt if `since` < floor() (changes
@@ -54,11 +54,11 @@ class TileChangeLog {
   // its own (the first: since the start).
   struct History {
     uint64_t version[kHistory] = {};
-    uint64_t blocks[kHistory] = {};
+    TileBlocks blocks[kHistory] = {};
     int size = 0;
     uint64_t last() const { return version[size - 1]; }
-    void Add(uint64_t v, uint64_t b);
-    uint64_t BlocksAfter(uint64_t since) const;
+    void Add(uint64_t v, const TileBlocks& b);
+    TileBlocks BlocksAfter(uint64_t since) const;
   };
   mutable std::mutex mu_;
   std::map<TileKey, History> changes_;  // sorted by (x, y): a column is one range

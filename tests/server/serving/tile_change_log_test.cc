@@ -22,10 +22,18 @@ Keys KeysOf(const std::optional<std::vector<ChangedTile>>& changed) {
   return out;
 }
 
+// Block n of a tile: (n % 16, n / 16).
+TileBlocks Block(int n) {
+  TileBlocks b;
+  b.AddRect(n % kTileBlocksPerSide, n / kTileBlocksPerSide, n % kTileBlocksPerSide,
+            n / kTileBlocksPerSide);
+  return b;
+}
+
 // The blocks the log names for tile (0, 0) after `since`.
-uint64_t BlocksAfter(const TileChangeLog& log, uint64_t since) {
+TileBlocks BlocksAfter(const TileChangeLog& log, uint64_t since) {
   const std::vector<ChangedTile> changed = log.ChangedSince({0, 0}, {0, 0}, since).value();
-  return changed.empty() ? 0 : changed.front().blocks;
+  return changed.empty() ? TileBlocks() : changed.front().blocks;
 }
 
 TEST(TileChangeLogTest, ListsTheTilesOfTheBoxChangedAfterAVersion) {
@@ -54,18 +62,19 @@ TEST(TileChangeLogTest, AVersionBelowTheStartIsNotAnswered) {
 
 TEST(TileChangeLogTest, NamesTheBlocksChangedAfterAVersion) {
   TileChangeLog log(0, NewHistoryId());
-  log.Record(1, {{0, 0}}, {0b0001});
-  log.Record(2, {{0, 0}}, {0b0100});
-  log.Record(3, {{0, 0}, {0, 1}}, {0b0100, 0});
-  EXPECT_EQ(BlocksAfter(log, 0), 0b0101u);
-  EXPECT_EQ(BlocksAfter(log, 1), 0b0100u);
-  EXPECT_EQ(BlocksAfter(log, 3), 0u);
+  log.Record(1, {{0, 0}}, {Block(0)});
+  log.Record(2, {{0, 0}}, {Block(200)});
+  log.Record(3, {{0, 0}, {0, 1}}, {Block(200), TileBlocks()});
+  EXPECT_EQ(BlocksAfter(log, 0), Block(0) | Block(200));
+  EXPECT_EQ(BlocksAfter(log, 1), Block(200));
+  EXPECT_EQ(BlocksAfter(log, 3), TileBlocks());
   // A tile changed with no block named (a write tile the scan did not touch) is listed with none.
-  EXPECT_EQ(log.ChangedSince({0, 1}, {0, 1}, 0).value(), (std::vector<ChangedTile>{{{0, 1}, 0}}));
+  EXPECT_EQ(log.ChangedSince({0, 1}, {0, 1}, 0).value(),
+            (std::vector<ChangedTile>{{{0, 1}, TileBlocks()}}));
   // A change recorded without blocks (a clear, an import, a correction): the whole tile.
   log.Record(4, {{0, 0}});
-  EXPECT_EQ(BlocksAfter(log, 3), kAllTileBlocks);
-  EXPECT_EQ(BlocksAfter(log, 4), 0u);
+  EXPECT_EQ(BlocksAfter(log, 3), TileBlocks::All());
+  EXPECT_EQ(BlocksAfter(log, 4), TileBlocks());
 }
 
 // More changes than the history holds: the oldest merge, so an old `since` may name more blocks
@@ -73,12 +82,13 @@ TEST(TileChangeLogTest, NamesTheBlocksChangedAfterAVersion) {
 TEST(TileChangeLogTest, AMergedHistoryNamesASupersetNeverLess) {
   TileChangeLog log(0, NewHistoryId());
   constexpr int kChanges = 3 * TileChangeLog::kHistory;
-  for (int v = 1; v <= kChanges; ++v) log.Record(v, {{0, 0}}, {uint64_t{1} << v});
+  // Blocks 14 apart, so the changes fall in every word of the mask.
+  for (int v = 1; v <= kChanges; ++v) log.Record(v, {{0, 0}}, {Block(14 * v)});
   for (int since = 0; since <= kChanges; ++since) {
-    uint64_t exact = 0;
-    for (int v = since + 1; v <= kChanges; ++v) exact |= uint64_t{1} << v;
-    const uint64_t named = BlocksAfter(log, since);
-    EXPECT_EQ(named & exact, exact) << "since " << since;
+    TileBlocks exact;
+    for (int v = since + 1; v <= kChanges; ++v) exact |= Block(14 * v);
+    const TileBlocks named = BlocksAfter(log, since);
+    EXPECT_TRUE(named.Contains(exact)) << "since " << since;
     if (since >= kChanges - (TileChangeLog::kHistory - 1)) {
       EXPECT_EQ(named, exact) << since;
     }
@@ -93,14 +103,14 @@ TEST(TileChangeLogTest, TheSchedulerRecordsAChangeBeforeTheAppliedVersionCoversI
   std::atomic<int> with_blocks{0};
   ChangeScheduler scheduler(
       pool, {},
-      [&](uint64_t version, const std::vector<TileKey>&, const std::vector<uint64_t>& blocks) {
+      [&](uint64_t version, const std::vector<TileKey>&, const std::vector<TileBlocks>& blocks) {
         if (self->applied_version() >= version) covered_early = true;
-        if (blocks == std::vector<uint64_t>{0b11}) ++with_blocks;
+        if (blocks == std::vector<TileBlocks>{Block(0) | Block(1)}) ++with_blocks;
       });
   self = &scheduler;
   for (int i = 0; i < 50; ++i) {
     scheduler.Submit(ChangeScheduler::TileChange{{{i % 3, 0}}, {}}, [](uint64_t) {
-      return ChangeScheduler::Done{{{0, 0}}, {}, {0b11}};
+      return ChangeScheduler::Done{{{0, 0}}, {}, {Block(0) | Block(1)}};
     });
   }
   scheduler.WaitIdle();

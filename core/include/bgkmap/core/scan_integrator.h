@@ -55,7 +55,7 @@ struct ScanReport {
   std::vector<TileKey> changed_tiles;  // sorted
   // changed_blocks[i]: the blocks of changed_tiles[i] the scan may have changed (tile_blocks.h;
   // over-approximate: no cell outside them changed).
-  std::vector<uint64_t> changed_blocks;
+  std::vector<TileBlocks> changed_blocks;
   StageTimes times;
 };
 

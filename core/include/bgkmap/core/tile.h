@@ -144,15 +144,15 @@ class Tile {
   // whole tiles by their callers and need not mark. Not a statistic: copies start with none,
   // operator== ignores it.
   void MarkChanged(int x0, int y0, int x1, int y1) {
-    changed_blocks_ |= TileBlocksOf(block_shift_, x0, y0, x1, y1);
+    AddTileBlocksOf(changed_blocks_, block_shift_, x0, y0, x1, y1);
   }
   void MarkCellChanged(int local) {
     const int x = local % size_, y = local / size_;
     MarkChanged(x, y, x, y);
   }
-  uint64_t TakeChangedBlocks() {
-    const uint64_t m = changed_blocks_;
-    changed_blocks_ = 0;
+  TileBlocks TakeChangedBlocks() {
+    const TileBlocks m = changed_blocks_;
+    changed_blocks_ = {};
     return m;
   }
 
@@ -239,7 +239,7 @@ class Tile {
   int size_;
   bool plane_;
   int block_shift_ = TileBlockShift(size_);
-  uint64_t changed_blocks_ = 0;
+  TileBlocks changed_blocks_;
   uint64_t version_ = 0;
   std::vector<PendingGround> pending_;
   int64_t stamp_ns_ = 0;
