@@ -623,7 +623,7 @@ void ScanIntegrator::Pass::AddTraversability(
 
 // Beyond the paper: ground beside a forgotten object that this scan's values left no counts
 // re-learns from the surface left around it, where that surface crosses no critical value, at
-// the weight one observation gives its own cell (the kernel's k(0) = 1). Its tile was reset
+// the weight of the elevations it rests on (docs/semantics.md, "Dynamics" 4). Its tile was reset
 // (GroundLeftBy): it is reported.
 void ScanIntegrator::Pass::RelearnGroundLeft(const PreparedScan& scan,
                                              const std::vector<CellIndex>& relearn) const {
@@ -633,6 +633,7 @@ void ScanIntegrator::Pass::RelearnGroundLeft(const PreparedScan& scan,
   const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
   internal::TileSlabs heights(scan, T, false, fill);
   const float ab_cap = self.caps_.ab;
+  const double full_kernel = FullKernelWeight(self.params_);
   for (const CellIndex& c : relearn) {
     Tile* tile = TileAt(c);
     const int i = self.geometry_.LocalIndex(c);
@@ -642,7 +643,10 @@ void ScanIntegrator::Pass::RelearnGroundLeft(const PreparedScan& scan,
     const float v = ValueAt(c, patch, heights);
     if (!(v < 1.0f)) continue;  // an obstacle, or no value (NaN)
     tile->MarkCellChanged(i);
-    const float g = static_cast<float>(GainOf(*tile));
+    // As much as the elevations it rests on: the cell's own weight, at least one observation's
+    // and at most one full-kernel observation's (what one scan seeing the surface would teach).
+    const double weight = std::clamp(tile->w()[i], 1.0, full_kernel);
+    const float g = static_cast<float>(GainOf(*tile) * weight);
     a = g * v;
     b = g * (1.0f - v);
     if (ab_cap > 0) internal::CapBeta(&a, &b, 1, ab_cap);

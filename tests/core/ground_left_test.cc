@@ -2,7 +2,8 @@
 // resets the Beta counts within l of every contradicted cell; where a cell was forgotten, the
 // cells within l of it, and those within robot_radius + l (as far as its surface's evidence
 // reached) whose counts say "obstacle", re-learn v from the surface left there, at the
-// weight of one observation at the cell, when that surface crosses no critical value. Without
+// weight of the cell's elevations (between one observation's and one full-kernel observation's),
+// when that surface crosses no critical value. Without
 // it, ground a vehicle stood beside stays blocked ("no value") until a scan's returns land
 // within l of it.
 #include <gtest/gtest.h>
@@ -76,6 +77,39 @@ TEST(GroundLeftTest, GroundAsFarAsTheObjectsEvidenceReachedReLearns) {
     EXPECT_EQ(ground.state, CellState::kTraversable) << y;
     EXPECT_EQ(kept.traversability, ground.traversability) << y;
     EXPECT_EQ(kept.traversability_variance, ground.traversability_variance) << y;
+  }
+}
+
+// The same scenes on ground rising 1 in `rise` along x (the box stands on it).
+std::vector<Point3f> Sloped(std::vector<Point3f> pts, float rise) {
+  for (Point3f& q : pts) q.z += (q.x - 3.0f) / rise;
+  return pts;
+}
+
+TEST(GroundLeftTest, ReLearntGroundIsAsSureAsTheElevationsItRestsOn) {
+  // On a slope the ground left re-learns v > 0. The cells in front of the box were seen by every
+  // scan (their elevation weight is at least one full-kernel observation's): the v they re-learn
+  // from that surface weighs as much, not one observation's (whose variance, v (1 - v) / 2, blocks
+  // any v between 0.07 and 0.93 on the variance threshold of 0.05).
+  const MapParams p;
+  const Eigen::Vector3d sensor = kSensor;
+  for (float rise : {20.0f, 12.0f}) {
+    std::unique_ptr<TerrainMap> map = TerrainMap::Create(p).value();
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_TRUE(map->IntegrateScan(InSensorFrame(Sloped(GroundWithBox(), rise), sensor),
+                                     At(sensor))
+                      .ok());
+    }
+    EXPECT_TRUE(
+        map->IntegrateScan(InSensorFrame(Sloped(FarGroundOnly(), rise), sensor), At(sensor))
+            .ok());
+    EXPECT_EQ(map->EstimateAt(5.75, 0.05).state, CellState::kUnknown) << "the box is forgotten";
+    for (double y = -0.25; y <= 0.26; y += 0.1) {
+      const CellEstimate e = map->EstimateAt(5.15, y);
+      EXPECT_GT(e.traversability, 0.1f) << rise << ", " << y;  // a slope, not flat ground
+      EXPECT_EQ(e.state, CellState::kTraversable) << rise << ", " << y;
+      EXPECT_LT(e.traversability_variance, 0.05f) << rise << ", " << y;
+    }
   }
 }
 
