@@ -166,7 +166,8 @@ struct ScanIntegrator::Pass {
 
   // Reads of the map as the scan finds it.
   bool SeenTop(const Tile& tile, int i, double f, double* top) const;
-  void FillSeenTops(const Tile& tile, double* tops) const;
+  double ClearMarginOf(const Tile& tile, int i, double f, double disagreement) const;
+  void FillClearHeights(const Tile& tile, double* heights) const;
   double Elevation(CellIndex c) const;
   std::vector<CellIndex> Contradicted(const PreparedScan& scan, std::vector<ObservedCell>& appeared,
                                       std::vector<CellIndex>& risen) const;

@@ -66,14 +66,41 @@ bool ScanIntegrator::Pass::SeenTop(const Tile& tile, int i, double f, double* to
   return true;
 }
 
-// SeenTop of every cell of `tile`, kNone where unknown: SeenTop's arithmetic written out for a
+// How far below its seen top a ray must pass through cell i of `tile` (read with factor f) to
+// contradict it: clear_margin; nothing where the cell's Beta counts say ground (mean below
+// trav_threshold) but what it saw spreads by more than step_crit (disagreement D). Such a cell
+// holds the remains of something gone mixed into ground: a two-height mix whose higher part is
+// a share p of its weight stands sqrt(D (1 - p) / p) above the mean, more than sqrt(D) for
+// p < 1/2, so a ray below the top has gone through it (semantics "Dynamics").
+double ScanIntegrator::Pass::ClearMarginOf(const Tile& tile, int i, double f,
+                                           double disagreement) const {
+  const MapParams& p = self.params_;
+  if (!(disagreement > p.step_crit * p.step_crit) || !InfersTraversability(p.method)) {
+    return p.clear_margin;
+  }
+  // The counts as a tile brought to the scan's time holds them (forgetting's rounding).
+  const double a = static_cast<float>(static_cast<double>(tile.a()[i]) * f);
+  const double b = static_cast<float>(static_cast<double>(tile.b()[i]) * f);
+  if (!(a + b > 0.0)) return p.clear_margin;
+  const double alpha = p.alpha0 + a;
+  return alpha / (alpha + p.beta0 + b) < p.trav_threshold ? 0.0 : p.clear_margin;
+}
+
+// For every cell of `tile`, the height below which a ray passing through it contradicts it
+// (SeenTop less ClearMarginOf), kNone where unknown; SeenTop's arithmetic written out for a
 // tile without plane moments, in one pass over its arrays.
-void ScanIntegrator::Pass::FillSeenTops(const Tile& tile, double* tops) const {
+void ScanIntegrator::Pass::FillClearHeights(const Tile& tile, double* heights) const {
   const double f = ReadFactorOf(tile);
   const int n = tile.cell_count();
   if (tile.has_plane()) {
     for (int i = 0; i < n; ++i) {
-      if (!SeenTop(tile, i, f, &tops[i])) tops[i] = internal::TileSlabs::kNone;
+      double top = 0.0;
+      if (!SeenTop(tile, i, f, &top)) {
+        heights[i] = internal::TileSlabs::kNone;
+        continue;
+      }
+      const double d = Disagreement(f * tile.w()[i], f * tile.s()[i], f * tile.q()[i]);
+      heights[i] = top - ClearMarginOf(tile, i, f, d);
     }
     return;
   }
@@ -84,14 +111,14 @@ void ScanIntegrator::Pass::FillSeenTops(const Tile& tile, double* tops) const {
   for (int i = 0; i < n; ++i) {
     const double w = f * tw[i];
     if (!(w > 0.0)) {
-      tops[i] = internal::TileSlabs::kNone;
+      heights[i] = internal::TileSlabs::kNone;
       continue;
     }
     const double s = f * ts[i];
     const double height = (p.lambda * p.prior_mean + s) / (p.lambda + w);
     const double mean = s / w;  // Disagreement(w, s, q)
     const double disagreement = std::max(0.0, (f * tq[i]) / w - mean * mean);
-    tops[i] = height + std::sqrt(disagreement);
+    heights[i] = height + std::sqrt(disagreement) - ClearMarginOf(tile, i, f, disagreement);
   }
 }
 
@@ -133,31 +160,29 @@ CellBox RayBox(CellIndex end, double sx, double sy, double dist, double t0, doub
 
 // The cells the scan's rays pass clearly below on their way to their returns, once per ray
 // (semantics "Dynamics"), in the order the rays are walked. A ray whose lowest height over its
-// walk is not below the highest top (less the margin) of the blocks it crosses contradicts
-// nothing there and is not walked: the same cells, bit for bit (the heights and the tops'
-// differences are monotone in IEEE arithmetic).
+// walk is not below the highest clear height (FillClearHeights) of the blocks it crosses
+// contradicts nothing there and is not walked: the same cells, bit for bit.
 void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
                                                 std::vector<CellIndex>& out) const {
   const MapParams& p = self.params_;
-  const double margin = p.clear_margin;
   const double res = p.resolution;
   const double sx = scan.sensor_x / res, sy = scan.sensor_y / res;
   const double length = p.clear_ray_length / res;
   // Cells within l of the return are skipped: there the kernel blends the return's own
   // surface into its neighbours, and a ray that hit a face would "contradict" the blend.
   const double skip = p.kernel_length / res;
-  // The top of what a cell has seen: its elevation plus its disagreement's deviation, so an
-  // old object's remains, mixed with new ground, still stand above a grazing ray.
-  const auto fill = [&](TileKey key, double* tops) {
+  // Below the top of what a cell has seen: its elevation plus its disagreement's deviation, so
+  // an old object's remains, mixed with new ground, still stand above a grazing ray.
+  const auto fill = [&](TileKey key, double* heights) {
     const Tile* tile = window.at(key);
     if (tile == nullptr) return false;
-    FillSeenTops(*tile, tops);
+    FillClearHeights(*tile, heights);
     return true;
   };
-  internal::TileSlabs tops(scan, T, true, fill);
+  internal::TileSlabs clear(scan, T, true, fill);
   internal::TileCursor at(T);
   TileKey last_key{0, 0};
-  const double* tile_tops = nullptr;
+  const double* tile_clear = nullptr;
   bool have_last = false;
   for (const ObservedCell& oc : scan.cells) {
     const double dist = std::hypot(sx - (oc.cell.x + 0.5), sy - (oc.cell.y + 0.5));
@@ -166,17 +191,17 @@ void ScanIntegrator::Pass::AddRayContradictions(const PreparedScan& scan,
     const double limit = std::min(length, dist);        // the walk's t stays below it
     if (!(skip < limit)) continue;
     const double low = std::min(oc.y + rise * skip, oc.y + rise * limit);
-    if (!(low < tops.MaxIn(RayBox(oc.cell, sx, sy, dist, skip, limit)) - margin)) continue;
+    if (!(low < clear.MaxIn(RayBox(oc.cell, sx, sy, dist, skip, limit)))) continue;
     at.Reset(oc.cell);
     internal::WalkRayBack(oc.cell, sx, sy, length, dist, [&](CellIndex c, double t) {
       at.MoveTo(c);
       if (t < skip) return;
       if (!have_last || at.key != last_key) {  // the footprint holds every tile a ray crosses
         last_key = at.key;
-        tile_tops = tops.Of(at.key);
+        tile_clear = clear.Of(at.key);
         have_last = true;
       }
-      if (tile_tops != nullptr && oc.y + rise * t < tile_tops[at.index()] - margin) {
+      if (tile_clear != nullptr && oc.y + rise * t < tile_clear[at.index()]) {
         out.push_back(c);
       }
     });
