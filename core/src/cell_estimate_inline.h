@@ -53,13 +53,18 @@ inline uint8_t FailedConditions(const MapParams& p, bool infers_traversability,
 // P3' (docs/semantics.md, "Seen too little"): with dynamics, a cell that fails only for want of
 // traversability evidence (no value, or the variance alone) and holds less elevation weight than
 // thin_evidence_weight full-kernel observations is unknown, not an obstacle: it was barely seen.
-// One seen more than that whose Beta evidence is still thin had it reset again and again (a
-// changing place: a new object's edge) and stays blocked. Without dynamics the paper's rule.
+// Failing the variance alone, its thin evidence leans traversable (thin ground), and up to
+// thin_ground_weight if that is more. One seen more than that whose Beta evidence is still thin
+// had it reset again and again (a changing place: a new object's edge) and stays blocked.
+// Without dynamics the paper's rule.
 inline CellState StateOf(const MapParams& p, const EstimateConstants& k, uint8_t reasons,
                          double w) {
   if (reasons == 0) return CellState::kTraversable;
   const bool thin = reasons == kBlockedNoValue || reasons == kBlockedVariance;
-  const bool seen_little = w < p.thin_evidence_weight * k.full_kernel_weight;
+  const double limit = reasons == kBlockedVariance
+                           ? std::max(p.thin_evidence_weight, p.thin_ground_weight)
+                           : p.thin_evidence_weight;
+  const bool seen_little = w < limit * k.full_kernel_weight;
   return thin && seen_little && k.dynamic ? CellState::kUnknown : CellState::kNonTraversable;
 }
 

@@ -147,12 +147,25 @@ TEST(CellEstimateTest, SeenTooLittleIsUnknown) {
   // P3': seen more than thin_evidence_weight (0.5) full-kernel observations (3.8955 at 0.1 m
   // cells, l = 0.3 m) and still thin: its Beta evidence was reset again and again (a changing
   // place), blocked. Catches the weight condition dropped or taken against the wrong sum.
+  EXPECT_EQ(EstimateCell(p, 1.9, 0.95, 0.475, 0.0f, 0.0f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.0f, 0.0f).state, CellState::kNonTraversable);
+  // Thin ground (the variance alone, the mean leaning traversable) up to thin_ground_weight (1):
+  // unknown below one full-kernel observation, blocked from it on. Catches the ground weight
+  // applied to a cell without a value, or not applied.
+  EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 3.8, 1.9, 0.95, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 3.9, 1.95, 0.975, 0.05f, 0.3f).state, CellState::kNonTraversable);
+  p.thin_ground_weight = 0.25;  // less than thin_evidence_weight: the larger holds
   EXPECT_EQ(EstimateCell(p, 1.9, 0.95, 0.475, 0.05f, 0.3f).state, CellState::kUnknown);
   EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.05f, 0.3f).state, CellState::kNonTraversable);
-  EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.0f, 0.0f).state, CellState::kNonTraversable);
-  p.thin_evidence_weight = 0.0;  // off: the paper's state
+  p.thin_ground_weight = 1.0;
+  p.thin_evidence_weight = 0.0;  // thin ground still unknown below its own weight
+  EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.0f, 0.0f).state, CellState::kNonTraversable);
+  p.thin_ground_weight = 0.0;  // both off: the paper's state
   EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.05f, 0.3f).state, CellState::kNonTraversable);
   p.thin_evidence_weight = 0.5;
+  p.thin_ground_weight = 1.0;
   p.dynamics = Dynamics::kOff;
   EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.05f, 0.3f).state, CellState::kNonTraversable);
   EXPECT_EQ(EstimateCell(p, 1.0, 0.5, 0.25, 0.0f, 0.0f).state, CellState::kNonTraversable);

@@ -266,6 +266,7 @@ TEST(ForgettingTest, SensorScansReplayBitwiseAndOldEvidenceBecomesUncertain) {
   EXPECT_EQ(old.state, CellState::kUnknown);
   MapParams paper_state = p;
   paper_state.thin_evidence_weight = 0.0;
+  paper_state.thin_ground_weight = 0.0;
   const Tile* t = later->FindTile(later->geometry().TileOf(later->geometry().CellAt(1.0, 1.0)));
   const int i = later->geometry().LocalIndex(later->geometry().CellAt(1.0, 1.0));
   EXPECT_EQ(EstimateCell(paper_state, t->w()[i], t->s()[i], t->q()[i], t->a()[i], t->b()[i]).state,

@@ -137,9 +137,13 @@ TEST(BlockReasonsTest, BlockedExactlyWhenTheMapsStateRuleBlocks) {
         EXPECT_EQ(r != 0, known && e.state != CellState::kTraversable)
             << MethodName(method) << " w=" << w << " a=" << a << " b=" << b;
         // Seen too little (dynamics): unknown exactly when only a want of evidence fails and the
-        // cell holds less than thin_evidence_weight full-kernel observations.
+        // cell holds less than thin_evidence_weight full-kernel observations, or failing the
+        // variance alone, less than thin_ground_weight.
         const bool thin = r == kNoValue || r == kHighVariance;
-        const bool little = w < p.thin_evidence_weight * FullKernelWeight(p);
+        const double limit = r == kHighVariance
+                                 ? std::max(p.thin_evidence_weight, p.thin_ground_weight)
+                                 : p.thin_evidence_weight;
+        const bool little = w < limit * FullKernelWeight(p);
         EXPECT_EQ(known && e.state == CellState::kUnknown,
                   thin && little && dynamics == Dynamics::kOn)
             << MethodName(method) << " w=" << w << " a=" << a << " b=" << b;

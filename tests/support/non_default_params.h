@@ -26,6 +26,7 @@ inline MapParams NonDefaultParams() {
   p.trav_threshold = 0.4;
   p.variance_threshold = 0.1;
   p.thin_evidence_weight = 1.5;
+  p.thin_ground_weight = 2.5;
   p.pose_sigma_z = 0.02;
   p.min_range = 0.5;
   p.max_range = 80;
