@@ -11,21 +11,6 @@
 #include "tile_slabs.h"
 
 namespace bgkmap {
-namespace internal {
-
-// Calls fn(x, y_first, y_last) for each run of `cells` (sorted by (x, y)) that is consecutive in
-// one column: what a disk around each cell of a run reaches is then one range per column.
-template <class Fn>
-void ForEachColumnRun(const std::vector<CellIndex>& cells, Fn&& fn) {
-  for (size_t a = 0; a < cells.size();) {
-    size_t b = a + 1;
-    while (b < cells.size() && cells[b].x == cells[a].x && cells[b].y == cells[b - 1].y + 1) ++b;
-    fn(cells[a].x, cells[a].y, cells[b - 1].y);
-    a = b;
-  }
-}
-
-}  // namespace internal
 
 // The per-scan work, with the scan's window and parameters at hand.
 struct ScanIntegrator::Pass {
@@ -153,8 +138,6 @@ struct ScanIntegrator::Pass {
                        std::vector<const Tile*>& touched, std::vector<CellIndex>& forgotten) const;
   std::vector<CellIndex> GroundLeftBy(const std::vector<CellIndex>& forgotten,
                                       std::vector<const Tile*>& touched) const;
-  void ResetGroundLeftColumn(int x, int y_from, int y_to, int kernel_from, int kernel_to,
-                             std::vector<const Tile*>& touched, std::vector<CellIndex>& out) const;
   template <bool kSecondMoment>
   void AddPlaneElevation(const PreparedScan& scan) const;
   template <bool kSecondMoment, bool kGain>

@@ -10,6 +10,7 @@
 #include "ray_walk.h"
 #include "scan_pass.h"
 #include "scratch_buffer.h"
+#include "tile_row_marks.h"
 #include "tile_slabs.h"
 
 namespace bgkmap {
@@ -385,60 +386,50 @@ void ScanIntegrator::Pass::CutContradicted(
 // The cells near a forgotten cell that still hold Beta counts (the contradicted cells' were
 // zeroed by the cut): ground an object stood beside and left. Within l every one; beyond, as far
 // as the object's obstacle evidence reached (robot_radius + l: its step made v over r, spread
-// over l), those whose counts say "obstacle". Each is reset here, as ResetBetaNear would, and so
-// listed once.
+// over l), those whose counts, as of the scan's time, say "obstacle". Each is reset here, as
+// ResetBetaNear would, and so listed once. The cells are those of the union of the disks around
+// the forgotten cells, each visited once (forgotten cells lie close: their disks overlap).
 std::vector<CellIndex> ScanIntegrator::Pass::GroundLeftBy(const std::vector<CellIndex>& forgotten,
                                                           std::vector<const Tile*>& touched) const {
   std::vector<CellIndex> out;
-  if (!InfersTraversability(self.params_.method)) return out;
+  if (!InfersTraversability(self.params_.method) || forgotten.empty()) return out;
+  const MapParams& p = self.params_;
   const int R = self.evidence_reach_radius_, RK = self.kernel_.radius();
-  // `forgotten` is sorted by (x, y): a run of it in one column reaches, in column x + dx, from
-  // its first's y - h(dx) to its last's y + h(dx), and the kernel's support of some cell of it
-  // from its first's y - hk(dx) to its last's y + hk(dx).
-  internal::ForEachColumnRun(forgotten, [&](int x, int y0, int y1) {
-    for (int dx = -R; dx <= R; ++dx) {
-      const int h = self.evidence_reach_half_[dx + R];
-      if (h < 0) continue;
-      // Outside the kernel's columns no cell is within l of the run (an empty range).
-      const bool in_kernel = std::abs(dx) <= RK;
-      const int hk = in_kernel ? self.kernel_.half_width(dx + RK) : 0;
-      ResetGroundLeftColumn(x + dx, y0 - h, y1 + h, in_kernel ? y0 - hk : 1,
-                            in_kernel ? y1 + hk : 0, touched, out);
+  constexpr int kReach = 0, kWithinL = 1;
+  internal::TileRowMarks marks(T, 2);
+  // Both disks are symmetric: a row's half width is a column's half height.
+  marks.MarkDisks(kReach, forgotten, R, [&](int d) { return self.evidence_reach_half_[d + R]; });
+  marks.MarkDisks(kWithinL, forgotten, RK, [&](int d) { return self.kernel_.half_width(d + RK); });
+  Tile* tile = nullptr;
+  TileKey tile_key{0, 0};
+  double f = 1.0;  // the tile's counts brought to the scan's time, as forgetting would
+  marks.ForEachInFirst([&](TileKey key, int i, CellIndex c, const auto& in) {
+    if (tile == nullptr || !(key == tile_key)) {
+      tile_key = key;
+      tile = window.at(key);
+      f = tile != nullptr && forget ? self.ReadFactor(*tile, stamp) : 1.0;
     }
+    if (tile == nullptr) return;
+    float& a = tile->a()[i];
+    float& b = tile->b()[i];
+    if (a == 0.0f && b == 0.0f) return;
+    // Beyond l only obstacle evidence is suspect: ground evidence there was learnt from the
+    // cell's own surroundings, not only from the forgotten surface.
+    if (!in(kWithinL)) {
+      const double an = f == 1.0 ? a : static_cast<float>(static_cast<double>(a) * f);
+      const double bn = f == 1.0 ? b : static_cast<float>(static_cast<double>(b) * f);
+      if (p.alpha0 + an < p.trav_threshold * (p.alpha0 + p.beta0 + an + bn)) return;
+    }
+    if (forget) {
+      self.Advance(*tile, stamp);
+      f = 1.0;
+    }
+    a = b = 0.0f;
+    tile->MarkCellChanged(i);
+    if (touched.empty() || touched.back() != tile) touched.push_back(tile);
+    out.push_back(c);
   });
   return out;
-}
-
-// Column x from y_from to y_to of GroundLeftBy: every cell with counts in [kernel_from,
-// kernel_to] (within l of the forgotten run), the others only if their counts say "obstacle".
-void ScanIntegrator::Pass::ResetGroundLeftColumn(int x, int y_from, int y_to, int kernel_from,
-                                                 int kernel_to, std::vector<const Tile*>& touched,
-                                                 std::vector<CellIndex>& out) const {
-  const MapParams& p = self.params_;
-  const int lx = FloorMod(x, T), tx = FloorDiv(x, T);
-  for (int y = y_from; y <= y_to;) {
-    const TileKey key{tx, FloorDiv(y, T)};
-    const int seg_end = std::min(y_to, key.y * T + T - 1);
-    Tile* tile = window.at(key);
-    for (; tile != nullptr && y <= seg_end; ++y) {
-      const int i = FloorMod(y, T) * T + lx;
-      float& a = tile->a()[i];
-      float& b = tile->b()[i];
-      if (a == 0.0f && b == 0.0f) continue;
-      // Beyond l only obstacle evidence is suspect: ground evidence there was learnt from the
-      // cell's own surroundings, not only from the forgotten surface.
-      if ((y < kernel_from || y > kernel_to) &&
-          p.alpha0 + a < p.trav_threshold * (p.alpha0 + p.beta0 + a + b)) {
-        continue;
-      }
-      if (forget) self.Advance(*tile, stamp);
-      a = b = 0.0f;
-      tile->MarkCellChanged(i);
-      if (touched.empty() || touched.back() != tile) touched.push_back(tile);
-      out.push_back({x, y});
-    }
-    y = seg_end + 1;
-  }
 }
 
 ScanIntegrator::Pass::FreeSpace ScanIntegrator::Pass::ApplyFreeSpace(const PreparedScan& scan,

@@ -8,6 +8,7 @@
 #include "bgkmap/core/cell_estimate.h"
 #include "ray_walk.h"
 #include "scan_pass.h"
+#include "tile_row_marks.h"
 
 namespace bgkmap {
 namespace {
@@ -178,56 +179,26 @@ void ScanIntegrator::Pass::KeepGroundUnder(const PreparedScan& scan,
   // New entries per tile, merged into the tiles' sorted lists at the end: every test reads the
   // map as the scan found it.
   std::vector<std::pair<Tile*, Tile::PendingGround>> found;
-  // Only the tiles the scan writes: a cell elsewhere keeps its statistics through this scan.
   // Neighbouring appearances share most of their reach: each cell is looked at once.
-  struct Visited {
-    Tile* tile;
-    std::vector<uint64_t> bits;
-  };
-  std::vector<Visited> visited;
-  TileKey last_key{0, 0};
-  Visited* last = nullptr;
-  bool last_known = false;
-  const size_t words = (static_cast<size_t>(T) * T + 63) / 64;
-  auto visit = [&](CellIndex e) {
-    const TileKey key = self.geometry_.TileOf(e);
-    if (!last_known || !(key == last_key)) {
-      last_key = key;
-      last_known = true;
-      last = nullptr;
-      if (std::binary_search(scan.write_tiles.begin(), scan.write_tiles.end(), key)) {
-        Tile* tile = window.at(key);
-        auto it = std::find_if(visited.begin(), visited.end(),
-                               [&](const Visited& v) { return v.tile == tile; });
-        if (it == visited.end()) {
-          visited.push_back({tile, std::vector<uint64_t>(words, 0)});
-          it = visited.end() - 1;
-        }
-        last = &*it;
-      }
+  internal::TileRowMarks reach(T, 1);
+  const int R = self.evidence_reach_radius_;
+  reach.MarkDisks(0, appeared, R, [&](int d) { return self.evidence_reach_half_[d + R]; });
+  Tile* tile = nullptr;
+  TileKey tile_key{0, 0};
+  reach.ForEachInFirst([&](TileKey key, int i, CellIndex, const auto&) {
+    if (tile == nullptr || !(key == tile_key)) {
+      tile_key = key;
+      // Only the tiles the scan writes: a cell elsewhere keeps its statistics through this scan.
+      const bool writes = std::binary_search(scan.write_tiles.begin(), scan.write_tiles.end(), key);
+      tile = writes ? window.at(key) : nullptr;
     }
-    if (last == nullptr) return;
-    const int i = self.geometry_.LocalIndex(e);
-    uint64_t& word = last->bits[static_cast<size_t>(i) / 64];
-    const uint64_t bit = uint64_t{1} << (i % 64);
-    if (word & bit) return;
-    word |= bit;
-    const std::vector<Tile::PendingGround>& pending = last->tile->pending();
+    if (tile == nullptr) return;
+    const std::vector<Tile::PendingGround>& pending = tile->pending();
     const Tile::PendingGround probe{i, {}, 0, 0};
     if (std::binary_search(pending.begin(), pending.end(), probe, ByCell)) return;
-    const Tile::CellStats stats = last->tile->CellAt(i);
+    const Tile::CellStats stats = tile->CellAt(i);
     if (!IsTraversable(p, stats)) return;
-    found.push_back({last->tile, {i, stats, stamp, stamp}});
-  };
-  // `appeared` is sorted by (x, y): a run of it in one column reaches, in column x + dx, the
-  // cells from its first's y - h(dx) to its last's y + h(dx).
-  const int R = self.evidence_reach_radius_;
-  internal::ForEachColumnRun(appeared, [&](int x, int y0, int y1) {
-    for (int dx = -R; dx <= R; ++dx) {
-      const int h = self.evidence_reach_half_[dx + R];
-      if (h < 0) continue;
-      for (int y = y0 - h; y <= y1 + h; ++y) visit({x + dx, y});
-    }
+    found.push_back({tile, {i, stats, stamp, stamp}});
   });
   MergeIntoPending(found);
 }
