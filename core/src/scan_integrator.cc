@@ -117,11 +117,15 @@ ScanReport ScanIntegrator::Integrate(const PreparedScan& scan, const TileWindow&
   const std::vector<TileKey>& cleared = free_space.cleared;
   pass.AddElevation(scan);
   const auto t1 = Clock::now();
-  const std::vector<std::pair<CellIndex, float>> values = pass.TrainingValues(scan);
+  // The features' heights, read by the training values and by the ground re-learnt after them:
+  // what follows AddElevation changes the counts, not the elevations.
+  const auto fill = [&pass](TileKey key, double* z) { return pass.FillFeatureHeights(key, z); };
+  internal::TileSlabs heights(scan, params_.tile_size, false, fill);
+  const std::vector<std::pair<CellIndex, float>> values = pass.TrainingValues(scan, heights);
   report.feature_cells = values.size();
   const auto t2 = Clock::now();
   pass.AddTraversability(values);
-  pass.RelearnGroundLeft(scan, free_space.relearn);
+  pass.RelearnGroundLeft(free_space.relearn, heights);
   pass.AddFootprint(scan);
   const auto t3 = Clock::now();
 

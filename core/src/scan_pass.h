@@ -107,14 +107,20 @@ struct ScanIntegrator::Pass {
   // 1. Elevation (semantics 4): kernel sums, the plane moments too for bgk-ll, or the raw
   // running mean for baseline and one-step.
   void AddElevation(const PreparedScan& scan) const;
+  // The heights v is computed from at the cells of tile `key` (their elevations, or bgk-ll's own
+  // observations' means; NaN where none), false for a tile the window does not hold: the fill
+  // of the `heights` slabs below.
+  bool FillFeatureHeights(TileKey key, double* z) const;
   // 2. Traversability training values (semantics 6): v at each cell it is computed at.
-  std::vector<std::pair<CellIndex, float>> TrainingValues(const PreparedScan& scan) const;
+  // `heights` holds FillFeatureHeights (the elevations are final once AddElevation is done).
+  std::vector<std::pair<CellIndex, float>> TrainingValues(const PreparedScan& scan,
+                                                          internal::TileSlabs& heights) const;
   // 3. Traversability (semantics 7): Beta pseudo-counts spread by the kernel, or the latest direct
   // value for baseline and bgk-trav.
   void AddTraversability(const std::vector<std::pair<CellIndex, float>>& values) const;
   // 3b. Ground left by a forgotten object (dynamics): the cells of `relearn` that step 3 left
   // without counts learn v from the surface around them, at the cell only, unless it is 1.
-  void RelearnGroundLeft(const PreparedScan& scan, const std::vector<CellIndex>& relearn) const;
+  void RelearnGroundLeft(const std::vector<CellIndex>& relearn, internal::TileSlabs& heights) const;
   // 4. The robot's footprint (dynamics, sensor_height > 0): ground and traversable evidence at
   // each cell under the robot, at the cell only.
   void AddFootprint(const PreparedScan& scan) const;
@@ -155,7 +161,6 @@ struct ScanIntegrator::Pass {
   std::vector<CellIndex> Contradicted(const PreparedScan& scan, std::vector<ObservedCell>& appeared,
                                       std::vector<CellIndex>& risen) const;
   void AddRayContradictions(const PreparedScan& scan, std::vector<CellIndex>& out) const;
-  bool FillFeatureHeights(TileKey key, double* z) const;
   float ValueAt(CellIndex c, std::vector<PatchPoint>& patch, internal::TileSlabs& heights) const;
 };
 

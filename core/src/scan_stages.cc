@@ -564,12 +564,10 @@ std::vector<CellIndex> ScanIntegrator::Pass::KernelReachKnownCells(const Prepare
 }
 
 std::vector<std::pair<CellIndex, float>> ScanIntegrator::Pass::TrainingValues(
-    const PreparedScan& scan) const {
+    const PreparedScan& scan, internal::TileSlabs& heights) const {
   std::vector<PatchPoint> patch;
   patch.reserve(self.neighbourhood_.size());
   std::vector<std::pair<CellIndex, float>> values;
-  const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
-  internal::TileSlabs heights(scan, T, false, fill);
   const auto add = [&](CellIndex c) {
     const float v = ValueAt(c, patch, heights);
     if (!std::isnan(v)) values.emplace_back(c, v);
@@ -641,13 +639,11 @@ void ScanIntegrator::Pass::AddTraversability(
 // re-learns from the surface left around it, where that surface crosses no critical value, at
 // the weight of the elevations it rests on (docs/semantics.md, "Dynamics" 4). Its tile was reset
 // (GroundLeftBy): it is reported.
-void ScanIntegrator::Pass::RelearnGroundLeft(const PreparedScan& scan,
-                                             const std::vector<CellIndex>& relearn) const {
+void ScanIntegrator::Pass::RelearnGroundLeft(const std::vector<CellIndex>& relearn,
+                                             internal::TileSlabs& heights) const {
   if (relearn.empty()) return;
   std::vector<PatchPoint> patch;
   patch.reserve(self.neighbourhood_.size());
-  const auto fill = [&](TileKey key, double* z) { return FillFeatureHeights(key, z); };
-  internal::TileSlabs heights(scan, T, false, fill);
   const float ab_cap = self.caps_.ab;
   const double full_kernel = FullKernelWeight(self.params_);
   for (const CellIndex& c : relearn) {
