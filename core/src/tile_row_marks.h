@@ -63,6 +63,7 @@ class TileRowMarks {
   void ForEachInFirst(Fn&& fn) {
     std::sort(tiles_.begin(), tiles_.end(),
               [](const Marks& a, const Marks& b) { return a.key < b.key; });
+    last_ = nullptr;  // the sort moved the tiles
     for (const Marks& m : tiles_) {
       for (int ly = 0; ly < T_; ++ly) {
         for (int w = 0; w < words_per_row_; ++w) {
