@@ -16,6 +16,8 @@
 #                 integrated (--align-z: the robot's step of core/vertical_alignment.h,
 #                 docs/mapping-your-robot.md "Vertical alignment"); static_aligned checks that
 #                 it does not hurt perfect poses
+#   *_levelled    aligned, and each scan's roll and pitch levelled against the map too
+#                 (--align-tilt 1, docs/mapping-your-robot.md "Levelling the tilt")
 # Scores: AUC against the ground truth (the world at the last scan), the driven cells (final
 # map, and on arrival: the map just before the robot drives onto them) with their causes, stale
 # trails (cells a vehicle left that are still non-traversable 5 scans later) and missed new
@@ -68,6 +70,11 @@ RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
   evaluate static_noise_stated_aligned static --pose-noise 1 --align-z --no-figures
 RUN_CONFIG="$ROOT/experiments/robots/car_sim_pose_error.yaml" \
   evaluate traffic_noise_stated_aligned traffic --pose-noise 1 --align-z --no-figures
+# Roll and pitch levelled too (--align-tilt 1: the robot's step for a localization whose tilt
+# errs, docs/mapping-your-robot.md "Levelling the tilt"); static_levelled checks perfect poses.
+evaluate static_levelled static --align-z --align-tilt 1 --no-figures
+evaluate static_noise_levelled static --pose-noise 1 --align-z --align-tilt 1 --no-figures
+evaluate traffic_noise_levelled traffic --pose-noise 1 --align-z --align-tilt 1 --no-figures
 evaluate static_on_traffic_cells static --traffic "$OUT/sim/traffic/traffic.json" --no-odd-even \
   --no-figures
 
@@ -76,7 +83,8 @@ import json, sys, os
 out = sys.argv[1]
 runs = ["static", "traffic", "static_noise", "traffic_noise", "static_noise_stated",
         "traffic_noise_stated", "static_aligned", "static_noise_aligned", "traffic_noise_aligned",
-        "static_noise_stated_aligned", "traffic_noise_stated_aligned", "static_on_traffic_cells"]
+        "static_noise_stated_aligned", "traffic_noise_stated_aligned", "static_levelled",
+        "static_noise_levelled", "traffic_noise_levelled", "static_on_traffic_cells"]
 pct = lambda v: "n/a" if v is None else "%.2f" % (100 * v)
 ref = {m["method"]: m for m in json.load(open(os.path.join(out, "static", "eval.json")))["methods"]}
 print("| Run | Method | AUC | AUC - reference | Driven: traversable, final (%) | On arrival: known / "

@@ -10,7 +10,9 @@
 # with that error stated by the robot (pose_sigma_z: 0.03, docs/semantics.md "Pose noise").
 # Then each of the three again with every scan's z aligned to the map built so far before it is
 # integrated (--align-z, the robot's step of core/vertical_alignment.h; docs/mapping-your-robot.md
-# "Vertical alignment"), and twice the error (--pose-noise 2) without and with the alignment.
+# "Vertical alignment"), twice the error (--pose-noise 2) without and with the alignment, and
+# no error and the error with the scans' roll and pitch levelled too (--align-tilt 1,
+# "Levelling the tilt").
 #   scripts/real-drives.sh [build-dir] [out-dir]       (about three minutes on 2 vCPUs)
 # Writes $OUT/<sequence>[_noise]/{eval.json,table.md,drive_<method>.png} and $OUT/table.md.
 # METHODS (default bgk+) is passed to --methods.
@@ -37,12 +39,12 @@ for run in "${RUNS[@]}"; do
   # 1s: the same added error, stated by the robot (pose_sigma_z: its 3 cm of z jitter).
   cat "$ROBOTS/$robot.yaml" > "$OUT/$robot-stated.yaml"
   echo "pose_sigma_z: 0.03" >> "$OUT/$robot-stated.yaml"
-  # a: aligned (--align-z).
-  for noise in 0 1 1s 0a 1a 1sa 2 2a; do
+  # a: aligned (--align-z); l: aligned and levelled (--align-z --align-tilt 1).
+  for noise in 0 1 1s 0a 1a 1sa 2 2a 0l 1l; do
     name="$seq"
     args=()
     config="$ROBOTS/$robot.yaml"
-    level="${noise%%[sa]*}"
+    level="${noise%%[sal]*}"
     if [[ "$level" != 0 ]]; then
       name="${seq}_noise$noise"
       args=(--pose-noise "$level")
@@ -51,6 +53,7 @@ for run in "${RUNS[@]}"; do
     fi
     [[ "$noise" == *s* ]] && config="$OUT/$robot-stated.yaml"
     [[ "$noise" == *a ]] && args+=(--align-z)
+    [[ "$noise" == *l ]] && args+=(--align-z --align-tilt 1)
     echo "real-drives: $name ($SECONDS s so far)"
     "$BGKMAP" eval "$DATA/$seq" --config "$config" --footprint-radius "$radius" \
       --methods "$METHODS" --name "$name" --out "$OUT/$name" "${args[@]}" > /dev/null
@@ -68,12 +71,13 @@ print("| Sequence | Robot | Footprint | Pose error | Method | Scans | Driven cel
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for run in runs:
     seq, robot, radius = run.split("|")
-    for noise in ("0", "1", "1s", "0a", "1a", "1sa", "2", "2a"):
-        level = noise.rstrip("sa")
+    for noise in ("0", "1", "1s", "0a", "1a", "1sa", "2", "2a", "0l", "1l"):
+        level = noise.rstrip("sal")
         name = seq if noise == "0" else seq + "_" + noise if level == "0" else seq + "_noise" + noise
         error = "none" if level == "0" else "x" + level
         error += ", stated" if "s" in noise else ""
         error += ", aligned" if noise.endswith("a") else ""
+        error += ", aligned and levelled" if noise.endswith("l") else ""
         j = json.load(open(os.path.join(out, name, "eval.json")))
         for m in j["methods"]:
             d, a, b = m["drive"], m["drive_on_arrival"], m["drive"]["blocked_by"]

@@ -111,6 +111,10 @@ VerticalAlignment AlignScanVertically(const MapParams& p, const PreparedScan& sc
   return a;
 }
 
+double VerticalAlignment::TiltDegrees() const {
+  return std::atan(std::max(std::abs(slope_x), std::abs(slope_y))) * 180.0 / std::numbers::pi;
+}
+
 MapHeightLookup MapHeightsOf(const TerrainMap& map) {
   return [&map](CellIndex cell) {
     const CellEstimate e = map.Estimate(cell);

@@ -180,6 +180,11 @@ Result<Pose> PoseToIntegrate(const MapParams& params, const SourceScan& scan, co
       ++stats->aligned;
       stats->sum_abs_dz += std::abs(a.dz);
       stats->max_abs_dz = std::max(stats->max_abs_dz, std::abs(a.dz));
+      if (a.slope_x != 0 || a.slope_y != 0) {
+        ++stats->levelled;
+        stats->sum_tilt_deg += a.TiltDegrees();
+        stats->max_tilt_deg = std::max(stats->max_tilt_deg, a.TiltDegrees());
+      }
       break;
     case AlignmentOutcome::kBeyondBound:
       ++stats->beyond_bound;
@@ -347,6 +352,10 @@ int LoadInputs(const EvalOptions& o, EvalInputs* in) {
     return Usage("--trail-scans and --new-obstacle-scans must be at least 1");
   if (!(o.pose_noise >= 0)) return Usage("--pose-noise must be >= 0");
   if (!(o.align.radius_m > 0)) return Usage("--align-z-radius must be > 0");
+  if (!(o.align.max_tilt_deg >= 0 && o.align.max_tilt_deg <= 10))
+    return Usage("--align-tilt must be between 0 and 10 degrees");
+  if (o.align.max_tilt_deg > 0 && !o.align_z)
+    return Usage("--align-tilt levels what --align-z compares: give both");
   Result<sim::PoseNoiseOptions> noise = PoseNoiseOf(o);
   if (!noise.ok()) return Usage(noise.status().message());
   for (const std::string& name : o.methods) {
@@ -596,9 +605,9 @@ void RegisterEvalCommand(CLI::App& app, int& exit_code) {
                 "localization would (core/vertical_alignment.h; docs/mapping-your-robot.md, "
                 "\"Vertical alignment\"): the odd, even and real-time maps each to their own");
   cmd->add_option("--align-tilt", o->align.max_tilt_deg,
-                  "With --align-z, experimental: also level each scan's tilt against the map, up "
-                  "to this many degrees (default 0: off)")
-      ->group("");
+                  "With --align-z: also level each scan's roll and pitch against the map, up to "
+                  "this many degrees (default 0: off; docs/mapping-your-robot.md, \"Levelling the "
+                  "tilt\")");
   cmd->add_option("--align-z-radius", o->align.radius_m,
                   "With --align-z: compare the cells within this distance of the sensor (m, "
                   "default 20)");

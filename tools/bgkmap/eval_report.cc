@@ -258,6 +258,9 @@ std::string ToJson(const EvalReport& r) {
           {"beyond_bound_scans", a.beyond_bound},
           {"mean_abs_dz_m", JsonNumber<Json>(a.aligned > 0 ? a.sum_abs_dz / n : 0.0)},
           {"max_abs_dz_m", JsonNumber<Json>(a.max_abs_dz)},
+          {"levelled_scans", a.levelled},
+          {"mean_tilt_deg", JsonNumber<Json>(a.levelled > 0 ? a.sum_tilt_deg / a.levelled : 0.0)},
+          {"max_tilt_deg", JsonNumber<Json>(a.max_tilt_deg)},
           {"mean_align_s", JsonNumber<Json>(m.scans > 0 ? a.seconds / m.scans : 0.0)}};
     }
     if (r.has_odd_even) {

@@ -20,8 +20,10 @@ namespace bgkmap::cli {
 // pass; core/vertical_alignment.h).
 struct AlignmentStats {
   size_t aligned = 0, too_few_cells = 0, beyond_bound = 0;
-  double sum_abs_dz = 0, max_abs_dz = 0;  // m, over the aligned scans
-  double seconds = 0;                     // preparing and comparing, outside the stage times
+  double sum_abs_dz = 0, max_abs_dz = 0;      // m, over the aligned scans
+  size_t levelled = 0;                        // aligned scans whose tilt was levelled too
+  double sum_tilt_deg = 0, max_tilt_deg = 0;  // over the levelled scans
+  double seconds = 0;                         // preparing and comparing, outside the stage times
 };
 
 struct MethodResult {

@@ -68,12 +68,20 @@ void PrintAlignment(const ServedAlignmentStats& a) {
       a.aligned > 0 ? a.sum_abs_dz / static_cast<double>(a.aligned) : 0.0, a.max_abs_dz,
       static_cast<unsigned long long>(a.not_aligned),
       static_cast<double>(a.region_bytes) / scans / 1000.0, 1000.0 * a.seconds / scans);
+  if (a.levelled > 0) {
+    std::printf("bgkmap insert: --align-tilt: %llu scans levelled (largest tilt %.3f deg)\n",
+                static_cast<unsigned long long>(a.levelled), a.max_tilt_deg);
+  }
 }
 
 int RunInsert(const InsertOptions& o) {
   if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
   if (!(o.align.align.radius_m > 0) || o.align.stride < 1)
     return Usage("insert", "--align-z-radius must be > 0 and --align-z-stride >= 1");
+  if (!(o.align.align.max_tilt_deg >= 0 && o.align.align.max_tilt_deg <= 10))
+    return Usage("insert", "--align-tilt must be between 0 and 10 degrees");
+  if (o.align.align.max_tilt_deg > 0 && !o.align_z)
+    return Usage("insert", "--align-tilt levels what --align-z compares: give both");
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, o.source);
   if (!source.ok()) return Fail("insert", source.status().message());
   ReportSkipped("insert", **source, o.source);
@@ -233,6 +241,10 @@ void RegisterInsertCommand(CLI::App& app, int& exit_code) {
                 "Align each scan's z to the served map before sending it, as a localization "
                 "with vertical drift would (docs/mapping-your-robot.md, \"Vertical alignment\"): "
                 "waits for each scan's ack, then one region query per scan");
+  cmd->add_option("--align-tilt", o->align.align.max_tilt_deg,
+                  "With --align-z: also level each scan's roll and pitch against the map, up to "
+                  "this many degrees (0: off; docs/mapping-your-robot.md, \"Levelling the tilt\")")
+      ->capture_default_str();
   cmd->add_option("--align-z-radius", o->align.align.radius_m,
                   "With --align-z: compare the cells within this distance of the sensor (m)")
       ->capture_default_str();

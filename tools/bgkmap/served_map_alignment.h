@@ -25,6 +25,8 @@ struct ServedAlignmentOptions {
 struct ServedAlignmentStats {
   uint64_t aligned = 0, not_aligned = 0;
   double sum_abs_dz = 0, max_abs_dz = 0;  // m, over the aligned scans
+  uint64_t levelled = 0;                  // aligned scans whose tilt was levelled too
+  double max_tilt_deg = 0;                // the largest slope levelled, in x or y
   uint64_t region_bytes = 0;              // the queries' raster payloads (pixels x layers x 4)
   double seconds = 0;                     // preparing, querying and comparing
 };

@@ -78,6 +78,9 @@ struct VerticalAlignment {
   // AlignedPose's turn about the sensor; dz is then the median offset once it is taken out.
   double slope_x = 0.0, slope_y = 0.0;
   AlignmentOutcome outcome = AlignmentOutcome::kTooFewCells;
+
+  // The larger of the two slopes levelled, as an angle in degrees (0 if none).
+  double TiltDegrees() const;
 };
 
 // The median of (scan's height - map's elevation) over the scan's observed cells within
