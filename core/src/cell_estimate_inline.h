@@ -54,9 +54,9 @@ inline uint8_t FailedConditions(const MapParams& p, bool infers_traversability,
 // traversability evidence (no value, or the variance alone) and holds less elevation weight than
 // thin_evidence_weight full-kernel observations is unknown, not an obstacle: it was barely seen.
 // Failing the variance alone, its thin evidence leans traversable (thin ground), and up to
-// thin_ground_weight if that is more. One seen more than that whose Beta evidence is still thin
-// had it reset again and again (a changing place: a new object's edge) and stays blocked.
-// Without dynamics the paper's rule.
+// thin_ground_weight if that is more (by default above the confidence cap: always). A cell
+// without a value seen more than that had its Beta evidence reset beside something forgotten
+// (a wall beside a vanished box) and stays blocked. Without dynamics the paper's rule.
 inline CellState StateOf(const MapParams& p, const EstimateConstants& k, uint8_t reasons,
                          double w) {
   if (reasons == 0) return CellState::kTraversable;

@@ -288,8 +288,8 @@ const std::vector<MapParamInfo>& Table() {
                "0.5"),
         Legacy(Real("thin_ground_weight", &P::thin_ground_weight, kDerived, ThinWeight,
                     "a cell blocked by the variance alone, its evidence leaning traversable, "
-                    "seen less (full-kernel observations) is unknown"),
-               "1"),
+                    "seen less (full-kernel observations) is unknown; 100: always"),
+               "100"),
         Real("min_range", &P::min_range, kStats, FiniteNonNegative,
              "drop closer points (the robot's own body), metres"),
         Real("max_range", &P::max_range, kStats, MaxRange, "drop farther points, metres"),

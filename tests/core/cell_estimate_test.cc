@@ -149,10 +149,16 @@ TEST(CellEstimateTest, SeenTooLittleIsUnknown) {
   // place), blocked. Catches the weight condition dropped or taken against the wrong sum.
   EXPECT_EQ(EstimateCell(p, 1.9, 0.95, 0.475, 0.0f, 0.0f).state, CellState::kUnknown);
   EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.0f, 0.0f).state, CellState::kNonTraversable);
-  // Thin ground (the variance alone, the mean leaning traversable) up to thin_ground_weight (1):
-  // unknown below one full-kernel observation, blocked from it on. Catches the ground weight
-  // applied to a cell without a value, or not applied.
+  // Thin ground (the variance alone, the mean leaning traversable) is unknown however much it
+  // was seen with the default thin_ground_weight (100: above the confidence cap of 20
+  // full-kernel observations); with thin_ground_weight 1, unknown below one full-kernel
+  // observation and blocked from it on. Catches the ground weight applied to a cell without a
+  // value, or not applied.
   EXPECT_EQ(EstimateCell(p, 2.0, 1.0, 0.5, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 3.9, 1.95, 0.975, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 77.9, 38.95, 19.475, 0.05f, 0.3f).state, CellState::kUnknown);
+  EXPECT_EQ(EstimateCell(p, 77.9, 38.95, 19.475, 0.0f, 0.0f).state, CellState::kNonTraversable);
+  p.thin_ground_weight = 1.0;
   EXPECT_EQ(EstimateCell(p, 3.8, 1.9, 0.95, 0.05f, 0.3f).state, CellState::kUnknown);
   EXPECT_EQ(EstimateCell(p, 3.9, 1.95, 0.975, 0.05f, 0.3f).state, CellState::kNonTraversable);
   p.thin_ground_weight = 0.25;  // less than thin_evidence_weight: the larger holds

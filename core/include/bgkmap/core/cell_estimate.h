@@ -89,7 +89,7 @@ struct CellEstimate {
 // than a step the robot can take (sqrt(D) > step_crit) is non-traversable; one that fails only
 // for want of evidence (kBlockedNoValue or kBlockedVariance alone) with W < thin_evidence_weight
 // FullKernelWeight(p) is unknown, seen too little; failing the variance alone, also with
-// W < thin_ground_weight FullKernelWeight(p).
+// W < thin_ground_weight FullKernelWeight(p) (by default above the confidence cap: always).
 // bgk-ll: `plane` holds the cell's Tile::kPlaneMoments plane moments (Tile::PlaneOf), and the
 // elevation is the intercept of the local plane fit (FitLocalPlane) instead of the kernel mean;
 // the disagreement is the fit's residual instead of the spread around the mean; the elevation

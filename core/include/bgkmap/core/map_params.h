@@ -77,7 +77,7 @@ struct MapParams {
   double thin_evidence_weight = 0.5;
   // The same for a cell failing the variance alone, its thin evidence leaning traversable (thin
   // ground, not a thin sign of an obstacle): unknown below the larger of the two weights.
-  double thin_ground_weight = 1.0;
+  double thin_ground_weight = 100.0;
   double min_range = 1.0;
   double max_range = 100.0;
   double max_height_above_sensor = 0.5;
