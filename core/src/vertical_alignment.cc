@@ -126,7 +126,7 @@ MapHeightLookup MapHeightsOf(const TerrainMap& map) {
 Pose AlignedPose(const Pose& pose, const VerticalAlignment& alignment) {
   Pose aligned = pose;
   aligned.translation.z() -= alignment.dz;
-  if (alignment.slope_x != 0 || alignment.slope_y != 0) {
+  if (alignment.Levelled()) {
     // Turn the scan about the sensor so that its heights fall by slope_x dx + slope_y dy: about
     // the map's y axis by atan(slope_x) (z' = z - sin(a) x) and its x axis by -atan(slope_y).
     const Eigen::Matrix3d level =

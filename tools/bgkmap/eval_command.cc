@@ -180,7 +180,7 @@ Result<Pose> PoseToIntegrate(const MapParams& params, const SourceScan& scan, co
       ++stats->aligned;
       stats->sum_abs_dz += std::abs(a.dz);
       stats->max_abs_dz = std::max(stats->max_abs_dz, std::abs(a.dz));
-      if (a.slope_x != 0 || a.slope_y != 0) {
+      if (a.Levelled()) {
         ++stats->levelled;
         stats->sum_tilt_deg += a.TiltDegrees();
         stats->max_tilt_deg = std::max(stats->max_tilt_deg, a.TiltDegrees());

@@ -50,7 +50,7 @@ Result<VerticalAlignment> AlignToServedMap(Client& client, const MapParams& para
     ++stats->aligned;
     stats->sum_abs_dz += std::abs(a.dz);
     stats->max_abs_dz = std::max(stats->max_abs_dz, std::abs(a.dz));
-    if (a.slope_x != 0 || a.slope_y != 0) {
+    if (a.Levelled()) {
       ++stats->levelled;
       stats->max_tilt_deg = std::max(stats->max_tilt_deg, a.TiltDegrees());
     }

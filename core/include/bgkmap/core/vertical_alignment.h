@@ -79,6 +79,7 @@ struct VerticalAlignment {
   double slope_x = 0.0, slope_y = 0.0;
   AlignmentOutcome outcome = AlignmentOutcome::kTooFewCells;
 
+  bool Levelled() const { return slope_x != 0 || slope_y != 0; }
   // The larger of the two slopes levelled, as an angle in degrees (0 if none).
   double TiltDegrees() const;
 };
