@@ -5,6 +5,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <mutex>
+#include <string>
 #include <thread>
 
 #include "bgkmap/io/progress_bar.h"
@@ -74,14 +75,20 @@ void PrintAlignment(const ServedAlignmentStats& a) {
   }
 }
 
-int RunInsert(const InsertOptions& o) {
-  if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return Usage("insert", "--rate must be >= 0");
+// What is wrong with the options, or "" (checked before anything is read or sent).
+std::string OptionsError(const InsertOptions& o) {
+  if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) return "--rate must be >= 0";
   if (!(o.align.align.radius_m > 0) || o.align.stride < 1)
-    return Usage("insert", "--align-z-radius must be > 0 and --align-z-stride >= 1");
+    return "--align-z-radius must be > 0 and --align-z-stride >= 1";
   if (!(o.align.align.max_tilt_deg >= 0 && o.align.align.max_tilt_deg <= 10))
-    return Usage("insert", "--align-tilt must be between 0 and 10 degrees");
+    return "--align-tilt must be between 0 and 10 degrees";
   if (o.align.align.max_tilt_deg > 0 && !o.align_z)
-    return Usage("insert", "--align-tilt levels what --align-z compares: give both");
+    return "--align-tilt levels what --align-z compares: give both";
+  return "";
+}
+
+int RunInsert(const InsertOptions& o) {
+  if (const std::string error = OptionsError(o); !error.empty()) return Usage("insert", error);
   Result<std::unique_ptr<ScanSource>> source = OpenScanSource(o.input, o.source);
   if (!source.ok()) return Fail("insert", source.status().message());
   ReportSkipped("insert", **source, o.source);
