@@ -211,6 +211,14 @@ TEST_F(DriveEvalTest, BadCommandLinesAreRefused) {
   run = RunCli("eval " + seq + " --out " + out + " --footprint-radius 1 --align-z-radius 0");
   EXPECT_EQ(run.exit_code, 2) << run.output;
   EXPECT_NE(run.output.find("--align-z-radius"), std::string::npos) << run.output;
+  run = RunCli("eval " + seq + " --out " + out + " --footprint-radius 1 --align-tilt 1");
+  EXPECT_EQ(run.exit_code, 2) << run.output;  // levelling needs the offset it levels
+  EXPECT_NE(run.output.find("--align-tilt levels what --align-z compares"), std::string::npos)
+      << run.output;
+  run =
+      RunCli("eval " + seq + " --out " + out + " --footprint-radius 1 --align-z --align-tilt nan");
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_NE(run.output.find("between 0 and 10 degrees"), std::string::npos) << run.output;
   run = RunCli("eval " + seq + " --out " + out + " --footprint-radius 1 --poses " +
                (*dir_ / "short_poses.txt").string());
   EXPECT_EQ(run.exit_code, 1) << run.output;
